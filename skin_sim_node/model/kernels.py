@@ -1,0 +1,328 @@
+"""All numba kernels of the skin model (emg3d ``core.py`` style).
+
+Every kernel takes plain arrays and scalars and writes into preallocated outputs, so
+a haptic tick allocates nothing. Each is tested compiled and as ``.py_func`` against
+the NumPy reference in :mod:`skin_sim_node.model.reference`. Units are SI; depths and
+displacements are positive downward (into the tissue).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+JIT = {"cache": True, "nogil": True}
+
+# Step flags (bit field returned by step_kernel).
+FLAG_CONTACT = 1
+FLAG_BOTTOMED = 2  # tool below the tissue bottom: depth clamped
+FLAG_LAYER_BOUND = 4  # a Reuss compression hit 0 or the layer thickness
+FLAG_SEPARATED = 8  # tool retracted faster than the tissue: unilateral contact released
+FLAG_OFF_SHEET = 16  # tool tip outside the sheet's x-y extent
+
+# Indices into step_kernel's `out` array.
+OUT_FORCE_N = 0
+OUT_STRESS_PA = 1
+OUT_DEPTH_M = 2
+OUT_N_AFFECTED = 3
+OUT_SURFACE_M = 4  # surface displacement under the tool before this tick
+OUT_SIZE = 8
+
+
+@njit(**JIT)
+def layer_bounds(x, y, iface_mean, iface_amp, iface_kx, iface_ky, bottom_m, out_bounds):
+    """Depths of the layer tops at ``(x, y)`` and the bottom: ``out_bounds[0] = 0`` (surface),
+    ``out_bounds[1..L-1]`` the egg-carton interfaces (section II.C), ``out_bounds[L]`` the bottom.
+    ``iface_kx = 2 pi / wavelength_x``."""
+    out_bounds[0] = 0.0
+    for j in range(iface_mean.shape[0]):
+        out_bounds[j + 1] = iface_mean[j] - iface_amp[j] * math.cos(iface_kx[j] * x) * math.cos(iface_ky[j] * y)
+    out_bounds[iface_mean.shape[0] + 1] = bottom_m
+
+
+@njit(**JIT)
+def count_affected(depth_m, bounds):
+    """Number of layers whose top lies above the tool tip (Fig 3): the first n are affected."""
+    n = 0
+    for i in range(bounds.shape[0] - 1):
+        if depth_m > bounds[i]:
+            n += 1
+    return n
+
+
+@njit(**JIT)
+def reuss_split(n, depth_m, velocity_m_s, k, b, area, thickness, out_comp):
+    """Iso-stress (Reuss) split of ``depth_m`` over the first ``n`` Kelvin-Voigt layers.
+
+    From eq 4 (equal stress) and eq 6 (``sigma = (k_i dx_i + b_i xdot) / A_i``, common
+    ``xdot``) with ``sum dx_i = depth``::
+
+        sigma = (depth + xdot * sum(b_i / k_i)) / sum(A_i / k_i)
+        dx_i  = (sigma * A_i - b_i * xdot) / k_i
+
+    A compression outside ``[0, thickness_i]`` is held at that bound and the rest of
+    the depth is split over the remaining layers (active set, at most n passes).
+    Writes ``out_comp[:n]``; returns ``(stress_pa, force_n, hit_bound)``. The force on the
+    tool is the stress transmitted through the stack times the top layer's area,
+    ``sigma A_0`` (= ``k_0 dx_0 + b_0 xdot`` while the top layer is within its bounds).
+    """
+    fixed = 0  # bit i set: layer i held at a bound
+    hit = False
+    sigma = 0.0
+    for _ in range(n + 1):
+        rest = depth_m
+        s_a = 0.0
+        s_b = 0.0
+        for i in range(n):
+            if fixed >> i & 1:
+                rest -= out_comp[i]
+            else:
+                s_a += area[i] / k[i]
+                s_b += b[i] / k[i]
+        if s_a <= 0.0:
+            break
+        sigma = (rest + velocity_m_s * s_b) / s_a
+        worst = -1
+        worst_excess = 0.0
+        for i in range(n):
+            if not fixed >> i & 1:
+                c = (sigma * area[i] - b[i] * velocity_m_s) / k[i]
+                out_comp[i] = c
+                excess = max(-c, c - thickness[i])
+                if excess > worst_excess:
+                    worst_excess = excess
+                    worst = i
+        if worst < 0:
+            break
+        hit = True
+        fixed |= 1 << worst
+        out_comp[worst] = 0.0 if out_comp[worst] < 0.0 else thickness[worst]
+    if n > 0 and fixed == (1 << n) - 1:
+        # every layer at a bound (tool at the bottom): the stiffest layer's stress carries it
+        sigma = 0.0
+        for i in range(n):
+            sigma = max(sigma, (k[i] * out_comp[i] + b[i] * velocity_m_s) / area[i])
+    force = sigma * area[0] if n > 0 else 0.0
+    return sigma, force, hit
+
+
+@njit(**JIT)
+def modal_propagator(lam, gamma, dt, out_prop):
+    """Exact one-step transition of ``q'' + 2 gamma q' + lam^2 q = 0`` per mode (eq 2, damped).
+
+    ``lam`` has shape (L, K), ``gamma`` (L,); writes ``out_prop[0..3]`` = P11, P12, P21, P22 so
+    that ``q1 = P11 q0 + P12 v0`` and ``v1 = P21 q0 + P22 v0``. Closed form for under-,
+    critically and over-damped modes, so any ``dt >= 0`` is stable.
+    """
+    for li in range(lam.shape[0]):
+        g = gamma[li]
+        for kk in range(lam.shape[1]):
+            w2 = lam[li, kk] ** 2
+            disc = w2 - g * g
+            if disc > 0.0:
+                w = math.sqrt(disc)
+                e = math.exp(-g * dt)
+                ec = e * math.cos(w * dt)
+                es = e * (math.sin(w * dt) / w)
+            else:
+                s = math.sqrt(-disc)
+                e1 = math.exp(-(g - s) * dt)
+                e2 = math.exp(-(g + s) * dt)
+                ec = 0.5 * (e1 + e2)
+                es = 0.5 * (e1 - e2) / s if s * dt > 1e-8 else dt * math.exp(-g * dt)
+            out_prop[0, li, kk] = ec + g * es
+            out_prop[1, li, kk] = es
+            out_prop[2, li, kk] = -w2 * es
+            out_prop[3, li, kk] = ec - g * es
+
+
+@njit(**JIT)
+def sine_table(theta, n_max, out):
+    """``out[j] = sin(j * theta)`` for j = 0..n_max by the Chebyshev recurrence."""
+    out[0] = 0.0
+    if n_max >= 1:
+        out[1] = math.sin(theta)
+    two_c = 2.0 * math.cos(theta)
+    for j in range(2, n_max + 1):
+        out[j] = two_c * out[j - 1] - out[j - 2]
+
+
+@njit(**JIT)
+def layer_point_displacement(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y, sx_buf, sy_buf):
+    """One layer's displacement (m, down) at ``(x, y)``: eq 2 summed over its modes, on the
+    patch ``[cx - a/2, cx + a/2] x [cy - b/2, cy + b/2]``; zero outside the patch."""
+    xi = x - cx + 0.5 * patch_a
+    eta = y - cy + 0.5 * patch_b
+    if xi <= 0.0 or xi >= patch_a or eta <= 0.0 or eta >= patch_b:
+        return 0.0
+    sine_table(math.pi * xi / patch_a, sx_buf.shape[0] - 1, sx_buf)
+    sine_table(math.pi * eta / patch_b, sy_buf.shape[0] - 1, sy_buf)
+    u = 0.0
+    for kk in range(q_l.shape[0]):
+        u += q_l[kk] * sx_buf[mode_m[kk]] * sy_buf[mode_n[kk]]
+    return u
+
+
+@njit(**JIT)
+def step_kernel(
+    tool_x, tool_y, tool_z, tool_vz, dt,
+    k, b, area, iface_mean, iface_amp, iface_kx, iface_ky, bottom_m, half_x, half_y,
+    beta, mode_m, mode_n, patch_a, patch_b, lam, gamma,
+    q, v, centre, driven, comp, prop, prop_dt, bounds, thick, sx_buf, sy_buf, out,
+):  # fmt: skip
+    """One haptic tick of the layered model: contact, Reuss force and modal state.
+
+    Steps 1-5 of section II.D.4. Layers the tool affects are driven quasi-statically
+    (``q = dx_l * beta``, centred on the tool); the others evolve freely with the exact
+    damped modal propagator (release and return). Contact is unilateral and is tested
+    against the current deformed surface. Writes ``out`` (see ``OUT_*``) and returns flags.
+    """
+    n_layers = q.shape[0]
+    flags = 0
+    if dt != prop_dt[0]:
+        modal_propagator(lam, gamma, dt, prop)
+        prop_dt[0] = dt
+    depth = -tool_z
+    velocity = -tool_vz
+    was_contact = False
+    for li in range(n_layers):
+        if driven[li]:
+            was_contact = True
+    surface = 0.0
+    for li in range(n_layers):
+        surface += layer_point_displacement(
+            q[li], centre[li, 0], centre[li, 1], mode_m, mode_n, patch_a, patch_b, tool_x, tool_y, sx_buf, sy_buf
+        )
+    on_sheet = abs(tool_x) <= half_x and abs(tool_y) <= half_y
+    if not on_sheet:
+        flags |= FLAG_OFF_SHEET
+    n = 0
+    force = 0.0
+    sigma = 0.0
+    d_eff = 0.0
+    touching = on_sheet and depth > 0.0 and (was_contact or depth >= surface)
+    if touching:
+        layer_bounds(tool_x, tool_y, iface_mean, iface_amp, iface_kx, iface_ky, bottom_m, bounds)
+        d_eff = depth
+        if depth > bounds[n_layers]:
+            d_eff = bounds[n_layers]
+            flags |= FLAG_BOTTOMED
+        n = count_affected(d_eff, bounds)
+        for li in range(n_layers):
+            thick[li] = bounds[li + 1] - bounds[li]
+        sigma, force, hit = reuss_split(n, d_eff, velocity, k, b, area, thick, comp)
+        if hit:
+            flags |= FLAG_LAYER_BOUND
+        if force <= 0.0 or sigma <= 0.0:
+            touching = False
+            force = 0.0
+            sigma = 0.0
+            flags |= FLAG_SEPARATED
+    if touching:
+        flags |= FLAG_CONTACT
+    else:
+        n = 0
+    for li in range(n_layers):
+        if li < n:
+            rate = velocity * comp[li] / d_eff
+            for kk in range(q.shape[1]):
+                q[li, kk] = comp[li] * beta[kk]
+                v[li, kk] = rate * beta[kk]
+            centre[li, 0] = tool_x
+            centre[li, 1] = tool_y
+            driven[li] = 1
+        else:
+            comp[li] = 0.0
+            driven[li] = 0
+            for kk in range(q.shape[1]):
+                q0 = q[li, kk]
+                v0 = v[li, kk]
+                q[li, kk] = prop[0, li, kk] * q0 + prop[1, li, kk] * v0
+                v[li, kk] = prop[2, li, kk] * q0 + prop[3, li, kk] * v0
+    out[OUT_FORCE_N] = force
+    out[OUT_STRESS_PA] = sigma
+    out[OUT_DEPTH_M] = d_eff
+    out[OUT_N_AFFECTED] = n
+    out[OUT_SURFACE_M] = surface
+    return flags
+
+
+@njit(**JIT)
+def layer_field(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, xs, ys, q_dense, sx, sy, tmp, out):
+    """One layer's displacement field on the sheet grid (cell centres ``xs``, ``ys``).
+
+    Eq 2 evaluated separably: ``u[iy, ix] = sum_n Sy[n, iy] sum_m Q[m, n] Sx[m, ix]``, only on
+    the cells inside the patch centred at ``(cx, cy)``; cells outside it are zero, and the
+    patch is clipped where it passes the sheet edge (the paper's incomplete deformation).
+    Scratch: ``q_dense`` (M, N), ``sx`` (M+1, nx), ``sy`` (N+1, ny), ``tmp`` (N+1, nx).
+    """
+    out[:, :] = 0.0
+    ix0, ix1 = _patch_range(xs, cx, patch_a)
+    iy0, iy1 = _patch_range(ys, cy, patch_b)
+    if ix0 >= ix1 or iy0 >= iy1:
+        return
+    q_dense[:, :] = 0.0
+    for kk in range(q_l.shape[0]):
+        q_dense[mode_m[kk] - 1, mode_n[kk] - 1] = q_l[kk]
+    m_max = q_dense.shape[0]
+    n_max = q_dense.shape[1]
+    for ix in range(ix0, ix1):
+        sine_table(math.pi * (xs[ix] - cx + 0.5 * patch_a) / patch_a, m_max, sx[:, ix])
+    for iy in range(iy0, iy1):
+        sine_table(math.pi * (ys[iy] - cy + 0.5 * patch_b) / patch_b, n_max, sy[:, iy])
+    for nn in range(n_max):
+        for ix in range(ix0, ix1):
+            acc = 0.0
+            for mm in range(m_max):
+                acc += q_dense[mm, nn] * sx[mm + 1, ix]
+            tmp[nn, ix] = acc
+    for iy in range(iy0, iy1):
+        for ix in range(ix0, ix1):
+            acc = 0.0
+            for nn in range(n_max):
+                acc += sy[nn + 1, iy] * tmp[nn, ix]
+            out[iy, ix] = acc
+
+
+@njit(**JIT)
+def _patch_range(centres, c, side):
+    """Index range of grid cell centres strictly inside ``(c - side/2, c + side/2)``."""
+    lo = c - 0.5 * side
+    hi = c + 0.5 * side
+    i0 = 0
+    while i0 < centres.shape[0] and centres[i0] <= lo:
+        i0 += 1
+    i1 = i0
+    while i1 < centres.shape[0] and centres[i1] < hi:
+        i1 += 1
+    return i0, i1
+
+
+@njit(**JIT)
+def assemble_heights(disp, rest_tops, out_heights):
+    """Heights (m, z up) of the surface and each interface from per-layer displacements.
+
+    Step 6 of section II.D.4: the surface moves down by the sum of all layers'
+    displacements; interface j (top of layer j) by the sum over layers j and below.
+    ``disp`` (L, ny, nx); ``rest_tops`` (L, ny, nx) rest depths of layer tops (0 for the
+    surface); ``out_heights`` (L, ny, nx).
+    """
+    n_layers = disp.shape[0]
+    for iy in range(disp.shape[1]):
+        for ix in range(disp.shape[2]):
+            below = 0.0
+            for li in range(n_layers - 1, -1, -1):
+                below += disp[li, iy, ix]
+                out_heights[li, iy, ix] = -rest_tops[li, iy, ix] - below
+
+
+@njit(**JIT)
+def modal_energy(q, v, lam):
+    """Per-layer modal energy per unit modal mass: ``sum(v^2 + lam^2 q^2) / 2``."""
+    total = 0.0
+    for li in range(q.shape[0]):
+        for kk in range(q.shape[1]):
+            total += 0.5 * (v[li, kk] ** 2 + (lam[li, kk] * q[li, kk]) ** 2)
+    return total

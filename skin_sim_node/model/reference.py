@@ -1,0 +1,163 @@
+"""Slow, obviously correct NumPy versions of the kernels, and a NumPy ``SkinModel``.
+
+Used by the tests as the reference for every kernel, and by the micro-benchmark as the
+"pure NumPy" baseline of the same step. Written for clarity, not speed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import expm
+
+from .config import TissueConfig
+from .interfaces import interface_depths_m
+from .modal import modal_basis
+
+
+def reuss_split_ref(n, depth_m, velocity_m_s, k, b, area, thickness):
+    """Reuss split (eqs 4, 6) with bound handling; returns (compressions, stress, force, hit)."""
+    comp = np.zeros(n)
+    fixed = np.zeros(n, dtype=bool)
+    sigma = 0.0
+    hit = False
+    while n and not fixed.all():
+        free = ~fixed
+        rest = depth_m - comp[fixed].sum()
+        sigma = (rest + velocity_m_s * np.sum(b[:n][free] / k[:n][free])) / np.sum(area[:n][free] / k[:n][free])
+        trial = (sigma * area[:n] - b[:n] * velocity_m_s) / k[:n]
+        excess = np.where(free, np.maximum(-trial, trial - thickness[:n]), 0.0)
+        comp[free] = trial[free]
+        if excess.max() <= 0.0:
+            break
+        worst = int(np.argmax(excess))
+        hit = True
+        fixed[worst] = True
+        comp[worst] = 0.0 if trial[worst] < 0.0 else thickness[worst]
+    if n and fixed.all():
+        sigma = max(0.0, max((k[i] * comp[i] + b[i] * velocity_m_s) / area[i] for i in range(n)))
+    force = sigma * area[0] if n else 0.0
+    return comp, sigma, force, hit
+
+
+def propagator_expm(lam, gamma, dt):
+    """Transition matrices by the matrix exponential of ``[[0, 1], [-lam^2, -2 gamma]] dt``."""
+    out = np.zeros((4, *lam.shape))
+    for li in range(lam.shape[0]):
+        for kk in range(lam.shape[1]):
+            a = np.array([[0.0, 1.0], [-lam[li, kk] ** 2, -2.0 * gamma[li]]])
+            p = expm(a * dt)
+            out[:, li, kk] = p.ravel()
+    return out
+
+
+def propagator_ref(lam, gamma, dt):
+    """Vectorised closed form with complex frequencies (covers all damping regimes)."""
+    g = np.asarray(gamma, dtype=float)[:, None] * np.ones_like(lam)
+    w = np.sqrt((lam**2 - g**2).astype(complex))
+    w = np.where(np.abs(w) < 1e-300, 1e-300, w)
+    e = np.exp(-g * dt)
+    ec = (e * np.cos(w * dt)).real
+    es = (e * np.sin(w * dt) / w).real
+    return np.stack([ec + g * es, es, -(lam**2) * es, ec - g * es])
+
+
+def layer_field_ref(q_l, cx, cy, mode_m, mode_n, a, b, xs, ys):
+    """Eq 2 summed directly over every mode at every grid cell inside the patch."""
+    X, Y = np.meshgrid(xs, ys)
+    xi = X - cx + a / 2
+    eta = Y - cy + b / 2
+    inside = (xi > 0) & (xi < a) & (eta > 0) & (eta < b)
+    u = np.zeros_like(X)
+    for qk, m, n in zip(q_l, mode_m, mode_n):
+        u += qk * np.sin(m * np.pi * xi / a) * np.sin(n * np.pi * eta / b)
+    return np.where(inside, u, 0.0)
+
+
+def assemble_heights_ref(disp, rest_tops):
+    below = np.cumsum(disp[::-1], axis=0)[::-1]
+    return -rest_tops - below
+
+
+class NumpySkinModel:
+    """The same model as :class:`~skin_sim_node.model.skin_model.SkinModel`, in NumPy."""
+
+    def __init__(self, cfg: TissueConfig):
+        self.cfg = cfg
+        self.basis = modal_basis(cfg)
+        n_l = len(cfg.layers)
+        self.k = np.array([la.stiffness_n_per_m for la in cfg.layers])
+        self.b = np.array([la.damping_n_s_per_m for la in cfg.layers])
+        self.area = np.array([la.area_m2 for la in cfg.layers])
+        self.q = np.zeros((n_l, self.basis.n_modes))
+        self.v = np.zeros_like(self.q)
+        self.centre = np.zeros((n_l, 2))
+        self.driven = np.zeros(n_l, dtype=bool)
+        self.compression_m = np.zeros(n_l)
+        self.force_n = 0.0
+        self.n_affected = 0
+        self.flags = 0
+        ny, nx = cfg.grid_shape
+        sx, sy = cfg.sheet_size_m
+        self.xs = -0.5 * sx + (np.arange(nx) + 0.5) * sx / nx
+        self.ys = -0.5 * sy + (np.arange(ny) + 0.5) * sy / ny
+
+    def _point(self, li, x, y):
+        a, b = self.cfg.patch_size_m
+        xi = x - self.centre[li, 0] + a / 2
+        eta = y - self.centre[li, 1] + b / 2
+        if not (0 < xi < a and 0 < eta < b):
+            return 0.0
+        bm = self.basis
+        return float(np.sum(self.q[li] * np.sin(bm.mode_m * np.pi * xi / a) * np.sin(bm.mode_n * np.pi * eta / b)))
+
+    def step(self, tool_xyz, tool_velocity, dt):
+        x, y, z = (float(c) for c in tool_xyz)
+        depth, velocity = -z, -float(tool_velocity[2])
+        n_l = self.q.shape[0]
+        surface = sum(self._point(li, x, y) for li in range(n_l))
+        sx, sy = self.cfg.sheet_size_m
+        on_sheet = abs(x) <= sx / 2 and abs(y) <= sy / 2
+        touching = on_sheet and depth > 0 and (self.driven.any() or depth >= surface)
+        n, force, flags = 0, 0.0, 0 if on_sheet else 16
+        if touching:
+            tops = np.concatenate([[0.0], interface_depths_m(self.cfg, x, y).ravel(), [self.cfg.total_thickness_m]])
+            d_eff = min(depth, tops[-1])
+            flags |= 2 if depth > tops[-1] else 0
+            n = int(np.sum(d_eff > tops[:-1]))
+            comp, sigma, force, hit = reuss_split_ref(n, d_eff, velocity, self.k, self.b, self.area, np.diff(tops))
+            flags |= 4 if hit else 0
+            if force <= 0 or sigma <= 0:
+                touching, force, flags = False, 0.0, flags | 8
+        if touching:
+            flags |= 1
+        else:
+            n = 0
+        prop = propagator_ref(self.basis.lam, self.basis.gamma, dt)
+        for li in range(n_l):
+            if li < n:
+                self.compression_m[li] = comp[li]
+                self.q[li] = comp[li] * self.basis.beta
+                self.v[li] = velocity * comp[li] / d_eff * self.basis.beta
+                self.centre[li] = (x, y)
+                self.driven[li] = True
+            else:
+                self.compression_m[li] = 0.0
+                self.driven[li] = False
+                q0, v0 = self.q[li].copy(), self.v[li].copy()
+                self.q[li] = prop[0, li] * q0 + prop[1, li] * v0
+                self.v[li] = prop[2, li] * q0 + prop[3, li] * v0
+        self.force_n, self.n_affected, self.flags = force, n, flags
+        return force
+
+    def build_grid(self):
+        a, b = self.cfg.patch_size_m
+        bm = self.basis
+        disp = np.stack(
+            [
+                layer_field_ref(self.q[li], *self.centre[li], bm.mode_m, bm.mode_n, a, b, self.xs, self.ys)
+                for li in range(self.q.shape[0])
+            ]
+        )
+        X, Y = np.meshgrid(self.xs, self.ys)
+        rest = np.concatenate([np.zeros((1, *X.shape)), interface_depths_m(self.cfg, X, Y)])
+        return disp, assemble_heights_ref(disp, rest)

@@ -1,0 +1,177 @@
+"""``SkinModel``: the stateful layered skin model (section II.D.4) over the numba kernels.
+
+The force path (:meth:`SkinModel.step`) never touches the grid; the per-layer grids
+and the assembled surface/interface heights are built only when
+:meth:`SkinModel.build_grid` is called (the first "no more than a scene needs" lever).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import kernels as kn
+from .config import TissueConfig
+from .interfaces import interface_depths_m
+from .modal import ModalBasis, modal_basis
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Views of the model's grid buffers (valid until the next ``build_grid``).
+
+    ``displacement_m[l]`` is layer l's downward displacement; ``heights_m[0]`` the surface
+    height and ``heights_m[j]`` the height of the top of layer j (z up, rest surface 0).
+    Rows are y (``ys_m``), columns x (``xs_m``).
+    """
+
+    xs_m: np.ndarray
+    ys_m: np.ndarray
+    displacement_m: np.ndarray
+    heights_m: np.ndarray
+
+
+class SkinModel:
+    """Three-layer skin under a rigid tool: Reuss force and modal wave-equation deformation.
+
+    Parameters
+    ----------
+    cfg : TissueConfig
+        A validated configuration (see :func:`skin_sim_node.model.config.config_from_flat`).
+
+    Notes
+    -----
+    Frame: x, y in the tissue plane with the sheet centred on the origin, z up, rest
+    surface at z = 0; the tool depth is ``-z``. The reaction force acts along +z.
+    """
+
+    def __init__(self, cfg: TissueConfig):
+        self.cfg = cfg
+        self.basis: ModalBasis = modal_basis(cfg)
+        layers = cfg.layers
+        n_l = len(layers)
+        k_modes = self.basis.n_modes
+        m_max, n_max = cfg.modes
+        ny, nx = cfg.grid_shape
+        sx, sy = cfg.sheet_size_m
+        self._k = np.array([la.stiffness_n_per_m for la in layers])
+        self._b = np.array([la.damping_n_s_per_m for la in layers])
+        self._area = np.array([la.area_m2 for la in layers])
+        self._iface_mean = np.array([i.mean_depth_m for i in cfg.interfaces])
+        self._iface_amp = np.array([i.amplitude_m for i in cfg.interfaces])
+        self._iface_kx = np.array([2 * math.pi / i.wavelength_x_m for i in cfg.interfaces])
+        self._iface_ky = np.array([2 * math.pi / i.wavelength_y_m for i in cfg.interfaces])
+        self._bottom = cfg.total_thickness_m
+        self._half = (0.5 * sx, 0.5 * sy)
+        self._patch = cfg.patch_size_m
+        # state
+        self.q = np.zeros((n_l, k_modes))
+        self.v = np.zeros((n_l, k_modes))
+        self.centre = np.zeros((n_l, 2))
+        self.driven = np.zeros(n_l, dtype=np.int8)
+        self.compression_m = np.zeros(n_l)
+        self._prop = np.zeros((4, n_l, k_modes))
+        self._prop_dt = np.full(1, np.nan)
+        self._bounds = np.zeros(n_l + 1)
+        self._thick = np.zeros(n_l)
+        self._sx_buf = np.zeros(max(m_max, 1) + 1)
+        self._sy_buf = np.zeros(max(n_max, 1) + 1)
+        self._out = np.zeros(kn.OUT_SIZE)
+        self.flags = 0
+        # grid buffers
+        self.xs = -0.5 * sx + (np.arange(nx) + 0.5) * sx / nx
+        self.ys = -0.5 * sy + (np.arange(ny) + 0.5) * sy / ny
+        X, Y = np.meshgrid(self.xs, self.ys)
+        self._rest_tops = np.concatenate([np.zeros((1, ny, nx)), interface_depths_m(cfg, X, Y)])
+        self._disp = np.zeros((n_l, ny, nx))
+        self._heights = np.zeros((n_l, ny, nx))
+        self._q_dense = np.zeros((m_max, n_max))
+        self._sx = np.zeros((m_max + 1, nx))
+        self._sy = np.zeros((n_max + 1, ny))
+        self._tmp = np.zeros((n_max + 1, nx))
+
+    def reset(self) -> None:
+        """Return to rest: no contact, no deformation."""
+        for a in (self.q, self.v, self.centre, self.compression_m, self._out):
+            a[...] = 0.0
+        self.driven[:] = 0
+        self.flags = 0
+
+    def step(self, tool_xyz, tool_velocity, dt: float) -> float:
+        """Advance one tick with the tool at ``tool_xyz`` (m) moving at ``tool_velocity`` (m/s).
+
+        Returns the reaction force in newtons along +z (>= 0). ``dt`` (s) is the time
+        since the previous tick; the release dynamics are exact for any ``dt >= 0``.
+        """
+        x, y, z = tool_xyz
+        vz = tool_velocity[2]
+        b = self.basis
+        self.flags = kn.step_kernel(
+            float(x), float(y), float(z), float(vz), float(dt),
+            self._k, self._b, self._area, self._iface_mean, self._iface_amp, self._iface_kx, self._iface_ky,
+            self._bottom, self._half[0], self._half[1],
+            b.beta, b.mode_m, b.mode_n, self._patch[0], self._patch[1], b.lam, b.gamma,
+            self.q, self.v, self.centre, self.driven, self.compression_m, self._prop, self._prop_dt,
+            self._bounds, self._thick, self._sx_buf, self._sy_buf, self._out,
+        )  # fmt: skip
+        return float(self._out[kn.OUT_FORCE_N])
+
+    # --- state read-outs -------------------------------------------------------------
+    @property
+    def force_n(self) -> float:
+        return float(self._out[kn.OUT_FORCE_N])
+
+    @property
+    def stress_pa(self) -> float:
+        return float(self._out[kn.OUT_STRESS_PA])
+
+    @property
+    def depth_m(self) -> float:
+        """Tool depth used by the Reuss split (clamped at the bottom), 0 out of contact."""
+        return float(self._out[kn.OUT_DEPTH_M])
+
+    @property
+    def n_affected(self) -> int:
+        return int(self._out[kn.OUT_N_AFFECTED])
+
+    @property
+    def in_contact(self) -> bool:
+        return bool(self.flags & kn.FLAG_CONTACT)
+
+    def surface_displacement_at(self, x: float, y: float) -> float:
+        """Current downward surface displacement (m) at ``(x, y)``: sum over layers."""
+        total = 0.0
+        b = self.basis
+        for li in range(self.q.shape[0]):
+            total += kn.layer_point_displacement(
+                self.q[li], self.centre[li, 0], self.centre[li, 1], b.mode_m, b.mode_n,
+                self._patch[0], self._patch[1], float(x), float(y), self._sx_buf, self._sy_buf,
+            )  # fmt: skip
+        return total
+
+    def energy(self) -> float:
+        """Modal energy per unit modal mass, summed over layers (m^2/s^2)."""
+        return float(kn.modal_energy(self.q, self.v, self.basis.lam))
+
+    def build_grid(self, layers=None) -> Grid:
+        """Evaluate the per-layer displacement fields and assemble surface/interface heights.
+
+        Parameters
+        ----------
+        layers : iterable of int, optional
+            Layers to evaluate; the others are taken as zero (default: all).
+        """
+        b = self.basis
+        for li in range(self.q.shape[0]):
+            if layers is not None and li not in layers:
+                self._disp[li] = 0.0
+                continue
+            kn.layer_field(
+                self.q[li], self.centre[li, 0], self.centre[li, 1], b.mode_m, b.mode_n,
+                self._patch[0], self._patch[1], self.xs, self.ys,
+                self._q_dense, self._sx, self._sy, self._tmp, self._disp[li],
+            )  # fmt: skip
+        kn.assemble_heights(self._disp, self._rest_tops, self._heights)
+        return Grid(self.xs, self.ys, self._disp, self._heights)
