@@ -118,7 +118,7 @@ def test_layer_field_matches_reference(compiled, rng):
     out = np.zeros((40, 50))
     args = (np.zeros((m_max, n_max)), np.zeros((m_max + 1, 50)), np.zeros((n_max + 1, 40)), np.zeros((n_max + 1, 50)))
     for cx, cy in [(0.0, 0.0), (0.05, -0.04), (-0.3, 0.0)]:  # centred, clipped by the edge, off the grid
-        field(q, cx, cy, mode_m, mode_n, 0.06, 0.04, xs, ys, *args, out)
+        field(q, cx, cy, mode_m, mode_n, np.unique(mode_m), np.unique(mode_n), 0.06, 0.04, xs, ys, *args, out)
         expect = ref.layer_field_ref(q, cx, cy, mode_m, mode_n, 0.06, 0.04, xs, ys)
         np.testing.assert_allclose(out, expect, atol=1e-12)
 

@@ -226,7 +226,8 @@ def step_kernel(
         n = 0
     for li in range(n_layers):
         if li < n:
-            rate = velocity * comp[li] / d_eff
+            share = comp[li] / d_eff  # layer's part of the tool velocity; round-off safe
+            rate = velocity * min(1.0, max(0.0, share))
             for kk in range(q.shape[1]):
                 q[li, kk] = comp[li] * beta[kk]
                 v[li, kk] = rate * beta[kk]
@@ -250,13 +251,15 @@ def step_kernel(
 
 
 @njit(**JIT)
-def layer_field(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, xs, ys, q_dense, sx, sy, tmp, out):
+def layer_field(q_l, cx, cy, mode_m, mode_n, m_used, n_used, patch_a, patch_b, xs, ys, q_dense, sx, sy, tmp, out):
     """One layer's displacement field on the sheet grid (cell centres ``xs``, ``ys``).
 
     Eq 2 evaluated separably: ``u[iy, ix] = sum_n Sy[n, iy] sum_m Q[m, n] Sx[m, ix]``, only on
     the cells inside the patch centred at ``(cx, cy)``; cells outside it are zero, and the
     patch is clipped where it passes the sheet edge (the paper's incomplete deformation).
-    Scratch: ``q_dense`` (M, N), ``sx`` (M+1, nx), ``sy`` (N+1, ny), ``tmp`` (N+1, nx).
+    ``m_used``/``n_used`` are the distinct 1-based mode indices present (rows/columns of Q
+    that can be nonzero). Scratch: ``q_dense`` (M, N), ``sx`` (M+1, nx), ``sy`` (N+1, ny),
+    ``tmp`` (N+1, nx).
     """
     out[:, :] = 0.0
     ix0, ix1 = _patch_range(xs, cx, patch_a)
@@ -272,16 +275,19 @@ def layer_field(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, xs, ys, q_dense, 
         sine_table(math.pi * (xs[ix] - cx + 0.5 * patch_a) / patch_a, m_max, sx[:, ix])
     for iy in range(iy0, iy1):
         sine_table(math.pi * (ys[iy] - cy + 0.5 * patch_b) / patch_b, n_max, sy[:, iy])
-    for nn in range(n_max):
+    for jn in range(n_used.shape[0]):
+        nn = n_used[jn] - 1
         for ix in range(ix0, ix1):
             acc = 0.0
-            for mm in range(m_max):
+            for jm in range(m_used.shape[0]):
+                mm = m_used[jm] - 1
                 acc += q_dense[mm, nn] * sx[mm + 1, ix]
             tmp[nn, ix] = acc
     for iy in range(iy0, iy1):
         for ix in range(ix0, ix1):
             acc = 0.0
-            for nn in range(n_max):
+            for jn in range(n_used.shape[0]):
+                nn = n_used[jn] - 1
                 acc += sy[nn + 1, iy] * tmp[nn, ix]
             out[iy, ix] = acc
 
@@ -309,13 +315,16 @@ def assemble_heights(disp, rest_tops, out_heights):
     ``disp`` (L, ny, nx); ``rest_tops`` (L, ny, nx) rest depths of layer tops (0 for the
     surface); ``out_heights`` (L, ny, nx).
     """
-    n_layers = disp.shape[0]
+    last = disp.shape[0] - 1
     for iy in range(disp.shape[1]):
         for ix in range(disp.shape[2]):
-            below = 0.0
-            for li in range(n_layers - 1, -1, -1):
-                below += disp[li, iy, ix]
-                out_heights[li, iy, ix] = -rest_tops[li, iy, ix] - below
+            out_heights[last, iy, ix] = -rest_tops[last, iy, ix] - disp[last, iy, ix]
+    for li in range(last - 1, -1, -1):  # h_l = h_{l+1} + rest_{l+1} - rest_l - u_l
+        for iy in range(disp.shape[1]):
+            for ix in range(disp.shape[2]):
+                out_heights[li, iy, ix] = (
+                    out_heights[li + 1, iy, ix] + rest_tops[li + 1, iy, ix] - rest_tops[li, iy, ix] - disp[li, iy, ix]
+                )
 
 
 @njit(**JIT)

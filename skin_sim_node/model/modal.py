@@ -58,6 +58,8 @@ class ModalBasis:
     beta: np.ndarray  # (K,) shape coefficients, dimensionless
     lam: np.ndarray  # (L, K) rad/s, eq 3: c pi sqrt(m^2/a^2 + n^2/b^2)
     gamma: np.ndarray  # (L,) 1/s, modal damping rate from each layer's b
+    m_used: np.ndarray  # distinct mode_m values, for the separable grid sum
+    n_used: np.ndarray  # distinct mode_n values
 
     @property
     def n_modes(self) -> int:
@@ -81,4 +83,5 @@ def modal_basis(cfg: TissueConfig) -> ModalBasis:
     kappa = np.pi * np.sqrt((mode_m / a) ** 2 + (mode_n / b) ** 2)
     lam = np.array([layer.wave_speed_m_per_s * kappa for layer in cfg.layers])
     gamma = np.array([layer.damping_n_s_per_m / (2 * layer.areal_density_kg_per_m2 * a * b / 4) for layer in cfg.layers])
-    return ModalBasis(mode_m, mode_n, np.ascontiguousarray(beta[keep]), lam, gamma)
+    beta_k = np.ascontiguousarray(beta[keep])
+    return ModalBasis(mode_m, mode_n, beta_k, lam, gamma, np.unique(mode_m), np.unique(mode_n))

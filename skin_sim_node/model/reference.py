@@ -137,7 +137,7 @@ class NumpySkinModel:
             if li < n:
                 self.compression_m[li] = comp[li]
                 self.q[li] = comp[li] * self.basis.beta
-                self.v[li] = velocity * comp[li] / d_eff * self.basis.beta
+                self.v[li] = velocity * np.clip(comp[li] / d_eff, 0.0, 1.0) * self.basis.beta
                 self.centre[li] = (x, y)
                 self.driven[li] = True
             else:

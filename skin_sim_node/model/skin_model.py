@@ -169,7 +169,7 @@ class SkinModel:
                 self._disp[li] = 0.0
                 continue
             kn.layer_field(
-                self.q[li], self.centre[li, 0], self.centre[li, 1], b.mode_m, b.mode_n,
+                self.q[li], self.centre[li, 0], self.centre[li, 1], b.mode_m, b.mode_n, b.m_used, b.n_used,
                 self._patch[0], self._patch[1], self.xs, self.ys,
                 self._q_dense, self._sx, self._sy, self._tmp, self._disp[li],
             )  # fmt: skip
