@@ -174,7 +174,7 @@ def test_recontact_uses_deformed_surface(model):
 def test_unilateral_contact_never_pulls(model):
     press_and_release(model, depth=2e-3)
     model.reset()
-    for i in range(100):
+    for _ in range(100):
         model.step((0.0, 0.0, -2e-3), (0, 0, 0), 1e-3)
     f = model.step((0.0, 0.0, -1.9e-3), (0, 0, 5.0), 1e-3)  # fast retraction
     assert f == 0.0 and not model.in_contact
@@ -244,10 +244,14 @@ layer_values = st.fixed_dictionaries(
     modes=st.integers(1, 12),
     path=st.lists(
         st.tuples(
-            st.floats(-0.07, 0.07), st.floats(-0.07, 0.07), st.floats(-0.02, 0.005),
-            st.floats(-2.0, 2.0), st.sampled_from([1e-6, 1e-3, 5e-3, 0.05]),
+            st.floats(-0.07, 0.07),
+            st.floats(-0.07, 0.07),
+            st.floats(-0.02, 0.005),
+            st.floats(-2.0, 2.0),
+            st.sampled_from([1e-6, 1e-3, 5e-3, 0.05]),
         ),
-        min_size=1, max_size=25,
+        min_size=1,
+        max_size=25,
     ),  # fmt: skip
 )
 def test_property_force_and_grid_finite_and_bounded(layers, amp_frac, modes, path):

@@ -83,8 +83,17 @@ _LAYER_DEFAULTS = {
     "fat": (4.0e-3, 2.5e3, 971.0, 0.9),
 }
 _POISSON = 0.48
-# Kelvin-Voigt retardation time b/k = tan(delta)/omega: loss factor 0.14 (Kirkpatrick 2004) at 10 Hz.
-_KV_TIME_S = 0.14 / (2 * math.pi * 10.0)
+_PATCH_M = 0.06
+
+
+def critical_damping_n_s_per_m(density_kg_per_m3: float, thickness_m: float, wave_speed_m_per_s: float) -> float:
+    """``b`` that critically damps a layer's fundamental release mode: ``b = 2 m11 lambda_11``.
+
+    ``m11 = rho_A a b / 4`` is the (1,1) modal mass of the default 60 mm patch and
+    ``lambda_11 = c pi sqrt(2) / a`` (eq 3); see ``gamma`` in :mod:`.modal`.
+    """
+    m11 = density_kg_per_m3 * thickness_m * _PATCH_M**2 / 4
+    return 2 * m11 * wave_speed_m_per_s * math.pi * math.sqrt(2) / _PATCH_M
 
 
 def flat_punch_stiffness_n_per_m(youngs_modulus_pa: float, radius_m: float) -> float:
@@ -100,15 +109,20 @@ def _layer_specs() -> list[ParamSpec]:
     specs = []
     for name, (h, e, rho, c) in _LAYER_DEFAULTS.items():
         k = flat_punch_stiffness_n_per_m(e, _TOOL_RADIUS_M)
-        tau = _KV_TIME_S
+        damping = critical_damping_n_s_per_m(rho, h, c)
         tension = rho * h * c**2  # T = rho_areal c^2 (eq 1) with c from elastography
         p = f"layers.{name}."
         specs += [
             _f(p + "thickness_m", h, "m", f"mean {name} thickness"),
             _f(p + "stiffness_n_per_m", k, "N/m", f"{name} Kelvin-Voigt spring k (eq 6)"),
-            _f(p + "damping_n_s_per_m", k * tau, "N*s/m", f"{name} Kelvin-Voigt damper b (eq 6)", 0.0, None, False),
+            _f(p + "damping_n_s_per_m", damping, "N*s/m", f"{name} Kelvin-Voigt damper b (eq 6)", 0.0, None, False),
             _f(p + "area_m2", _TOOL_AREA_M2, "m^2", f"{name} loaded area A (eq 6)"),
-            _f(p + "density_kg_per_m3", rho, "kg/m^3", f"{name} volumetric density; areal rho = density*thickness (eq 1)"),
+            _f(
+                p + "density_kg_per_m3",
+                rho,
+                "kg/m^3",
+                f"{name} volumetric density; areal rho = density*thickness (eq 1)",
+            ),
             _f(p + "tension_n_per_m", tension, "N/m", f"{name} membrane tension T (eq 1)"),
         ]
     return specs

@@ -25,8 +25,7 @@ def interface_depths_m(cfg: TissueConfig, x, y) -> np.ndarray:
     y = np.asarray(y, dtype=float)
     return np.stack(
         [
-            i.mean_depth_m
-            - i.amplitude_m * np.cos(2 * np.pi * x / i.wavelength_x_m) * np.cos(2 * np.pi * y / i.wavelength_y_m)
+            i.mean_depth_m - i.amplitude_m * np.cos(2 * np.pi * x / i.wavelength_x_m) * np.cos(2 * np.pi * y / i.wavelength_y_m)
             for i in cfg.interfaces
         ]
     )

@@ -44,7 +44,7 @@ def propagator_expm(lam, gamma, dt):
     out = np.zeros((4, *lam.shape))
     for li in range(lam.shape[0]):
         for kk in range(lam.shape[1]):
-            a = np.array([[0.0, 1.0], [-lam[li, kk] ** 2, -2.0 * gamma[li]]])
+            a = np.array([[0.0, 1.0], [-(lam[li, kk] ** 2), -2.0 * gamma[li]]])
             p = expm(a * dt)
             out[:, li, kk] = p.ravel()
     return out

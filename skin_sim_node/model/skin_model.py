@@ -140,16 +140,28 @@ class SkinModel:
     def in_contact(self) -> bool:
         return bool(self.flags & kn.FLAG_CONTACT)
 
+    def layer_displacement_at(self, layer: int, x: float, y: float) -> float:
+        """Current downward displacement (m) of one layer at ``(x, y)`` (eq 2 at a point)."""
+        b = self.basis
+        return kn.layer_point_displacement(
+            self.q[layer], self.centre[layer, 0], self.centre[layer, 1], b.mode_m, b.mode_n,
+            self._patch[0], self._patch[1], float(x), float(y), self._sx_buf, self._sy_buf,
+        )  # fmt: skip
+
     def surface_displacement_at(self, x: float, y: float) -> float:
         """Current downward surface displacement (m) at ``(x, y)``: sum over layers."""
-        total = 0.0
-        b = self.basis
-        for li in range(self.q.shape[0]):
-            total += kn.layer_point_displacement(
-                self.q[li], self.centre[li, 0], self.centre[li, 1], b.mode_m, b.mode_n,
-                self._patch[0], self._patch[1], float(x), float(y), self._sx_buf, self._sy_buf,
-            )  # fmt: skip
-        return total
+        return sum(self.layer_displacement_at(li, x, y) for li in range(self.q.shape[0]))
+
+    def cross_section(self, xs, y: float) -> np.ndarray:
+        """Heights (m, z up) of the surface and each layer top along ``xs`` at ``y``, shape (L, len(xs)).
+
+        Evaluated pointwise, so it resolves interface detail finer than the grid.
+        """
+        xs = np.asarray(xs, dtype=float)
+        disp = np.array([[self.layer_displacement_at(li, x, y) for x in xs] for li in range(self.q.shape[0])])
+        rest = np.concatenate([np.zeros((1, xs.size)), interface_depths_m(self.cfg, xs, np.full_like(xs, y))])
+        below = np.cumsum(disp[::-1], axis=0)[::-1]
+        return -rest - below
 
     def energy(self) -> float:
         """Modal energy per unit modal mass, summed over layers (m^2/s^2)."""

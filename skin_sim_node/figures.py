@@ -1,0 +1,105 @@
+"""``skin-sim chart model``: regenerate the model figures in ``docs/figures/``.
+
+Fig 4 analogue: cross-sections of the default tissue pressed to two depths, one reaching
+epidermis + dermis, one reaching all three layers; plus the force-depth curve of the
+Reuss composite and the release-and-return trace of the surface under the tool.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .model import SkinModel, preset  # noqa: E402
+from .plots import draw_cross_section  # noqa: E402
+
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "figures"
+
+
+def press(model: SkinModel, x: float, y: float, depth: float, dt: float = 1e-3, ticks: int = 200) -> None:
+    model.reset()
+    for i in range(ticks):
+        d = depth * (i + 1) / ticks
+        model.step((x, y, -d), (0.0, 0.0, -depth / (ticks * dt)), dt)
+    for _ in range(20):
+        model.step((x, y, -depth), (0.0, 0.0, 0.0), dt)
+
+
+def fig4_cross_sections(out: Path) -> Path:
+    cfg = preset("default")
+    model = SkinModel(cfg)
+    i_ed, i_df = cfg.interfaces
+    cases = [
+        (0.5 * (i_ed.mean_depth_m + i_df.mean_depth_m - i_df.amplitude_m), "tool reaches epidermis + dermis"),
+        (i_df.mean_depth_m + 0.6 * cfg.layers[2].thickness_m, "tool reaches all three layers"),
+    ]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8), sharey=True)
+    for ax, (depth, label) in zip(axes, cases):
+        press(model, 0.0, 0.0, depth)
+        draw_cross_section(ax, model, 0.0, 0.0, -depth, f"{label}: depth {depth * 1e3:.2f} mm, "
+                           f"F = {model.force_n:.3f} N, layers {model.n_affected}")  # fmt: skip
+    axes[0].legend(loc="lower left", fontsize=7)
+    fig.tight_layout()
+    path = out / "fig4_cross_sections.png"
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def force_depth_and_release(out: Path) -> Path:
+    cfg = preset("default")
+    model = SkinModel(cfg)
+    depths = np.linspace(0, cfg.total_thickness_m * 1.05, 600)
+    forces, layers = [], []
+    for d in depths:
+        model.reset()
+        forces.append(model.step((0.0, 0.0, -d), (0, 0, 0), 1e-3))
+        layers.append(model.n_affected)
+    press(model, 0.0, 0.0, 3e-3)
+    dt = 1e-3
+    t = np.arange(0, 1.5, dt)
+    surf = []
+    for _ in t:
+        model.step((0.0, 0.0, 0.02), (0, 0, 0), dt)
+        surf.append(model.surface_displacement_at(0.0, 0.0))
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 3.6))
+    a0.plot(depths * 1e3, forces, "k")
+    a0.set_yscale("log")
+    for n, c in zip((1, 2, 3), ("#f2c9a5", "#d9777a", "#f5e08e")):
+        sel = np.array(layers) == n
+        if sel.any():
+            a0.axvspan(depths[sel][0] * 1e3, depths[sel][-1] * 1e3, color=c, alpha=0.6, label=f"{n} layer(s)")
+    a0.set_xlabel("tool depth at x = y = 0 (mm)")
+    a0.set_ylabel("static reaction force (N)")
+    a0.set_title("Reuss composite force-depth (static)", fontsize=9)
+    a0.legend(fontsize=7)
+    a1.plot(t * 1e3, np.array(surf) * 1e3, "k")
+    a1.axhline(0, color="grey", lw=0.5)
+    a1.set_xlabel("time after release (ms)")
+    a1.set_ylabel("surface displacement under tool (mm, down)")
+    a1.set_title("release from 3 mm: damped modal return (eq 2)", fontsize=9)
+    fig.tight_layout()
+    path = out / "force_depth_release.png"
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="skin-sim chart model", description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=DOCS, help="output folder (default docs/figures)")
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    for p in (fig4_cross_sections(args.out), force_depth_and_release(args.out)):
+        print(f"wrote {p}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

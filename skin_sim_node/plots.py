@@ -1,0 +1,61 @@
+"""Figures of the deformation: surface height map plus a Fig 4 style cross-section."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .model import SkinModel  # noqa: E402
+
+LAYER_COLOURS = ("#f2c9a5", "#d9777a", "#f5e08e")  # epidermis, dermis, fat
+
+
+def draw_cross_section(ax, model: SkinModel, x0: float, y0: float, tool_z: float | None, title: str) -> None:
+    """Fill each layer between its top and the next along y = y0, centred on x0 (mm axes)."""
+    half = 0.6 * model.cfg.patch_size_m[0]
+    xs = np.linspace(x0 - half, x0 + half, 1200)
+    heights = model.cross_section(xs, y0)
+    bottom = np.full_like(xs, -model.cfg.total_thickness_m)
+    tops = list(heights) + [bottom]
+    for li, layer in enumerate(model.cfg.layers):
+        ax.fill_between(xs * 1e3, tops[li + 1] * 1e3, tops[li] * 1e3, color=LAYER_COLOURS[li % 3], label=layer.name, lw=0)
+        ax.plot(xs * 1e3, tops[li] * 1e3, color="k", lw=0.5)
+    if tool_z is not None and tool_z < 0.0:
+        r = model.cfg.tool_radius_m
+        ax.fill_between([(x0 - r) * 1e3, (x0 + r) * 1e3], [tool_z * 1e3] * 2, [2.0] * 2, color="#777", alpha=0.8, label="tool")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("z (mm)")
+    ax.set_ylim(-model.cfg.total_thickness_m * 1e3 * 1.05, 1.5)
+    ax.set_title(title, fontsize=9)
+
+
+def draw_surface(ax, model: SkinModel, title: str) -> None:
+    g = model.build_grid()
+    ext = [g.xs_m[0] * 1e3, g.xs_m[-1] * 1e3, g.ys_m[0] * 1e3, g.ys_m[-1] * 1e3]
+    im = ax.imshow(g.heights_m[0] * 1e3, origin="lower", extent=ext, cmap="viridis")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(title, fontsize=9)
+    plt.colorbar(im, ax=ax, label="surface height (mm)")
+
+
+def deformation_figure(model: SkinModel, tool_xyz, path: str | Path, title: str = "") -> Path:
+    """Surface height map and cross-section of the model's current state, written to ``path``."""
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw={"width_ratios": [1, 1.5]})
+    draw_surface(a0, model, "surface height")
+    x, y, z = tool_xyz
+    draw_cross_section(a1, model, x, y, z, f"cross-section at y = {y * 1e3:.1f} mm")
+    a1.legend(loc="lower right", fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
