@@ -99,6 +99,10 @@ class SkinModel:
         self.driven[:] = 0
         self.flags = 0
 
+    def release(self) -> None:
+        """End contact now: every layer relaxes freely from its current shape and velocity."""
+        self.driven[:] = 0
+
     def step(self, tool_xyz, tool_velocity, dt: float) -> float:
         """Advance one tick with the tool at ``tool_xyz`` (m) moving at ``tool_velocity`` (m/s).
 

@@ -1,0 +1,114 @@
+"""The node's parameter schema: node parameters plus the tissue schema of the model core.
+
+One list of :class:`ParamSpec` (name, type, default, unit, description, bounds). The node
+declares ROS parameters with descriptors from it, ``config/*.yaml`` files use these names
+under ``ros__parameters``, and :func:`node_params_from_flat` validates a dotted dict
+into a frozen :class:`NodeParams`. Imports no ROS code.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+from skin_sim_node.model.config import TISSUE_PARAMETERS, ConfigError, ParamSpec, config_from_flat, tissue_part
+
+TISSUE_PREFIX = "tissue."
+
+
+NODE_PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("rate_hz", float, 1000.0, "Hz", "haptic loop rate; 1 kHz is the haptics norm (Phantom servo loop)", 10.0, 20000.0),
+    ParamSpec(
+        "display_rate_hz", float, 60.0, "Hz", "height map / mesh publish rate (a display refresh rate)", 0.0, 1000.0, False
+    ),
+    ParamSpec(
+        "watchdog_s", float, 0.05, "s",
+        "input age after which force goes to zero and the tissue is released: 50 ticks at 1 kHz, "
+        "well past DDS jitter yet shorter than a hand can react to (~0.1 s)", 0.001, 10.0,
+    ),
+    ParamSpec(
+        "max_stamp_age_s", float, 1.0, "s",
+        "reject poses whose stamp differs from the node clock by more than this (0 disables)", 0.0, 3600.0, False,
+    ),
+    ParamSpec(
+        "max_force_n", float, 10.0, "N",
+        "node-side force clamp; device limits (3.3 N for a Touch) are applied by the bridge", 0.0, 1000.0,
+    ),
+    ParamSpec(
+        "teleport_distance_m", float, 0.02, "m",
+        "a pose jump larger than this between samples restarts contact (20 mm: 20x a 1 m/s hand at 1 kHz)", 0.0, 10.0,
+    ),
+    ParamSpec(
+        "max_tool_speed_m_s", float, 3.0, "m/s",
+        "speed cap of the velocity estimate; faster apparent motion is a teleport (hands rarely exceed 2 m/s)", 0.0, 100.0,
+    ),
+    ParamSpec(
+        "twist_max_skew_s", float, 0.005, "s",
+        "use the twist topic when its stamp is within this of the pose's, else differentiate poses", 0.0, 1.0, False,
+    ),
+    ParamSpec("tissue_frame", str, "tissue", "-", "frame_id the tool pose must carry"),
+    ParamSpec(
+        "loop_mode", str, "input", "-",
+        "input: tick on every pose (lowest latency) with a rate_hz fallback clock; timer: fixed rate_hz only",
+    ),
+    ParamSpec("publish_mesh", bool, True, "-", "publish the RViz mesh marker at display rate"),
+    ParamSpec("mesh_stride", int, 2, "1", "grid cells per mesh vertex", 1, 64, False),
+    ParamSpec("diagnostics_period_s", float, 1.0, "s", "diagnostics publish period", 0.05, 60.0),
+)  # fmt: skip
+_STRING_CHOICES: dict[str, tuple[str, ...]] = {"loop_mode": ("input", "timer")}
+
+ALL_PARAMETERS: tuple[ParamSpec, ...] = NODE_PARAMETERS + tuple(
+    ParamSpec(TISSUE_PREFIX + s.name, s.type, s.default, s.unit, s.description, s.min, s.max, s.min_exclusive)
+    for s in TISSUE_PARAMETERS
+)
+SPEC_BY_NAME = {s.name: s for s in ALL_PARAMETERS}
+
+
+@dataclass(frozen=True)
+class NodeParams:
+    """The node's non-tissue parameters, read once."""
+
+    rate_hz: float
+    display_rate_hz: float
+    watchdog_s: float
+    max_stamp_age_s: float
+    max_force_n: float
+    teleport_distance_m: float
+    max_tool_speed_m_s: float
+    twist_max_skew_s: float
+    tissue_frame: str
+    loop_mode: str
+    publish_mesh: bool
+    mesh_stride: int
+    diagnostics_period_s: float
+
+
+def check_value(name: str, value):
+    """Coerce and bound-check one parameter; raises ConfigError with the reason."""
+    spec = SPEC_BY_NAME.get(name)
+    if spec is None:
+        raise ConfigError(f"unknown parameter {name!r}")
+    if spec.type is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{name}: expected a string, got {value!r}")
+        choices = _STRING_CHOICES.get(name)
+        if choices and value not in choices:
+            raise ConfigError(f"{name} = {value!r}: must be one of {', '.join(choices)}")
+        return value
+    if spec.type is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{name}: expected true/false, got {value!r}")
+        return value
+    return spec.check(value)
+
+
+def node_params_from_flat(flat: dict) -> NodeParams:
+    values = {s.name: s.default for s in NODE_PARAMETERS}
+    for name, value in flat.items():
+        if not name.startswith(TISSUE_PREFIX):
+            values[name] = check_value(name, value)
+    return NodeParams(**{f.name: values[f.name] for f in fields(NodeParams)})
+
+
+def validate_all(flat: dict):
+    """Validate a full dotted parameter dict: returns (NodeParams, TissueConfig)."""
+    return node_params_from_flat(flat), config_from_flat(tissue_part(flat, TISSUE_PREFIX))
