@@ -87,8 +87,13 @@ class HapticSession:
         self.model = model
 
     # --- inputs -----------------------------------------------------------------------
-    def on_pose(self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None) -> str | None:
-        """Validate and store a tool pose. Returns None if accepted, else the rejection kind."""
+    def on_pose(self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None, rx_ns: int | None = None) -> str | None:
+        """Validate and store a tool pose. Returns None if accepted, else the rejection kind.
+
+        ``now_ns``: the receiver's clock in the stamps' time base (ROS time), for the stamp
+        age check (None skips it, as offline replay does). ``rx_ns``: arrival time on the
+        clock that :meth:`tick` gets (default ``now_ns``, else the stamp).
+        """
         x, y, z = (float(c) for c in xyz)
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
             return self._event(NON_FINITE, f"rejected tool pose with non-finite position ({x}, {y}, {z})")
@@ -117,7 +122,7 @@ class HapticSession:
                 self._event(TELEPORT, f"tool jumped {dist * 1e3:.1f} mm in {dt * 1e3:.2f} ms: contact restarted")
         self._prev_pose_stamp_ns, self._prev_pose = self.pose_stamp_ns, self.pose
         self.pose_stamp_ns, self.pose = stamp_ns, (x, y, z)
-        self.pose_rx_ns = now_ns if now_ns is not None else stamp_ns
+        self.pose_rx_ns = rx_ns if rx_ns is not None else (now_ns if now_ns is not None else stamp_ns)
         self._pending = True
         return None
 

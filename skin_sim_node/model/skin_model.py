@@ -191,3 +191,16 @@ class SkinModel:
             )  # fmt: skip
         kn.assemble_heights(self._disp, self._rest_tops, self._heights)
         return Grid(self.xs, self.ys, self._disp, self._heights)
+
+
+def warm_up(cfg: TissueConfig) -> None:
+    """Compile (or load from numba's cache) every kernel and touch every code path once."""
+    model = SkinModel(cfg)
+    for i in range(60):
+        d = 4e-3 * min(i, 30) / 30
+        model.step((0.001 * i, 0.0, -d), (0.001, 0.0, -0.1), 1e-3)
+    model.step((0.0, 0.0, 0.01), (0.0, 0.0, 0.5), 1e-3)
+    model.step((0.0, 0.0, 0.01), (0.0, 0.0, 0.0), 2e-3)
+    model.surface_displacement_at(0.0, 0.0)
+    model.energy()
+    model.build_grid()

@@ -1,0 +1,303 @@
+"""``skin_sim_node``: the rclpy haptic server. Thin: parameters in, messages <-> arrays, model out.
+
+Loop modes (parameter ``loop_mode``):
+
+- ``input`` (default): each accepted tool pose is answered at once, in its callback, with a
+  model tick and a wrench stamped with the pose's stamp (lowest pose-to-force latency). A
+  ``rate_hz`` fallback clock in its own thread ticks whenever no pose came for 1.5 periods,
+  so the tissue keeps relaxing and the watchdog fires when the input stops.
+- ``timer``: a precise ``rate_hz`` thread ticks with the newest pose held (zero-order hold).
+
+The model kernels are ``nogil``; one lock orders ticks, parameter swaps and display snapshots.
+"""
+
+from __future__ import annotations
+
+import argparse
+import threading
+import time
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point, PoseStamped, TwistStamped, WrenchStamped
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.node import Node
+from sensor_msgs.msg import Image, JointState
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker
+
+from msgs_schema import convert as cv
+from msgs_schema.parameters import ALL_PARAMETERS, NodeParams, validate_all
+from msgs_schema.qos import publisher, subscription
+from msgs_schema.topics import FRAMES
+
+from .model import ConfigError, SkinModel
+from .model.skin_model import warm_up
+from .ros_util import PeriodicLoop, run_nodes
+from .session import HapticSession, SessionParams
+
+NODE_NAME = "skin_sim_node"
+STATS_LEN = 16384
+
+
+def session_params(p: NodeParams) -> SessionParams:
+    return SessionParams(
+        tissue_frame=p.tissue_frame,
+        watchdog_s=p.watchdog_s,
+        max_stamp_age_s=p.max_stamp_age_s,
+        max_force_n=p.max_force_n,
+        teleport_distance_m=p.teleport_distance_m,
+        max_tool_speed_m_s=p.max_tool_speed_m_s,
+        twist_max_skew_s=p.twist_max_skew_s,
+    )
+
+
+def descriptor(spec) -> ParameterDescriptor:
+    d = ParameterDescriptor(description=f"{spec.description} [{spec.unit}]")
+    if spec.type is float and spec.min is not None and spec.max is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=float(spec.min), to_value=float(spec.max), step=0.0)]
+    elif spec.type is int and spec.min is not None and spec.max is not None:
+        d.integer_range = [IntegerRange(from_value=int(spec.min), to_value=int(spec.max), step=1)]
+    elif spec.min is not None:
+        d.additional_constraints = f"{'>' if spec.min_exclusive else '>='} {spec.min}"
+    return d
+
+
+class SkinSimNode(Node):
+    """The haptic server node. See the module docstring and ``docs/ros.md``."""
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        for spec in ALL_PARAMETERS:
+            self.declare_parameter(spec.name, spec.default, descriptor(spec))
+        self._flat = {s.name: self.get_parameter(s.name).value for s in ALL_PARAMETERS}
+        self.params, cfg = validate_all(self._flat)  # ConfigError: refuse to start, with the reason
+        t0 = time.perf_counter()
+        warm_up(cfg)
+        self._warmup_s = time.perf_counter() - t0
+        self._lock = threading.Lock()
+        self.session = HapticSession(SkinModel(cfg), session_params(self.params), log=self._log_event)
+        self._display_model = SkinModel(cfg)
+        self._frame = FRAMES["tissue"]
+        # preallocated messages
+        self._wrench = WrenchStamped()
+        self._contact = JointState()
+        self._image = Image()
+        self._layers_image = Image()
+        self._marker = Marker()
+        self._diag = DiagnosticArray()
+        # statistics (ring buffers, written under the lock)
+        self._kernel_us = np.zeros(STATS_LEN)
+        self._period_us = np.zeros(STATS_LEN)
+        self._n_ticks = 0
+        self._n_pose_ticks = 0
+        self._stats_from = 0
+        self._last_tick_ns = time.perf_counter_ns()
+        self._last_diag_ns = self._last_tick_ns
+        self._display_count = 0
+        self._last_display_ns = 0
+        self._rest_published = False
+        # I/O
+        self._pub_wrench = publisher(self, "tool_wrench")
+        self._pub_contact = publisher(self, "contact")
+        self._pub_height = publisher(self, "height_map")
+        self._pub_layers = publisher(self, "layer_heights")
+        self._pub_mesh = publisher(self, "mesh")
+        self._pub_diag = publisher(self, "diagnostics")
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        subscription(self, "tool_pose", self._on_pose)
+        subscription(self, "tool_twist", self._on_twist)
+        self._display_timer = None
+        self._diag_timer = self.create_timer(self.params.diagnostics_period_s, self._publish_diagnostics)
+        self._make_display_timer()
+        self._loop = PeriodicLoop(self._period_ns(), self._on_clock)
+        self._loop.start()
+        self.get_logger().info(
+            f"live: {self.params.loop_mode} loop at {self.params.rate_hz:.0f} Hz, {self.session.model.basis.n_modes} modes, "
+            f"grid {cfg.grid_shape[1]}x{cfg.grid_shape[0]}, numba warm-up {self._warmup_s:.2f} s"
+        )
+
+    # --- lifecycle --------------------------------------------------------------------
+    def stop(self) -> None:
+        self._loop.stop()
+
+    def _period_ns(self) -> int:
+        return int(1e9 / self.params.rate_hz)
+
+    def _make_display_timer(self) -> None:
+        if self._display_timer is not None:
+            self.destroy_timer(self._display_timer)
+            self._display_timer = None
+        if self.params.display_rate_hz > 0:
+            self._display_timer = self.create_timer(1.0 / self.params.display_rate_hz, self._publish_display)
+
+    def _log_event(self, kind: str, message: str) -> None:
+        self.get_logger().warning(f"[{kind}] {message} (logged once; counted in diagnostics)")
+
+    # --- inputs -----------------------------------------------------------------------
+    def _on_pose(self, msg: PoseStamped) -> None:
+        stamp, frame, xyz = cv.read_pose(msg)
+        rx = time.perf_counter_ns()
+        with self._lock:
+            rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self.get_clock().now().nanoseconds, rx_ns=rx)
+            if rejected is None and self.params.loop_mode == "input":
+                self._tick(rx, pose_driven=True)
+
+    def _on_twist(self, msg: TwistStamped) -> None:
+        stamp, frame, lin = cv.read_twist(msg)
+        with self._lock:
+            self.session.on_twist(stamp, frame, lin)
+
+    def _on_clock(self, now_ns: int, _elapsed_ns: int) -> None:
+        with self._lock:
+            if self.params.loop_mode == "input" and now_ns - self._last_tick_ns < 1.5 * self._period_ns():
+                return
+            self._tick(now_ns, pose_driven=False)
+
+    # --- the haptic tick (under the lock) ---------------------------------------------
+    def _tick(self, now_ns: int, pose_driven: bool) -> None:
+        s = self.session
+        elapsed = now_ns - self._last_tick_ns
+        t0 = time.perf_counter_ns()
+        force = s.tick(now_ns, elapsed)
+        t1 = time.perf_counter_ns()
+        i = self._n_ticks % STATS_LEN
+        self._kernel_us[i] = (t1 - t0) * 1e-3
+        self._period_us[i] = elapsed * 1e-3
+        self._n_ticks += 1
+        self._n_pose_ticks += pose_driven
+        self._last_tick_ns = now_ns
+        stamp = s.answered_stamp_ns if pose_driven else self.get_clock().now().nanoseconds
+        self._pub_wrench.publish(cv.fill_wrench(self._wrench, stamp, self._frame, (0.0, 0.0, force)))
+        m = s.model
+        n = m.n_affected
+        depth = m.depth_m
+        vn = -s.velocity[2]
+        comp = m.compression_m
+        rate = [vn * c / depth if depth > 0 else 0.0 for c in comp]
+        stress = [m.stress_pa if li < n else 0.0 for li in range(comp.shape[0])]
+        self._pub_contact.publish(cv.fill_contact(self._contact, stamp, self._frame, comp, rate, stress))
+
+    # --- display ----------------------------------------------------------------------
+    def _publish_display(self) -> None:
+        dm = self._display_model
+        with self._lock:
+            m = self.session.model
+            if dm.q.shape != m.q.shape or dm.cfg is not m.cfg:
+                dm = self._display_model = SkinModel(m.cfg)
+            np.copyto(dm.q, m.q)
+            np.copyto(dm.centre, m.centre)
+            at_rest = not m.driven.any() and float(np.abs(m.q).max(initial=0.0)) < 1e-9
+        now = time.perf_counter_ns()
+        if at_rest and self._rest_published and now - self._last_display_ns < 1_000_000_000:
+            return  # nothing moved: heartbeat once a second only
+        self._rest_published = at_rest
+        self._last_display_ns = now
+        g = dm.build_grid()
+        stamp = self.get_clock().now().nanoseconds
+        self._pub_height.publish(cv.fill_image(self._image, stamp, self._frame, g.heights_m[0]))
+        self._pub_layers.publish(cv.fill_image(self._layers_image, stamp, self._frame, np.moveaxis(g.heights_m, 0, -1)))
+        self._display_count += 1
+        if self.params.publish_mesh and self._display_count % max(1, round(self.params.display_rate_hz / 10.0)) == 0:
+            affected = g.displacement_m > 1e-6  # deeper than 1 um: visibly deformed
+            deepest = np.where(affected.any(axis=0), affected.shape[0] - 1 - np.argmax(affected[::-1], axis=0), -1)
+            verts, cols = cv.mesh_arrays(g.xs_m, g.ys_m, g.heights_m[0], deepest, self.params.mesh_stride)
+            self._pub_mesh.publish(cv.fill_mesh_marker(self._marker, Point, ColorRGBA, stamp, self._frame, verts, cols))
+
+    # --- diagnostics ------------------------------------------------------------------
+    def _publish_diagnostics(self) -> None:
+        with self._lock:
+            n = self._n_ticks - self._stats_from
+            idx = np.arange(self._stats_from, self._n_ticks)[-STATS_LEN:] % STATS_LEN
+            kern = self._kernel_us[idx].copy()
+            per = self._period_us[idx].copy()
+            self._stats_from = self._n_ticks
+            s = self.session
+            age_ms = (time.perf_counter_ns() - s.pose_rx_ns) * 1e-6 if s.pose_rx_ns else float("inf")
+            counts = dict(s.counts)
+            stale, force, flags, n_aff = s.stale, s.force_n, s.model.flags, s.model.n_affected
+            pose_ticks = self._n_pose_ticks
+            overruns = self._loop.overruns
+        now = time.perf_counter_ns()
+        wall = (now - self._last_diag_ns) * 1e-9
+        self._last_diag_ns = now
+        target_us = 1e6 / self.params.rate_hz
+        late = int(np.sum(per > 1.5 * target_us)) if per.size else 0
+
+        def pct(a, q):
+            return f"{np.percentile(a, q):.1f}" if a.size else "nan"
+
+        values = {
+            "achieved_rate_hz": f"{n / wall:.1f}" if wall > 0 else "nan",
+            "target_rate_hz": f"{self.params.rate_hz:.1f}",
+            "loop_mode": self.params.loop_mode,
+            "ticks_total": str(self._n_ticks),
+            "ticks_pose_driven": str(pose_ticks),
+            "late_ticks_window": str(late),
+            "clock_overruns_total": str(overruns),
+            "period_us_p50": pct(per, 50),
+            "period_us_p99": pct(per, 99),
+            "kernel_us_p50": pct(kern, 50),
+            "kernel_us_p99": pct(kern, 99),
+            "kernel_us_max": f"{kern.max():.1f}" if kern.size else "nan",
+            "input_age_ms": f"{age_ms:.1f}",
+            "input_stale": str(stale),
+            "force_n": f"{force:.4f}",
+            "n_affected_layers": str(n_aff),
+            "model_flags": str(flags),
+            "warmup_s": f"{self._warmup_s:.3f}",
+        }
+        values.update({f"count_{k}": str(v) for k, v in sorted(counts.items())})
+        st = DiagnosticStatus()
+        st.name = f"{self.get_fully_qualified_name()}: haptic loop"
+        st.hardware_id = "skin_sim"
+        if stale:
+            st.level, st.message = DiagnosticStatus.WARN, "input stale: force held at zero"
+        elif late > 0.01 * max(n, 1):
+            st.level, st.message = DiagnosticStatus.WARN, f"{late} late ticks in the last {wall:.1f} s"
+        else:
+            st.level, st.message = DiagnosticStatus.OK, "running"
+        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        cv.set_stamp(self._diag.header, self.get_clock().now().nanoseconds)
+        self._diag.status = [st]
+        self._pub_diag.publish(self._diag)
+
+    # --- live parameters --------------------------------------------------------------
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        flat = dict(self._flat)
+        for p in params:
+            flat[p.name] = p.value
+        try:
+            node_params, cfg = validate_all(flat)
+        except ConfigError as exc:
+            self.get_logger().warning(f"parameter change rejected: {exc}")
+            return SetParametersResult(successful=False, reason=str(exc))
+        tissue_changed = any(p.name.startswith("tissue.") for p in params)
+        new_model = SkinModel(cfg) if tissue_changed else None
+        with self._lock:
+            if new_model is not None:
+                self.session.set_model(new_model)
+            self.session.params = session_params(node_params)
+            old = self.params
+            self.params = node_params
+            self._flat = flat
+            self._loop.period_ns = self._period_ns()
+        if old.display_rate_hz != node_params.display_rate_hz:
+            self._make_display_timer()
+        self.get_logger().info(
+            "parameters applied: "
+            + ", ".join(f"{p.name}={p.value}" for p in params)
+            + (" (tissue restarts at rest)" if new_model else "")
+        )
+        return SetParametersResult(successful=True)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="skin-sim node", description="Run skin_sim_node (ROS args after --ros-args).")
+    ap.add_argument("--executor", choices=("events", "single"), default="events", help="rclpy executor (default events)")
+    args, rest = ap.parse_known_args(argv)
+    return run_nodes([SkinSimNode], args=rest, executor=args.executor)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
