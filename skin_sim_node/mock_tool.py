@@ -199,7 +199,7 @@ DEFAULTS = {
 }
 
 
-EXECUTOR = "single"
+EXECUTOR = "events"  # run_nodes drives it with spin_once(timeout): far less CPU per callback
 """rclpy executor for :func:`run_nodes`. Not ``events``: with the rclpy 7.1.6 wheels its ``spin()``
 ignores context shutdown (SIGINT, SIGTERM, exit-when-done never return) and starved Python threads
 in a local test; this node publishes from its own loop thread, so the executor has nothing at 1 kHz."""

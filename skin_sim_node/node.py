@@ -14,24 +14,25 @@ The model kernels are ``nogil``; one lock orders ticks, parameter swaps and disp
 from __future__ import annotations
 
 import argparse
+import sys
 import threading
 import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, PoseStamped, TwistStamped, WrenchStamped
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
-from sensor_msgs.msg import Image, JointState
-from std_msgs.msg import ColorRGBA
-from visualization_msgs.msg import Marker
+from sensor_msgs.msg import JointState
 
 from msgs_schema import convert as cv
 from msgs_schema.parameters import ALL_PARAMETERS, NodeParams, validate_all
 from msgs_schema.qos import publisher, subscription
 from msgs_schema.topics import FRAMES
 
+from .display import DisplayProcess
 from .model import ConfigError, SkinModel
+from .model.config import tissue_part
 from .model.skin_model import warm_up
 from .ros_util import PeriodicLoop, run_nodes
 from .session import HapticSession, SessionParams
@@ -66,7 +67,7 @@ def descriptor(spec) -> ParameterDescriptor:
 class SkinSimNode(Node):
     """The haptic server node. See the module docstring and ``docs/ros.md``."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, ros_args: list[str] | None = None, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         for spec in ALL_PARAMETERS:
             self.declare_parameter(spec.name, spec.default, descriptor(spec))
@@ -77,14 +78,10 @@ class SkinSimNode(Node):
         self._warmup_s = time.perf_counter() - t0
         self._lock = threading.Lock()
         self.session = HapticSession(SkinModel(cfg), session_params(self.params), log=self._log_event)
-        self._display_model = SkinModel(cfg)
         self._frame = FRAMES["tissue"]
         # preallocated messages
         self._wrench = WrenchStamped()
         self._contact = JointState()
-        self._image = Image()
-        self._layers_image = Image()
-        self._marker = Marker()
         self._diag = DiagnosticArray()
         # statistics (ring buffers, written under the lock)
         self._kernel_us = np.zeros(STATS_LEN)
@@ -94,22 +91,19 @@ class SkinSimNode(Node):
         self._stats_from = 0
         self._last_tick_ns = time.perf_counter_ns()
         self._last_diag_ns = self._last_tick_ns
-        self._display_count = 0
-        self._last_display_ns = 0
-        self._rest_published = False
         # I/O
         self._pub_wrench = publisher(self, "tool_wrench")
         self._pub_contact = publisher(self, "contact")
-        self._pub_height = publisher(self, "height_map")
-        self._pub_layers = publisher(self, "layer_heights")
-        self._pub_mesh = publisher(self, "mesh")
         self._pub_diag = publisher(self, "diagnostics")
         self.add_on_set_parameters_callback(self._on_set_parameters)
         subscription(self, "tool_pose", self._on_pose)
         subscription(self, "tool_twist", self._on_twist)
-        self._display_timer = None
         self._diag_timer = self.create_timer(self.params.diagnostics_period_s, self._publish_diagnostics)
-        self._make_display_timer()
+        # display work runs in its own process; this thread only copies the modal state to it
+        args = [a for a in (ros_args or []) if "__node:=" not in a]
+        self._display = DisplayProcess(tissue_part(self._flat, "tissue."), self._display_settings(), args, self.get_namespace())
+        self._display_loop = PeriodicLoop(self._display_period_ns(), self._on_display_clock, name="display-loop")
+        self._display_loop.start()
         self._loop = PeriodicLoop(self._period_ns(), self._on_clock)
         self._loop.start()
         self.get_logger().info(
@@ -120,16 +114,18 @@ class SkinSimNode(Node):
     # --- lifecycle --------------------------------------------------------------------
     def stop(self) -> None:
         self._loop.stop()
+        self._display_loop.stop()
+        self._display.close()
 
     def _period_ns(self) -> int:
         return int(1e9 / self.params.rate_hz)
 
-    def _make_display_timer(self) -> None:
-        if self._display_timer is not None:
-            self.destroy_timer(self._display_timer)
-            self._display_timer = None
+    def _display_period_ns(self) -> int:
+        return int(1e9 / self.params.display_rate_hz) if self.params.display_rate_hz > 0 else 1_000_000_000
+
+    def _on_display_clock(self, _now_ns: int, _elapsed_ns: int) -> None:
         if self.params.display_rate_hz > 0:
-            self._display_timer = self.create_timer(1.0 / self.params.display_rate_hz, self._publish_display)
+            self._snapshot_display()
 
     def _log_event(self, kind: str, message: str) -> None:
         self.get_logger().warning(f"[{kind}] {message} (logged once; counted in diagnostics)")
@@ -178,31 +174,19 @@ class SkinSimNode(Node):
         stress = [m.stress_pa if li < n else 0.0 for li in range(comp.shape[0])]
         self._pub_contact.publish(cv.fill_contact(self._contact, stamp, self._frame, comp, rate, stress))
 
-    # --- display ----------------------------------------------------------------------
-    def _publish_display(self) -> None:
-        dm = self._display_model
+    # --- display (built and published by the display worker process) -------------------
+    def _display_settings(self) -> dict:
+        p = self.params
+        return {
+            "display_rate_hz": p.display_rate_hz,
+            "mesh_rate_hz": p.mesh_rate_hz,
+            "publish_mesh": p.publish_mesh,
+            "mesh_stride": p.mesh_stride,
+        }
+
+    def _snapshot_display(self) -> None:
         with self._lock:
-            m = self.session.model
-            if dm.q.shape != m.q.shape or dm.cfg is not m.cfg:
-                dm = self._display_model = SkinModel(m.cfg)
-            np.copyto(dm.q, m.q)
-            np.copyto(dm.centre, m.centre)
-            at_rest = not m.driven.any() and float(np.abs(m.q).max(initial=0.0)) < 1e-9
-        now = time.perf_counter_ns()
-        if at_rest and self._rest_published and now - self._last_display_ns < 1_000_000_000:
-            return  # nothing moved: heartbeat once a second only
-        self._rest_published = at_rest
-        self._last_display_ns = now
-        g = dm.build_grid()
-        stamp = self.get_clock().now().nanoseconds
-        self._pub_height.publish(cv.fill_image(self._image, stamp, self._frame, g.heights_m[0]))
-        self._pub_layers.publish(cv.fill_image(self._layers_image, stamp, self._frame, np.moveaxis(g.heights_m, 0, -1)))
-        self._display_count += 1
-        if self.params.publish_mesh and self._display_count % max(1, round(self.params.display_rate_hz / 10.0)) == 0:
-            affected = g.displacement_m > 1e-6  # deeper than 1 um: visibly deformed
-            deepest = np.where(affected.any(axis=0), affected.shape[0] - 1 - np.argmax(affected[::-1], axis=0), -1)
-            verts, cols = cv.mesh_arrays(g.xs_m, g.ys_m, g.heights_m[0], deepest, self.params.mesh_stride)
-            self._pub_mesh.publish(cv.fill_mesh_marker(self._marker, Point, ColorRGBA, stamp, self._frame, verts, cols))
+            self._display.write(self.session.model)
 
     # --- diagnostics ------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
@@ -278,12 +262,13 @@ class SkinSimNode(Node):
             if new_model is not None:
                 self.session.set_model(new_model)
             self.session.params = session_params(node_params)
-            old = self.params
             self.params = node_params
             self._flat = flat
             self._loop.period_ns = self._period_ns()
-        if old.display_rate_hz != node_params.display_rate_hz:
-            self._make_display_timer()
+        self._display_loop.period_ns = self._display_period_ns()
+        self._display.set_display(self._display_settings())
+        if new_model is not None:
+            self._display.set_tissue(tissue_part(flat, "tissue."))
         self.get_logger().info(
             "parameters applied: "
             + ", ".join(f"{p.name}={p.value}" for p in params)
@@ -295,8 +280,13 @@ class SkinSimNode(Node):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim node", description="Run skin_sim_node (ROS args after --ros-args).")
     ap.add_argument("--executor", choices=("events", "single"), default="events", help="rclpy executor (default events)")
+    ap.add_argument(
+        "--switch-interval-s", type=float, default=2e-4,
+        help="Python GIL switch interval (default 0.2 ms, not 5 ms, so the haptic thread preempts display work quickly)",
+    )  # fmt: skip
     args, rest = ap.parse_known_args(argv)
-    return run_nodes([SkinSimNode], args=rest, executor=args.executor)
+    sys.setswitchinterval(args.switch_interval_s)
+    return run_nodes([lambda: SkinSimNode(ros_args=rest)], args=rest, executor=args.executor)
 
 
 if __name__ == "__main__":

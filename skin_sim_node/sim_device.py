@@ -170,7 +170,7 @@ class SimulatedDevice:
 
 
 # --- ROS node ---------------------------------------------------------------------------
-EXECUTOR = "single"
+EXECUTOR = "events"  # run_nodes drives it with spin_once(timeout): far less CPU per callback
 """rclpy executor for :func:`run_nodes`. Not ``events``: with the rclpy 7.1.6 wheels its ``spin()``
 ignores context shutdown (SIGINT, SIGTERM, exit-when-done never return) and, in a local test,
 starved Python threads such as the device loop."""

@@ -1,0 +1,45 @@
+"""``skin-sim``: one entry point; each subcommand is a module's ``main(argv)``."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+COMMANDS = {
+    "demo": ("skin_sim_node.demo", "headless demo scene: node + bridge + simulated device, summary and picture"),
+    "node": ("skin_sim_node.node", "run skin_sim_node (the haptic server)"),
+    "bridge": ("skin_sim_node.bridge", "device bridge between Geomagic Touch drivers (CRTK / omni) and the node"),
+    "device": ("skin_sim_node.sim_device", "simulated Touch device following a hand path"),
+    "mock-tool": ("skin_sim_node.mock_tool", "scripted tool pose/twist publisher"),
+    "scene": ("skin_sim_node.scenes", "start a scene as separate processes"),
+    "bench": ("skin_sim_node.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
+    "bench-model": ("skin_sim_node.bench_model", "model step micro-benchmark (numba vs NumPy)"),
+    "echo": ("skin_sim_node.echo", "bare rclpy echo node (pose in, wrench out): the latency baseline"),
+    "chart": ("skin_sim_node.figures", "regenerate the model figures in docs/figures"),
+}
+
+
+def usage() -> str:
+    width = max(map(len, COMMANDS))
+    lines = ["usage: skin-sim COMMAND [args]", "", "commands:"]
+    lines += [f"  {name:<{width}}  {desc}" for name, (_, desc) in COMMANDS.items()]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(usage())
+        return 0
+    cmd, rest = argv[0], argv[1:]
+    if cmd == "chart" and rest[:1] == ["model"]:
+        rest = rest[1:]
+    if cmd not in COMMANDS:
+        print(f"skin-sim: unknown command {cmd!r}\n\n{usage()}", file=sys.stderr)
+        return 2
+    module = importlib.import_module(COMMANDS[cmd][0])
+    return int(module.main(rest) or 0)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,174 @@
+"""Display worker: builds and publishes the height maps and the mesh in its own process.
+
+The haptic process only copies the modal state (a few kB) into shared memory at display
+rate; this process rebuilds the grid from it and publishes ``tissue/height_map``,
+``tissue/layer_heights`` and ``tissue/mesh``. Measured on 2 cores: with the display in the
+haptic process, its large publishes and the per-vertex Python work of the mesh held the
+GIL long enough to make 5-10 % of 1 kHz ticks late; in its own process they cost nothing.
+
+Shared state is a seqlock: the writer makes ``seq`` odd, writes, makes it even; the reader
+retries until it reads the same even ``seq`` before and after copying.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import time
+from multiprocessing import shared_memory
+
+import numpy as np
+
+from .model import SkinModel, config_from_flat
+
+MAX_LAYERS = 3
+MAX_MODES = 100 * 100  # odd-odd modes of the 200 x 200 parameter bound
+_HEADER = 4  # int64: seq, n_layers, n_modes, config version
+
+
+class SnapshotBuffer:
+    """Shared-memory snapshot of ``q`` (L, K) and patch ``centre`` (L, 2)."""
+
+    def __init__(self, name: str | None = None):
+        size = 8 * (_HEADER + MAX_LAYERS * MAX_MODES + MAX_LAYERS * 2 + MAX_LAYERS)
+        self.shm = shared_memory.SharedMemory(name=name, create=name is None, size=size)
+        buf = self.shm.buf
+        self.header = np.ndarray((_HEADER,), dtype=np.int64, buffer=buf)
+        off = 8 * _HEADER
+        self.q = np.ndarray((MAX_LAYERS * MAX_MODES,), dtype=np.float64, buffer=buf, offset=off)
+        off += 8 * MAX_LAYERS * MAX_MODES
+        self.centre = np.ndarray((MAX_LAYERS * 2,), dtype=np.float64, buffer=buf, offset=off)
+        off += 8 * MAX_LAYERS * 2
+        self.driven = np.ndarray((MAX_LAYERS,), dtype=np.float64, buffer=buf, offset=off)
+        if name is None:
+            self.header[:] = 0
+
+    def write(self, q: np.ndarray, centre: np.ndarray, driven: np.ndarray, version: int) -> None:
+        n_l, k = q.shape
+        self.header[0] += 1  # odd: writing
+        self.q[: n_l * k] = q.ravel()
+        self.centre[: n_l * 2] = centre.ravel()
+        self.driven[:n_l] = driven
+        self.header[1], self.header[2], self.header[3] = n_l, k, version
+        self.header[0] += 1  # even: consistent
+
+    def read(self, q_out: np.ndarray, centre_out: np.ndarray) -> tuple[int, int, bool]:
+        """Copy a consistent snapshot; returns (seq, config version, any layer driven)."""
+        while True:
+            s0 = int(self.header[0])
+            if s0 % 2:
+                time.sleep(1e-5)
+                continue
+            n_l, k, version = int(self.header[1]), int(self.header[2]), int(self.header[3])
+            if q_out.shape == (n_l, k):
+                q_out[...] = self.q[: n_l * k].reshape(n_l, k)
+                centre_out[...] = self.centre[: n_l * 2].reshape(n_l, 2)
+            driven = bool(self.driven[:n_l].any())
+            if int(self.header[0]) == s0:
+                return s0, version, driven
+
+    def close(self, unlink: bool = False) -> None:
+        for name in ("header", "q", "centre", "driven"):
+            setattr(self, name, None)
+        self.shm.close()
+        if unlink:
+            self.shm.unlink()
+
+
+def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pid):  # pragma: no cover - child process
+    import rclpy
+    from geometry_msgs.msg import Point
+    from sensor_msgs.msg import Image
+    from std_msgs.msg import ColorRGBA
+    from visualization_msgs.msg import Marker
+
+    from msgs_schema import convert as cv
+    from msgs_schema.qos import publisher
+    from msgs_schema.topics import FRAMES
+
+    rclpy.init(args=ros_args)
+    node = rclpy.create_node("skin_sim_display", namespace=namespace)
+    pubs = {k: publisher(node, k) for k in ("height_map", "layer_heights", "mesh")}
+    image, layers_image, marker = Image(), Image(), Marker()
+    snap = SnapshotBuffer(shm_name)
+    model = SkinModel(config_from_flat(tissue_flat))
+    version = 0
+    frame = FRAMES["tissue"]
+    last_seq, last_pub, count, rest_sent = -1, 0.0, 0, False
+    try:
+        while rclpy.ok() and os.getppid() == parent_pid:
+            while conn.poll():
+                msg = conn.recv()
+                if msg is None:
+                    return
+                kind, payload = msg
+                if kind == "tissue":
+                    version, model = payload[0], SkinModel(config_from_flat(payload[1]))
+                elif kind == "display":
+                    display = payload
+            period = 1.0 / display["display_rate_hz"] if display["display_rate_hz"] > 0 else 0.5
+            t0 = time.monotonic()
+            if display["display_rate_hz"] > 0:
+                seq, v, driven = snap.read(model.q, model.centre)
+                at_rest = v == version and not driven and float(np.abs(model.q).max(initial=0.0)) < 1e-9
+                moved = seq != last_seq
+                if v == version and (moved and not (at_rest and rest_sent) or t0 - last_pub > 1.0):
+                    last_seq, last_pub, rest_sent = seq, t0, at_rest
+                    g = model.build_grid()
+                    stamp = node.get_clock().now().nanoseconds
+                    pubs["height_map"].publish(cv.fill_image(image, stamp, frame, g.heights_m[0]))
+                    pubs["layer_heights"].publish(cv.fill_image(layers_image, stamp, frame, np.moveaxis(g.heights_m, 0, -1)))
+                    count += 1
+                    rate = display["mesh_rate_hz"]
+                    every = max(1, round(display["display_rate_hz"] / rate)) if rate > 0 else 0
+                    if display["publish_mesh"] and every and count % every == 0:
+                        affected = g.displacement_m > 1e-6  # deeper than 1 um: visibly deformed
+                        n_l = affected.shape[0]
+                        deepest = np.where(affected.any(axis=0), n_l - 1 - np.argmax(affected[::-1], axis=0), -1)
+                        verts, cols = cv.mesh_arrays(g.xs_m, g.ys_m, g.heights_m[0], deepest, display["mesh_stride"])
+                        pubs["mesh"].publish(cv.fill_mesh_marker(marker, Point, ColorRGBA, stamp, frame, verts, cols))
+            time.sleep(max(0.0, period - (time.monotonic() - t0)))
+    except KeyboardInterrupt:
+        pass
+    finally:
+        snap.close()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+class DisplayProcess:
+    """Owner side: the shared snapshot, the pipe, and the worker process."""
+
+    def __init__(self, tissue_flat: dict, display: dict, ros_args: list[str], namespace: str):
+        self.snap = SnapshotBuffer()
+        ctx = mp.get_context("spawn")  # never fork a process that runs DDS threads
+        self._conn, child = ctx.Pipe()
+        self.version = 0
+        self.proc = ctx.Process(
+            target=_worker,
+            args=(self.snap.shm.name, tissue_flat, display, ros_args, namespace, child, os.getpid()),
+            name="skin_sim_display",
+            daemon=True,
+        )
+        self.proc.start()
+
+    def write(self, model: SkinModel) -> None:
+        self.snap.write(model.q, model.centre, model.driven, self.version)
+
+    def set_tissue(self, tissue_flat: dict) -> None:
+        self.version += 1
+        self._conn.send(("tissue", (self.version, tissue_flat)))
+
+    def set_display(self, display: dict) -> None:
+        self._conn.send(("display", display))
+
+    def close(self) -> None:
+        try:
+            self._conn.send(None)
+        except (BrokenPipeError, OSError):
+            pass
+        self.proc.join(timeout=3.0)
+        if self.proc.is_alive():
+            self.proc.terminate()
+            self.proc.join(timeout=2.0)
+        self.snap.close(unlink=True)

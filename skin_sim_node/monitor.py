@@ -1,0 +1,113 @@
+"""An in-process rclpy observer of a running skin_sim_node: records its outputs, injects inputs.
+
+Used by the demo, the integration tests and the benchmarks. It owns its own rclpy
+context and spins it in a background thread, so it can live inside pytest or a CLI.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+
+from msgs_schema import convert as cv
+from msgs_schema.qos import publisher, subscription
+
+from .ros_util import EventsExecutor
+
+
+class Monitor:
+    """Subscribes to the node's outputs; every record carries the local ROS-clock arrival time.
+
+    Records: ``wrench`` (rx_ns, stamp_ns, fz), ``contact`` (rx_ns, stamp_ns, compression[3],
+    stress[3]), ``height_map``/``layer_heights`` (rx_ns, stamp_ns, array), ``diagnostics``
+    (rx_ns, {key: value}).
+    """
+
+    def __init__(self, name: str = "skin_sim_monitor", keep_images: int = 4000, executor: str = "events", images: bool = True):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.wrench: list[tuple[int, int, float]] = []
+        self.contact: list = []
+        self.height_map: list = []
+        self.layer_heights: list = []
+        self.diagnostics: list = []
+        self._keep_images = keep_images
+        self._lock = threading.Lock()
+        subscription(self.node, "tool_wrench", self._on_wrench)
+        subscription(self.node, "contact", self._on_contact)
+        if images:
+            subscription(self.node, "height_map", lambda m: self._on_image(m, self.height_map))
+            subscription(self.node, "layer_heights", lambda m: self._on_image(m, self.layer_heights))
+        subscription(self.node, "diagnostics", self._on_diag)
+        if executor == "events" and EventsExecutor is not None:
+            self._executor = EventsExecutor(context=self.context)
+        else:
+            self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name="monitor-spin", daemon=True)
+        self._thread.start()
+
+    def _now(self) -> int:
+        return self.node.get_clock().now().nanoseconds
+
+    def _spin(self) -> None:
+        while not self._stop.is_set() and self.context.ok():
+            try:
+                self._executor.spin_once(timeout_sec=0.05)
+            except Exception:  # noqa: BLE001 - context shut down under us
+                if not self.context.ok():
+                    return
+                raise
+
+    def _on_wrench(self, msg) -> None:
+        stamp, _, f = cv.read_wrench(msg)
+        self.wrench.append((self._now(), stamp, f[2]))
+
+    def _on_contact(self, msg) -> None:
+        stamp, comp, _, stress = cv.read_contact(msg)
+        self.contact.append((self._now(), stamp, comp, stress))
+
+    def _on_image(self, msg, store: list) -> None:
+        stamp = cv.stamp_ns(msg.header)
+        store.append((self._now(), stamp, cv.read_image(msg)))
+        if len(store) > self._keep_images:
+            del store[: len(store) - self._keep_images]
+
+    def _on_diag(self, msg) -> None:
+        for st in msg.status:
+            self.diagnostics.append((self._now(), {kv.key: kv.value for kv in st.values}, st.level, st.message))
+
+    # --- helpers ----------------------------------------------------------------------
+    def publisher(self, key: str):
+        return publisher(self.node, key)
+
+    def wait_for(self, predicate: Callable[[], bool], timeout_s: float = 20.0, what: str = "condition") -> None:
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            if predicate():
+                return
+            time.sleep(0.02)
+        raise TimeoutError(f"monitor: {what} not met within {timeout_s} s")
+
+    def forces(self) -> np.ndarray:
+        """(n, 3) array of rx_ns, stamp_ns, fz."""
+        data = list(self.wrench)
+        return np.array(data, dtype=np.float64).reshape(-1, 3)
+
+    def now_ns(self) -> int:
+        return self._now()
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        try:
+            self.node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=self.context)
