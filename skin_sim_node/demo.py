@@ -45,6 +45,10 @@ def main(argv=None) -> int:
     ap.add_argument("--path", default="press_all_layers", help="hand path / trajectory (see skin-sim mock-tool --list)")
     ap.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder for the picture and logs")
     ap.add_argument("--timeout-s", type=float, default=60.0)
+    ap.add_argument(
+        "--start-delay-s", type=float, default=2.5,
+        help="tool source waits this long for DDS discovery before its path starts (up to 1.6 s measured)",
+    )  # fmt: skip
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     scene = Scene(args.out / "logs")
@@ -62,9 +66,9 @@ def main(argv=None) -> int:
         t0 = time.monotonic()
         if args.source == "device":
             scene.start("bridge", "bridge")
-            source = scene.start("device", "device", "--hand-path", args.path)
+            source = scene.start("device", "device", "--hand-path", args.path, "--start-delay-s", str(args.start_delay_s))
         else:
-            source = scene.start("mock_tool", "mock-tool", "--trajectory", args.path)
+            source = scene.start("mock_tool", "mock-tool", "--trajectory", args.path, "--start-delay-s", str(args.start_delay_s))
         try:
             source.popen.wait(timeout=args.timeout_s)
         except subprocess.TimeoutExpired:

@@ -28,7 +28,7 @@ def isolated_env(domain_id: int | None = None, log_dir: Path | None = None) -> d
     if domain_id is not None:
         env["ROS_DOMAIN_ID"] = str(domain_id)
     elif "ROS_DOMAIN_ID" not in env:
-        env["ROS_DOMAIN_ID"] = str(random.SystemRandom().randint(100, 199))
+        env["ROS_DOMAIN_ID"] = str(random.SystemRandom().randint(1, 101))  # 0-101: safe on Linux per the ROS 2 docs
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; it overrides the range
     if log_dir is not None:
