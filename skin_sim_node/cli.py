@@ -16,6 +16,9 @@ COMMANDS = {
     "bench-model": ("skin_sim_node.bench_model", "model step micro-benchmark (numba vs NumPy)"),
     "echo": ("skin_sim_node.echo", "bare rclpy echo node (pose in, wrench out): the latency baseline"),
     "chart": ("skin_sim_node.figures", "regenerate the model figures in docs/figures"),
+    "record": ("skin_sim_node.bags.record", "record a scene's tool inputs and node outputs to a rosbag2 folder"),
+    "replay": ("skin_sim_node.bags.replay", "replay a bag through the model offline (or --live against a node)"),
+    "compare": ("skin_sim_node.bags.compare", "diff two output bags with tolerances; non-zero exit when they differ"),
 }
 
 
