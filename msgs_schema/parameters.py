@@ -45,6 +45,12 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "twist_max_skew_s", float, 0.005, "s",
         "use the twist topic when its stamp is within this of the pose's, else differentiate poses", 0.0, 1.0, False,
     ),
+    ParamSpec(
+        "fallback_rate_hz", float, 100.0, "Hz",
+        "input mode: clock that ticks when no pose came for 1.5 of its periods (watchdog, relaxation); the "
+        "modal integrator is exact for any dt, and a 1 kHz wake-up only contends for the GIL with pose callbacks",
+        1.0, 20000.0,
+    ),
     ParamSpec("tissue_frame", str, "tissue", "-", "frame_id the tool pose must carry"),
     ParamSpec(
         "loop_mode", str, "input", "-",
@@ -83,6 +89,7 @@ class NodeParams:
     teleport_distance_m: float
     max_tool_speed_m_s: float
     twist_max_skew_s: float
+    fallback_rate_hz: float
     tissue_frame: str
     loop_mode: str
     publish_mesh: bool

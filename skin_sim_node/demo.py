@@ -105,6 +105,7 @@ def main(argv=None) -> int:
         pic = layer_heights_figure(
             xs, ys, img, 0.0, args.out / "deformation_at_peak.png",
             f"demo {args.source}/{args.path}: deformation at peak force {s['peak_force_n']:.3f} N",
+            bottom_m=cfg.total_thickness_m,
         )  # fmt: skip
         print(f"  picture: {pic}")
     else:

@@ -104,7 +104,7 @@ class SkinSimNode(Node):
         self._display = DisplayProcess(tissue_part(self._flat, "tissue."), self._display_settings(), args, self.get_namespace())
         self._display_loop = PeriodicLoop(self._display_period_ns(), self._on_display_clock, name="display-loop")
         self._display_loop.start()
-        self._loop = PeriodicLoop(self._period_ns(), self._on_clock)
+        self._loop = PeriodicLoop(self._clock_period_ns(), self._on_clock)
         self._loop.start()
         self.get_logger().info(
             f"live: {self.params.loop_mode} loop at {self.params.rate_hz:.0f} Hz, {self.session.model.basis.n_modes} modes, "
@@ -119,6 +119,11 @@ class SkinSimNode(Node):
 
     def _period_ns(self) -> int:
         return int(1e9 / self.params.rate_hz)
+
+    def _clock_period_ns(self) -> int:
+        """The thread clock: rate_hz in timer mode, fallback_rate_hz in input mode."""
+        p = self.params
+        return int(1e9 / (p.rate_hz if p.loop_mode == "timer" else min(p.rate_hz, p.fallback_rate_hz)))
 
     def _display_period_ns(self) -> int:
         return int(1e9 / self.params.display_rate_hz) if self.params.display_rate_hz > 0 else 1_000_000_000
@@ -146,7 +151,7 @@ class SkinSimNode(Node):
 
     def _on_clock(self, now_ns: int, _elapsed_ns: int) -> None:
         with self._lock:
-            if self.params.loop_mode == "input" and now_ns - self._last_tick_ns < 1.5 * self._period_ns():
+            if self.params.loop_mode == "input" and now_ns - self._last_tick_ns < 1.5 * self._clock_period_ns():
                 return
             self._tick(now_ns, pose_driven=False)
 
@@ -264,7 +269,7 @@ class SkinSimNode(Node):
             self.session.params = session_params(node_params)
             self.params = node_params
             self._flat = flat
-            self._loop.period_ns = self._period_ns()
+            self._loop.period_ns = self._clock_period_ns()
         self._display_loop.period_ns = self._display_period_ns()
         self._display.set_display(self._display_settings())
         if new_model is not None:
