@@ -76,7 +76,8 @@ def fill_contact(msg, t_ns: int, frame: str, compression_m, rate_m_s, stress_pa)
     """JointState: one entry per layer; position = compression, velocity = rate, effort = stress."""
     set_stamp(msg.header, t_ns)
     msg.header.frame_id = frame
-    msg.name = list(LAYER_LABELS)
+    if len(msg.name) != len(LAYER_LABELS):
+        msg.name = list(LAYER_LABELS)
     msg.position = [float(c) for c in compression_m]
     msg.velocity = [float(c) for c in rate_m_s]
     msg.effort = [float(c) for c in stress_pa]
