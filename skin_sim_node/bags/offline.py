@@ -1,0 +1,193 @@
+"""Offline replay core: a bag's tool inputs through :class:`HapticSession` in stamp order.
+
+No DDS and no wall clock. Each accepted pose is answered as the live node answers it in
+``input`` loop mode: one session tick, a ``tool/wrench`` and a ``tissue/contact`` stamped
+with the pose's stamp. The tick is driven exactly as the ROS integration test's offline
+reference does it: ``on_pose(stamp, frame, xyz)`` with no clock (no stamp-age check),
+``on_twist``, ``tick(stamp, stamp - previous stamp)``. Display grids are built with
+:meth:`SkinModel.build_grid` every ``1 / grid_rate_hz`` of stamp time. Every output's bag
+timestamp is its header stamp, so two runs write identical message bytes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from msgs_schema import convert as cv
+from msgs_schema.parameters import validate_all
+from msgs_schema.topics import LAYER_LABELS, TOPICS
+
+from ..model import SkinModel
+from ..model.config import load_yaml
+from ..scenes import DEFAULT_PARAMS
+from ..session import HapticSession, SessionParams
+from .inputs import POSE, Inputs
+from .io import BagWriter, new_message, qos_profiles
+
+OUTPUT_KEYS = ("tool_wrench", "contact", "height_map", "layer_heights")
+
+
+def bag_topic(key: str) -> str:
+    """Absolute bag topic name of a contract topic, as ``ros2 bag record`` writes it."""
+    return "/" + TOPICS[key].name
+
+
+def load_params(path=DEFAULT_PARAMS):
+    """(SessionParams with the stamp-age check off, TissueConfig) from a node parameter file."""
+    node_params, cfg = validate_all(load_yaml(path))
+    names = {f.name for f in fields(SessionParams)}
+    kw = {k: getattr(node_params, k) for k in names if hasattr(node_params, k)}
+    kw["max_stamp_age_s"] = 0.0  # offline: stamps are not compared with any clock
+    return SessionParams(**kw), cfg
+
+
+@dataclass
+class ReplayResult:
+    """What an offline replay produced (all times are stamps, ns)."""
+
+    stamps_ns: np.ndarray
+    force_n: np.ndarray
+    n_affected: np.ndarray
+    depth_m: np.ndarray
+    tool_xyz_m: np.ndarray
+    counts: dict[str, int]
+    n_poses: int
+    n_twists: int
+    n_grids: int
+    peak_index: int
+    peak_q: np.ndarray | None = None
+    peak_centre: np.ndarray | None = None
+    cfg: object = None
+    layer_names: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def peak_force_n(self) -> float:
+        return float(self.force_n[self.peak_index]) if self.force_n.size else 0.0
+
+    @property
+    def layers_reached(self) -> list[str]:
+        n = int(self.n_affected.max(initial=0))
+        return list(self.layer_names[:n])
+
+    def model_at_peak(self) -> SkinModel:
+        """A model holding the deformation at peak force (modal state copied at that tick)."""
+        m = SkinModel(self.cfg)
+        if self.peak_q is not None:
+            m.q[...] = self.peak_q
+            m.centre[...] = self.peak_centre
+        return m
+
+    def summary(self) -> dict:
+        i = self.peak_index
+        return {
+            "poses": self.n_poses,
+            "twists": self.n_twists,
+            "answered": int(self.stamps_ns.size),
+            "rejected": {k: v for k, v in sorted(self.counts.items())},
+            "peak_force_n": self.peak_force_n,
+            "peak_stamp_ns": int(self.stamps_ns[i]) if self.stamps_ns.size else None,
+            "peak_tool_xyz_m": [float(c) for c in self.tool_xyz_m[i]] if self.stamps_ns.size else None,
+            "layers_reached": self.layers_reached,
+            "duration_s": float((self.stamps_ns[-1] - self.stamps_ns[0]) * 1e-9) if self.stamps_ns.size > 1 else 0.0,
+            "grid_frames": self.n_grids,
+        }
+
+
+class _Out:
+    """Preallocated rosbags messages of the outputs."""
+
+    def __init__(self):
+        self.wrench = new_message(TOPICS["tool_wrench"].type)
+        self.contact = new_message(TOPICS["contact"].type)
+        self.image = new_message(TOPICS["height_map"].type)
+
+
+def _write_image(writer: BagWriter, out: _Out, key: str, stamp: int, frame: str, data: np.ndarray) -> None:
+    msg = cv.fill_image(out.image, stamp, frame, data)
+    msg.data = np.frombuffer(msg.data, dtype=np.uint8)
+    writer.write(bag_topic(key), TOPICS[key].type, stamp, msg, qos_profiles(key))
+
+
+def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = None, grid_rate_hz: float = 60.0) -> ReplayResult:
+    """Run the model over ``inputs``; write outputs to ``writer`` if given.
+
+    Parameters
+    ----------
+    inputs : Inputs
+        From :func:`skin_sim_node.bags.inputs.read_inputs`.
+    params : path
+        Node parameter file (tissue model and session limits).
+    writer : BagWriter, optional
+    grid_rate_hz : float
+        Display grids (``tissue/height_map``, ``tissue/layer_heights``) per second of stamp
+        time; 0 writes none.
+    """
+    sp, cfg = load_params(params)
+    model = SkinModel(cfg)
+    session = HapticSession(model, sp)
+    frame = sp.tissue_frame
+    out = _Out()
+    grid_ns = int(round(1e9 / grid_rate_hz)) if grid_rate_hz > 0 else 0
+    next_grid = None
+    stamps, forces, n_aff, depths, xyzs = [], [], [], [], []
+    peak_f, peak_i, peak_q, peak_c = -1.0, 0, None, None
+    prev = None
+    n_grids = 0
+    wq, cq = qos_profiles("tool_wrench"), qos_profiles("contact")
+    for stamp, rank, fr, xyz in inputs.events:
+        if rank != POSE:
+            session.on_twist(stamp, fr, xyz)
+            continue
+        if session.on_pose(stamp, fr, xyz) is not None:
+            continue
+        force = session.tick(stamp, 0 if prev is None else stamp - prev)
+        prev = stamp
+        n = model.n_affected
+        depth = model.depth_m
+        stamps.append(stamp)
+        forces.append(force)
+        n_aff.append(n)
+        depths.append(depth)
+        xyzs.append(session.pose)
+        if force > peak_f:
+            peak_f, peak_i = force, len(forces) - 1
+            peak_q, peak_c = model.q.copy(), model.centre.copy()
+        if writer is None:
+            continue
+        writer.write(bag_topic("tool_wrench"), TOPICS["tool_wrench"].type, stamp,
+                     cv.fill_wrench(out.wrench, stamp, frame, (0.0, 0.0, force)), wq)  # fmt: skip
+        vn = -session.velocity[2]  # as the node fills tissue/contact
+        comp = model.compression_m
+        rate = [vn * c / depth if depth > 0 else 0.0 for c in comp]
+        stress = [model.stress_pa if li < n else 0.0 for li in range(comp.shape[0])]
+        msg = cv.fill_contact(out.contact, stamp, frame, comp, rate, stress)
+        msg.position, msg.velocity, msg.effort = (
+            np.asarray(a, dtype=np.float64) for a in (msg.position, msg.velocity, msg.effort)
+        )
+        writer.write(bag_topic("contact"), TOPICS["contact"].type, stamp, msg, cq)
+        if grid_ns:
+            if next_grid is None:
+                next_grid = stamp
+            if stamp >= next_grid:
+                g = model.build_grid()
+                _write_image(writer, out, "height_map", stamp, frame, g.heights_m[0])
+                _write_image(writer, out, "layer_heights", stamp, frame, np.moveaxis(g.heights_m, 0, -1))
+                n_grids += 1
+                next_grid += grid_ns * ((stamp - next_grid) // grid_ns + 1)
+    return ReplayResult(
+        np.array(stamps, dtype=np.int64), np.array(forces), np.array(n_aff, dtype=int), np.array(depths),
+        np.array(xyzs).reshape(-1, 3), dict(session.counts), inputs.n_poses, inputs.n_twists, n_grids, peak_i,
+        peak_q, peak_c, cfg, tuple(LAYER_LABELS),
+    )  # fmt: skip
+
+
+def replay_to_bag(inputs: Inputs, out_bag: Path, params=DEFAULT_PARAMS, storage: str = "mcap",
+                  grid_rate_hz: float = 60.0, compress: bool = False) -> ReplayResult:  # fmt: skip
+    """:func:`replay` writing a new output bag at ``out_bag`` (replaced if it is a bag)."""
+    custom = {"skin_sim.source": str(inputs.bag.name), "skin_sim.params": Path(params).name,
+              "skin_sim.grid_rate_hz": f"{grid_rate_hz:g}"}  # fmt: skip
+    with BagWriter(out_bag, storage, compress=compress, custom_data=custom, overwrite=True) as w:
+        return replay(inputs, params, w, grid_rate_hz)

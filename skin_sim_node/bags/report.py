@@ -1,0 +1,58 @@
+"""Replay report: force-time plot with the layers reached shaded, and the deformation at peak force."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ..plots import LAYER_COLOURS, draw_cross_section, draw_surface  # noqa: E402
+from .offline import ReplayResult  # noqa: E402
+
+
+def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
+    """Write ``out_dir/report.png`` and ``out_dir/summary.json``; return the summary."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summary = res.summary()
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    fig = plt.figure(figsize=(11, 7.5))
+    gs = fig.add_gridspec(2, 2, height_ratios=[1, 1.1], width_ratios=[1, 1.5])
+    ax = fig.add_subplot(gs[0, :])
+    if res.stamps_ns.size:
+        t = (res.stamps_ns - res.stamps_ns[0]) * 1e-9
+        ax.plot(t, res.force_n, "k", lw=1.0, label="force (N)")
+        top = max(res.force_n.max() * 1.1, 1e-3)
+        for li, name in enumerate(res.layer_names):
+            ax.fill_between(t, 0, top, where=res.n_affected == li + 1, color=LAYER_COLOURS[li % 3], alpha=0.6, lw=0,
+                            step="mid", label=f"deepest layer: {name}")  # fmt: skip
+        ax.axvline(t[res.peak_index], color="r", lw=0.8, ls="--", label=f"peak {res.peak_force_n:.3f} N")
+        ax.set_ylim(0, top)
+    ax.set_xlabel("stamp time (s)")
+    ax.set_ylabel("force (N)")
+    ax.legend(loc="upper right", fontsize=7)
+    ax.set_title(title or "offline replay", fontsize=10)
+    model = res.model_at_peak()
+    draw_surface(fig.add_subplot(gs[1, 0]), model, "surface at peak force")
+    x, y, z = res.tool_xyz_m[res.peak_index] if res.stamps_ns.size else (0.0, 0.0, 1.0)
+    a1 = fig.add_subplot(gs[1, 1])
+    draw_cross_section(a1, model, x, y, z, f"cross-section at peak force, y = {y * 1e3:.1f} mm")
+    a1.legend(loc="lower right", fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out_dir / "report.png", dpi=100)
+    plt.close(fig)
+    return summary
+
+
+def format_summary(s: dict) -> str:
+    rejected = ", ".join(f"{k} {v}" for k, v in s["rejected"].items()) or "none"
+    return (
+        f"poses {s['poses']}, twists {s['twists']}, answered {s['answered']}, rejected/events: {rejected}\n"
+        f"peak force {s['peak_force_n']:.4f} N at tool {np.round(np.array(s['peak_tool_xyz_m'] or [0, 0, 0]) * 1e3, 3)} mm; "
+        f"layers reached: {', '.join(s['layers_reached']) or 'none'}; {s['duration_s']:.3f} s; {s['grid_frames']} grid frames"
+    )
