@@ -65,8 +65,8 @@ def run_case(kind: str, duration_s: float, rate_hz: float, log_dir: Path, node_a
             z = -1.5e-3 * (1 - math.cos(2 * math.pi * t)) if not hold else -2e-3
             vz = -1.5e-3 * 2 * math.pi * math.sin(2 * math.pi * t) if not hold else 0.0
             stamp = mon.now_ns()
+            twist_pub.publish(cv.fill_twist(twist, stamp, "tissue", (0.0, 0.0, vz)))  # twist first: see docs/ros.md
             pose_pub.publish(cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, z)))
-            twist_pub.publish(cv.fill_twist(twist, stamp, "tissue", (0.0, 0.0, vz)))
             sent.append(stamp)
 
         if publishing:

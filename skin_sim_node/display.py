@@ -22,7 +22,7 @@ import numpy as np
 from .model import SkinModel, config_from_flat
 
 MAX_LAYERS = 3
-MAX_MODES = 100 * 100  # odd-odd modes of the 200 x 200 parameter bound
+MAX_MODES = 31 * 31  # odd-odd modes of the 61 x 61 parameter bound
 _HEADER = 4  # int64: seq, n_layers, n_modes, config version
 
 
@@ -54,7 +54,7 @@ class SnapshotBuffer:
 
     def read(self, q_out: np.ndarray, centre_out: np.ndarray) -> tuple[int, int, bool]:
         """Copy a consistent snapshot; returns (seq, config version, any layer driven)."""
-        while True:
+        for _ in range(100_000):  # a writer that died mid-write must not hang the reader
             s0 = int(self.header[0])
             if s0 % 2:
                 time.sleep(1e-5)
@@ -66,6 +66,7 @@ class SnapshotBuffer:
             driven = bool(self.driven[:n_l].any())
             if int(self.header[0]) == s0:
                 return s0, version, driven
+        return -1, -1, False  # no consistent snapshot: the caller skips this frame
 
     def close(self, unlink: bool = False) -> None:
         for name in ("header", "q", "centre", "driven"):

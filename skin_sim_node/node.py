@@ -4,9 +4,11 @@ Loop modes (parameter ``loop_mode``):
 
 - ``input`` (default): each accepted tool pose is answered at once, in its callback, with a
   model tick and a wrench stamped with the pose's stamp (lowest pose-to-force latency). A
-  ``rate_hz`` fallback clock in its own thread ticks whenever no pose came for 1.5 periods,
-  so the tissue keeps relaxing and the watchdog fires when the input stops.
-- ``timer``: a precise ``rate_hz`` thread ticks with the newest pose held (zero-order hold).
+  ``fallback_rate_hz`` clock in its own thread ticks whenever no pose came for 1.5 of its
+  periods, so the tissue keeps relaxing and the watchdog fires when the input stops; those
+  wrenches carry the node's clock, as they answer no pose.
+- ``timer``: a ``rate_hz`` thread ticks with the newest pose held (zero-order hold); its
+  wrenches carry the node's clock.
 
 The model kernels are ``nogil``; one lock orders ticks, parameter swaps and display snapshots.
 """
@@ -26,7 +28,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import ALL_PARAMETERS, NodeParams, validate_all
+from msgs_schema.parameters import ALL_PARAMETERS, SPEC_BY_NAME, NodeParams, validate_all
 from msgs_schema.qos import publisher, subscription
 from msgs_schema.topics import FRAMES
 
@@ -143,8 +145,8 @@ class SkinSimNode(Node):
     # --- inputs -----------------------------------------------------------------------
     def _on_pose(self, msg: PoseStamped) -> None:
         stamp, frame, xyz = cv.read_pose(msg)
-        rx = time.perf_counter_ns()
         with self._lock:
+            rx = time.perf_counter_ns()
             rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx)
             if rejected is None and self.params.loop_mode == "input":
                 self._tick(rx, pose_driven=True)
@@ -259,6 +261,9 @@ class SkinSimNode(Node):
     # --- live parameters --------------------------------------------------------------
     def _on_set_parameters(self, params) -> SetParametersResult:
         flat = dict(self._flat)
+        params = [p for p in params if p.name in SPEC_BY_NAME]  # use_sim_time, qos overrides: rclpy's own
+        if not params:
+            return SetParametersResult(successful=True)
         for p in params:
             flat[p.name] = p.value
         try:
@@ -271,14 +276,13 @@ class SkinSimNode(Node):
         with self._lock:
             if new_model is not None:
                 self.session.set_model(new_model)
+                self._display.set_tissue(tissue_part(flat, "tissue."))  # under the lock: snapshots carry the new version
             self.session.params = session_params(node_params)
             self.params = node_params
             self._flat = flat
             self._loop.period_ns = self._clock_period_ns()
         self._display_loop.period_ns = self._display_period_ns()
         self._display.set_display(self._display_settings())
-        if new_model is not None:
-            self._display.set_tissue(tissue_part(flat, "tissue."))
         self.get_logger().info(
             "parameters applied: "
             + ", ".join(f"{p.name}={p.value}" for p in params)

@@ -20,6 +20,8 @@ UNKNOWN_FRAME = "unknown_frame"
 STAMP_BACKWARDS = "stamp_backwards"
 STAMP_DUPLICATE = "stamp_duplicate"
 STALE_STAMP = "stale_stamp"
+FUTURE_STAMP = "future_stamp"
+STAMP_RESYNC = "stamp_resync"
 TELEPORT = "teleport"
 WATCHDOG = "watchdog_stale_input"
 FORCE_CLAMPED = "force_clamped"
@@ -38,6 +40,8 @@ class SessionParams:
     max_tool_speed_m_s: float = 3.0
     twist_max_skew_s: float = 0.005
     max_dt_s: float = 0.1
+    max_future_s: float = 0.05  # a stamp this far ahead of the clock is rejected (clock skew allowance)
+    resync_after: int = 50  # this many consecutive backwards stamps: accept the new time line
 
 
 class HapticSession:
@@ -66,6 +70,9 @@ class HapticSession:
         self.twist_stamp_ns: int | None = None
         self.twist = (0.0, 0.0, 0.0)
         self._teleported = False
+        self._backwards_run = 0
+        self._ticks = 0
+        self._last_used_stamp_ns: int | None = None  # stamp of the pose the last tick used
         self._pending = False  # a pose arrived that no tick has consumed
         self._advanced_since_pose_ns = 0
         self.stale = True
@@ -99,22 +106,32 @@ class HapticSession:
             return self._event(NON_FINITE, f"rejected tool pose with non-finite position ({x}, {y}, {z})")
         if frame != self.params.tissue_frame:
             return self._event(UNKNOWN_FRAME, f"rejected tool pose in frame '{frame}', expected '{self.params.tissue_frame}'")
-        if self.pose_stamp_ns is not None:
-            if stamp_ns < self.pose_stamp_ns:
-                return self._event(
-                    STAMP_BACKWARDS, f"rejected tool pose: stamp went back {(self.pose_stamp_ns - stamp_ns) * 1e-6:.3f} ms"
-                )
-            if stamp_ns == self.pose_stamp_ns:
-                return self._event(STAMP_DUPLICATE, "rejected tool pose with a repeated stamp")
         if now_ns is not None and self.params.max_stamp_age_s > 0:
             age = (now_ns - stamp_ns) * 1e-9
-            if abs(age) > self.params.max_stamp_age_s:
+            if age > self.params.max_stamp_age_s:
                 return self._event(
                     STALE_STAMP,
-                    f"rejected tool pose: stamp is {age:+.3f} s from now (limit {self.params.max_stamp_age_s} s); "
+                    f"rejected tool pose: stamp is {age:.3f} s old (limit {self.params.max_stamp_age_s} s); "
                     "check clock sync or use_sim_time",
                 )
+            if -age > self.params.max_future_s:
+                return self._event(
+                    FUTURE_STAMP, f"rejected tool pose: stamp is {-age:.3f} s in the future; check clock sync or use_sim_time"
+                )
         if self.pose_stamp_ns is not None:
+            if stamp_ns <= self.pose_stamp_ns:
+                self._backwards_run += 1
+                if self._backwards_run < self.params.resync_after:
+                    if stamp_ns == self.pose_stamp_ns:
+                        return self._event(STAMP_DUPLICATE, "rejected tool pose with a repeated stamp")
+                    return self._event(
+                        STAMP_BACKWARDS, f"rejected tool pose: stamp went back {(self.pose_stamp_ns - stamp_ns) * 1e-6:.3f} ms"
+                    )
+                self._event(STAMP_RESYNC, f"{self._backwards_run} poses behind the last stamp: following the new time line")
+                self.pose_stamp_ns = self._last_used_stamp_ns = None
+                self._teleported = True
+        self._backwards_run = 0
+        if self.pose_stamp_ns is not None and not self._teleported:
             dist = math.dist((x, y, z), self.pose)
             dt = (stamp_ns - self.pose_stamp_ns) * 1e-9
             if dist > self.params.teleport_distance_m or dist > self.params.max_tool_speed_m_s * max(dt, 1e-3):
@@ -145,7 +162,7 @@ class HapticSession:
             v = tuple((a - b) / dt for a, b in zip(self.pose, self._prev_pose))
         else:
             v = (0.0, 0.0, 0.0)
-        s = max(abs(c) for c in v)
+        s = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
         if s > p.max_tool_speed_m_s:
             v = tuple(c * p.max_tool_speed_m_s / s for c in v)
         return v
@@ -169,10 +186,11 @@ class HapticSession:
         self.stale = stale
         if self._pending and not stale:
             self._pending = False
-            if self._prev_pose_stamp_ns is None:
+            if self._last_used_stamp_ns is None:
                 dt_ns = elapsed_ns
-            else:
-                dt_ns = self.pose_stamp_ns - self._prev_pose_stamp_ns - self._advanced_since_pose_ns
+            else:  # from the pose the previous tick used: several poses per tick lose no time
+                dt_ns = self.pose_stamp_ns - self._last_used_stamp_ns - self._advanced_since_pose_ns
+            self._last_used_stamp_ns = self.pose_stamp_ns
             self._advanced_since_pose_ns = 0
             if self._teleported:
                 model.release()
@@ -194,8 +212,10 @@ class HapticSession:
         dt = min(max(dt_ns, 0) * 1e-9, p.max_dt_s)
         self.velocity = v
         force = model.step(pos, v, dt)
-        if not math.isfinite(force):
-            self._event(FORCE_NON_FINITE, f"model returned a non-finite force ({force}): published 0")
+        self._ticks += 1
+        if not math.isfinite(force) or (self._ticks % 64 == 0 and not math.isfinite(model.energy())):
+            self._event(FORCE_NON_FINITE, f"model state became non-finite (force {force}): published 0, tissue reset to rest")
+            model.reset()
             force = 0.0
         if force > p.max_force_n:
             self._event(FORCE_CLAMPED, f"force {force:.2f} N clamped to max_force_n = {p.max_force_n} N")

@@ -325,10 +325,11 @@ def _build_node_class():
             dt = min(max(elapsed_ns, 0), MAX_DT_PERIODS * self._period_ns) * 1e-9
             pos, vel = self.device.step(self._cmd, dt)
             stamp = ros_now_ns(self)
-            if not publish_while_ok(self, self._pose_pub, fill_pose(self._pose, stamp, self.frame, pos)):
-                return
+            # twist first: a receiver that ticks on the pose then finds the twist of the same stamp
             if self._twist_pub is not None:
                 publish_while_ok(self, self._twist_pub, fill_twist(self._twist, stamp, self.frame, vel))
+            if not publish_while_ok(self, self._pose_pub, fill_pose(self._pose, stamp, self.frame, pos)):
+                return
             if self.exit_when_done and self.device.done:
                 self._finished = True
                 self.get_logger().info(f"hand path done ({self.commands} force commands received): shutting down")

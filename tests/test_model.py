@@ -121,6 +121,11 @@ def test_bottom_is_flagged_and_clamped(model, default_cfg):
     assert model.flags & FLAG_BOTTOMED
     assert math.isfinite(f) and f > 0
     assert model.depth_m == pytest.approx(default_cfg.total_thickness_m)
+    # a clamped state: deeper still gives the force at the bottom (no wall beyond it; docs/model.md)
+    model.reset()
+    f_bottom = model.step((0.0, 0.0, -default_cfg.total_thickness_m), (0, 0, 0), 1e-3)
+    model.reset()
+    assert model.step((0.0, 0.0, -1.0), (0, 0, 0), 1e-3) == pytest.approx(f_bottom)
 
 
 def press_and_release(model, depth=3e-3, speed=0.02, dt=1e-3):
@@ -172,8 +177,6 @@ def test_recontact_uses_deformed_surface(model):
 
 
 def test_unilateral_contact_never_pulls(model):
-    press_and_release(model, depth=2e-3)
-    model.reset()
     for _ in range(100):
         model.step((0.0, 0.0, -2e-3), (0, 0, 0), 1e-3)
     f = model.step((0.0, 0.0, -1.9e-3), (0, 0, 5.0), 1e-3)  # fast retraction

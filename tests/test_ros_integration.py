@@ -69,8 +69,8 @@ class PoseSource:
             self.t0 = now_ns
         xyz, v = self.path((now_ns - self.t0) * 1e-9)
         stamp = self.mon.now_ns()
+        self.twist_pub.publish(cv.fill_twist(self.twist, stamp, self.frame, v))  # twist first, as documented
         self.pose_pub.publish(cv.fill_pose(self.pose, stamp, self.frame, xyz))
-        self.twist_pub.publish(cv.fill_twist(self.twist, stamp, self.frame, v))
         self.sent.append((stamp, xyz, v))
 
     def handshake(self, timeout_s=20.0):
@@ -249,6 +249,7 @@ def test_parameter_change_applied_or_rejected(scene, monitor):
     src = PoseSource(monitor, press_path(2.0e-3, ramp_s=0.2))
     src.run(0.6)
     f_before = monitor.wrench[-1][2]
+    assert f_before > 0.005
     (r,) = set_params(Parameter("tissue.layers.fat.stiffness_n_per_m", Parameter.Type.DOUBLE, 50.0))
     assert r.successful, r.reason
     monitor.wrench.clear()

@@ -150,8 +150,15 @@ TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
         _f("patch.size_y_m", 0.06, "m", "deformation patch side along y (paper: 60 mm)"),
         _i("grid.nx", 120, "output height-map cells along x over the sheet", 2, 1024),
         _i("grid.ny", 120, "output height-map cells along y over the sheet", 2, 1024),
-        _i("modes.m", 15, "modal terms along x (M in eq 2)", 1, 200),
-        _i("modes.n", 15, "modal terms along y (N in eq 2)", 1, 200),
+        _i(
+            "modes.m",
+            15,
+            "modal terms along x (M in eq 2); <= 61: with jittery tick intervals the propagator "
+            "is recomputed every tick, ~67 us at 61 x 61",
+            1,
+            61,
+        ),
+        _i("modes.n", 15, "modal terms along y (N in eq 2); <= 61, as modes.m", 1, 61),
         _f("tool.radius_m", _TOOL_RADIUS_M, "m", "tool tip radius; the disk load of the indentation shape"),
     ]
     + _layer_specs()

@@ -1,0 +1,135 @@
+"""HapticSession: input checks, watchdog, velocity, force safety (no ROS)."""
+
+import math
+
+import pytest
+
+from skin_sim_node.model import SkinModel
+from skin_sim_node.session import (
+    FORCE_CLAMPED,
+    FUTURE_STAMP,
+    NON_FINITE,
+    STALE_STAMP,
+    STAMP_BACKWARDS,
+    STAMP_DUPLICATE,
+    STAMP_RESYNC,
+    TELEPORT,
+    UNKNOWN_FRAME,
+    WATCHDOG,
+    HapticSession,
+    SessionParams,
+)
+
+MS = 1_000_000
+T0 = 1_000_000 * 1_000_000_000  # an arbitrary epoch, ns
+
+
+@pytest.fixture
+def session(default_cfg):
+    logged = []
+    s = HapticSession(SkinModel(default_cfg), SessionParams(), log=lambda kind, msg: logged.append(kind))
+    s.logged = logged
+    return s
+
+
+def feed(s, stamps_z, now_offset=0, vz=None):
+    out = []
+    for st, z in stamps_z:
+        r = s.on_pose(st, "tissue", (0.0, 0.0, z), now_ns=st + now_offset, rx_ns=st)
+        if vz is not None:
+            s.on_twist(st, "tissue", (0.0, 0.0, vz))
+        out.append((r, s.tick(st, MS)))
+    return out
+
+
+def test_rejections_each_logged_once(session):
+    feed(session, [(T0 + i * MS, -1e-3) for i in range(5)])
+    s = session
+    assert s.on_pose(T0 + 6 * MS, "tissue", (math.nan, 0, 0)) == NON_FINITE
+    assert s.on_pose(T0 + 7 * MS, "tissue", (0, math.inf, 0)) == NON_FINITE
+    assert s.on_pose(T0 + 8 * MS, "world", (0, 0, -1e-3)) == UNKNOWN_FRAME
+    assert s.on_pose(T0 + 2 * MS, "tissue", (0, 0, -1e-3)) == STAMP_BACKWARDS
+    assert s.on_pose(T0 + 4 * MS, "tissue", (0, 0, -1e-3)) == STAMP_DUPLICATE
+    assert s.on_pose(T0 - 5_000 * MS, "tissue", (0, 0, -1e-3), now_ns=T0) == STALE_STAMP
+    assert s.on_pose(T0 + 900 * MS, "tissue", (0, 0, -1e-3), now_ns=T0 + 5 * MS) == FUTURE_STAMP
+    assert s.on_pose(T0 + 9 * MS, "world", (0, 0, -1e-3)) == UNKNOWN_FRAME
+    assert s.counts[NON_FINITE] == 2 and s.counts[UNKNOWN_FRAME] == 2
+    assert sorted(s.logged) == sorted(set(s.logged))  # each kind logged once
+    assert s.on_pose(T0 + 10 * MS, "tissue", (0, 0, -1e-3), now_ns=T0 + 10 * MS) is None  # good input still accepted
+
+
+def test_future_stamp_cannot_lock_out_input(session):
+    feed(session, [(T0 + i * MS, -1e-3) for i in range(5)])
+    # one pose 0.9 s ahead of the clock is rejected, so later good poses are not "backwards"
+    assert session.on_pose(T0 + 900 * MS, "tissue", (0, 0, -1e-3), now_ns=T0 + 5 * MS) == FUTURE_STAMP
+    res = feed(session, [(T0 + (6 + i) * MS, -1e-3) for i in range(20)])
+    assert all(r is None for r, _ in res) and res[-1][1] > 0
+
+
+def test_new_time_line_is_followed_after_resync(session):
+    """Offline (no clock) a restarted driver's stamps go back: after resync_after of them, follow."""
+    feed(session, [(T0 + i * MS, -1e-3) for i in range(5)])
+    restart = [(T0 // 2 + i * MS, -1e-3) for i in range(60)]
+    res = [(session.on_pose(st, "tissue", (0, 0, z)), session.tick(st, MS)) for st, z in restart]
+    rejected = sum(r is not None for r, _ in res)
+    assert rejected == session.params.resync_after - 1
+    assert session.counts[STAMP_RESYNC] == 1 and res[-1][0] is None and res[-1][1] > 0
+
+
+def test_watchdog_zeroes_force_and_releases(session):
+    res = feed(session, [(T0 + i * MS, -2e-3) for i in range(20)])
+    assert res[-1][1] > 0
+    now = T0 + 19 * MS
+    for k in range(1, 80):
+        f = session.tick(now + k * MS, MS)
+    assert f == 0.0 and session.stale and session.counts[WATCHDOG] == 1
+    assert not session.model.driven.any()
+
+
+def test_teleport_restarts_contact(session):
+    feed(session, [(T0 + i * MS, -2e-3) for i in range(10)])
+    assert session.on_pose(T0 + 10 * MS, "tissue", (0.05, 0.0, -2e-3)) is None  # 50 mm in 1 ms
+    session.tick(T0 + 10 * MS, MS)
+    assert session.counts[TELEPORT] == 1 and session.velocity == (0.0, 0.0, 0.0)
+
+
+def test_velocity_from_twist_or_pose_difference(session):
+    feed(session, [(T0 + i * MS, -1e-3 - i * 1e-5) for i in range(5)], vz=-0.25)
+    assert session.velocity[2] == pytest.approx(-0.25)
+    s2 = HapticSession(SkinModel(session.model.cfg), SessionParams())
+    feed(s2, [(T0 + i * MS, -1e-3 - i * 1e-5) for i in range(5)])  # no twist: differentiate poses
+    assert s2.velocity[2] == pytest.approx(-0.01)
+    s3 = HapticSession(SkinModel(session.model.cfg), SessionParams())
+    feed(s3, [(T0 + i * MS, -1e-3) for i in range(3)], vz=-50.0)  # capped at max_tool_speed_m_s
+    assert math.hypot(*s3.velocity) == pytest.approx(s3.params.max_tool_speed_m_s)
+
+
+def test_force_clamped_to_limit(default_cfg):
+    s = HapticSession(SkinModel(default_cfg), SessionParams(max_force_n=0.01))
+    res = feed(s, [(T0 + i * MS, -3e-3) for i in range(5)])
+    assert res[-1][1] == 0.01 and s.counts[FORCE_CLAMPED] >= 1
+
+
+def test_several_poses_per_tick_lose_no_time(default_cfg):
+    """Timer mode: 1 kHz poses, 500 Hz ticks; the model must still advance 1 s per second."""
+    s = HapticSession(SkinModel(default_cfg), SessionParams())
+    advanced = []
+    orig = s.model.step
+    s.model.step = lambda pos, v, dt: (advanced.append(dt), orig(pos, v, dt))[1]
+    for i in range(1000):
+        s.on_pose(T0 + i * MS, "tissue", (0.0, 0.0, 0.01))
+        if i % 2 == 1:
+            s.tick(T0 + i * MS, 2 * MS)
+    assert sum(advanced) == pytest.approx(0.999, abs=2e-3)
+
+
+def test_non_finite_model_state_recovers(default_cfg):
+    s = HapticSession(SkinModel(default_cfg), SessionParams())
+    feed(s, [(T0 + i * MS, -2e-3) for i in range(3)])
+    s.model.q[:] = math.nan
+    s.model.driven[:] = 0
+    for i in range(3, 200):
+        s.on_pose(T0 + i * MS, "tissue", (0.0, 0.0, 0.01))
+        f = s.tick(T0 + i * MS, MS)
+        assert math.isfinite(f)
+    assert math.isfinite(s.model.energy())
