@@ -4,17 +4,18 @@ The recorded stamps are kept, so the node's wrench stamps equal the pose stamps 
 the offline replay's one for one. The node must not reject old stamps: a node started here
 gets ``-p max_stamp_age_s:=0.0``; an ``--attach``-ed node must have been started with it.
 
+The inputs are published by a process of its own (:mod:`.live_source`); this process records.
 Before the first recorded pose a discovery handshake publishes lifted poses (at the first
-pose's x, y, stamped seconds before the bag) until the node answers one, then waits past
-the watchdog so the node has released the tissue: a lifted tool leaves the model at rest,
-the state the offline replay starts from. Within one stamp the twist is published first,
-so the node's tick uses it, as the offline tick does.
+pose's x, y, stamped 5 s before the bag) until the node answers one, then waits past the
+watchdog so the node has released the tissue: a lifted tool leaves the model at rest, the
+state the offline replay starts from. Within one stamp the twist is published first, so the
+node's tick uses it, as the offline tick does.
 """
 
 from __future__ import annotations
 
-import gc
 import json
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -24,60 +25,56 @@ import numpy as np
 from msgs_schema import convert as cv
 from msgs_schema.topics import TOPICS
 
-from ..mock_tool import LIFT_Z_M
+from ..scenes import REPO
 from .inputs import POSE, Inputs
 from .io import BagWriter, deserialize, qos_profiles
 from .offline import ReplayResult, bag_topic
 
 HANDSHAKE_LEAD_NS = 5_000_000_000
-WATCHDOG_WAIT_S = 0.1  # > the node's 50 ms watchdog
 
 
-def _handshake(rec, pose_pub, msg, inputs: Inputs, timeout_s: float) -> int:
-    """Publish lifted poses until the node answers one; returns how many were sent."""
-    first = next(e for e in inputs.events if e[1] == POSE)
-    x, y, z = first[3]
-    xyz = (x, y, max(z, LIFT_Z_M))
-    base = first[0] - HANDSHAKE_LEAD_NS
-    end = time.monotonic() + timeout_s
-    sent = set()
-    i = 0
-    while time.monotonic() < end:
-        stamp = base + i * 1_000_000
-        i += 1
-        sent.add(stamp)
-        pose_pub.publish(cv.fill_pose(msg, stamp, first[2], xyz))
-        time.sleep(0.01)
-        if sent & set(live_forces(rec.records[-20:])):
-            time.sleep(WATCHDOG_WAIT_S)
-            return i
-    raise TimeoutError(
-        "the node never answered a handshake pose: is it running on this ROS_DOMAIN_ID, with max_stamp_age_s:=0.0?"
+def _events_file(inputs: Inputs, path: Path) -> None:
+    """The inputs as arrays for the publisher process."""
+    names = sorted({e[2] for e in inputs.events})
+    np.savez(
+        path,
+        stamps=np.array([e[0] for e in inputs.events], dtype=np.int64),
+        ranks=np.array([e[1] == POSE for e in inputs.events], dtype=np.int8),
+        frame_names=np.array(names),
+        frame_ids=np.array([names.index(e[2]) for e in inputs.events], dtype=np.int32),
+        xyz=np.array([e[3] for e in inputs.events], dtype=np.float64).reshape(-1, 3),
     )
 
 
-def _stream(pose_pub, twist_pub, inputs: Inputs, speed: float) -> tuple[float, np.ndarray]:
-    """Publish every input at its recorded time (scaled by 1/speed).
-
-    Returns the wall time taken (s) and each pose's publish lateness (s).
-    """
-    from geometry_msgs.msg import PoseStamped, TwistStamped
-
-    pose, twist = PoseStamped(), TwistStamped()
-    first = inputs.events[0][0]
-    late = []
-    t0 = time.perf_counter_ns()
-    for stamp, rank, frame, xyz in inputs.events:
-        due = t0 + int((stamp - first) / speed)
-        rem = due - time.perf_counter_ns()
-        if rem > 200_000:
-            time.sleep(rem * 1e-9)
-        if rank == POSE:
-            late.append(time.perf_counter_ns() - due)
-            pose_pub.publish(cv.fill_pose(pose, stamp, frame, xyz))
-        else:
-            twist_pub.publish(cv.fill_twist(twist, stamp, frame, xyz))
-    return (time.perf_counter_ns() - t0) * 1e-9, np.array(late) * 1e-9
+def _run_source(rec, inputs: Inputs, speed: float, out: Path, timeout_s: float = 30.0) -> tuple[dict, float]:
+    """Start the publisher process, wait for the node to answer a handshake pose, stream; returns its stats."""
+    first = next(e[0] for e in inputs.events if e[1] == POSE)
+    base = first - HANDSHAKE_LEAD_NS
+    events = out / "live_inputs.npz"
+    _events_file(inputs, events)
+    argv = [sys.executable, "-m", "skin_sim_node.bags.live_source", str(events), "--speed", f"{speed}",
+            "--handshake-base-ns", str(base)]  # fmt: skip
+    proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=REPO)
+    try:
+        t0 = time.perf_counter()
+        end = time.monotonic() + timeout_s
+        while not any(base <= s < first for s in live_forces(rec.records[-50:])):
+            if time.monotonic() > end or proc.poll() is not None:
+                raise TimeoutError(
+                    "the node never answered a handshake pose: is it running on this ROS_DOMAIN_ID, with max_stamp_age_s:=0.0?"
+                )
+            time.sleep(0.01)
+        t_handshake = time.perf_counter() - t0
+        proc.stdin.write("go\n")
+        proc.stdin.flush()
+        span_s = (inputs.events[-1][0] - inputs.events[0][0]) * 1e-9 / speed
+        stdout, _ = proc.communicate(timeout=span_s + timeout_s)
+        return json.loads(stdout.strip().splitlines()[-1]), t_handshake
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        events.unlink(missing_ok=True)
 
 
 def live_forces(records) -> dict[int, float]:
@@ -120,11 +117,7 @@ def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path) -> int:
         + (["height_map", "layer_heights"] if args.images else [])
     )
     # kept in memory while streaming and written afterwards: no disk work competes with the node for the 2 cores
-    rec = Recorder(keys, None, name="skin_sim_live_replay", keep=True, executor="single")
-    gc.collect()
-    switch = sys.getswitchinterval()
-    sys.setswitchinterval(2e-4)  # as the node: the publishing thread gets the GIL back within 0.2 ms
-    gc.disable()  # a full collection over the growing record list would stall the stream by milliseconds
+    rec = Recorder(keys, None, name="skin_sim_live_replay", keep=True)
     try:
         if scene is not None:
             extra = ["-p", "max_stamp_age_s:=0.0"]
@@ -132,17 +125,9 @@ def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path) -> int:
                 extra += ["-p", "display_rate_hz:=0.0", "-p", "publish_mesh:=false"]
             node = scene.node(*extra, params=args.params)
             scene.wait_for_log(node, "live:", timeout_s=args.timeout_s)
-        pose_pub, twist_pub = rec.publisher("tool_pose"), rec.publisher("tool_twist")
-        from geometry_msgs.msg import PoseStamped
-
-        t0 = time.perf_counter()
-        _handshake(rec, pose_pub, PoseStamped(), inputs, timeout_s=30.0)
-        t_handshake = time.perf_counter() - t0
-        t_stream, late_s = _stream(pose_pub, twist_pub, inputs, args.speed)
+        src, t_handshake = _run_source(rec, inputs, args.speed, out)
         time.sleep(0.3)  # answers in flight
     finally:
-        gc.enable()
-        sys.setswitchinterval(switch)
         rec.close()
         if scene is not None:
             scene.stop_all()
@@ -151,10 +136,8 @@ def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path) -> int:
             w.write_raw(bag_topic(key), TOPICS[key].type, rx, raw, qos_profiles(key))
     stats = agreement(offline, live_forces([r for r in rec.records if r[1] == "tool_wrench"]))
     span = (inputs.events[-1][0] - inputs.events[0][0]) * 1e-9
-    stats.update({"speed": args.speed, "recorded_span_s": span, "stream_wall_s": t_stream, "handshake_s": t_handshake})
-    for q in (50, 99):
-        stats[f"publish_late_ms_p{q}"] = float(np.percentile(late_s, q) * 1e3)
-    stats["publish_late_ms_max"] = float(late_s.max() * 1e3)
+    stats.update({"speed": args.speed, "recorded_span_s": span, "handshake_s": t_handshake, **src})
+    t_stream = src["stream_wall_s"]
     ok = stats["max_df_n"] <= args.force_tol_frac * offline.peak_force_n and stats["fraction_answered"] >= args.min_answered
     stats["pass"] = bool(ok)
     (out / "live_summary.json").write_text(json.dumps(stats, indent=2) + "\n")
