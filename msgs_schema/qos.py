@@ -13,6 +13,12 @@ PROFILES = {
         depth=1,
         durability=DurabilityPolicy.VOLATILE,
     ),
+    "haptic_input": QoSProfile(
+        reliability=ReliabilityPolicy.BEST_EFFORT,
+        history=HistoryPolicy.KEEP_LAST,
+        depth=10,
+        durability=DurabilityPolicy.VOLATILE,
+    ),
     "display": QoSProfile(
         reliability=ReliabilityPolicy.RELIABLE,
         history=HistoryPolicy.KEEP_LAST,
@@ -44,6 +50,8 @@ def publisher(node, key: str, name: str | None = None):
     return node.create_publisher(spec.msg_class, name or spec.name, qos_for(key))
 
 
-def subscription(node, key: str, callback, name: str | None = None):
+def subscription(node, key: str, callback, name: str | None = None, qos: str | None = None):
+    """Subscribe with the contract's QoS for ``key`` (or the named QoS class ``qos``)."""
     spec = TOPICS[key]
-    return node.create_subscription(spec.msg_class, name or spec.name, callback, qos_for(key))
+    profile = PROFILES[qos] if qos else qos_for(key)
+    return node.create_subscription(spec.msg_class, name or spec.name, callback, profile)

@@ -242,10 +242,10 @@ def test_live_replay_agrees_with_offline(tmp_path, isolated_domain):
     code = replay.main([str(bag), "--out", str(tmp_path / "o"), "--no-report", "--grid-rate-hz", "0", "--live"])
     s = json.loads((tmp_path / "o" / "live_summary.json").read_text())
     assert s["max_df_n"] <= 0.01 * s["peak_force_n"], s
-    # The bar is 95 % answered (the CLI's default, so `code` may be 1). On this 2-core VM the
-    # node's keep-last-1 pose reader drops 3-8 % of poses in scheduling stalls (measured 92-97 %
-    # over 10 runs; a bare sleep loop here is late by > 1 ms for up to 4 % of its ticks), so the
-    # test asserts 85 %, between test_ros_integration's 80 % and the 95 %.
-    assert s["fraction_answered"] >= 0.85, s
+    # The bar is 95 % answered (the CLI's default, so `code` may be 1). With the node's
+    # keep-last-10 input reader this measured 97.4-98.0 % over runs on this 2-core VM (92-97 % with
+    # keep-last 1); a loaded CI machine can stall a process for several ms, so the test keeps a
+    # margin below the CLI's bar and asserts 90 %.
+    assert s["fraction_answered"] >= 0.90, s
     assert code in (0, 1) and s["pass"] == (code == 0)
     assert len(raw_messages(tmp_path / "o" / "live", bag_topic("tool_wrench"))) >= s["live_answered"]
