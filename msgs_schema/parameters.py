@@ -51,6 +51,13 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "modal integrator is exact for any dt, and a 1 kHz wake-up only contends for the GIL with pose callbacks",
         1.0, 20000.0,
     ),
+    ParamSpec(
+        "input_queue_depth", int, 1, "1",
+        "pose/twist reader history (read at start): 1 answers the newest sample only (lowest latency, "
+        "for live haptics); 10 lets a node descheduled for a few ms answer every sample in order "
+        "(replay agreement), at the cost of a latency tail",
+        1, 100, False,
+    ),
     ParamSpec("tissue_frame", str, "tissue", "-", "frame_id the tool pose must carry"),
     ParamSpec(
         "loop_mode", str, "input", "-",
@@ -90,6 +97,7 @@ class NodeParams:
     max_tool_speed_m_s: float
     twist_max_skew_s: float
     fallback_rate_hz: float
+    input_queue_depth: int
     tissue_frame: str
     loop_mode: str
     publish_mesh: bool

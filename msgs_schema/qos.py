@@ -13,12 +13,6 @@ PROFILES = {
         depth=1,
         durability=DurabilityPolicy.VOLATILE,
     ),
-    "haptic_input": QoSProfile(
-        reliability=ReliabilityPolicy.BEST_EFFORT,
-        history=HistoryPolicy.KEEP_LAST,
-        depth=10,
-        durability=DurabilityPolicy.VOLATILE,
-    ),
     "display": QoSProfile(
         reliability=ReliabilityPolicy.RELIABLE,
         history=HistoryPolicy.KEEP_LAST,
@@ -50,8 +44,12 @@ def publisher(node, key: str, name: str | None = None):
     return node.create_publisher(spec.msg_class, name or spec.name, qos_for(key))
 
 
-def subscription(node, key: str, callback, name: str | None = None, qos: str | None = None):
-    """Subscribe with the contract's QoS for ``key`` (or the named QoS class ``qos``)."""
+def subscription(node, key: str, callback, name: str | None = None, depth: int | None = None):
+    """Subscribe with the contract's QoS for ``key``; ``depth`` overrides its history depth."""
     spec = TOPICS[key]
-    profile = PROFILES[qos] if qos else qos_for(key)
+    profile = qos_for(key)
+    if depth is not None and depth != profile.depth:
+        profile = QoSProfile(
+            reliability=profile.reliability, history=profile.history, depth=depth, durability=profile.durability
+        )
     return node.create_subscription(spec.msg_class, name or spec.name, callback, profile)

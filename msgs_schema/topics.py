@@ -6,10 +6,8 @@ Names are relative, so ``--ros-args -r __ns:=/bed1`` or remapping works. QoS cla
   sample, never a queue of old ones: a retransmitted stale pose or force is worse than a
   lost one, and a reliable writer blocks or buffers when a reader stalls. A best-effort
   reader also matches reliable writers, so any device driver can feed the node.
-- ``haptic_input``: the node's pose and twist readers: best-effort, keep-last 10. When the
-  node is descheduled for a few ms (measured: up to several ms on a loaded 2-core machine)
-  it then answers every sample in order, ~10 us each, instead of losing them, so its force
-  sequence stays equal to the offline replay's.
+  The node's pose and twist readers use history depth ``input_queue_depth`` (default 1; live
+  replay uses 10 so that a node descheduled for a few ms answers every sample in order).
 - ``display``: reliable, keep-last 1, volatile. Display-rate data that RViz (whose
   default subscriptions are reliable) must receive; the newest frame only.
 - ``diagnostics``: reliable, keep-last 10.

@@ -99,8 +99,9 @@ class SkinSimNode(Node):
         self._pub_contact = publisher(self, "contact")
         self._pub_diag = publisher(self, "diagnostics")
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        subscription(self, "tool_pose", self._on_pose, qos="haptic_input")
-        subscription(self, "tool_twist", self._on_twist, qos="haptic_input")
+        depth = self.params.input_queue_depth
+        subscription(self, "tool_pose", self._on_pose, depth=depth)
+        subscription(self, "tool_twist", self._on_twist, depth=depth)
         self._diag_timer = self.create_timer(self.params.diagnostics_period_s, self._publish_diagnostics)
         # display work runs in its own process; this thread only copies the modal state to it
         args = [a for a in (ros_args or []) if "__node:=" not in a]

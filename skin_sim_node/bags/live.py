@@ -122,7 +122,8 @@ def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path) -> int:
         if scene is not None:
             # recorded stamps are old: no age check. Offline replay has no watchdog, so a scheduling
             # stall of the live node longer than 50 ms must not release the tissue mid-replay.
-            extra = ["-p", "max_stamp_age_s:=0.0", "-p", "watchdog_s:=1.0"]
+            # input_queue_depth 10: after a scheduling stall the node answers every queued pose in order
+            extra = ["-p", "max_stamp_age_s:=0.0", "-p", "watchdog_s:=1.0", "-p", "input_queue_depth:=10"]
             if not args.images:  # the display worker competes for the 2 cores; the comparison needs no grids
                 extra += ["-p", "display_rate_hz:=0.0", "-p", "publish_mesh:=false"]
             node = scene.node(*extra, params=args.params)
