@@ -19,6 +19,8 @@ from msgs_schema.qos import publisher, subscription
 
 from .ros_util import EventsExecutor
 
+RECORD_DEPTH = 200  # samples; 0.2 s at 1 kHz
+
 
 class Monitor:
     """Subscribes to the node's outputs; every record carries the local ROS-clock arrival time.
@@ -39,8 +41,9 @@ class Monitor:
         self.diagnostics: list = []
         self._keep_images = keep_images
         self._lock = threading.Lock()
-        subscription(self.node, "tool_wrench", self._on_wrench)
-        subscription(self.node, "contact", self._on_contact)
+        # an observer records every sample: a deep reader queue, so its own stalls lose nothing
+        subscription(self.node, "tool_wrench", self._on_wrench, depth=RECORD_DEPTH)
+        subscription(self.node, "contact", self._on_contact, depth=RECORD_DEPTH)
         if images:
             subscription(self.node, "height_map", lambda m: self._on_image(m, self.height_map))
             subscription(self.node, "layer_heights", lambda m: self._on_image(m, self.layer_heights))

@@ -52,12 +52,14 @@ def run_nodes(factories: list[Callable[[], object]], args=None, executor: str = 
             ex.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except Exception as exc:  # a startup error: say it, exit non-zero
-        import traceback
+    except Exception as exc:
+        if rclpy.ok():  # a real error (e.g. at start-up): say it, exit non-zero
+            import traceback
 
-        traceback.print_exc()
-        print(f"fatal: {exc}", flush=True)
-        code = 1
+            traceback.print_exc()
+            print(f"fatal: {exc}", flush=True)
+            code = 1
+        # else: a callback raced the SIGINT/SIGTERM shutdown ("context is invalid"): a clean exit
     finally:
         for n in nodes:
             stop = getattr(n, "stop", None)

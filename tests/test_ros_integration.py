@@ -110,7 +110,8 @@ def press_path(depth=2.0e-3, x=0.0, y=0.0, ramp_s=0.5):
 
 
 def test_press_force_matches_offline_model(scene, monitor):
-    start_node(scene)
+    # model agreement, not the watchdog: a scheduling stall must not release the tissue mid-test
+    start_node(scene, "watchdog_s:=1.0", "input_queue_depth:=10")
     src = PoseSource(monitor, press_path())
     src.run(1.5)
     time.sleep(0.3)
@@ -164,11 +165,10 @@ def test_grid_shows_indentation_at_tool(scene, monitor):
 
 
 def test_bad_input_rejected_logged_once_node_survives(scene, monitor):
-    node = start_node(scene)
-    pub = monitor.publisher("tool_pose")
-    end = time.monotonic() + 15
-    while pub.get_subscription_count() == 0 and time.monotonic() < end:
-        time.sleep(0.05)
+    node = start_node(scene, "input_queue_depth:=10")  # a burst of bad samples is not dropped by the reader
+    src = PoseSource(monitor, press_path())
+    src.handshake()  # discovery is complete both ways before the scripted input
+    pub = src.pose_pub
     msg = PoseStamped()
     now = monitor.now_ns()
     good = [(now + i * 1_000_000, "tissue", (0.0, 0.0, -1e-3)) for i in range(5)]
@@ -193,7 +193,8 @@ def test_bad_input_rejected_logged_once_node_survives(scene, monitor):
         after_bad.add(stamp)
         pub.publish(cv.fill_pose(msg, stamp, "tissue", (0.0, 0.0, -1e-3)))
         time.sleep(0.002)
-    monitor.wait_for(lambda: any(int(d.get("count_stamp_backwards", 0)) >= 1 for _, d, _, _ in monitor.diagnostics), 10)
+    sent_all = monitor.now_ns()
+    monitor.wait_for(lambda: any(rx > sent_all for rx, _, _, _ in list(monitor.diagnostics)), 10, "diagnostics after the input")
     log = node.log()
     for kind in ("non_finite_input", "unknown_frame", "stamp_backwards"):
         assert log.count(f"[{kind}]") == 1, f"{kind} logged {log.count(f'[{kind}]')} times:\n{log}"
@@ -218,8 +219,8 @@ def test_force_drops_to_zero_when_publisher_killed(scene, monitor):
     time.sleep(0.5)
     f = [(rx, fz) for rx, _, fz in list(monitor.wrench) if rx > t_kill]
     zero_at = next(rx for rx, fz in f if fz == 0.0)
-    watchdog_s = 0.05
-    assert (zero_at - t_kill) * 1e-9 <= 2 * watchdog_s
+    watchdog_s = 0.05  # the default; plus one 100 Hz fallback tick and scheduling slack on a shared machine
+    assert (zero_at - t_kill) * 1e-9 <= watchdog_s + 0.1
     assert all(fz == 0.0 for rx, fz in f if rx >= zero_at)
     monitor.wait_for(lambda: monitor.diagnostics and monitor.diagnostics[-1][1]["input_stale"] == "True", 3)
     scene.procs.remove(tool)
@@ -246,22 +247,26 @@ def test_parameter_change_applied_or_rejected(scene, monitor):
     assert not r.successful and "interfaces cross" in r.reason
     (r,) = set_params(Parameter("tissue.modes.m", Parameter.Type.INTEGER, 0))
     assert not r.successful
+    def held_force():  # median over the held press: robust to a single late or lost sample
+        return float(np.median([fz for _, _, fz in list(monitor.wrench)[-300:] if fz > 0]))
+
     src = PoseSource(monitor, press_path(2.0e-3, ramp_s=0.2))
     src.run(0.6)
-    f_before = monitor.wrench[-1][2]
+    f_before = held_force()
     assert f_before > 0.005
     (r,) = set_params(Parameter("tissue.layers.fat.stiffness_n_per_m", Parameter.Type.DOUBLE, 50.0))
     assert r.successful, r.reason
     monitor.wrench.clear()
     src2 = PoseSource(monitor, press_path(2.0e-3, ramp_s=0.2))
     src2.run(0.6)
-    f_after = monitor.wrench[-1][2]
+    f_after = held_force()
     assert f_after > 1.5 * f_before  # a stiffer fat layer pushes back harder at the same depth
 
 
 def test_closed_loop_with_simulated_device_settles(scene, monitor):
-    start_node(scene)
-    scene.start("bridge", "bridge")
+    # loop dynamics, not the watchdogs: a scheduling stall must not zero the device force mid-hold
+    start_node(scene, "watchdog_s:=0.5")
+    scene.start("bridge", "bridge", "--watchdog-s", "0.5")
     # 3 s start delay: DDS discovery between three new processes took up to 1.6 s in our probe
     device = scene.start("device", "device", "--hand-path", "press_hold_release", "--start-delay-s", "3.0")
     device.popen.wait(timeout=40)
