@@ -17,7 +17,7 @@ from rclpy.executors import SingleThreadedExecutor
 from msgs_schema import convert as cv
 from msgs_schema.qos import publisher, subscription
 
-from .ros_util import EventsExecutor
+from .ros_util import EventsExecutor, spin_context
 
 RECORD_DEPTH = 200  # samples; 0.2 s at 1 kHz
 
@@ -61,13 +61,7 @@ class Monitor:
         return self.node.get_clock().now().nanoseconds
 
     def _spin(self) -> None:
-        while not self._stop.is_set() and self.context.ok():
-            try:
-                self._executor.spin_once(timeout_sec=0.05)
-            except Exception:  # noqa: BLE001 - context shut down under us
-                if not self.context.ok():
-                    return
-                raise
+        spin_context(self._executor, self.context, self._stop)
 
     def _on_wrench(self, msg) -> None:
         stamp, _, f = cv.read_wrench(msg)

@@ -44,13 +44,8 @@ def draw_surface(ax, model: SkinModel, title: str) -> None:
     plt.colorbar(im, ax=ax, label="surface height (mm)")
 
 
-def deformation_figure(model: SkinModel, tool_xyz, path: str | Path, title: str = "") -> Path:
-    """Surface height map and cross-section of the model's current state, written to ``path``."""
-    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw={"width_ratios": [1, 1.5]})
-    draw_surface(a0, model, "surface height")
-    x, y, z = tool_xyz
-    draw_cross_section(a1, model, x, y, z, f"cross-section at y = {y * 1e3:.1f} mm")
-    a1.legend(loc="lower right", fontsize=7)
+def save_figure(fig, path: str | Path, title: str = "") -> Path:
+    """Title, lay out, write ``path`` (folders created) and close ``fig``."""
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
@@ -59,6 +54,16 @@ def deformation_figure(model: SkinModel, tool_xyz, path: str | Path, title: str 
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def deformation_figure(model: SkinModel, tool_xyz, path: str | Path, title: str = "") -> Path:
+    """Surface height map and cross-section of the model's current state, written to ``path``."""
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw={"width_ratios": [1, 1.5]})
+    draw_surface(a0, model, "surface height")
+    x, y, z = tool_xyz
+    draw_cross_section(a1, model, x, y, z, f"cross-section at y = {y * 1e3:.1f} mm")
+    a1.legend(loc="lower right", fontsize=7)
+    return save_figure(fig, path, title)
 
 
 def layer_heights_figure(
@@ -84,11 +89,4 @@ def layer_heights_figure(
     a1.set_xlabel("x (mm)")
     a1.set_ylabel("z (mm)")
     a1.set_title(f"cross-section at y = {ys[row] * 1e3:.1f} mm (grid resolution)", fontsize=9)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)

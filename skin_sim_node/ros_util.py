@@ -73,6 +73,17 @@ def run_nodes(factories: list[Callable[[], object]], args=None, executor: str = 
     return code
 
 
+def spin_context(executor, context, stop: threading.Event) -> None:
+    """Spin ``executor`` in a background thread until ``stop`` is set or ``context`` shuts down."""
+    while not stop.is_set() and context.ok():
+        try:
+            executor.spin_once(timeout_sec=0.05)
+        except Exception:  # noqa: BLE001 - the context shut down under us
+            if not context.ok():
+                return
+            raise
+
+
 class PeriodicLoop:
     """Run ``fn(now_ns, elapsed_ns)`` every ``period_ns`` in a thread, to an absolute deadline.
 

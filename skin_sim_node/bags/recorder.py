@@ -19,7 +19,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile
 from msgs_schema.qos import publisher, qos_for
 from msgs_schema.topics import TOPICS
 
-from ..ros_util import EventsExecutor
+from ..ros_util import EventsExecutor, spin_context
 from .io import BagWriter, qos_profiles
 from .offline import bag_topic
 
@@ -98,13 +98,7 @@ class Recorder:
         return on_message
 
     def _spin(self) -> None:
-        while not self._stop.is_set() and self.context.ok():
-            try:
-                self._executor.spin_once(timeout_sec=0.05)
-            except Exception:  # noqa: BLE001 - context shut down under us
-                if not self.context.ok():
-                    return
-                raise
+        spin_context(self._executor, self.context, self._stop)
 
     def _drain(self) -> None:
         while True:
