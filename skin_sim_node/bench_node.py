@@ -51,7 +51,7 @@ def run_case(kind: str, duration_s: float, rate_hz: float, log_dir: Path, node_a
             mode = "timer" if kind == "node-timer" else "input"
             proc = scene.node("-p", f"loop_mode:={mode}", "-p", f"rate_hz:={rate_hz}", *node_args)
         scene.wait_for_log(proc, "live:", timeout_s=120)
-        mon = Monitor(name=f"bench_{kind.replace('-', '_')}", images=False)
+        mon = Monitor(name=f"bench_{kind.replace('-', '_')}", images=False, record_depth=1)  # newest sample
         pose_pub = mon.publisher("tool_pose")
         twist_pub = mon.publisher("tool_twist")
         pose, twist = PoseStamped(), TwistStamped()

@@ -58,7 +58,7 @@ def main(argv=None) -> int:
 
     cfg = load_tissue_config(DEFAULT_PARAMS)
     print(f"skin-sim demo: ROS_DOMAIN_ID={scene.env['ROS_DOMAIN_ID']}, source={args.source}, path={args.path}", flush=True)
-    monitor = Monitor()
+    monitor = Monitor(record_depth=1)  # latency as a device sees it: newest sample
     ok = True
     try:
         node = scene.node()

@@ -30,7 +30,16 @@ class Monitor:
     (rx_ns, {key: value}).
     """
 
-    def __init__(self, name: str = "skin_sim_monitor", keep_images: int = 4000, executor: str = "events", images: bool = True):
+    def __init__(
+        self,
+        name: str = "skin_sim_monitor",
+        keep_images: int = 4000,
+        executor: str = "events",
+        images: bool = True,
+        record_depth: int = RECORD_DEPTH,
+    ):
+        """``record_depth``: reader history of wrench/contact. Deep (default) to record every sample;
+        1 to time arrivals as a device sees them (a stalled observer would timestamp a backlog late)."""
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node(name, context=self.context)
@@ -42,8 +51,8 @@ class Monitor:
         self._keep_images = keep_images
         self._lock = threading.Lock()
         # an observer records every sample: a deep reader queue, so its own stalls lose nothing
-        subscription(self.node, "tool_wrench", self._on_wrench, depth=RECORD_DEPTH)
-        subscription(self.node, "contact", self._on_contact, depth=RECORD_DEPTH)
+        subscription(self.node, "tool_wrench", self._on_wrench, depth=record_depth)
+        subscription(self.node, "contact", self._on_contact, depth=record_depth)
         if images:
             subscription(self.node, "height_map", lambda m: self._on_image(m, self.height_map))
             subscription(self.node, "layer_heights", lambda m: self._on_image(m, self.layer_heights))
