@@ -8,7 +8,7 @@ into a frozen :class:`NodeParams`. Imports no ROS code.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 from skin_sim_node.model.config import TISSUE_PARAMETERS, ConfigError, ParamSpec, config_from_flat, tissue_part
 
@@ -78,8 +78,7 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
 _STRING_CHOICES: dict[str, tuple[str, ...]] = {"loop_mode": ("input", "timer")}
 
 ALL_PARAMETERS: tuple[ParamSpec, ...] = NODE_PARAMETERS + tuple(
-    ParamSpec(TISSUE_PREFIX + s.name, s.type, s.default, s.unit, s.description, s.min, s.max, s.min_exclusive)
-    for s in TISSUE_PARAMETERS
+    replace(s, name=TISSUE_PREFIX + s.name) for s in TISSUE_PARAMETERS
 )
 SPEC_BY_NAME = {s.name: s for s in ALL_PARAMETERS}
 

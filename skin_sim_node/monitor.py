@@ -12,12 +12,11 @@ from collections.abc import Callable
 
 import numpy as np
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 
 from msgs_schema import convert as cv
 from msgs_schema.qos import publisher, subscription
 
-from .ros_util import EventsExecutor, spin_context
+from .ros_util import make_executor, spin_context
 
 RECORD_DEPTH = 200  # samples; 0.2 s at 1 kHz
 
@@ -57,10 +56,7 @@ class Monitor:
             subscription(self.node, "height_map", lambda m: self._on_image(m, self.height_map))
             subscription(self.node, "layer_heights", lambda m: self._on_image(m, self.layer_heights))
         subscription(self.node, "diagnostics", self._on_diag)
-        if executor == "events" and EventsExecutor is not None:
-            self._executor = EventsExecutor(context=self.context)
-        else:
-            self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor = make_executor(executor, self.context)
         self._executor.add_node(self.node)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._spin, name="monitor-spin", daemon=True)

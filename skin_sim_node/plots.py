@@ -56,16 +56,6 @@ def save_figure(fig, path: str | Path, title: str = "") -> Path:
     return path
 
 
-def deformation_figure(model: SkinModel, tool_xyz, path: str | Path, title: str = "") -> Path:
-    """Surface height map and cross-section of the model's current state, written to ``path``."""
-    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw={"width_ratios": [1, 1.5]})
-    draw_surface(a0, model, "surface height")
-    x, y, z = tool_xyz
-    draw_cross_section(a1, model, x, y, z, f"cross-section at y = {y * 1e3:.1f} mm")
-    a1.legend(loc="lower right", fontsize=7)
-    return save_figure(fig, path, title)
-
-
 def layer_heights_figure(
     xs, ys, layer_heights, y_row_m: float, path: str | Path, title: str = "", bottom_m: float | None = None
 ) -> Path:

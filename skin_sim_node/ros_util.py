@@ -20,11 +20,11 @@ except ImportError:  # pragma: no cover - older rclpy
     EventsExecutor = None
 
 
-def make_executor(kind: str = "events"):
-    """``events`` (rclpy.experimental.EventsExecutor, if present) or ``single``."""
+def make_executor(kind: str = "events", context=None):
+    """``events`` (rclpy.experimental.EventsExecutor, if present) or ``single``, on ``context``."""
     if kind == "events" and EventsExecutor is not None:
-        return EventsExecutor()
-    return SingleThreadedExecutor()
+        return EventsExecutor(context=context)
+    return SingleThreadedExecutor(context=context)
 
 
 def run_nodes(factories: list[Callable[[], object]], args=None, executor: str = "events") -> int:

@@ -167,10 +167,6 @@ class HapticSession:
             v = tuple(c * p.max_tool_speed_m_s / s for c in v)
         return v
 
-    @property
-    def has_pending_pose(self) -> bool:
-        return self._pending
-
     def tick(self, now_ns: int, elapsed_ns: int) -> float:
         """One haptic tick. ``elapsed_ns``: caller-clock time since the previous tick.
 

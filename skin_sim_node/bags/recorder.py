@@ -13,13 +13,12 @@ import queue
 import threading
 
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import HistoryPolicy, QoSProfile
 
 from msgs_schema.qos import publisher, qos_for
 from msgs_schema.topics import TOPICS
 
-from ..ros_util import EventsExecutor, spin_context
+from ..ros_util import make_executor, spin_context
 from .io import BagWriter, qos_profiles
 from .offline import bag_topic
 
@@ -75,10 +74,7 @@ class Recorder:
             if writer is not None:
                 writer.add_topic(bag_topic(key), spec.type, qos_profiles(key))
             self.node.create_subscription(spec.msg_class, spec.name, self._callback(key), reader_qos(key), raw=True)
-        if executor == "events" and EventsExecutor is not None:
-            self._executor = EventsExecutor(context=self.context)
-        else:
-            self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor = make_executor(executor, self.context)
         self._executor.add_node(self.node)
         self._stop = threading.Event()
         self._spin_thread = threading.Thread(target=self._spin, name="recorder-spin", daemon=True)
