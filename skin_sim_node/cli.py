@@ -15,10 +15,19 @@ COMMANDS = {
     "bench": ("skin_sim_node.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
     "bench-model": ("skin_sim_node.bench_model", "model step micro-benchmark (numba vs NumPy)"),
     "echo": ("skin_sim_node.echo", "bare rclpy echo node (pose in, wrench out): the latency baseline"),
-    "chart": ("skin_sim_node.figures", "regenerate the model figures in docs/figures"),
+    "chart": ("skin_sim_node.figures", "regenerate figures: chart model|validation|stability|performance"),
     "record": ("skin_sim_node.bags.record", "record a scene's tool inputs and node outputs to a rosbag2 folder"),
     "replay": ("skin_sim_node.bags.replay", "replay a bag through the model offline (or --live against a node)"),
     "compare": ("skin_sim_node.bags.compare", "diff two output bags with tolerances; non-zero exit when they differ"),
+}
+
+
+# ``skin-sim chart TARGET``: each target's module regenerates its own docs figures.
+CHART_TARGETS = {
+    "model": "skin_sim_node.figures",
+    "validation": "skin_sim_node.validation.charts",
+    "stability": "skin_sim_node.stability.charts",
+    "performance": "skin_sim_node.perf.charts",
 }
 
 
@@ -35,8 +44,9 @@ def main(argv=None) -> int:
         print(usage())
         return 0
     cmd, rest = argv[0], argv[1:]
-    if cmd == "chart" and rest[:1] == ["model"]:
-        rest = rest[1:]
+    if cmd == "chart" and rest[:1] and rest[0] in CHART_TARGETS:
+        module = importlib.import_module(CHART_TARGETS[rest[0]])
+        return int(module.main(rest[1:]) or 0)
     if cmd not in COMMANDS:
         print(f"skin-sim: unknown command {cmd!r}\n\n{usage()}", file=sys.stderr)
         return 2

@@ -22,13 +22,31 @@ REPO = Path(__file__).resolve().parents[1]
 DEFAULT_PARAMS = REPO / "config" / "default.yaml"
 
 
+def pick_domain_id() -> int:
+    """A random DDS domain id, from ``SKIN_SIM_DOMAIN_RANGE`` ("lo-hi") if set, else 1-101.
+
+    Ids above 101 limit the participants per domain on Linux (ROS 2 docs). Parallel runs on one
+    host (several CI jobs, several developers) give each a disjoint range so they never meet.
+    """
+    lo, hi = 1, 101
+    spec = os.environ.get("SKIN_SIM_DOMAIN_RANGE", "").strip()
+    if spec:
+        try:
+            lo, hi = (int(v) for v in spec.split("-"))
+        except ValueError:
+            raise ValueError(f"SKIN_SIM_DOMAIN_RANGE must look like '20-39', got {spec!r}") from None
+        if not 0 <= lo <= hi <= 232:
+            raise ValueError(f"SKIN_SIM_DOMAIN_RANGE {spec!r} is outside 0-232")
+    return random.SystemRandom().randint(lo, hi)
+
+
 def isolated_env(domain_id: int | None = None, log_dir: Path | None = None) -> dict[str, str]:
     """Environment for a scene: its own DDS domain, localhost discovery, tidy ROS logs."""
     env = dict(os.environ)
     if domain_id is not None:
         env["ROS_DOMAIN_ID"] = str(domain_id)
     elif "ROS_DOMAIN_ID" not in env:
-        env["ROS_DOMAIN_ID"] = str(random.SystemRandom().randint(1, 101))  # 0-101: safe on Linux per the ROS 2 docs
+        env["ROS_DOMAIN_ID"] = str(pick_domain_id())
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; it overrides the range
     if log_dir is not None:

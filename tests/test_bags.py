@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import shutil
 from pathlib import Path
 
@@ -31,6 +30,7 @@ from skin_sim_node.bags.io import (
 from skin_sim_node.bags.offline import bag_topic, replay_to_bag
 from skin_sim_node.bags.offline import replay as replay_offline
 from skin_sim_node.bridge import DeviceMapping
+from skin_sim_node.scenes import pick_domain_id
 
 DATA = Path(__file__).parent / "data"
 PRESS = DATA / "press_hold_release" / "input"
@@ -229,7 +229,7 @@ def test_missing_bag(tmp_path):
 # --- live against offline (real processes) ----------------------------------------------
 @pytest.fixture
 def isolated_domain(monkeypatch):
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))  # domain ids above 101 limit participants on Linux
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(pick_domain_id()))
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
 

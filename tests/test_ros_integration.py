@@ -16,7 +16,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped  # noqa: E402
 from msgs_schema import convert as cv  # noqa: E402
 from skin_sim_node.model import SkinModel, load_tissue_config  # noqa: E402
 from skin_sim_node.ros_util import PeriodicLoop  # noqa: E402
-from skin_sim_node.scenes import DEFAULT_PARAMS, Scene  # noqa: E402
+from skin_sim_node.scenes import DEFAULT_PARAMS, Scene, pick_domain_id  # noqa: E402
 from skin_sim_node.session import HapticSession, SessionParams  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -25,7 +25,7 @@ NS = 1_000_000_000
 
 @pytest.fixture(scope="module", autouse=True)
 def isolated_domain():
-    os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 101)  # domain ids above 101 limit participants on Linux
+    os.environ["ROS_DOMAIN_ID"] = str(pick_domain_id())
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.pop("ROS_LOCALHOST_ONLY", None)
 
@@ -250,6 +250,7 @@ def test_parameter_change_applied_or_rejected(scene, monitor):
     assert not r.successful and "interfaces cross" in r.reason
     (r,) = set_params(Parameter("tissue.modes.m", Parameter.Type.INTEGER, 0))
     assert not r.successful
+
     def held_force():  # median over the held press: robust to a single late or lost sample
         return float(np.median([fz for _, _, fz in list(monitor.wrench)[-300:] if fz > 0]))
 
