@@ -22,8 +22,10 @@ from dataclasses import dataclass
 
 from .bridge import TOUCH_PEAK_FORCE_N, DeviceMapping, clamp_magnitude
 from .mock_tool import TRAJECTORIES, ScriptClock, Trajectory
+from .stability.passivity import PassivityController
 
 Vec3 = tuple[float, float, float]
+STABILISERS = ("none", "passivity")
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,13 @@ class DeviceParams:
     delay_ticks : int
         Ticks between a force command handed to :meth:`SimulatedDevice.step` and its first
         application (0 or 1; a real servo loop applies a command from its next tick).
+    substep_s : float
+        Longest integration step inside one tick (s); 0 integrates each tick in one step. The
+        stability sweep (:mod:`skin_sim_node.stability.haptic_loop`) sets 50 us so that the stylus
+        and hand behave as continuous-time physics and only the loop is sampled.
+    stabiliser : str
+        ``"none"`` or ``"passivity"``: the device-side passivity observer and controller of
+        :class:`skin_sim_node.stability.passivity.PassivityController`, run in the device tick.
     """
 
     mass_kg: float = 0.045
@@ -59,6 +68,8 @@ class DeviceParams:
     hand_damping_n_s_per_m: float = 3.0
     max_force_n: float = TOUCH_PEAK_FORCE_N
     delay_ticks: int = 1
+    substep_s: float = 0.0
+    stabiliser: str = "none"
 
     def __post_init__(self):
         if not self.mass_kg > 0:
@@ -69,6 +80,10 @@ class DeviceParams:
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
         if self.delay_ticks not in (0, 1):
             raise ValueError(f"delay_ticks must be 0 or 1, got {self.delay_ticks}")
+        if not (math.isfinite(self.substep_s) and self.substep_s >= 0):
+            raise ValueError(f"substep_s must be finite and >= 0, got {self.substep_s}")
+        if self.stabiliser not in STABILISERS:
+            raise ValueError(f"stabiliser must be one of {', '.join(STABILISERS)}, got {self.stabiliser!r}")
 
     def max_stable_dt_s(self, contact_stiffness_n_per_m: float = 0.0) -> float:
         """Largest step for which semi-implicit Euler stays stable on the linearised stylus.
@@ -102,9 +117,10 @@ class SimulatedDevice:
     Notes
     -----
     Per :meth:`step`: ``F = K_h (x_h - x) + B_h (v_h - v) - b v + F_ext``, ``v += F dt / m``,
-    ``x += v dt`` (semi-implicit Euler; see :meth:`DeviceParams.max_stable_dt_s`). ``F_ext`` is
-    the last force command, held, saturated to ``max_force_n`` (direction kept; a non-finite
-    command counts as zero), and applied ``delay_ticks`` late.
+    ``x += v dt`` (semi-implicit Euler; see :meth:`DeviceParams.max_stable_dt_s`), in substeps of
+    at most ``substep_s``. ``F_ext`` is the last force command, held, saturated to ``max_force_n``
+    (direction kept; a non-finite command counts as zero), and applied ``delay_ticks`` late; with
+    ``stabiliser="passivity"`` the device-side passivity controller adds its damping to it.
     """
 
     def __init__(
@@ -129,6 +145,7 @@ class SimulatedDevice:
         self.vel = (0.0, 0.0, 0.0)
         self._held = (0.0, 0.0, 0.0)
         self.applied_force_n = (0.0, 0.0, 0.0)
+        self.passivity = PassivityController(self.params.mass_kg) if self.params.stabiliser == "passivity" else None
 
     def hand(self, t_s: float | None = None) -> tuple[Vec3, Vec3]:
         """Hand position (m) and velocity (m/s) in the device frame at ``t_s`` (default: now)."""
@@ -148,13 +165,21 @@ class SimulatedDevice:
         cmd = clamp_magnitude(tuple(float(c) for c in force_xyz_n), p.max_force_n)
         if p.delay_ticks == 0:
             self._held = cmd
-        f_ext = self._held
+        f_env = f_ext = self._held
+        if self.passivity is not None:
+            f_ext = clamp_magnitude(self.passivity.force(f_env, self.vel, dt), p.max_force_n)
         self.applied_force_n = f_ext
-        xh, vh = self.hand()
-        x, v = self.pos, self.vel
+        x0 = x = self.pos
+        v = self.vel
         k, b, bd, m = p.hand_stiffness_n_per_m, p.hand_damping_n_s_per_m, p.damping_n_s_per_m, p.mass_kg
-        v = tuple(v[i] + dt / m * (k * (xh[i] - x[i]) + b * (vh[i] - v[i]) - bd * v[i] + f_ext[i]) for i in range(3))
-        x = tuple(x[i] + dt * v[i] for i in range(3))
+        n_sub = max(1, math.ceil(dt / p.substep_s - 1e-9)) if p.substep_s > 0 else 1
+        h = dt / n_sub
+        for j in range(n_sub):
+            xh, vh = self.hand(self.t_s + j * h)
+            v = tuple(v[i] + h / m * (k * (xh[i] - x[i]) + b * (vh[i] - v[i]) - bd * v[i] + f_ext[i]) for i in range(3))
+            x = tuple(x[i] + h * v[i] for i in range(3))
+        if self.passivity is not None:
+            self.passivity.observe(f_ext, f_env, tuple(x[i] - x0[i] for i in range(3)))
         self.pos, self.vel = x, v
         self.t_s += dt
         self._held = cmd
