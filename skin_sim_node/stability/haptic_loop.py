@@ -36,8 +36,11 @@ HOLD_FORCE_N = 0.5
 RAMP_S, HOLD_S = 0.3, 1.2
 EARLY = (0.3, 0.6)  # windows into the hold (s after the ramp): decay is judged between them
 LATE = (0.9, 1.2)
-SETTLED_FRACTION = 0.01
-"""A run has settled when the force's std over the late window is below 1 % of the hold force."""
+SETTLED_FRACTION = 0.02
+"""A run has settled when the force's std over the late window is below 2 % of the hold force (10 mN),
+well under the ~7 % just-noticeable difference of force (Jones 1989, Exp Brain Res 77:211)."""
+DECAY_RATIO = 0.7
+"""Not settled but decaying: late std below 0.7 x early std (a decay time under 1.7 s between the windows)."""
 STIFFNESSES_N_PER_M = tuple(float(k) for k in np.geomspace(100.0, 5000.0, 12))  # 0.1 .. 5 N/mm
 RATES_HZ = (100.0, 150.0, 250.0, 400.0, 600.0, 1000.0, 1600.0, 2500.0, 4000.0)
 
@@ -127,7 +130,7 @@ def classify(tr: Trace, force_n: float = HOLD_FORCE_N) -> Verdict:
         kind = "growing"
     elif s_l <= SETTLED_FRACTION * force_n:
         kind = "settled"
-    elif s_l < 0.5 * s_e:
+    elif s_l < DECAY_RATIO * s_e:
         kind = "decaying"
     elif s_l > 1.5 * s_e:
         kind = "growing"
