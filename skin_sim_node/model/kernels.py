@@ -334,3 +334,69 @@ def modal_energy(q, v, lam):
         for kk in range(q.shape[1]):
             total += 0.5 * (v[li, kk] ** 2 + (lam[li, kk] * q[li, kk]) ** 2)
     return total
+
+
+# --- baseline membrane solvers (skin_sim_node.solvers) -------------------------------------
+# One layer's PDE, rho u_tt + c u_t = T (u_xx + u_yy) - k u + p, on interior nodes of a
+# rectangle with u = 0 on the edges. Used for the accuracy and stability comparisons.
+
+
+@njit(**JIT)
+def leapfrog_membrane_steps(u, u_prev, load, n_steps, dt, rho, tension, damping, foundation, dx, dy, tmp):
+    """``n_steps`` of the explicit central-difference (leapfrog) scheme, in place.
+
+    ``u`` holds t_n and ``u_prev`` t_(n-1) on entry, t_(n+k) and t_(n+k-1) on exit. The damping
+    term is central, ``c (u+ - u-) / (2 dt)``, so the limit is ``omega_max dt <= 2`` for any ``c``.
+    """
+    ny, nx = u.shape
+    a = rho / (dt * dt) + damping / (2.0 * dt)
+    bm = rho / (dt * dt) - damping / (2.0 * dt)
+    two_rho = 2.0 * rho / (dt * dt)
+    idx2 = 1.0 / (dx * dx)
+    idy2 = 1.0 / (dy * dy)
+    for _ in range(n_steps):
+        for j in range(ny):
+            for i in range(nx):
+                c = u[j, i]
+                left = u[j, i - 1] if i > 0 else 0.0
+                right = u[j, i + 1] if i < nx - 1 else 0.0
+                down = u[j - 1, i] if j > 0 else 0.0
+                up = u[j + 1, i] if j < ny - 1 else 0.0
+                lap = (left - 2.0 * c + right) * idx2 + (down - 2.0 * c + up) * idy2
+                tmp[j, i] = (two_rho * c - bm * u_prev[j, i] + tension * lap - foundation * c + load[j, i]) / a
+        for j in range(ny):
+            for i in range(nx):
+                u_prev[j, i] = u[j, i]
+                u[j, i] = tmp[j, i]
+
+
+@njit(**JIT)
+def mass_spring_steps(u, v, load, n_steps, dt, mass, k_x, k_y, k_ground, c_ground, c_edge, acc):
+    """``n_steps`` of a Kelvin-Voigt mass-spring grid by semi-implicit (symplectic) Euler, in place.
+
+    Node forces: neighbour springs ``k_x``/``k_y`` (N/m), ground spring ``k_ground`` and damper
+    ``c_ground``, edge dampers ``c_edge`` (N*s/m), external ``load`` (N). Fixed edge nodes sit
+    outside the array (u = v = 0). ``v += dt a(u, v)``, then ``u += dt v``: damping is explicit.
+    """
+    ny, nx = u.shape
+    inv_m = 1.0 / mass
+    for _ in range(n_steps):
+        for j in range(ny):
+            for i in range(nx):
+                c = u[j, i]
+                cv = v[j, i]
+                left = u[j, i - 1] if i > 0 else 0.0
+                right = u[j, i + 1] if i < nx - 1 else 0.0
+                down = u[j - 1, i] if j > 0 else 0.0
+                up = u[j + 1, i] if j < ny - 1 else 0.0
+                vl = v[j, i - 1] if i > 0 else 0.0
+                vr = v[j, i + 1] if i < nx - 1 else 0.0
+                vd = v[j - 1, i] if j > 0 else 0.0
+                vu = v[j + 1, i] if j < ny - 1 else 0.0
+                f = k_x * (left - 2.0 * c + right) + k_y * (down - 2.0 * c + up) - k_ground * c - c_ground * cv
+                f += c_edge * (vl + vr + vd + vu - 4.0 * cv) + load[j, i]
+                acc[j, i] = f * inv_m
+        for j in range(ny):
+            for i in range(nx):
+                v[j, i] += dt * acc[j, i]
+                u[j, i] += dt * v[j, i]
