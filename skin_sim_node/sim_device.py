@@ -216,6 +216,8 @@ DEFAULTS = {
     "hand_stiffness_n_per_m": DeviceParams.hand_stiffness_n_per_m,
     "hand_damping_n_s_per_m": DeviceParams.hand_damping_n_s_per_m,
     "max_force_n": DeviceParams.max_force_n,
+    "substep_s": DeviceParams.substep_s,
+    "stabiliser": DeviceParams.stabiliser,
 }
 MAX_DT_PERIODS = 2
 """A late tick integrates at most this many periods: keeps the integrator inside its stability
@@ -294,6 +296,10 @@ def _build_node_class():
                 ("max_force_n", "N"),
             ):
                 self.declare_parameter(name, float(d[name]), P(description=f"{name} ({unit}), see DeviceParams", **ro))
+            self.declare_parameter(
+                "substep_s", float(d["substep_s"]), P(description="longest integration substep (s); 0: one per tick", **ro)
+            )
+            self.declare_parameter("stabiliser", d["stabiliser"], P(description=f"{' | '.join(STABILISERS)}", **ro))
             gp = self.get_parameter
             conv = gp("convention").value
             if conv not in ("crtk", "omni"):
@@ -304,6 +310,7 @@ def _build_node_class():
             params = DeviceParams(
                 gp("mass_kg").value, gp("damping_n_s_per_m").value, gp("hand_stiffness_n_per_m").value,
                 gp("hand_damping_n_s_per_m").value, gp("max_force_n").value,
+                substep_s=gp("substep_s").value, stabiliser=gp("stabiliser").value,
             )  # fmt: skip
             self.device = SimulatedDevice(
                 path, params, DeviceMapping(offset_m=tuple(gp("offset_m").value)),
@@ -330,7 +337,7 @@ def _build_node_class():
             self._period_ns = period_ns
             self.get_logger().info(
                 f"simulated Touch ({conv}) on {dev(pose_key)}, hand path {path}, {gp('rate_hz').value} Hz, "
-                f"origin at tissue {self.device.mapping.offset_m} m"
+                f"origin at tissue {self.device.mapping.offset_m} m, stabiliser {params.stabiliser}"
             )
             self._loop = PeriodicLoop(period_ns, self._tick, name="sim-device")
             self.create_timer(HOUSEKEEPING_PERIOD_S, self._housekeeping)
@@ -362,9 +369,11 @@ def _build_node_class():
 
         def stop(self) -> None:
             self._loop.stop()
+            pc = self.device.passivity
+            pc_text = f"; passivity controller active {pc.active_ticks} ticks, dissipated {pc.dissipated_j:.3g} J" if pc else ""
             self.get_logger().info(
                 f"sim device stopping: {self._loop.ticks} ticks, {self._loop.overruns} overruns, "
-                f"{self.commands} force commands received"
+                f"{self.commands} force commands received{pc_text}"
             )
 
     return SimDeviceNode
@@ -389,6 +398,8 @@ def main(argv=None) -> int:
     g.add_argument("--repeat", type=int, help="number of hand path runs")
     g.add_argument("--loop", action="store_true", help="loop the hand path forever")
     ap.add_argument("--start-delay-s", type=float)
+    ap.add_argument("--stabiliser", choices=STABILISERS, help="device-side stabiliser (default none)")
+    ap.add_argument("--substep-s", type=float, help="longest stylus integration substep (s); 0: one per tick")
     ap.add_argument("--no-exit", action="store_true", help="keep holding the end pose instead of exiting")
     opts, rest = ap.parse_known_args(argv)
     overrides = {
@@ -401,6 +412,8 @@ def main(argv=None) -> int:
             "repeat": 0 if opts.loop else opts.repeat,
             "start_delay_s": opts.start_delay_s,
             "exit_when_done": False if opts.no_exit else None,
+            "stabiliser": opts.stabiliser,
+            "substep_s": opts.substep_s,
         }.items()
         if v is not None
     }

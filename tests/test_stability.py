@@ -223,3 +223,51 @@ def test_stabilised_loop_device_energy_is_bounded_where_naive_grows():
     stab = run_loop(Wall(3000.0), 250.0, path, "passivity")
     assert np.ptp(naive.force_n[-100:]) > 1.0  # naive: force swinging by more than a newton
     assert np.ptp(stab.force_n[-100:]) < 0.02
+
+
+# --- numerical limits (shared solvers) ------------------------------------------------------------
+from skin_sim_node.solvers import Membrane, ModalSolver, membrane_from_layer  # noqa: E402
+from skin_sim_node.stability.numerics import (  # noqa: E402
+    dermis_membrane,
+    dt_limit_s,
+    energy_growth,
+    initial_state,
+    make_solver,
+    measured_dt_limit_s,
+)
+
+
+@pytest.mark.parametrize("method", ["leapfrog", "mass-spring"])
+def test_explicit_solver_blows_up_just_past_its_limit_and_not_under(method):
+    mem, n = dermis_membrane(), 11
+    limit = dt_limit_s(method, mem, n)
+    u0 = initial_state(mem, n)
+    for factor, bounded in ((0.99, True), (1.01, False)):
+        s = make_solver(method, mem, n)
+        s.set_state(u0)
+        growth = energy_growth(s, factor * limit, 3000)
+        # leapfrog conserves its discrete energy; symplectic Euler's (u, v at one time) oscillates boundedly
+        assert (growth <= (1.05 if method == "leapfrog" else 5.0)) if bounded else math.isinf(growth), (factor, growth)
+
+
+def test_measured_cfl_boundary_matches_theory():
+    mem, n = dermis_membrane(), 31
+    meas = measured_dt_limit_s("leapfrog", mem, n, rel_tol=2e-3)
+    assert meas == pytest.approx(dt_limit_s("leapfrog", mem, n), rel=5e-3)
+    courant = mem.wave_speed_m_s * meas / (mem.size_x_m / (n + 1))
+    assert courant == pytest.approx(1 / math.sqrt(2), rel=0.005)  # 2D CFL as the grid refines
+
+
+@pytest.mark.parametrize("dt_s", [1e-5, 1e-3, 0.0137, 0.05])
+def test_modal_integrator_bounded_and_energy_non_increasing_1e5_steps(default_cfg, dt_s):
+    damped = membrane_from_layer(default_cfg, 1)  # the model's modal damping
+    for mem in (damped, Membrane(damped.size_x_m, damped.size_y_m, damped.areal_density_kg_per_m2, damped.tension_n_per_m)):
+        s = ModalSolver(mem, 5, 5)
+        s.set_state(initial_state(mem, 5), np.full((5, 5), 0.05))
+        e = [s.energy_j()]
+        for _ in range(100):
+            s.advance(dt_s, 1000)
+            e.append(s.energy_j())
+        e = np.array(e)
+        assert np.all(np.isfinite(s.u_m)) and np.abs(s.u_m).max() < 1.0
+        assert np.all(np.diff(e) <= 1e-9 * e[0])
