@@ -266,7 +266,7 @@ class HapticSession:
             self._event(FORCE_CLAMPED, f"force {force:.2f} N clamped to max_force_n = {p.max_force_n} N")
             force = p.max_force_n
         if p.max_force_rate_n_per_s > 0:
-            step = p.max_force_rate_n_per_s * dt
+            step = p.max_force_rate_n_per_s * max(dt, max(elapsed_ns, 0) * 1e-9)  # a zero-dt pose still gets its tick
             if abs(force - self.force_n) > step:
                 self._event(
                     FORCE_RATE_LIMITED,
