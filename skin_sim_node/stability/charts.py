@@ -130,7 +130,7 @@ def haptic_figures(out: Path) -> list[Path]:
     for r in (1000.0, 250.0):
         lo = hl.largest_stable(r, "none", 100.0, 20000.0)
         print(f"  naive boundary by bisection at {r:.0f} Hz: {lo * 1e-3:.3f} N/mm (exact linear {hl.linear_k_max(r) * 1e-3:.3f})")
-        hi_k = max_stable_stabilised(r)
+        hi_k = max_stable_stabilised(res, r)
         print(f"  largest stiffness the stabilised loop renders stably at {r:.0f} Hz: {hi_k * 1e-3:.2f} N/mm")
 
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -159,14 +159,20 @@ def haptic_figures(out: Path) -> list[Path]:
     return [p1, p2]
 
 
-def max_stable_stabilised(rate_hz: float, k_max: float = 200e3) -> float:
-    """Largest wall stiffness the passivity-stabilised loop holds stably: scan up by 2x, then bisect."""
-    k = 5000.0
+def max_stable_stabilised(res, rate_hz: float, k_max: float = 200e3) -> float:
+    """Largest wall stiffness the passivity-stabilised loop holds stably.
+
+    From the sweep: bisect between the last all-stable swept ``K`` and the next (unstable) one; if the
+    whole sweep is stable, scan upwards by 2x first.
+    """
+    lo = hl.boundary(res, "passivity", rate_hz, CHART_STIFFNESSES)
+    higher = [k for k in CHART_STIFFNESSES if k > lo]
+    if higher:
+        return hl.largest_stable(rate_hz, "passivity", lo, higher[0], iters=5)
+    k = lo
     while k < k_max and hl.wall_point(2 * k, rate_hz, "passivity").stable:
         k *= 2
-    if k >= k_max:
-        return k
-    return hl.largest_stable(rate_hz, "passivity", k, 2 * k, iters=5)
+    return k if k >= k_max else hl.largest_stable(rate_hz, "passivity", k, 2 * k, iters=5)
 
 
 def main(argv=None) -> int:
