@@ -133,25 +133,32 @@ def haptic_figures(out: Path) -> list[Path]:
         hi_k = max_stable_stabilised(res, r)
         print(f"  largest stiffness the stabilised loop renders stably at {r:.0f} Hz: {hi_k * 1e-3:.2f} N/mm")
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 3.8))
     for r, col in ((1000.0, "#2c3e50"), (250.0, "#8e44ad")):
         for stab, mk in (("none", "x"), ("passivity", "o")):
-            ks, kr = [], []
+            ks, kr, br = [], [], []
             for k in TRANSPARENCY_K:
                 if not hl.wall_point(k, r, stab).stable:
                     continue
+                kf, bf = hl.rendered_stiffness(k, r, stab)
                 ks.append(k)
-                kr.append(hl.rendered_stiffness(k, r, stab)[0])
-                print(f"  transparency {r:.0f} Hz {stab}: K {k * 1e-3:.3f} N/mm -> felt {kr[-1] * 1e-3:.3f} N/mm")
-            ax.plot(np.array(ks) * 1e-3, np.array(kr) * 1e-3, mk + "-", color=col, mfc="none", label=f"{r:.0f} Hz, {stab}")
-    lim = [TRANSPARENCY_K[0] * 1e-3, TRANSPARENCY_K[-1] * 1e-3]
-    ax.plot(lim, lim, "k--", lw=0.8, label="felt = rendered")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("rendered wall stiffness K (N/mm)")
-    ax.set_ylabel("stiffness felt at the stylus (N/mm)")
-    ax.set_title("transparency: 5 Hz, 0.2 mm hand wobble; stable points only", fontsize=9)
-    ax.legend(fontsize=7)
+                kr.append(kf)
+                br.append(bf)
+                print(f"  transparency {r:.0f} Hz {stab}: K {k * 1e-3:.3f} N/mm -> felt {kf * 1e-3:.3f} N/mm, "
+                      f"damping {bf:.2f} N*s/m")  # fmt: skip
+            ks = np.array(ks)
+            ax.plot(ks * 1e-3, np.array(kr) / ks, mk + "-", color=col, mfc="none", label=f"{r:.0f} Hz, {stab}")
+            bx.plot(ks * 1e-3, br, mk + "-", color=col, mfc="none", label=f"{r:.0f} Hz, {stab}")
+    for a_ in (ax, bx):
+        a_.set_xscale("log")
+        a_.set_xlabel("rendered wall stiffness K (N/mm)")
+        a_.legend(fontsize=7)
+    ax.axhline(1.0, color="k", ls="--", lw=0.8)
+    ax.set_ylabel("felt / rendered stiffness")
+    ax.set_title("stiffness felt at the stylus (5 Hz, 0.2 mm hand wobble; stable points only)", fontsize=9)
+    bx.axhline(0.0, color="k", ls="--", lw=0.8)
+    bx.set_ylabel("damping felt (N*s/m)")
+    bx.set_title("damping felt: the delayed wall's own (negative) and the controller's", fontsize=9)
     fig.tight_layout()
     p2 = out / "transparency.png"
     fig.savefig(p2, dpi=110)
