@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -151,6 +152,7 @@ def haptic_figures(out: Path) -> list[Path]:
             bx.plot(ks * 1e-3, br, mk + "-", color=col, mfc="none", label=f"{r:.0f} Hz, {stab}")
     for a_ in (ax, bx):
         a_.set_xscale("log")
+        a_.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         a_.set_xlabel("rendered wall stiffness K (N/mm)")
         a_.legend(fontsize=7)
     ax.axhline(1.0, color="k", ls="--", lw=0.8)
