@@ -34,6 +34,12 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "node-side force clamp; device limits (3.3 N for a Touch) are applied by the bridge", 0.0, 1000.0,
     ),
     ParamSpec(
+        "max_force_rate_n_per_s", float, 1000.0, "N/s",
+        "bound on the force's rate of change (0 disables): the fastest rise the default tissue gives a 0.1 m/s probing "
+        "press (epidermis k = 9.7 kN/m: ~1000 N/s) passes, while a step from an edge, teleport or pop-through is spread "
+        "over ticks (3.3 N over 3.3 ms). See docs/stability.md", 0.0, 1e6, False,
+    ),
+    ParamSpec(
         "teleport_distance_m", float, 0.02, "m",
         "a pose jump larger than this between samples restarts contact (20 mm: 20x a 1 m/s hand at 1 kHz)", 0.0, 10.0,
     ),
@@ -92,6 +98,7 @@ class NodeParams:
     watchdog_s: float
     max_stamp_age_s: float
     max_force_n: float
+    max_force_rate_n_per_s: float
     teleport_distance_m: float
     max_tool_speed_m_s: float
     twist_max_skew_s: float

@@ -49,6 +49,7 @@ def session_params(p: NodeParams) -> SessionParams:
         watchdog_s=p.watchdog_s,
         max_stamp_age_s=p.max_stamp_age_s,
         max_force_n=p.max_force_n,
+        max_force_rate_n_per_s=p.max_force_rate_n_per_s,
         teleport_distance_m=p.teleport_distance_m,
         max_tool_speed_m_s=p.max_tool_speed_m_s,
         twist_max_skew_s=p.twist_max_skew_s,

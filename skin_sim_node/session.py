@@ -12,7 +12,10 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
+
 from .model import SkinModel
+from .model import kernels as kn
 
 # Rejection / event kinds (diagnostics keys).
 NON_FINITE = "non_finite_input"
@@ -26,6 +29,28 @@ TELEPORT = "teleport"
 WATCHDOG = "watchdog_stale_input"
 FORCE_CLAMPED = "force_clamped"
 FORCE_NON_FINITE = "force_non_finite"
+FORCE_RATE_LIMITED = "force_rate_limited"
+TICK_CLAMPED = "tick_interval_clamped"
+# Model-regime events (docs/stability.md): where the paper's model stops making sense.
+TOOL_BELOW_TISSUE = "tool_below_tissue"
+REUSS_BOUND = "reuss_compression_bound"
+CONTACT_SEPARATED = "contact_separated"
+TOOL_OFF_SHEET = "tool_off_sheet"
+PATCH_CLIPPED = "patch_clipped"
+DEGENERATE_WAVE_SPEED = "degenerate_wave_speed"
+
+REGIME_EVENTS = frozenset(
+    (TOOL_BELOW_TISSUE, REUSS_BOUND, CONTACT_SEPARATED, TOOL_OFF_SHEET, PATCH_CLIPPED, DEGENERATE_WAVE_SPEED)
+)
+"""Counted in :attr:`HapticSession.regime_counts`, not :attr:`HapticSession.counts` (rejections and safety
+actions): they occur in ordinary use (every fast release separates) and the model bounds them itself."""
+
+DEGENERATE_RETURN_S = 1.0
+"""A layer whose fundamental mode needs longer than this for a quarter period (``pi / (2 lambda_11)``)
+to return has a degenerate wave speed: skin visibly recovers from an indent well within a second,
+while the paper's eq 9 (``lambda_11 = 0.0032 rad/s``) takes 490 s. Such a layer is released from
+rest (``B*_mn = 0``, as eq 9 itself), since with no restoring force in human time a release velocity
+``v`` would carry it ``v / lambda_11`` (31 m at 0.1 m/s) away."""
 
 
 @dataclass(frozen=True)
@@ -42,6 +67,7 @@ class SessionParams:
     max_dt_s: float = 0.1
     max_future_s: float = 0.05  # a stamp this far ahead of the clock is rejected (clock skew allowance)
     resync_after: int = 50  # this many consecutive backwards stamps: accept the new time line
+    max_force_rate_n_per_s: float = 1000.0  # see msgs_schema.parameters; 0 disables
 
 
 class HapticSession:
@@ -53,14 +79,15 @@ class HapticSession:
     params : SessionParams
     log : callable(kind, message), optional
         Called once per event kind (the first occurrence); every occurrence is counted
-        in :attr:`counts`.
+        in :attr:`counts` (rejections, safety actions) or :attr:`regime_counts` (:data:`REGIME_EVENTS`).
     """
 
     def __init__(self, model: SkinModel, params: SessionParams, log: Callable[[str, str], None] | None = None):
-        self.model = model
+        self.model = None
         self.params = params
         self._log = log
         self.counts: Counter[str] = Counter()
+        self.regime_counts: Counter[str] = Counter()
         self._logged: set[str] = set()
         self.pose_stamp_ns: int | None = None  # last accepted pose
         self.pose = (0.0, 0.0, 1.0)
@@ -79,10 +106,11 @@ class HapticSession:
         self.force_n = 0.0
         self.answered_stamp_ns = 0
         self.velocity = (0.0, 0.0, 0.0)
+        self.set_model(model)
 
     # --- events -----------------------------------------------------------------------
     def _event(self, kind: str, message: str) -> str:
-        self.counts[kind] += 1
+        (self.regime_counts if kind in REGIME_EVENTS else self.counts)[kind] += 1
         if kind not in self._logged:
             self._logged.add(kind)
             if self._log:
@@ -92,6 +120,19 @@ class HapticSession:
     def set_model(self, model: SkinModel) -> None:
         """Swap in a new model (a live tissue parameter change); the tissue restarts at rest."""
         self.model = model
+        lam11 = model.basis.lam.min(axis=1)  # each layer's fundamental, rad/s
+        with np.errstate(divide="ignore"):
+            quarter_s = np.where(lam11 > 0, 0.5 * math.pi / lam11, math.inf)
+        self._degenerate = quarter_s > DEGENERATE_RETURN_S
+        if self._degenerate.any():
+            names = ", ".join(la.name for la, d in zip(model.cfg.layers, self._degenerate) if d)
+            self._event(
+                DEGENERATE_WAVE_SPEED,
+                f"degenerate wave speed: {names} take {quarter_s.max():.3g} s to return (c = "
+                f"{min(la.wave_speed_m_per_s for la in model.cfg.layers):.3g} m/s); released from rest",
+            )
+        cfg = model.cfg
+        self._patch_free = (0.5 * (cfg.sheet_size_m[0] - cfg.patch_size_m[0]), 0.5 * (cfg.sheet_size_m[1] - cfg.patch_size_m[1]))
 
     # --- inputs -----------------------------------------------------------------------
     def on_pose(self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None, rx_ns: int | None = None) -> str | None:
@@ -176,6 +217,8 @@ class HapticSession:
         """
         p = self.params
         model = self.model
+        driven_before = model.driven.copy() if self._degenerate.any() else None
+        q_before = model.q.copy() if driven_before is not None else None
         stale = self.pose_rx_ns is None or (now_ns - self.pose_rx_ns) * 1e-9 > p.watchdog_s
         if stale and not self.stale:
             self._event(WATCHDOG, f"no valid tool pose for {p.watchdog_s * 1e3:.0f} ms: force set to zero, tissue released")
@@ -205,10 +248,16 @@ class HapticSession:
                 model.release()
             else:
                 pos = self.pose
-        dt = min(max(dt_ns, 0) * 1e-9, p.max_dt_s)
+        dt = max(dt_ns, 0) * 1e-9
+        if dt > p.max_dt_s:
+            self._event(TICK_CLAMPED, f"tick interval {dt * 1e3:.1f} ms advanced as max_dt_s = {p.max_dt_s * 1e3:.0f} ms")
+            dt = p.max_dt_s
         self.velocity = v
         force = model.step(pos, v, dt)
         self._ticks += 1
+        self._regime_events(pos)
+        if driven_before is not None:
+            self._release_degenerate_from_rest(driven_before, q_before)
         if not math.isfinite(force) or (self._ticks % 64 == 0 and not math.isfinite(model.energy())):
             self._event(FORCE_NON_FINITE, f"model state became non-finite (force {force}): published 0, tissue reset to rest")
             model.reset()
@@ -216,7 +265,41 @@ class HapticSession:
         if force > p.max_force_n:
             self._event(FORCE_CLAMPED, f"force {force:.2f} N clamped to max_force_n = {p.max_force_n} N")
             force = p.max_force_n
+        if p.max_force_rate_n_per_s > 0:
+            step = p.max_force_rate_n_per_s * max(dt, max(elapsed_ns, 0) * 1e-9)  # a zero-dt pose still gets its tick
+            if abs(force - self.force_n) > step:
+                self._event(
+                    FORCE_RATE_LIMITED,
+                    f"force step {self.force_n:.3f} -> {force:.3f} N in {dt * 1e3:.2f} ms limited to "
+                    f"max_force_rate_n_per_s = {p.max_force_rate_n_per_s:g} N/s",
+                )
+                force = self.force_n + math.copysign(step, force - self.force_n)
         if stale:
-            force = 0.0
+            force = 0.0  # a safety stop is not rate limited
         self.force_n = force
         return force
+
+    # --- model regime ---------------------------------------------------------------------
+    def _regime_events(self, pos) -> None:
+        """Log (once each) the model-regime flags of the last step; the kernel already bounded them."""
+        f = self.model.flags
+        if f & kn.FLAG_BOTTOMED:
+            self._event(TOOL_BELOW_TISSUE, f"tool {-pos[2] * 1e3:.2f} mm deep, below the tissue: depth clamped at the bottom")
+        if f & kn.FLAG_LAYER_BOUND:
+            self._event(REUSS_BOUND, "a layer's Reuss compression left [0, thickness] (fast press or retraction, or a "
+                        "saturated layer): held at the bound, the rest of the depth split over the others")  # fmt: skip
+        if f & kn.FLAG_SEPARATED:
+            self._event(CONTACT_SEPARATED, "tool retracted faster than the tissue follows (Reuss stress <= 0): contact released")
+        if f & kn.FLAG_OFF_SHEET and pos[2] < 0.0:
+            self._event(TOOL_OFF_SHEET, f"tool at ({pos[0] * 1e3:.1f}, {pos[1] * 1e3:.1f}) mm is off the sheet: no contact")
+        if f & kn.FLAG_CONTACT and (abs(pos[0]) > self._patch_free[0] or abs(pos[1]) > self._patch_free[1]):
+            self._event(PATCH_CLIPPED, f"contact at ({pos[0] * 1e3:.1f}, {pos[1] * 1e3:.1f}) mm: the deformation patch "
+                        "passes the sheet edge and is clipped there (the paper's incomplete deformation)")  # fmt: skip
+
+    def _release_degenerate_from_rest(self, driven_before, q_before) -> None:
+        """A degenerate layer released this tick restarts from its last driven shape at rest (eq 9's ``B* = 0``)."""
+        m = self.model
+        for li in np.flatnonzero(driven_before.astype(bool) & ~m.driven.astype(bool) & self._degenerate):
+            prop = m._prop  # this tick's exact modal propagator, filled by the kernel
+            m.q[li] = prop[0, li] * q_before[li]
+            m.v[li] = prop[2, li] * q_before[li]

@@ -22,8 +22,10 @@ from dataclasses import dataclass
 
 from .bridge import TOUCH_PEAK_FORCE_N, DeviceMapping, clamp_magnitude
 from .mock_tool import TRAJECTORIES, ScriptClock, Trajectory
+from .stability.passivity import PassivityController
 
 Vec3 = tuple[float, float, float]
+STABILISERS = ("none", "passivity")
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,13 @@ class DeviceParams:
     delay_ticks : int
         Ticks between a force command handed to :meth:`SimulatedDevice.step` and its first
         application (0 or 1; a real servo loop applies a command from its next tick).
+    substep_s : float
+        Longest integration step inside one tick (s); 0 integrates each tick in one step. The
+        stability sweep (:mod:`skin_sim_node.stability.haptic_loop`) sets 50 us so that the stylus
+        and hand behave as continuous-time physics and only the loop is sampled.
+    stabiliser : str
+        ``"none"`` or ``"passivity"``: the device-side passivity observer and controller of
+        :class:`skin_sim_node.stability.passivity.PassivityController`, run in the device tick.
     """
 
     mass_kg: float = 0.045
@@ -59,6 +68,8 @@ class DeviceParams:
     hand_damping_n_s_per_m: float = 3.0
     max_force_n: float = TOUCH_PEAK_FORCE_N
     delay_ticks: int = 1
+    substep_s: float = 0.0
+    stabiliser: str = "none"
 
     def __post_init__(self):
         if not self.mass_kg > 0:
@@ -69,6 +80,10 @@ class DeviceParams:
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
         if self.delay_ticks not in (0, 1):
             raise ValueError(f"delay_ticks must be 0 or 1, got {self.delay_ticks}")
+        if not (math.isfinite(self.substep_s) and self.substep_s >= 0):
+            raise ValueError(f"substep_s must be finite and >= 0, got {self.substep_s}")
+        if self.stabiliser not in STABILISERS:
+            raise ValueError(f"stabiliser must be one of {', '.join(STABILISERS)}, got {self.stabiliser!r}")
 
     def max_stable_dt_s(self, contact_stiffness_n_per_m: float = 0.0) -> float:
         """Largest step for which semi-implicit Euler stays stable on the linearised stylus.
@@ -102,9 +117,10 @@ class SimulatedDevice:
     Notes
     -----
     Per :meth:`step`: ``F = K_h (x_h - x) + B_h (v_h - v) - b v + F_ext``, ``v += F dt / m``,
-    ``x += v dt`` (semi-implicit Euler; see :meth:`DeviceParams.max_stable_dt_s`). ``F_ext`` is
-    the last force command, held, saturated to ``max_force_n`` (direction kept; a non-finite
-    command counts as zero), and applied ``delay_ticks`` late.
+    ``x += v dt`` (semi-implicit Euler; see :meth:`DeviceParams.max_stable_dt_s`), in substeps of
+    at most ``substep_s``. ``F_ext`` is the last force command, held, saturated to ``max_force_n``
+    (direction kept; a non-finite command counts as zero), and applied ``delay_ticks`` late; with
+    ``stabiliser="passivity"`` the device-side passivity controller adds its damping to it.
     """
 
     def __init__(
@@ -129,6 +145,7 @@ class SimulatedDevice:
         self.vel = (0.0, 0.0, 0.0)
         self._held = (0.0, 0.0, 0.0)
         self.applied_force_n = (0.0, 0.0, 0.0)
+        self.passivity = PassivityController(self.params.mass_kg) if self.params.stabiliser == "passivity" else None
 
     def hand(self, t_s: float | None = None) -> tuple[Vec3, Vec3]:
         """Hand position (m) and velocity (m/s) in the device frame at ``t_s`` (default: now)."""
@@ -148,13 +165,21 @@ class SimulatedDevice:
         cmd = clamp_magnitude(tuple(float(c) for c in force_xyz_n), p.max_force_n)
         if p.delay_ticks == 0:
             self._held = cmd
-        f_ext = self._held
+        f_env = f_ext = self._held
+        if self.passivity is not None:
+            f_ext = clamp_magnitude(self.passivity.force(f_env, self.vel, dt), p.max_force_n)
         self.applied_force_n = f_ext
-        xh, vh = self.hand()
-        x, v = self.pos, self.vel
+        x0 = x = self.pos
+        v = self.vel
         k, b, bd, m = p.hand_stiffness_n_per_m, p.hand_damping_n_s_per_m, p.damping_n_s_per_m, p.mass_kg
-        v = tuple(v[i] + dt / m * (k * (xh[i] - x[i]) + b * (vh[i] - v[i]) - bd * v[i] + f_ext[i]) for i in range(3))
-        x = tuple(x[i] + dt * v[i] for i in range(3))
+        n_sub = max(1, math.ceil(dt / p.substep_s - 1e-9)) if p.substep_s > 0 else 1
+        h = dt / n_sub
+        for j in range(n_sub):
+            xh, vh = self.hand(self.t_s + j * h)
+            v = tuple(v[i] + h / m * (k * (xh[i] - x[i]) + b * (vh[i] - v[i]) - bd * v[i] + f_ext[i]) for i in range(3))
+            x = tuple(x[i] + h * v[i] for i in range(3))
+        if self.passivity is not None:
+            self.passivity.observe(f_ext, f_env, tuple(x[i] - x0[i] for i in range(3)))
         self.pos, self.vel = x, v
         self.t_s += dt
         self._held = cmd
@@ -191,6 +216,8 @@ DEFAULTS = {
     "hand_stiffness_n_per_m": DeviceParams.hand_stiffness_n_per_m,
     "hand_damping_n_s_per_m": DeviceParams.hand_damping_n_s_per_m,
     "max_force_n": DeviceParams.max_force_n,
+    "substep_s": DeviceParams.substep_s,
+    "stabiliser": DeviceParams.stabiliser,
 }
 MAX_DT_PERIODS = 2
 """A late tick integrates at most this many periods: keeps the integrator inside its stability
@@ -269,6 +296,10 @@ def _build_node_class():
                 ("max_force_n", "N"),
             ):
                 self.declare_parameter(name, float(d[name]), P(description=f"{name} ({unit}), see DeviceParams", **ro))
+            self.declare_parameter(
+                "substep_s", float(d["substep_s"]), P(description="longest integration substep (s); 0: one per tick", **ro)
+            )
+            self.declare_parameter("stabiliser", d["stabiliser"], P(description=f"{' | '.join(STABILISERS)}", **ro))
             gp = self.get_parameter
             conv = gp("convention").value
             if conv not in ("crtk", "omni"):
@@ -279,6 +310,7 @@ def _build_node_class():
             params = DeviceParams(
                 gp("mass_kg").value, gp("damping_n_s_per_m").value, gp("hand_stiffness_n_per_m").value,
                 gp("hand_damping_n_s_per_m").value, gp("max_force_n").value,
+                substep_s=gp("substep_s").value, stabiliser=gp("stabiliser").value,
             )  # fmt: skip
             self.device = SimulatedDevice(
                 path, params, DeviceMapping(offset_m=tuple(gp("offset_m").value)),
@@ -305,7 +337,7 @@ def _build_node_class():
             self._period_ns = period_ns
             self.get_logger().info(
                 f"simulated Touch ({conv}) on {dev(pose_key)}, hand path {path}, {gp('rate_hz').value} Hz, "
-                f"origin at tissue {self.device.mapping.offset_m} m"
+                f"origin at tissue {self.device.mapping.offset_m} m, stabiliser {params.stabiliser}"
             )
             self._loop = PeriodicLoop(period_ns, self._tick, name="sim-device")
             self.create_timer(HOUSEKEEPING_PERIOD_S, self._housekeeping)
@@ -337,9 +369,11 @@ def _build_node_class():
 
         def stop(self) -> None:
             self._loop.stop()
+            pc = self.device.passivity
+            pc_text = f"; passivity controller active {pc.active_ticks} ticks, dissipated {pc.dissipated_j:.3g} J" if pc else ""
             self.get_logger().info(
                 f"sim device stopping: {self._loop.ticks} ticks, {self._loop.overruns} overruns, "
-                f"{self.commands} force commands received"
+                f"{self.commands} force commands received{pc_text}"
             )
 
     return SimDeviceNode
@@ -364,6 +398,8 @@ def main(argv=None) -> int:
     g.add_argument("--repeat", type=int, help="number of hand path runs")
     g.add_argument("--loop", action="store_true", help="loop the hand path forever")
     ap.add_argument("--start-delay-s", type=float)
+    ap.add_argument("--stabiliser", choices=STABILISERS, help="device-side stabiliser (default none)")
+    ap.add_argument("--substep-s", type=float, help="longest stylus integration substep (s); 0: one per tick")
     ap.add_argument("--no-exit", action="store_true", help="keep holding the end pose instead of exiting")
     opts, rest = ap.parse_known_args(argv)
     overrides = {
@@ -376,6 +412,8 @@ def main(argv=None) -> int:
             "repeat": 0 if opts.loop else opts.repeat,
             "start_delay_s": opts.start_delay_s,
             "exit_when_done": False if opts.no_exit else None,
+            "stabiliser": opts.stabiliser,
+            "substep_s": opts.substep_s,
         }.items()
         if v is not None
     }

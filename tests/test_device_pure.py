@@ -291,3 +291,20 @@ def test_closed_loop_press_hold_release_settles(default_cfg):
     assert -z[hold].mean() > 2e-3  # and still well inside the tissue
     assert force[-200:].max() == 0.0  # lifted off at the end
     assert np.all(np.isfinite(force)) and force.max() < 3.3
+
+
+def test_device_substeps_and_stabiliser_options():
+    """substep_s = 0 is the one-step-per-tick integrator; substeps converge; bad options are rejected."""
+    a = SimulatedDevice("press_hold_release")
+    b = SimulatedDevice("press_hold_release", params=DeviceParams(substep_s=1e-3))  # one substep per 1 ms tick
+    fine = SimulatedDevice("press_hold_release", params=DeviceParams(substep_s=1e-5))
+    finer = SimulatedDevice("press_hold_release", params=DeviceParams(substep_s=2.5e-6))
+    for _ in range(800):
+        for d in (a, b, fine, finer):
+            d.step((0.0, 0.0, 0.5), 1e-3)
+    assert a.pos == b.pos
+    np.testing.assert_allclose(fine.pos, finer.pos, atol=1e-7)
+    assert SimulatedDevice("drag", params=DeviceParams(stabiliser="passivity")).passivity is not None
+    for kw in ({"substep_s": -1.0}, {"substep_s": math.nan}, {"stabiliser": "magic"}):
+        with pytest.raises(ValueError):
+            DeviceParams(**kw)

@@ -1,0 +1,290 @@
+"""Stability where methods fail: model-regime guards, the haptic loop and its stabiliser, numerical limits.
+
+docs/stability.md charts these; each test pins one boundary or one guard.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from skin_sim_node.model import SkinModel
+from skin_sim_node.session import (
+    CONTACT_SEPARATED,
+    DEGENERATE_WAVE_SPEED,
+    FORCE_RATE_LIMITED,
+    PATCH_CLIPPED,
+    REUSS_BOUND,
+    TELEPORT,
+    TICK_CLAMPED,
+    TOOL_BELOW_TISSUE,
+    TOOL_OFF_SHEET,
+    HapticSession,
+    SessionParams,
+)
+from skin_sim_node.stability.haptic_loop import (
+    Wall,
+    colgate_k_max,
+    hold_path,
+    linear_k_max,
+    rendered_stiffness,
+    run_loop,
+    wall_point,
+)
+from skin_sim_node.stability.passivity import PassivityController
+
+MS = 1_000_000
+T0 = 10**18
+DEVICE_LIMIT_N = 3.3  # a Touch's peak force: the configured device limit in these runs
+RATE = SessionParams().max_force_rate_n_per_s
+
+
+class Run:
+    """Drive a session with (dt_s, xyz, v) samples; record forces and tick intervals; log into a list."""
+
+    def __init__(self, cfg, **params):
+        self.logged: list[str] = []
+        self.s = HapticSession(
+            SkinModel(cfg),
+            SessionParams(max_stamp_age_s=0.0, max_force_n=DEVICE_LIMIT_N, **params),
+            log=lambda kind, msg: self.logged.append(kind),
+        )
+        self.stamp = T0
+        self.forces = [0.0]
+        self.dts = [0.0]
+
+    def feed(self, samples):
+        for dt, xyz, v in samples:
+            dt_ns = int(round(dt * 1e9))
+            self.stamp += dt_ns
+            self.s.on_twist(self.stamp, "tissue", v)
+            self.s.on_pose(self.stamp, "tissue", xyz)
+            self.forces.append(self.s.tick(self.stamp, dt_ns))
+            self.dts.append(dt)
+        return self
+
+    def check_invariants(self):
+        """Finite, within the device limit, rate bounded, every event kind logged once."""
+        f, dt = np.array(self.forces), np.array(self.dts)
+        assert np.all(np.isfinite(f)) and f.min() >= 0.0 and f.max() <= DEVICE_LIMIT_N
+        assert np.all(np.abs(np.diff(f)) <= RATE * np.minimum(dt[1:], self.s.params.max_dt_s) + 1e-12)
+        assert len(self.logged) == len(set(self.logged))
+        assert np.all(np.isfinite(self.s.model.q)) and np.all(np.isfinite(self.s.model.v))
+        return self
+
+    def events(self):
+        return set(self.s.counts) | set(self.s.regime_counts)
+
+
+def press(depth_m, speed_m_s, x=0.0, dt=1e-3, hold=20):
+    """Samples of a straight press from 1 mm above to ``depth_m`` at ``speed_m_s``, then a hold."""
+    n = max(1, int(math.ceil((depth_m + 1e-3) / (speed_m_s * dt))))
+    zs = np.linspace(1e-3, -depth_m, n + 1)[1:]
+    return [(dt, (x, 0.0, z), (0.0, 0.0, -speed_m_s)) for z in zs] + [(dt, (x, 0.0, -depth_m), (0.0, 0.0, 0.0))] * hold
+
+
+def retract(depth_m, speed_m_s, x=0.0, dt=1e-3):
+    n = max(1, int(math.ceil((depth_m + 2e-3) / (speed_m_s * dt))))
+    zs = np.linspace(-depth_m, 2e-3, n + 1)[1:]
+    return [(dt, (x, 0.0, z), (0.0, 0.0, speed_m_s)) for z in zs] + [(dt, (x, 0.0, 2e-3), (0.0, 0.0, 0.0))] * 20
+
+
+# --- model regime -----------------------------------------------------------------------------------
+def test_fast_press_and_retraction_keep_reuss_compressions_in_their_layers(default_cfg):
+    r = Run(default_cfg)
+    comps = []
+    for _ in range(3):  # repeated: each event still logged once
+        for sample in press(2e-3, 2.5) + retract(2e-3, 0.5):
+            r.feed([sample])
+            comps.append(r.s.model.compression_m.copy())
+    r.check_invariants()
+    assert {REUSS_BOUND, CONTACT_SEPARATED} <= r.events()
+    comps = np.array(comps)
+    thick = np.array([la.thickness_m for la in default_cfg.layers]) + default_cfg.interfaces[1].amplitude_m
+    assert comps.min() >= 0.0 and np.all(comps <= thick)  # never negative, never more than the layer
+    assert r.forces[-1] == 0.0 and not r.s.model.driven.any()  # retracted: released
+
+
+def test_tool_deeper_than_the_tissue_is_held_at_the_bottom(default_cfg):
+    r = Run(default_cfg).feed(press(20e-3, 0.1, hold=200)).check_invariants()
+    assert TOOL_BELOW_TISSUE in r.events()
+    bottom = SkinModel(default_cfg)
+    f_bottom = bottom.step((0.0, 0.0, -default_cfg.total_thickness_m), (0.0, 0.0, 0.0), 1e-3)
+    assert r.forces[-1] == pytest.approx(f_bottom, rel=1e-9)  # no bone wall: the force stays at its bottom value
+
+
+def test_sliding_off_the_sheet_drops_force_at_the_bounded_rate(default_cfg):
+    half = default_cfg.sheet_size_m[0] / 2
+    r = Run(default_cfg).feed(press(2e-3, 0.1, x=half - 5e-3))
+    f_on = r.forces[-1]
+    xs = np.linspace(half - 5e-3, half + 5e-3, 50)  # 10 mm in 50 ms: 0.2 m/s drag over the edge
+    r.feed([(1e-3, (x, 0.0, -2e-3), (0.2, 0.0, 0.0)) for x in xs] + [(1e-3, (xs[-1], 0.0, -2e-3), (0.0, 0.0, 0.0))] * 50)
+    r.check_invariants()
+    assert {TOOL_OFF_SHEET, PATCH_CLIPPED} <= r.events()
+    assert f_on > 0.01 and r.forces[-1] == 0.0
+
+
+def test_contact_on_the_patch_and_sheet_edge(default_cfg):
+    half = default_cfg.sheet_size_m[0] / 2
+    for x in (half - 1e-3, half):  # patch clipped by 29 mm; tool exactly on the sheet edge
+        r = Run(default_cfg).feed(press(2e-3, 0.1, x=x)).check_invariants()
+        assert PATCH_CLIPPED in r.events() and r.forces[-1] > 0.01
+        g = r.s.model.build_grid()
+        assert np.all(np.isfinite(g.heights_m))
+        surf = g.heights_m[0]
+        ix = np.argmin(np.abs(g.xs_m - min(x, g.xs_m[-1])))
+        assert surf.min() == pytest.approx(surf[:, ix].min()) and surf.min() < -1.5e-3  # deepest at the tool, clipped
+
+
+def test_teleport_between_ticks_restarts_contact_rate_bounded(default_cfg):
+    r = Run(default_cfg).feed(press(3e-3, 0.1))
+    r.feed([(1e-3, (0.03, 0.02, -0.5e-3), (0.0, 0.0, 0.0))] * 30)  # 36 mm away in one tick
+    r.check_invariants()
+    assert TELEPORT in r.events() and r.s.counts[TELEPORT] == 1
+
+
+def test_paper_wave_speed_is_degenerate_and_released_from_rest(paper_cfg):
+    depth = 6.11e-6
+    # a 0.2 m/s press to eq 9's 6.11 um, then the tool is lifted: the layer is released moving at 0.2 m/s
+    samples = press(depth, 0.2, hold=0) + [(0.1, (0.0, 0.0, 5e-3), (0.0, 0.0, 0.0))] * 100
+    r = Run(paper_cfg).feed(samples)
+    r.check_invariants()
+    assert DEGENERATE_WAVE_SPEED in r.events()
+    # 10 s after the release the surface has hardly moved (lambda = 0.0032 rad/s) and is bounded by the press
+    u = r.s.model.surface_displacement_at(0.0, 0.0)
+    assert 0.0 < u <= depth and u == pytest.approx(depth * math.cos(0.0032 * 10.0), rel=0.05)
+    # without the guard the same release flies off: v / lambda = 0.2 / 0.0032 = 62 m of amplitude
+    raw = SkinModel(paper_cfg)
+    for dt, xyz, v in samples:
+        raw.step(xyz, v, dt)
+    assert abs(raw.surface_displacement_at(0.0, 0.0)) > 100 * depth
+
+
+def test_default_tissue_is_not_degenerate(default_cfg):
+    assert DEGENERATE_WAVE_SPEED not in Run(default_cfg).events()
+
+
+def test_irregular_tick_intervals(default_cfg, rng):
+    r = Run(default_cfg).feed(press(2e-3, 0.1, hold=100))
+    f_regular = r.forces[-1]
+    dts = rng.choice([0.0, 1e-6, 3e-4, 1e-3, 7e-3, 0.03, 0.25], size=400)
+    z = -2e-3 + 2e-5 * rng.standard_normal(400)  # 20 um of jitter: pose-difference velocities spike
+    r.feed([(dt, (0.0, 0.0, zi), (0.0, 0.0, 0.0)) for dt, zi in zip(dts, z)])
+    r.feed([(1e-3, (0.0, 0.0, -2e-3), (0.0, 0.0, 0.0))] * 100)
+    r.check_invariants()
+    assert TICK_CLAMPED in r.events()
+    assert r.forces[-1] == pytest.approx(f_regular, rel=1e-6)  # back to the same hold force
+
+
+def test_force_rate_bound_spreads_a_fast_stab(default_cfg):
+    """A 2.5 m/s stab: the Reuss damping term asks for 1.4 N in one tick; it is spread at the rate bound."""
+    r = Run(default_cfg).feed(press(1e-3, 2.5, hold=5)).check_invariants()
+    assert FORCE_RATE_LIMITED in r.events()
+    f = np.array(r.forces)
+    assert np.abs(np.diff(f)).max() == pytest.approx(RATE * 1e-3)
+
+
+# --- haptic loop -------------------------------------------------------------------------------------
+def test_naive_wall_boundary_at_1khz_matches_sampled_theory():
+    """Measured naive boundary brackets the exact sampled-loop limit; Colgate's b > KT/2 is the passive bound."""
+    k_lin = linear_k_max(1000.0)
+    assert 1500.0 < k_lin < 2500.0
+    assert wall_point(0.8 * k_lin, 1000.0).stable
+    v = wall_point(1.5 * k_lin, 1000.0)
+    assert not v.stable and v.energy_late_j > 1e-3  # the loop keeps putting energy into the stylus
+    assert colgate_k_max(0.05, 1000.0) == pytest.approx(100.0)  # device damping only: 0.1 N/mm
+
+
+def test_passivity_controller_stabilises_and_keeps_stiffness():
+    k = 4000.0  # twice the naive 1 kHz limit
+    v = wall_point(k, 1000.0, "passivity")
+    assert v.stable and abs(v.mean_late_n - 0.5) < 0.01
+    kr, _ = rendered_stiffness(k, 1000.0, "passivity")
+    assert 0.8 * k < kr < 1.2 * k
+
+
+def test_passivity_observer_books_a_passive_spring_as_absorbing():
+    pc = PassivityController(0.045)
+    x = 0.0
+    for i in range(2000):  # slow press and release of a spring, force evaluated at the interval end
+        x_new = -1e-3 * math.sin(math.pi * i / 2000)
+        f = (0.0, 0.0, 1000.0 * max(0.0, -x_new))
+        pc.observe(f, f, (0.0, 0.0, x_new - x))
+        x = x_new
+        assert pc.energy_j >= -1e-12
+    assert pc.force((0.0, 0.0, 1.0), (0.0, 0.0, 0.1), 1e-3) == (0.0, 0.0, 1.0)  # inactive while passive
+
+
+def test_stabilised_loop_device_energy_is_bounded_where_naive_grows():
+    path = hold_path(0.5 / 3000.0, 300.0)
+    naive = run_loop(Wall(3000.0), 250.0, path)
+    stab = run_loop(Wall(3000.0), 250.0, path, "passivity")
+    assert np.ptp(naive.force_n[-100:]) > 1.0  # naive: force swinging by more than a newton
+    assert np.ptp(stab.force_n[-100:]) < 0.02
+
+
+# --- numerical limits (shared solvers) ------------------------------------------------------------
+from skin_sim_node.solvers import Membrane, ModalSolver, membrane_from_layer  # noqa: E402
+from skin_sim_node.stability.numerics import (  # noqa: E402
+    dermis_membrane,
+    dt_limit_s,
+    energy_growth,
+    initial_state,
+    make_solver,
+    measured_dt_limit_s,
+)
+
+
+@pytest.mark.parametrize("method", ["leapfrog", "mass-spring"])
+def test_explicit_solver_blows_up_just_past_its_limit_and_not_under(method):
+    mem, n = dermis_membrane(), 11
+    limit = dt_limit_s(method, mem, n)
+    u0 = initial_state(mem, n)
+    for factor, bounded in ((0.99, True), (1.01, False)):
+        s = make_solver(method, mem, n)
+        s.set_state(u0)
+        growth = energy_growth(s, factor * limit, 3000)
+        # leapfrog conserves its discrete energy; symplectic Euler's (u, v at one time) oscillates boundedly
+        assert (growth <= (1.05 if method == "leapfrog" else 5.0)) if bounded else math.isinf(growth), (factor, growth)
+
+
+def test_measured_cfl_boundary_matches_theory():
+    mem, n = dermis_membrane(), 31
+    meas = measured_dt_limit_s("leapfrog", mem, n, rel_tol=2e-3)
+    assert meas == pytest.approx(dt_limit_s("leapfrog", mem, n), rel=5e-3)
+    courant = mem.wave_speed_m_s * meas / (mem.size_x_m / (n + 1))
+    assert courant == pytest.approx(1 / math.sqrt(2), rel=0.005)  # 2D CFL as the grid refines
+
+
+@pytest.mark.parametrize("dt_s", [1e-5, 1e-3, 0.0137, 0.05])
+def test_modal_integrator_bounded_and_energy_non_increasing_1e5_steps(default_cfg, dt_s):
+    damped = membrane_from_layer(default_cfg, 1)  # the model's modal damping
+    for mem in (damped, Membrane(damped.size_x_m, damped.size_y_m, damped.areal_density_kg_per_m2, damped.tension_n_per_m)):
+        s = ModalSolver(mem, 5, 5)
+        s.set_state(initial_state(mem, 5), np.full((5, 5), 0.05))
+        e = [s.energy_j()]
+        for _ in range(100):
+            s.advance(dt_s, 1000)
+            e.append(s.energy_j())
+        e = np.array(e)
+        assert np.all(np.isfinite(s.u_m)) and np.abs(s.u_m).max() < 1.0
+        assert np.all(np.diff(e) <= 1e-9 * e[0])
+
+
+# --- over real DDS ------------------------------------------------------------------------------------
+@pytest.mark.ros
+def test_dds_loop_naive_limit_cycles_and_passivity_settles(tmp_path, monkeypatch):
+    """Node + bridge + simulated Touch at 1 kHz on a 4 N/mm wall: the sweep's two verdicts, over DDS."""
+    pytest.importorskip("rclpy")
+    from skin_sim_node.scenes import pick_domain_id
+    from skin_sim_node.stability.dds_confirm import over_dds
+
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(pick_domain_id()))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
+    naive, _ = over_dds(1000.0, 4000.0, "none", tmp_path / "naive")
+    stab, stats = over_dds(1000.0, 4000.0, "passivity", tmp_path / "passivity")
+    assert not naive.stable and naive.std_late_n > 0.2, naive
+    assert stab.stable and stab.std_late_n < 0.02 and stab.mean_late_n > 0.3, (stab, stats)
