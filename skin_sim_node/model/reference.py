@@ -133,11 +133,17 @@ class NumpySkinModel:
         else:
             n = 0
         prop = propagator_ref(self.basis.lam, self.basis.gamma, dt)
+        lod = self.cfg.lod
         for li in range(n_l):
             if li < n:
                 self.compression_m[li] = comp[li]
-                self.q[li] = comp[li] * self.basis.beta
-                self.v[li] = velocity * np.clip(comp[li] / d_eff, 0.0, 1.0) * self.basis.beta
+                bm = self.basis
+                lv = 0  # smallest level within tolerance (the last if none is)
+                if bm.level_modes.size > 1:
+                    ok = np.nonzero(abs(comp[li]) * bm.trunc_err <= lod.tolerance_m)[0]
+                    lv = int(ok[0]) if ok.size else bm.level_modes.size - 1
+                self.q[li] = comp[li] * bm.beta_table[lv]
+                self.v[li] = velocity * np.clip(comp[li] / d_eff, 0.0, 1.0) * bm.beta_table[lv]
                 self.centre[li] = (x, y)
                 self.driven[li] = True
             else:
@@ -146,6 +152,10 @@ class NumpySkinModel:
                 q0, v0 = self.q[li].copy(), self.v[li].copy()
                 self.q[li] = prop[0, li] * q0 + prop[1, li] * v0
                 self.v[li] = prop[2, li] * q0 + prop[3, li] * v0
+                bound = np.sum(np.hypot(self.q[li], self.v[li] / self.basis.lam[li]))
+                if lod.affected_layers and bound < lod.tolerance_m:  # settled: set to rest
+                    self.q[li] = 0.0
+                    self.v[li] = 0.0
         self.force_n, self.n_affected, self.flags = force, n, flags
         return force
 
