@@ -176,7 +176,7 @@ def step_kernel(
     k, b, area, iface_mean, iface_amp, iface_kx, iface_ky, bottom_m, half_x, half_y,
     beta_table, trunc_err, k_prefix, m_lim, mode_m, mode_n, patch_a, patch_b, lam, gamma,
     mode_tol, settle_tol, skip_settled,
-    q, v, centre, driven, comp, level, active, amp, prop, prop_dt, prop_k, bounds, thick, sx_buf, sy_buf, out,
+    q, v, centre, driven, comp, level, dropped, active, amp, prop, prop_dt, prop_k, bounds, thick, sx_buf, sy_buf, out,
 ):  # fmt: skip
     """One haptic tick of the layered model: contact, Reuss force and modal state.
 
@@ -191,16 +191,21 @@ def step_kernel(
     displacement bound ``amp[l] = sum_k sqrt(q_k^2 + (v_k/lam_k)^2)`` (energy: no future
     displacement exceeds it) is kept; with ``skip_settled`` a layer below ``settle_tol`` is set
     to rest and, while ``active[l] == 0``, skipped. ``prop_dt``/``prop_k`` (L,) cache each
-    layer's propagator.
+    layer's propagator. A free layer with several levels sheds its outermost shell of modes when
+    that shell's displacement bound, added to what the layer already shed since it was last
+    driven (``dropped``, m), is within ``mode_tol``: relaxation keeps within ``2 mode_tol`` of the
+    reference and its cost falls as it decays.
     """
     n_layers = q.shape[0]
     n_levels = beta_table.shape[0]
     flags = 0
-    if not skip_settled and dt != prop_dt[0]:
-        modal_propagator(lam, gamma, dt, prop)
+    if not skip_settled:  # every layer's propagator, driven or not, as without the lever
         for li in range(n_layers):
-            prop_dt[li] = dt
-            prop_k[li] = lam.shape[1]
+            nk = k_prefix[level[li]]
+            if prop_dt[li] != dt or prop_k[li] < nk:
+                layer_propagator(lam, gamma, dt, li, nk, prop)
+                prop_dt[li] = dt
+                prop_k[li] = nk
     depth = -tool_z
     velocity = -tool_vz
     was_contact = False
@@ -264,6 +269,7 @@ def step_kernel(
                 q[li, kk] = 0.0
                 v[li, kk] = 0.0
             level[li] = lv
+            dropped[li] = 0.0
             centre[li, 0] = tool_x
             centre[li, 1] = tool_y
             driven[li] = 1
@@ -291,6 +297,19 @@ def step_kernel(
                     r = v1 / lam[li, kk]
                     bound += math.sqrt(q1 * q1 + r * r)
             amp[li] = bound if settle_tol > 0.0 else math.inf
+            lv = level[li]
+            if n_levels > 1 and lv > 0:  # shed the outer shell once it is negligible
+                k0 = k_prefix[lv - 1]
+                tail = 0.0
+                for kk in range(k0, nk):
+                    r = v[li, kk] / lam[li, kk]
+                    tail += math.sqrt(q[li, kk] * q[li, kk] + r * r)
+                if dropped[li] + tail <= mode_tol:
+                    for kk in range(k0, nk):
+                        q[li, kk] = 0.0
+                        v[li, kk] = 0.0
+                    level[li] = lv - 1
+                    dropped[li] += tail
             if skip_settled and bound < settle_tol:
                 for kk in range(nk):
                     q[li, kk] = 0.0

@@ -65,6 +65,8 @@ class SkinModel:
         self._patch_only = lod.patch_only
         self.kernel_calls = 0  # step_kernel invocations (idle ticks make none)
         self.idle_ticks = 0
+        self.last_tick_idle = False
+        self.version = 0  # changes whenever the state may have changed (a kernel call or a reset)
         self.grid_builds = 0
         sx, sy = cfg.sheet_size_m
         self._k = np.array([la.stiffness_n_per_m for la in layers])
@@ -84,6 +86,7 @@ class SkinModel:
         self.driven = np.zeros(n_l, dtype=np.int8)
         self.compression_m = np.zeros(n_l)
         self.level = np.zeros(n_l, dtype=np.int64)  # index into basis levels (mode count) per layer
+        self.dropped_m = np.zeros(n_l)  # displacement bound shed with outer modes since last driven
         self.active = np.zeros(n_l, dtype=np.int8)
         self.amplitude_bound_m = np.zeros(n_l)  # bound on a free layer's future displacement; inf when driven
         self._prop = np.zeros((4, n_l, k_modes))
@@ -116,12 +119,13 @@ class SkinModel:
 
     def reset(self) -> None:
         """Return to rest: no contact, no deformation."""
-        for a in (self.q, self.v, self.centre, self.compression_m, self._out, self.amplitude_bound_m):
+        for a in (self.q, self.v, self.centre, self.compression_m, self._out, self.amplitude_bound_m, self.dropped_m):
             a[...] = 0.0
         self.driven[:] = 0
-        self.level[:] = self.basis.level_modes.size - 1
+        self.level[:] = 0
         self.active[:] = 0 if self._skip_settled else 1
         self.flags = 0
+        self.version = getattr(self, "version", 0) + 1
 
     @property
     def settled(self) -> bool:
@@ -146,6 +150,7 @@ class SkinModel:
         if self._idle_ok and z >= 0.0 and self.settled:
             # idle: the tool is off the tissue and every layer has settled: no kernel work
             self.idle_ticks += 1
+            self.last_tick_idle = True
             if self.flags & ~kn.FLAG_OFF_SHEET or self._out[kn.OUT_N_AFFECTED]:
                 self._out[:] = 0.0
                 self.compression_m[:] = 0.0
@@ -154,13 +159,15 @@ class SkinModel:
         vz = tool_velocity[2]
         b = self.basis
         self.kernel_calls += 1
+        self.version += 1
+        self.last_tick_idle = False
         self.flags = kn.step_kernel(
             float(x), float(y), float(z), float(vz), float(dt),
             self._k, self._b, self._area, self._iface_mean, self._iface_amp, self._iface_kx, self._iface_ky,
             self._bottom, self._half[0], self._half[1],
             b.beta_table, b.trunc_err, b.k_prefix, b.m_lim, b.mode_m, b.mode_n, self._patch[0], self._patch[1],
             b.lam, b.gamma, self._mode_tol, self._settle_tol, self._skip_settled,
-            self.q, self.v, self.centre, self.driven, self.compression_m, self.level, self.active,
+            self.q, self.v, self.centre, self.driven, self.compression_m, self.level, self.dropped_m, self.active,
             self.amplitude_bound_m, self._prop, self._prop_dt, self._prop_k,
             self._bounds, self._thick, self._sx_buf, self._sy_buf, self._out,
         )  # fmt: skip
