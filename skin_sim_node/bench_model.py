@@ -7,7 +7,7 @@ ratio. Usage: ``skin-sim bench-model [--ticks N]``.
 
 ``skin-sim bench-model --lod`` instead measures each level-of-detail lever (issue 7): the four
 scene trajectories (idle hover, light touch, deep press, drag) at 1 kHz with jittered tick
-intervals, every lever off, each lever alone on, and all on; per tick, the force path and the
+intervals, every lever off, each lever alone on, and all on; thread CPU time per tick of the force path and the
 grid work amortised over the ticks (the display builds at 60 Hz), with ratios against the
 all-off run of the same scene in the same run.
 """
@@ -126,7 +126,7 @@ def scene_path(trajectory: str | None, rate_hz: float = 1000.0, jitter_s: float 
 
 
 def time_lod_case(cfg, path, grid_mode: str) -> dict:
-    """Force-path and grid time per tick (us) over ``path`` for one configuration."""
+    """Force-path and grid thread CPU time per tick (us) over ``path`` for one configuration."""
     from .display import _moved
 
     model = SkinModel(cfg)
@@ -138,7 +138,7 @@ def time_lod_case(cfg, path, grid_mode: str) -> dict:
     calls0 = model.kernel_calls
     force = np.empty(len(path))
     grid = np.zeros(len(path))
-    clock = time.perf_counter_ns
+    clock = time.thread_time_ns  # CPU time of this thread: other processes on the shared cores do not count
     frame_s = 1.0 / DISPLAY_HZ
     next_frame = 0.0
     t = 0.0
@@ -195,7 +195,7 @@ def run_lod(scenes=tuple(LOD_SCENES), cases=tuple(LOD_CASES), repeats: int = 3) 
 
 
 def print_lod(rows: list[dict]) -> None:
-    print("skin-sim level-of-detail levers: per 1 kHz tick, microseconds (model only, no ROS), one run")
+    print("skin-sim level-of-detail levers: thread CPU time per 1 kHz tick, microseconds (model only, no ROS), one run")
     print("force: SkinModel.step; grid: build_grid time averaged over all ticks (60 Hz display frames);")
     print("ratio = mean total per tick / the same scene's 'all off' (fixed 15x15 modes, grid every display frame);")
     print("each case run 3 times interleaved, the least disturbed (smallest mean) kept")
