@@ -27,6 +27,7 @@ OUT_STRESS_PA = 1
 OUT_DEPTH_M = 2
 OUT_N_AFFECTED = 3
 OUT_SURFACE_M = 4  # surface displacement under the tool before this tick
+OUT_SETTLED = 5  # 1.0: no layer driven and every layer's displacement bound below settle_tol
 OUT_SIZE = 8
 
 
@@ -321,6 +322,11 @@ def step_kernel(
     out[OUT_DEPTH_M] = d_eff
     out[OUT_N_AFFECTED] = n
     out[OUT_SURFACE_M] = surface
+    settled = settle_tol > 0.0
+    for li in range(n_layers):
+        if driven[li] or not amp[li] < settle_tol:
+            settled = False
+    out[OUT_SETTLED] = 1.0 if settled else 0.0
     return flags
 
 

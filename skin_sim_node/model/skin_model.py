@@ -125,12 +125,13 @@ class SkinModel:
         self.level[:] = 0
         self.active[:] = 0 if self._skip_settled else 1
         self.flags = 0
+        self._out[kn.OUT_SETTLED] = 1.0 if self._settle_tol > 0.0 else 0.0
         self.version = getattr(self, "version", 0) + 1
 
     @property
     def settled(self) -> bool:
-        """No layer driven and every layer's displacement bound below ``lod.tolerance_m``."""
-        return not self.driven.any() and self._settle_tol > 0.0 and bool(np.all(self.amplitude_bound_m < self._settle_tol))
+        """No layer driven and every layer's displacement bound below ``lod.tolerance_m`` (as of the last kernel call)."""
+        return bool(self._out[kn.OUT_SETTLED])
 
     def modes_per_axis(self) -> np.ndarray:
         """Modes per axis each layer currently uses (its level)."""
@@ -147,12 +148,12 @@ class SkinModel:
         since the previous tick; the release dynamics are exact for any ``dt >= 0``.
         """
         x, y, z = tool_xyz
-        if self._idle_ok and z >= 0.0 and self.settled:
+        if self._idle_ok and z >= 0.0 and self._out[kn.OUT_SETTLED]:
             # idle: the tool is off the tissue and every layer has settled: no kernel work
             self.idle_ticks += 1
             self.last_tick_idle = True
-            if self.flags & ~kn.FLAG_OFF_SHEET or self._out[kn.OUT_N_AFFECTED]:
-                self._out[:] = 0.0
+            if self.flags & ~kn.FLAG_OFF_SHEET:
+                self._out[: kn.OUT_SETTLED] = 0.0
                 self.compression_m[:] = 0.0
             self.flags = 0 if abs(x) <= self._half[0] and abs(y) <= self._half[1] else kn.FLAG_OFF_SHEET
             return 0.0

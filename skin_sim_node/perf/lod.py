@@ -4,7 +4,8 @@ Each case is a real scene (``skin_sim_node`` and ``skin-sim mock-tool`` as separ
 an isolated DDS domain). After a warm-up, the CPU time (user + system, psutil) of the node process
 and its children (the display worker) is taken over the same wall window for every case. The
 cases run interleaved (scene by scene, off then on), so the ratios come from one run under the
-same machine load. Usage: ``skin-sim perf-lod [--duration-s 10] [--scenes idle,light,deep,drag]``.
+same machine load; ``--repeats`` passes over all cases, medians reported. Usage:
+``skin-sim perf-lod [--duration-s 10] [--repeats 3] [--scenes idle,light,deep,drag]``.
 
 Scenes (mock-tool trajectories, looped at 1 kHz):
 
@@ -94,11 +95,21 @@ def run_case(scene_name: str, levers_on: bool, duration_s: float, warmup_s: floa
     }
 
 
-def run(scenes, duration_s: float, warmup_s: float, log_dir: Path, modes: int) -> list[dict]:
+def run(scenes, duration_s: float, warmup_s: float, log_dir: Path, modes: int, repeats: int = 1) -> list[dict]:
+    """Every scene off then on, the whole list ``repeats`` times; per case the median CPU over the repeats."""
+    runs: dict[tuple[str, bool], list[dict]] = {}
+    for rep in range(repeats):
+        for name in scenes:
+            for on in (False, True):
+                r = run_case(name, on, duration_s, warmup_s, log_dir / f"rep{rep}", modes)
+                runs.setdefault((name, on), []).append(r)
+                print(f"  pass {rep + 1}/{repeats} {name:>5} levers {r['levers']:>3}: {r['cpu_pct']:5.1f} % CPU", flush=True)
     rows = []
-    for name in scenes:
-        for on in (False, True):
-            rows.append(run_case(name, on, duration_s, warmup_s, log_dir, modes))
+    for (name, _on), rs in runs.items():
+        keys = ("cpu_s", "wall_s", "cpu_pct", "node_pct", "children_pct")
+        med = {k: float(np.median([r[k] for r in rs])) for k in keys}
+        pair = [r_on["cpu_s"] / r_off["cpu_s"] for r_off, r_on in zip(runs[(name, False)], runs[(name, True)])]
+        rows.append({**rs[0], **med, "pair_ratio": float(np.median(pair)), "repeats": len(rs)})
     return rows
 
 
@@ -110,12 +121,13 @@ def report(rows: list[dict]) -> str:
         f"{'scene':>6} | {'off: total':>10} {'node':>6} {'display':>7} | {'on: total':>9} {'node':>6} {'display':>7} | "
         f"{'on/off':>6} | {'off/idle-off':>12} {'on/idle-off':>11}",
     ]
+    lines[0] += f"; median of {rows[0].get('repeats', 1)} interleaved passes; on/off = median of the per-pass ratios"
     lines.append("-" * len(lines[1]))
     for name in dict.fromkeys(r["scene"] for r in rows):
         off, on = by[(name, "off")], by[(name, "on")]
         lines.append(
             f"{name:>6} | {off['cpu_pct']:10.1f} {off['node_pct']:6.1f} {off['children_pct']:7.1f} | "
-            f"{on['cpu_pct']:9.1f} {on['node_pct']:6.1f} {on['children_pct']:7.1f} | {on['cpu_s'] / off['cpu_s']:6.2f} | "
+            f"{on['cpu_pct']:9.1f} {on['node_pct']:6.1f} {on['children_pct']:7.1f} | {on['pair_ratio']:6.2f} | "
             f"{off['cpu_s'] / base['cpu_s']:12.2f} {on['cpu_s'] / base['cpu_s']:11.2f}"
         )
     return "\n".join(lines)
@@ -126,6 +138,7 @@ def main(argv=None) -> int:
     ap.add_argument("--duration-s", type=float, default=10.0, help="measured wall time per case (default 10)")
     ap.add_argument("--warmup-s", type=float, default=4.0, help="time after the tool starts before measuring (default 4)")
     ap.add_argument("--scenes", default="idle,light,deep,drag", help="comma-separated: " + ", ".join(SCENE_TOOLS))
+    ap.add_argument("--repeats", type=int, default=3, help="interleaved passes over all cases (default 3)")
     ap.add_argument("--modes", type=int, default=15, help="fixed modes per axis with the levers off (default 15, the preset)")
     ap.add_argument("--log-dir", type=Path, default=None)
     args = ap.parse_args(argv)
@@ -140,7 +153,7 @@ def main(argv=None) -> int:
         f"(fixed {args.modes}x{args.modes} modes) vs on, {os.cpu_count()} cores; logs {log_dir}",
         flush=True,
     )
-    rows = run(scenes, args.duration_s, args.warmup_s, log_dir, args.modes)
+    rows = run(scenes, args.duration_s, args.warmup_s, log_dir, args.modes, args.repeats)
     print(report(rows))
     cpu = np.array([r["cpu_pct"] for r in rows])
     print(f"(cases {len(rows)}, CPU % range {cpu.min():.1f}-{cpu.max():.1f})")
