@@ -75,9 +75,10 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec("diagnostics_period_s", float, 1.0, "s", "diagnostics publish period", 0.05, 60.0),
     ParamSpec(
-        "idle_heartbeat_hz", float, 100.0, "Hz",
-        "lod idle: while the tissue is at rest and untouched (no kernel work), wrench and contact are published "
-        "at most at this rate (10 ms: five beats within the bridge's 50 ms wrench watchdog); 0 publishes every tick",
+        "idle_heartbeat_hz", float, 0.0, "Hz",
+        "lod idle: while the tissue is at rest and untouched (no kernel work), publish wrench and contact at most "
+        "at this rate, e.g. 100 (10 ms: five beats within the bridge's 50 ms wrench watchdog). Default 0: every "
+        "pose is answered, the one-wrench-per-pose contract that live replay and its tests rely on",
         0.0, 20000.0, False,
     ),
     ParamSpec(
