@@ -130,12 +130,14 @@ EXPECTED = {
 
 
 def fits(rows: dict) -> dict:
+    """Per (axis, path): (p of ``a + b x^p``, plain log-log slope) over the whole sweep."""
     out = {}
     for axis, lo in (("modes", FIT_MODES_FROM), ("grid", FIT_GRID_FROM)):
         sel = [r for r in rows[axis] if r[0] >= lo]
         x = [r[0] if axis == "modes" else r[1] for r in sel]
-        out[(axis, "force")] = growth_order(x, [np.median(r[2]) for r in sel])
-        out[(axis, "grid")] = growth_order(x, [np.median(r[3]) for r in sel])
+        for idx, path in ((2, "force"), (3, "grid")):
+            y = [np.median(r[idx]) for r in sel]
+            out[(axis, path)] = (growth_order(x, y), float(np.polyfit(np.log(x), np.log(y), 1)[0]))
     return out
 
 
@@ -158,8 +160,8 @@ def plot(rows: dict, slopes: dict, out_dir: Path) -> list[Path]:
         for idx, label, colour in ((2, "force path (step)", "C0"), (3, "full grid (step + build_grid)", "C1")):
             med = np.array([np.median(r[idx]) for r in data])
             p99 = np.array([np.percentile(r[idx], 99) for r in data])
-            slope = slopes[(axis, "force" if idx == 2 else "grid")]
-            ax.loglog(x, med, "o-", color=colour, label=f"{label}: median, fitted order {slope:.2f}")
+            p, slope = slopes[(axis, "force" if idx == 2 else "grid")]
+            ax.loglog(x, med, "o-", color=colour, label=f"{label}: median; fit a + b x^p: p = {p:.2f}, log-log slope {slope:.2f}")
             ax.loglog(x, p99, ":", color=colour, alpha=0.7, label=f"{label}: p99")
         ax.set_xlabel(xlabel)
         ax.set_ylabel("thread CPU time per 1 kHz tick (us)")
@@ -189,9 +191,10 @@ def main(argv=None) -> int:
     print(f"{'n':>3} {'cells':>6} | {'force med':>9} {'p99':>8} | {'grid med':>9} {'p99':>8}")
     for n, c, f, g in rows["grid"]:
         print(f"{n:3d} {c:6d} | {_stats(f)} | {_stats(g)}")
-    print("fitted order p of t = a + b x^p (x = M, or the cells G) against the expected order:")
-    for key, slope in slopes.items():
-        print(f"  time vs {key[0]:>5}, {key[1]:>5} path: measured p = {slope:5.2f}, expected {EXPECTED[key]}")
+    print("fitted order p of t = a + b x^p and plain log-log slope (x = M, or the cells G), against the expected order")
+    print("(p is meaningless where the curve is flat: read the slope there):")
+    for key, (p, slope) in slopes.items():
+        print(f"  time vs {key[0]:>5}, {key[1]:>5} path: p = {p:5.2f}, slope {slope:5.2f}; expected {EXPECTED[key]}")
     for p in plot(rows, slopes, args.out):
         print(f"wrote {p}")
     return 0
