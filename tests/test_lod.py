@@ -178,3 +178,62 @@ def test_layer_field_box_and_assemble_box_match_reference(compiled, rng):
     assemble_box(disp, rest, 2, 5, 1, 4, out)
     np.testing.assert_allclose(out[:, 1:4, 2:5], ref.assemble_heights_ref(disp, rest)[:, 1:4, 2:5])
     assert not out[:, 0].any() and not out[:, :, :2].any()
+
+
+@pytest.mark.ros
+def test_node_idle_does_no_kernel_work_and_heartbeats(tmp_path, monkeypatch):
+    """Over real DDS: a hovering tool makes no kernel call (counted in diagnostics) and, with the
+    idle heartbeat on, gets far fewer wrenches than poses; touching brings both back."""
+    pytest.importorskip("rclpy")
+    import time
+
+    from geometry_msgs.msg import PoseStamped
+
+    from msgs_schema import convert as cv
+    from skin_sim_node.scenes import Scene, pick_domain_id
+
+    domain = pick_domain_id()
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
+    from skin_sim_node.monitor import Monitor
+
+    with Scene(tmp_path / "logs", domain_id=domain) as scene:
+        node = scene.node("-p", "idle_heartbeat_hz:=100.0", "-p", "diagnostics_period_s:=0.2", "-p", "display_rate_hz:=0.0")
+        scene.wait_for_log(node, "live:", timeout_s=180)
+        mon = Monitor(name=f"test_lod_monitor_{domain}", images=False)
+        try:
+            pub, msg = mon.publisher("tool_pose"), PoseStamped()
+
+            def send(z, n):
+                stamps = []
+                for _ in range(n):
+                    stamps.append(mon.now_ns())
+                    pub.publish(cv.fill_pose(msg, stamps[-1], "tissue", (0.0, 0.0, z)))
+                    time.sleep(0.001)
+                return set(stamps)
+
+            end = time.monotonic() + 30
+            while not mon.wrench and time.monotonic() < end:  # discovery: until a wrench arrives
+                send(0.005, 20)
+            t0 = time.monotonic()
+            hover = send(0.005, 1000)
+            hover_s = time.monotonic() - t0
+            time.sleep(0.3)
+            answered = {s for _, s, _ in list(mon.wrench)} & hover
+            t_hover = mon.now_ns()
+            mon.wait_for(lambda: any(rx > t_hover for rx, *_ in list(mon.diagnostics)), 10, "diagnostics after hovering")
+            diag = mon.diagnostics[-1][1]
+            assert diag["kernel_calls_total"] == "0", diag  # idle from the start: the tissue is at rest
+            assert int(diag["idle_ticks_total"]) >= 500 and int(diag["idle_unpublished_total"]) >= 400, diag
+            # heartbeat answers only: at most one per 10 ms (plus slack), far fewer than the poses sent
+            assert 0 < len(answered) <= 1.5 * 100.0 * hover_s + 5 and len(answered) < 0.5 * len(hover)
+            press = send(-1e-3, 300)
+            time.sleep(0.3)
+            answered = {s for _, s, _ in list(mon.wrench)} & press
+            t_press = mon.now_ns()
+            mon.wait_for(lambda: any(rx > t_press for rx, *_ in list(mon.diagnostics)), 10, "diagnostics after pressing")
+            assert int(mon.diagnostics[-1][1]["kernel_calls_total"]) >= 100
+            assert len(answered) >= 0.5 * len(press)  # in contact every pose is answered (less DDS losses)
+        finally:
+            mon.close()
