@@ -121,7 +121,7 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
     model = SkinModel(config_from_flat(tissue_flat))
     version = 0
     frame = FRAMES["tissue"]
-    last_seq, last_pub, count, builds = -1, 0.0, 0, 0
+    last_seq, last_pub, count = -1, 0.0, 0
     last_q, last_centre, last_active = None, None, None
     try:
         while rclpy.ok() and os.getppid() == parent_pid:
@@ -134,8 +134,6 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
                     version, model = payload[0], SkinModel(config_from_flat(payload[1]))
                 elif kind == "display":
                     display = payload
-                elif kind == "builds":
-                    conn.send(builds)
             period = 1.0 / display["display_rate_hz"] if display["display_rate_hz"] > 0 else 0.5
             t0 = time.monotonic()
             if display["display_rate_hz"] > 0:
@@ -149,7 +147,6 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
                 if build:
                     last_seq, last_pub = seq, t0
                     last_q, last_centre, last_active = model.q.copy(), model.centre.copy(), model.active.copy()
-                    builds += 1
                     g = model.build_grid()
                     stamp = node.get_clock().now().nanoseconds
                     pubs["height_map"].publish(cv.fill_image(image, stamp, frame, g.heights_m[0]))
@@ -190,11 +187,6 @@ class DisplayProcess:
 
     def write(self, model: SkinModel) -> None:
         self.snap.write(model.q, model.centre, model.driven, self.version, model.level, model.active)
-
-    def grid_builds(self, timeout_s: float = 2.0) -> int | None:
-        """Number of grids the worker has built (None if it does not answer)."""
-        self._conn.send(("builds", None))
-        return self._conn.recv() if self._conn.poll(timeout_s) else None
 
     def set_tissue(self, tissue_flat: dict) -> None:
         self.version += 1
