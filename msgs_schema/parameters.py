@@ -80,6 +80,18 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         0.0, 100.0, False,
     ),
     ParamSpec("diagnostics_period_s", float, 1.0, "s", "diagnostics publish period", 0.05, 60.0),
+    ParamSpec(
+        "idle_heartbeat_hz", float, 0.0, "Hz",
+        "lod idle: while the tissue is at rest and untouched (no kernel work), publish wrench and contact at most "
+        "at this rate, e.g. 100 (10 ms: five beats within the bridge's 50 ms wrench watchdog). Default 0: every "
+        "pose is answered, the one-wrench-per-pose contract that live replay and its tests rely on",
+        0.0, 20000.0, False,
+    ),
+    ParamSpec(
+        "display_on_change", bool, True, "-",
+        "lod: snapshot the model for the display only when it changed, and rebuild the grid only when it moved "
+        "by more than tissue.lod.tolerance_m (at most at display_rate_hz); false rebuilds every display frame",
+    ),
 )  # fmt: skip
 _STRING_CHOICES: dict[str, tuple[str, ...]] = {"loop_mode": ("input", "timer")}
 
@@ -110,6 +122,8 @@ class NodeParams:
     mesh_stride: int
     mesh_rate_hz: float
     diagnostics_period_s: float
+    idle_heartbeat_hz: float
+    display_on_change: bool
 
 
 def check_value(name: str, value):

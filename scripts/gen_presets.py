@@ -1,6 +1,6 @@
 """Regenerate config/default.yaml and config/paper.yaml from the parameter schema.
 
-default: every schema default. paper: one mode, no damping, and each layer's tension set
+default: every schema default. paper: one mode, no damping, LOD levers off, and each layer's tension set
 so that c = 0.0032 * 0.06 / (pi sqrt 2) m/s, i.e. lambda_11 = 0.0032 rad/s as in eq 9.
 """
 
@@ -19,6 +19,9 @@ def main():
     paper = dict(default)
     paper[TISSUE_PREFIX + "modes.m"] = 1
     paper[TISSUE_PREFIX + "modes.n"] = 1
+    # eq 9 is one fixed mode, undamped, 6.11 um deep (below lod.tolerance_m): no level-of-detail shortcuts
+    for lever in ("adaptive_modes", "affected_layers", "idle"):
+        paper[f"{TISSUE_PREFIX}lod.{lever}"] = False
     c = 0.0032 * 0.06 / (math.pi * math.sqrt(2))
     for n in LAYER_NAMES:
         p = f"{TISSUE_PREFIX}layers.{n}."

@@ -14,6 +14,7 @@ COMMANDS = {
     "scene": ("skin_sim_node.scenes", "start a scene as separate processes"),
     "bench": ("skin_sim_node.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
     "bench-model": ("skin_sim_node.bench_model", "model step micro-benchmark (numba vs NumPy)"),
+    "perf-lod": ("skin_sim_node.perf.lod", "node CPU in four scenes with the level-of-detail levers off and on"),
     "echo": ("skin_sim_node.echo", "bare rclpy echo node (pose in, wrench out): the latency baseline"),
     "chart": ("skin_sim_node.figures", "regenerate figures: chart model|validation|stability|performance"),
     "stability-loop": ("skin_sim_node.stability.haptic_loop", "haptic loop stability sweep (naive vs passivity controller)"),

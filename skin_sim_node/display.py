@@ -27,10 +27,10 @@ _HEADER = 4  # int64: seq, n_layers, n_modes, config version
 
 
 class SnapshotBuffer:
-    """Shared-memory snapshot of ``q`` (L, K) and patch ``centre`` (L, 2)."""
+    """Shared-memory snapshot of ``q`` (L, K), patch ``centre`` (L, 2), and per layer driven, mode level, active."""
 
     def __init__(self, name: str | None = None):
-        size = 8 * (_HEADER + MAX_LAYERS * MAX_MODES + MAX_LAYERS * 2 + MAX_LAYERS)
+        size = 8 * (_HEADER + MAX_LAYERS * MAX_MODES + MAX_LAYERS * 2 + 3 * MAX_LAYERS)
         self.shm = shared_memory.SharedMemory(name=name, create=name is None, size=size)
         buf = self.shm.buf
         self.header = np.ndarray((_HEADER,), dtype=np.int64, buffer=buf)
@@ -40,20 +40,29 @@ class SnapshotBuffer:
         self.centre = np.ndarray((MAX_LAYERS * 2,), dtype=np.float64, buffer=buf, offset=off)
         off += 8 * MAX_LAYERS * 2
         self.driven = np.ndarray((MAX_LAYERS,), dtype=np.float64, buffer=buf, offset=off)
+        off += 8 * MAX_LAYERS
+        self.level = np.ndarray((MAX_LAYERS,), dtype=np.float64, buffer=buf, offset=off)
+        off += 8 * MAX_LAYERS
+        self.active = np.ndarray((MAX_LAYERS,), dtype=np.float64, buffer=buf, offset=off)
         if name is None:
             self.header[:] = 0
 
-    def write(self, q: np.ndarray, centre: np.ndarray, driven: np.ndarray, version: int) -> None:
+    def write(self, q, centre, driven, version: int, level=None, active=None) -> None:
         n_l, k = q.shape
         self.header[0] += 1  # odd: writing
         self.q[: n_l * k] = q.ravel()
         self.centre[: n_l * 2] = centre.ravel()
         self.driven[:n_l] = driven
+        self.level[:n_l] = -1 if level is None else level
+        self.active[:n_l] = 1 if active is None else active
         self.header[1], self.header[2], self.header[3] = n_l, k, version
         self.header[0] += 1  # even: consistent
 
-    def read(self, q_out: np.ndarray, centre_out: np.ndarray) -> tuple[int, int, bool]:
-        """Copy a consistent snapshot; returns (seq, config version, any layer driven)."""
+    def read(self, q_out: np.ndarray, centre_out: np.ndarray, level_out=None, active_out=None) -> tuple[int, int, bool]:
+        """Copy a consistent snapshot; returns (seq, config version, any layer driven).
+
+        ``level_out``/``active_out`` (optional) receive each layer's mode level and active flag.
+        """
         for _ in range(100_000):  # a writer that died mid-write must not hang the reader
             s0 = int(self.header[0])
             if s0 % 2:
@@ -63,17 +72,34 @@ class SnapshotBuffer:
             if q_out.shape == (n_l, k):
                 q_out[...] = self.q[: n_l * k].reshape(n_l, k)
                 centre_out[...] = self.centre[: n_l * 2].reshape(n_l, 2)
+                if level_out is not None and self.level[0] >= 0:
+                    level_out[...] = self.level[:n_l]
+                if active_out is not None:
+                    active_out[...] = self.active[:n_l]
             driven = bool(self.driven[:n_l].any())
             if int(self.header[0]) == s0:
                 return s0, version, driven
         return -1, -1, False  # no consistent snapshot: the caller skips this frame
 
     def close(self, unlink: bool = False) -> None:
-        for name in ("header", "q", "centre", "driven"):
+        for name in ("header", "q", "centre", "driven", "level", "active"):
             setattr(self, name, None)
         self.shm.close()
         if unlink:
             self.shm.unlink()
+
+
+def _moved(model: SkinModel, last_q, last_centre, last_active) -> bool:
+    """Whether the grid would differ from the last build by more than ``lod.tolerance_m`` anywhere.
+
+    ``sum |dq|`` bounds the change of a layer's field where its patch did not move (``|sin| <= 1``);
+    a moved patch centre or a layer becoming active or inactive counts as a change.
+    """
+    if last_q is None or last_q.shape != model.q.shape:
+        return True
+    if np.any(model.active != last_active) or np.any((model.centre != last_centre).any(axis=1) & (model.active > 0)):
+        return True
+    return float(np.abs(model.q - last_q).sum()) > model.cfg.lod.tolerance_m
 
 
 def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pid):  # pragma: no cover - child process
@@ -95,7 +121,8 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
     model = SkinModel(config_from_flat(tissue_flat))
     version = 0
     frame = FRAMES["tissue"]
-    last_seq, last_pub, count, rest_sent = -1, 0.0, 0, False
+    last_seq, last_pub, count = -1, 0.0, 0
+    last_q, last_centre, last_active = None, None, None
     try:
         while rclpy.ok() and os.getppid() == parent_pid:
             while conn.poll():
@@ -110,11 +137,16 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
             period = 1.0 / display["display_rate_hz"] if display["display_rate_hz"] > 0 else 0.5
             t0 = time.monotonic()
             if display["display_rate_hz"] > 0:
-                seq, v, driven = snap.read(model.q, model.centre)
-                at_rest = v == version and not driven and float(np.abs(model.q).max(initial=0.0)) < 1e-9
-                moved = seq != last_seq
-                if v == version and (moved and not (at_rest and rest_sent) or t0 - last_pub > 1.0):
-                    last_seq, last_pub, rest_sent = seq, t0, at_rest
+                seq, v, driven = snap.read(model.q, model.centre, model.level, model.active)
+                if display.get("on_change", True):
+                    # lod: rebuild only when the snapshot moved by more than the tolerance (or once a second)
+                    changed = v == version and seq != last_seq and _moved(model, last_q, last_centre, last_active)
+                    build = v == version and (changed or t0 - last_pub > 1.0)
+                else:
+                    build = v == version
+                if build:
+                    last_seq, last_pub = seq, t0
+                    last_q, last_centre, last_active = model.q.copy(), model.centre.copy(), model.active.copy()
                     g = model.build_grid()
                     stamp = node.get_clock().now().nanoseconds
                     pubs["height_map"].publish(cv.fill_image(image, stamp, frame, g.heights_m[0]))
@@ -154,7 +186,7 @@ class DisplayProcess:
         self.proc.start()
 
     def write(self, model: SkinModel) -> None:
-        self.snap.write(model.q, model.centre, model.driven, self.version)
+        self.snap.write(model.q, model.centre, model.driven, self.version, model.level, model.active)
 
     def set_tissue(self, tissue_flat: dict) -> None:
         self.version += 1

@@ -99,6 +99,11 @@ def _build() -> dict[str, Trajectory]:
             "centre: press to 2.5 mm over 0.5 s, hold 1 s, release over 0.3 s, stay lifted 0.5 s",
         ),
         _press(
+            "light_touch", 0.0, 20e-6, 0.5, 1.0, 0.3, 0.5,
+            "centre: press to 20 um (epidermis only: the epidermis/dermis interface peaks at 35 um), hold 1 s, "
+            "release over 0.3 s, stay lifted 0.5 s",
+        ),
+        _press(
             "press_all_layers", 0.0, 4.0e-3, 0.8, 1.0, 0.5, 0.5,
             "centre: press to 4.0 mm (below the dermis/fat interface, 1.275 +- 0.5 mm: all three layers)",
         ),

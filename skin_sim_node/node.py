@@ -95,6 +95,9 @@ class SkinSimNode(Node):
         self._stats_from = 0
         self._last_tick_ns = time.perf_counter_ns()
         self._last_diag_ns = self._last_tick_ns
+        self._last_pub_ns = 0  # last wrench publish (idle heartbeat)
+        self._n_idle_skipped = 0
+        self._display_key = None
         # I/O
         self._pub_wrench = publisher(self, "tool_wrench")
         self._pub_contact = publisher(self, "contact")
@@ -177,6 +180,11 @@ class SkinSimNode(Node):
         self._n_ticks += 1
         self._n_pose_ticks += pose_driven
         self._last_tick_ns = now_ns
+        hb = self.params.idle_heartbeat_hz
+        if hb > 0 and s.model.last_tick_idle and not s.stale and now_ns - self._last_pub_ns < 1e9 / hb:
+            self._n_idle_skipped += 1  # lod idle: the tissue is at rest and untouched; heartbeat publishes only
+            return
+        self._last_pub_ns = now_ns
         stamp = s.answered_stamp_ns if pose_driven else self._ros_now_ns()
         self._pub_wrench.publish(cv.fill_wrench(self._wrench, stamp, self._frame, (0.0, 0.0, force)))
         m = s.model
@@ -196,11 +204,17 @@ class SkinSimNode(Node):
             "mesh_rate_hz": p.mesh_rate_hz,
             "publish_mesh": p.publish_mesh,
             "mesh_stride": p.mesh_stride,
+            "on_change": p.display_on_change,
         }
 
     def _snapshot_display(self) -> None:
         with self._lock:
-            self._display.write(self.session.model)
+            m = self.session.model
+            key = (id(m), m.version)
+            if self.params.display_on_change and key == self._display_key:
+                return  # lod: the model did not change since the last snapshot (idle)
+            self._display_key = key
+            self._display.write(m)
 
     # --- diagnostics ------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
@@ -244,6 +258,9 @@ class SkinSimNode(Node):
             "n_affected_layers": str(n_aff),
             "model_flags": str(flags),
             "warmup_s": f"{self._warmup_s:.3f}",
+            "kernel_calls_total": str(s.model.kernel_calls),
+            "idle_ticks_total": str(s.model.idle_ticks),
+            "idle_unpublished_total": str(self._n_idle_skipped),
         }
         values.update({f"count_{k}": str(v) for k, v in sorted(counts.items())})
         st = DiagnosticStatus()

@@ -10,7 +10,7 @@ from skin_sim_node.mock_tool import LIFT_Z_M, TRAJECTORIES, ScriptClock
 from skin_sim_node.model import SkinModel, classify, interface_depths_m
 from skin_sim_node.sim_device import DeviceParams, SimulatedDevice
 
-NAMES = ["press_hold_release", "press_all_layers", "drag", "edge_press", "fast_stab", "lift_during_relax"]
+NAMES = ["press_hold_release", "press_all_layers", "drag", "edge_press", "fast_stab", "lift_during_relax", "light_touch"]
 
 
 def samples(traj, dt=1e-3):

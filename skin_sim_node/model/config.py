@@ -42,6 +42,10 @@ class ParamSpec:
 
     def check(self, value: Any) -> Any:
         """Return ``value`` coerced to this spec's type, or raise :class:`ConfigError`."""
+        if self.type is bool:
+            if not isinstance(value, (bool, np.bool_)):
+                raise ConfigError(f"{self.name}: expected true/false, got {value!r}")
+            return bool(value)
         if self.type is int:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 if isinstance(value, float) and value.is_integer():
@@ -71,6 +75,38 @@ def _f(name, default, unit, desc, lo=0.0, hi=None, lo_excl=True):
 
 def _i(name, default, desc, lo=1, hi=None):
     return ParamSpec(name, int, default, "1", desc, lo, hi, False)
+
+
+def _b(name, default, desc):
+    return ParamSpec(name, bool, default, "-", desc)
+
+
+# Level of detail ("no more than a scene needs", issue 7); docs/performance.md measures each lever.
+LOD_TOLERANCE_M = 10e-6
+"""Displacement tolerance (m). Stated choice: 1 % of the 1 mm height-map cell, invisible in the
+display, and about the smallest skin indentation a fingertip detects (of the order of 10 um)."""
+
+
+def _lod_specs() -> list[ParamSpec]:
+    return [
+        _f(
+            "lod.tolerance_m", LOD_TOLERANCE_M, "m",
+            "displacement tolerance: adaptive mode count, settled layers, idle and display change detection "
+            "(10 um: 1 % of a 1 mm height-map cell)",
+        ),
+        _b(
+            "lod.adaptive_modes", True,
+            "choose each driven layer's modes per axis (1..59 odd, against a 60 x 60 reference) from its compression "
+            "and lod.tolerance_m; off: the fixed modes.m x modes.n",
+        ),
+        _b(
+            "lod.affected_layers", True,
+            "compute only layers that are driven or still moving: a free layer whose displacement bound falls "
+            "below lod.tolerance_m is set to rest and skipped",
+        ),
+        _b("lod.patch_only", True, "grid builds touch only the cells of the deformation patches, not the whole sheet"),
+        _b("lod.idle", True, "no kernel call while the tool is off the tissue and every layer has settled"),
+    ]  # fmt: skip
 
 
 # Default layer values (the `default` preset). Sources: docs/model.md, "Parameter sources".
@@ -163,6 +199,7 @@ TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
     ]
     + _layer_specs()
     + _interface_specs()
+    + _lod_specs()
 )
 SPEC_BY_NAME = {s.name: s for s in TISSUE_PARAMETERS}
 
@@ -201,6 +238,17 @@ class InterfaceConfig:
 
 
 @dataclass(frozen=True)
+class LodConfig:
+    """Level-of-detail switches and the displacement tolerance (m) they share."""
+
+    tolerance_m: float = LOD_TOLERANCE_M
+    adaptive_modes: bool = True
+    affected_layers: bool = True
+    patch_only: bool = True
+    idle: bool = True
+
+
+@dataclass(frozen=True)
 class TissueConfig:
     """Everything the model needs, frozen. Build with :func:`config_from_flat` or presets."""
 
@@ -211,6 +259,7 @@ class TissueConfig:
     tool_radius_m: float
     layers: tuple[LayerConfig, ...]
     interfaces: tuple[InterfaceConfig, ...]
+    lod: LodConfig
     flat: tuple[tuple[str, Any], ...]  # the validated dotted parameters it came from
 
     @property
@@ -278,6 +327,13 @@ def config_from_flat(values: dict[str, Any]) -> TissueConfig:
         tool_radius_m=flat["tool.radius_m"],
         layers=layers,
         interfaces=interfaces,
+        lod=LodConfig(
+            tolerance_m=flat["lod.tolerance_m"],
+            adaptive_modes=flat["lod.adaptive_modes"],
+            affected_layers=flat["lod.affected_layers"],
+            patch_only=flat["lod.patch_only"],
+            idle=flat["lod.idle"],
+        ),
         flat=tuple(sorted(flat.items())),
     )
     _check_geometry(cfg)

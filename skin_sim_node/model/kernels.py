@@ -27,6 +27,7 @@ OUT_STRESS_PA = 1
 OUT_DEPTH_M = 2
 OUT_N_AFFECTED = 3
 OUT_SURFACE_M = 4  # surface displacement under the tool before this tick
+OUT_SETTLED = 5  # 1.0: no layer driven and every layer's displacement bound below settle_tol
 OUT_SIZE = 8
 
 
@@ -116,25 +117,31 @@ def modal_propagator(lam, gamma, dt, out_prop):
     critically and over-damped modes, so any ``dt >= 0`` is stable.
     """
     for li in range(lam.shape[0]):
-        g = gamma[li]
-        for kk in range(lam.shape[1]):
-            w2 = lam[li, kk] ** 2
-            disc = w2 - g * g
-            if disc > 0.0:
-                w = math.sqrt(disc)
-                e = math.exp(-g * dt)
-                ec = e * math.cos(w * dt)
-                es = e * (math.sin(w * dt) / w)
-            else:
-                s = math.sqrt(-disc)
-                e1 = math.exp(-(g - s) * dt)
-                e2 = math.exp(-(g + s) * dt)
-                ec = 0.5 * (e1 + e2)
-                es = 0.5 * (e1 - e2) / s if s * dt > 1e-8 else dt * math.exp(-g * dt)
-            out_prop[0, li, kk] = ec + g * es
-            out_prop[1, li, kk] = es
-            out_prop[2, li, kk] = -w2 * es
-            out_prop[3, li, kk] = ec - g * es
+        layer_propagator(lam, gamma, dt, li, lam.shape[1], out_prop)
+
+
+@njit(**JIT)
+def layer_propagator(lam, gamma, dt, li, n_modes, out_prop):
+    """:func:`modal_propagator` for layer ``li`` and its first ``n_modes`` modes only."""
+    g = gamma[li]
+    for kk in range(n_modes):
+        w2 = lam[li, kk] ** 2
+        disc = w2 - g * g
+        if disc > 0.0:
+            w = math.sqrt(disc)
+            e = math.exp(-g * dt)
+            ec = e * math.cos(w * dt)
+            es = e * (math.sin(w * dt) / w)
+        else:
+            s = math.sqrt(-disc)
+            e1 = math.exp(-(g - s) * dt)
+            e2 = math.exp(-(g + s) * dt)
+            ec = 0.5 * (e1 + e2)
+            es = 0.5 * (e1 - e2) / s if s * dt > 1e-8 else dt * math.exp(-g * dt)
+        out_prop[0, li, kk] = ec + g * es
+        out_prop[1, li, kk] = es
+        out_prop[2, li, kk] = -w2 * es
+        out_prop[3, li, kk] = ec - g * es
 
 
 @njit(**JIT)
@@ -168,8 +175,9 @@ def layer_point_displacement(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y
 def step_kernel(
     tool_x, tool_y, tool_z, tool_vz, dt,
     k, b, area, iface_mean, iface_amp, iface_kx, iface_ky, bottom_m, half_x, half_y,
-    beta, mode_m, mode_n, patch_a, patch_b, lam, gamma,
-    q, v, centre, driven, comp, prop, prop_dt, bounds, thick, sx_buf, sy_buf, out,
+    beta_table, trunc_err, k_prefix, m_lim, mode_m, mode_n, patch_a, patch_b, lam, gamma,
+    mode_tol, settle_tol, skip_settled,
+    q, v, centre, driven, comp, level, dropped, active, amp, prop, prop_dt, prop_k, bounds, thick, sx_buf, sy_buf, out,
 ):  # fmt: skip
     """One haptic tick of the layered model: contact, Reuss force and modal state.
 
@@ -177,12 +185,28 @@ def step_kernel(
     (``q = dx_l * beta``, centred on the tool); the others evolve freely with the exact
     damped modal propagator (release and return). Contact is unilateral and is tested
     against the current deformed surface. Writes ``out`` (see ``OUT_*``) and returns flags.
+
+    Level of detail: layer ``l`` uses the first ``k_prefix[level[l]]`` modes. With several
+    levels (adaptive modes) a driven layer takes the smallest level whose truncation bound
+    ``|dx_l| trunc_err`` is within ``mode_tol`` (m). With ``settle_tol > 0`` a free layer's
+    displacement bound ``amp[l] = sum_k sqrt(q_k^2 + (v_k/lam_k)^2)`` (energy: no future
+    displacement exceeds it) is kept; with ``skip_settled`` a layer below ``settle_tol`` is set
+    to rest and, while ``active[l] == 0``, skipped. ``prop_dt``/``prop_k`` (L,) cache each
+    layer's propagator. A free layer with several levels sheds its outermost shell of modes when
+    that shell's displacement bound, added to what the layer already shed since it was last
+    driven (``dropped``, m), is within ``mode_tol``: relaxation keeps within ``2 mode_tol`` of the
+    reference and its cost falls as it decays.
     """
     n_layers = q.shape[0]
+    n_levels = beta_table.shape[0]
     flags = 0
-    if dt != prop_dt[0]:
-        modal_propagator(lam, gamma, dt, prop)
-        prop_dt[0] = dt
+    if not skip_settled:  # every layer's propagator, driven or not, as without the lever
+        for li in range(n_layers):
+            nk = k_prefix[level[li]]
+            if prop_dt[li] != dt or prop_k[li] < nk:
+                layer_propagator(lam, gamma, dt, li, nk, prop)
+                prop_dt[li] = dt
+                prop_k[li] = nk
     depth = -tool_z
     velocity = -tool_vz
     was_contact = False
@@ -191,9 +215,13 @@ def step_kernel(
             was_contact = True
     surface = 0.0
     for li in range(n_layers):
-        surface += layer_point_displacement(
-            q[li], centre[li, 0], centre[li, 1], mode_m, mode_n, patch_a, patch_b, tool_x, tool_y, sx_buf, sy_buf
-        )
+        if active[li]:
+            nk = k_prefix[level[li]]
+            ml = m_lim[level[li]] + 1
+            surface += layer_point_displacement(
+                q[li, :nk], centre[li, 0], centre[li, 1], mode_m[:nk], mode_n[:nk], patch_a, patch_b, tool_x, tool_y,
+                sx_buf[:ml], sy_buf[:ml],
+            )  # fmt: skip
     on_sheet = abs(tool_x) <= half_x and abs(tool_y) <= half_y
     if not on_sheet:
         flags |= FLAG_OFF_SHEET
@@ -227,25 +255,78 @@ def step_kernel(
         if li < n:
             share = comp[li] / d_eff  # layer's part of the tool velocity; round-off safe
             rate = velocity * min(1.0, max(0.0, share))
-            for kk in range(q.shape[1]):
-                q[li, kk] = comp[li] * beta[kk]
-                v[li, kk] = rate * beta[kk]
+            lv = 0
+            if n_levels > 1:
+                lv = n_levels - 1
+                for i in range(n_levels):
+                    if abs(comp[li]) * trunc_err[i] <= mode_tol:
+                        lv = i
+                        break
+            nk = k_prefix[lv]
+            for kk in range(nk):
+                q[li, kk] = comp[li] * beta_table[lv, kk]
+                v[li, kk] = rate * beta_table[lv, kk]
+            for kk in range(nk, k_prefix[level[li]]):  # fewer modes than last tick
+                q[li, kk] = 0.0
+                v[li, kk] = 0.0
+            level[li] = lv
+            dropped[li] = 0.0
             centre[li, 0] = tool_x
             centre[li, 1] = tool_y
             driven[li] = 1
+            active[li] = 1
+            amp[li] = math.inf
         else:
             comp[li] = 0.0
             driven[li] = 0
-            for kk in range(q.shape[1]):
+            if not active[li]:
+                continue
+            nk = k_prefix[level[li]]
+            if skip_settled and (prop_dt[li] != dt or prop_k[li] < nk):
+                layer_propagator(lam, gamma, dt, li, nk, prop)
+                prop_dt[li] = dt
+                prop_k[li] = nk
+            bound = 0.0
+            for kk in range(nk):
                 q0 = q[li, kk]
                 v0 = v[li, kk]
-                q[li, kk] = prop[0, li, kk] * q0 + prop[1, li, kk] * v0
-                v[li, kk] = prop[2, li, kk] * q0 + prop[3, li, kk] * v0
+                q1 = prop[0, li, kk] * q0 + prop[1, li, kk] * v0
+                v1 = prop[2, li, kk] * q0 + prop[3, li, kk] * v0
+                q[li, kk] = q1
+                v[li, kk] = v1
+                if settle_tol > 0.0:
+                    r = v1 / lam[li, kk]
+                    bound += math.sqrt(q1 * q1 + r * r)
+            amp[li] = bound if settle_tol > 0.0 else math.inf
+            lv = level[li]
+            if n_levels > 1 and lv > 0:  # shed the outer shell once it is negligible
+                k0 = k_prefix[lv - 1]
+                tail = 0.0
+                for kk in range(k0, nk):
+                    r = v[li, kk] / lam[li, kk]
+                    tail += math.sqrt(q[li, kk] * q[li, kk] + r * r)
+                if dropped[li] + tail <= mode_tol:
+                    for kk in range(k0, nk):
+                        q[li, kk] = 0.0
+                        v[li, kk] = 0.0
+                    level[li] = lv - 1
+                    dropped[li] += tail
+            if skip_settled and bound < settle_tol:
+                for kk in range(nk):
+                    q[li, kk] = 0.0
+                    v[li, kk] = 0.0
+                active[li] = 0
+                amp[li] = 0.0
     out[OUT_FORCE_N] = force
     out[OUT_STRESS_PA] = sigma
     out[OUT_DEPTH_M] = d_eff
     out[OUT_N_AFFECTED] = n
     out[OUT_SURFACE_M] = surface
+    settled = settle_tol > 0.0
+    for li in range(n_layers):
+        if driven[li] or not amp[li] < settle_tol:
+            settled = False
+    out[OUT_SETTLED] = 1.0 if settled else 0.0
     return flags
 
 
@@ -261,19 +342,34 @@ def layer_field(q_l, cx, cy, mode_m, mode_n, m_used, n_used, patch_a, patch_b, x
     ``tmp`` (N+1, nx).
     """
     out[:, :] = 0.0
-    ix0, ix1 = _patch_range(xs, cx, patch_a)
-    iy0, iy1 = _patch_range(ys, cy, patch_b)
+    ix0, ix1 = patch_range(xs, cx, patch_a)
+    iy0, iy1 = patch_range(ys, cy, patch_b)
+    layer_field_box(q_l, cx, cy, mode_m, mode_n, m_used, n_used, patch_a, patch_b, xs, ys, ix0, ix1, iy0, iy1,
+                    q_dense, sx, sy, tmp, out)  # fmt: skip
+
+
+@njit(**JIT)
+def layer_field_box(q_l, cx, cy, mode_m, mode_n, m_used, n_used, patch_a, patch_b, xs, ys, ix0, ix1, iy0, iy1,
+                    q_dense, sx, sy, tmp, out):  # fmt: skip
+    """:func:`layer_field` on the cells ``[iy0, iy1) x [ix0, ix1)`` only; other cells are not written.
+
+    Cells of the box outside the patch are set to zero, so a box larger than the patch (the
+    whole sheet) gives the same field. ``q_dense`` rows/columns beyond ``m_used``/``n_used`` are
+    never read.
+    """
     if ix0 >= ix1 or iy0 >= iy1:
         return
-    q_dense[:, :] = 0.0
+    for jm in range(m_used.shape[0]):
+        for jn in range(n_used.shape[0]):
+            q_dense[m_used[jm] - 1, n_used[jn] - 1] = 0.0
     for kk in range(q_l.shape[0]):
         q_dense[mode_m[kk] - 1, mode_n[kk] - 1] = q_l[kk]
-    m_max = q_dense.shape[0]
-    n_max = q_dense.shape[1]
+    m_top = m_used[m_used.shape[0] - 1]
+    n_top = n_used[n_used.shape[0] - 1]
     for ix in range(ix0, ix1):
-        sine_table(math.pi * (xs[ix] - cx + 0.5 * patch_a) / patch_a, m_max, sx[:, ix])
+        sine_table(math.pi * (xs[ix] - cx + 0.5 * patch_a) / patch_a, m_top, sx[:, ix])
     for iy in range(iy0, iy1):
-        sine_table(math.pi * (ys[iy] - cy + 0.5 * patch_b) / patch_b, n_max, sy[:, iy])
+        sine_table(math.pi * (ys[iy] - cy + 0.5 * patch_b) / patch_b, n_top, sy[:, iy])
     for jn in range(n_used.shape[0]):
         nn = n_used[jn] - 1
         for ix in range(ix0, ix1):
@@ -282,17 +378,25 @@ def layer_field(q_l, cx, cy, mode_m, mode_n, m_used, n_used, patch_a, patch_b, x
                 mm = m_used[jm] - 1
                 acc += q_dense[mm, nn] * sx[mm + 1, ix]
             tmp[nn, ix] = acc
+    lo_x = cx - 0.5 * patch_a
+    hi_x = cx + 0.5 * patch_a
+    lo_y = cy - 0.5 * patch_b
+    hi_y = cy + 0.5 * patch_b
     for iy in range(iy0, iy1):
+        in_y = ys[iy] > lo_y and ys[iy] < hi_y
         for ix in range(ix0, ix1):
-            acc = 0.0
-            for jn in range(n_used.shape[0]):
-                nn = n_used[jn] - 1
-                acc += sy[nn + 1, iy] * tmp[nn, ix]
-            out[iy, ix] = acc
+            if in_y and xs[ix] > lo_x and xs[ix] < hi_x:
+                acc = 0.0
+                for jn in range(n_used.shape[0]):
+                    nn = n_used[jn] - 1
+                    acc += sy[nn + 1, iy] * tmp[nn, ix]
+                out[iy, ix] = acc
+            else:
+                out[iy, ix] = 0.0
 
 
 @njit(**JIT)
-def _patch_range(centres, c, side):
+def patch_range(centres, c, side):
     """Index range of grid cell centres strictly inside ``(c - side/2, c + side/2)``."""
     lo = c - 0.5 * side
     hi = c + 0.5 * side
@@ -314,13 +418,19 @@ def assemble_heights(disp, rest_tops, out_heights):
     ``disp`` (L, ny, nx); ``rest_tops`` (L, ny, nx) rest depths of layer tops (0 for the
     surface); ``out_heights`` (L, ny, nx).
     """
+    assemble_heights_box(disp, rest_tops, 0, disp.shape[2], 0, disp.shape[1], out_heights)
+
+
+@njit(**JIT)
+def assemble_heights_box(disp, rest_tops, ix0, ix1, iy0, iy1, out_heights):
+    """:func:`assemble_heights` on the cells ``[iy0, iy1) x [ix0, ix1)`` only."""
     last = disp.shape[0] - 1
-    for iy in range(disp.shape[1]):
-        for ix in range(disp.shape[2]):
+    for iy in range(iy0, iy1):
+        for ix in range(ix0, ix1):
             out_heights[last, iy, ix] = -rest_tops[last, iy, ix] - disp[last, iy, ix]
     for li in range(last - 1, -1, -1):  # h_l = h_{l+1} + rest_{l+1} - rest_l - u_l
-        for iy in range(disp.shape[1]):
-            for ix in range(disp.shape[2]):
+        for iy in range(iy0, iy1):
+            for ix in range(ix0, ix1):
                 out_heights[li, iy, ix] = (
                     out_heights[li + 1, iy, ix] + rest_tops[li + 1, iy, ix] - rest_tops[li, iy, ix] - disp[li, iy, ix]
                 )

@@ -49,21 +49,63 @@ def shape_coefficients(m_max: int, n_max: int, a: float, b: float, r0: float) ->
     return w / np.sum(w * centre)
 
 
+def truncation_bound(w: np.ndarray, m_max: int, n_max: int) -> float:
+    """Sup-norm bound on ``|u_MN - u_ref|`` per metre of compression, from the coefficients alone.
+
+    ``w`` (P, Q) are the reference coefficients (:func:`disk_load_coefficients`); ``u_ref`` is
+    the unit-normalised series over all of them and ``u_MN`` the one truncated to ``m <= M,
+    n <= N`` and renormalised to 1 at the contact. Since ``|sin| <= 1``::
+
+        |u_MN - u_ref| <= sum_tail |w| / |S_ref| + sum_MN |w| |1/S_MN - 1/S_ref|
+
+    with ``S = sum w sin(m pi/2) sin(n pi/2)`` the series at the contact (the normalisation).
+    """
+    p, q = w.shape
+    centre = np.outer(np.sin(np.arange(1, p + 1) * np.pi / 2), np.sin(np.arange(1, q + 1) * np.pi / 2))
+    s_ref = float(np.sum(w * centre))
+    head = np.abs(w[:m_max, :n_max])
+    s_mn = float(np.sum(w[:m_max, :n_max] * centre[:m_max, :n_max]))
+    return float((np.abs(w).sum() - head.sum()) / abs(s_ref) + head.sum() * abs(1.0 / s_mn - 1.0 / s_ref))
+
+
+REFERENCE_MODES = 60
+"""Modes per axis of the reference solution the adaptive count is measured against (issue 7)."""
+
+
 @dataclass(frozen=True)
 class ModalBasis:
-    """The active modes (nonzero ``beta``) and per-layer ``lambda`` and damping."""
+    """The active modes (nonzero ``beta``) and per-layer ``lambda`` and damping.
+
+    Modes are stored in shells of ``max(m, n)``, so that the first ``k_prefix[i]`` modes are
+    exactly the odd modes of the square ``level_modes[i] x level_modes[i]``: a layer with
+    fewer modes uses a prefix. ``beta_table[i]`` is the shape normalised for that prefix
+    (zeros beyond it) and ``trunc_err[i]`` its bound against the reference (per metre of
+    compression). With a fixed mode count (``lod.adaptive_modes`` off) there is one level.
+    """
 
     mode_m: np.ndarray  # (K,) int64, 1-based
     mode_n: np.ndarray  # (K,) int64
-    beta: np.ndarray  # (K,) shape coefficients, dimensionless
+    beta: np.ndarray  # (K,) shape coefficients of the full basis, dimensionless
     lam: np.ndarray  # (L, K) rad/s, eq 3: c pi sqrt(m^2/a^2 + n^2/b^2)
     gamma: np.ndarray  # (L,) 1/s, modal damping rate from each layer's b
     m_used: np.ndarray  # distinct mode_m values, for the separable grid sum
     n_used: np.ndarray  # distinct mode_n values
+    level_modes: np.ndarray  # (V,) int64, modes per axis of each level
+    k_prefix: np.ndarray  # (V,) int64, modes in each level's prefix
+    m_lim: np.ndarray  # (V,) int64, largest m or n in each level
+    beta_table: np.ndarray  # (V, K) beta of each level, zero beyond its prefix
+    trunc_err: np.ndarray  # (V,) truncation bound per metre of compression (0: the reference itself)
 
     @property
     def n_modes(self) -> int:
         return int(self.beta.shape[0])
+
+
+def _shell_modes(m_max: int, n_max: int):
+    """Odd (m, n) with m <= m_max, n <= n_max, ordered by shell max(m, n), then m, then n."""
+    pairs = [(m, n) for m in range(1, m_max + 1, 2) for n in range(1, n_max + 1, 2)]
+    pairs.sort(key=lambda p: (max(p), p[0], p[1]))
+    return np.array([p[0] for p in pairs], dtype=np.int64), np.array([p[1] for p in pairs], dtype=np.int64)
 
 
 def modal_basis(cfg: TissueConfig) -> ModalBasis:
@@ -71,17 +113,45 @@ def modal_basis(cfg: TissueConfig) -> ModalBasis:
 
     Damping: the layer's Kelvin-Voigt damper ``b`` acts on the fundamental mode's modal
     mass ``m11 = rho_A a b / 4``, so every mode decays at ``gamma = b / (2 m11)``
-    (uniform viscous damping of the membrane).
+    (uniform viscous damping of the membrane). With ``lod.adaptive_modes`` the basis holds
+    the odd modes up to :data:`REFERENCE_MODES` per axis, in levels of 1, 3, 5, ... modes
+    per axis; otherwise the fixed ``modes.m x modes.n``.
     """
     a, b = cfg.patch_size_m
-    m_max, n_max = cfg.modes
-    beta = shape_coefficients(m_max, n_max, a, b, cfg.tool_radius_m)
-    keep = beta != 0.0
-    mm, nn = np.nonzero(keep)
-    mode_m = (mm + 1).astype(np.int64)
-    mode_n = (nn + 1).astype(np.int64)
+    r0 = cfg.tool_radius_m
+    adaptive = cfg.lod.adaptive_modes
+    m_max, n_max = (REFERENCE_MODES, REFERENCE_MODES) if adaptive else cfg.modes
+    mode_m, mode_n = _shell_modes(m_max, n_max)
+    w = disk_load_coefficients(m_max, n_max, a, b, r0)
+    centre = np.sin(mode_m * np.pi / 2) * np.sin(mode_n * np.pi / 2)
+    w_k = w[mode_m - 1, mode_n - 1]
+    beta_k = np.ascontiguousarray(w_k / np.sum(w_k * centre))
+    if adaptive:
+        levels = np.arange(1, m_max + 1, 2, dtype=np.int64)
+        w_ref = disk_load_coefficients(REFERENCE_MODES, REFERENCE_MODES, a, b, r0)
+        k_prefix = np.array([((lv + 1) // 2) ** 2 for lv in levels], dtype=np.int64)
+        table = np.zeros((levels.size, beta_k.size))
+        for i, k in enumerate(k_prefix):
+            table[i, :k] = w_k[:k] / np.sum(w_k[:k] * centre[:k])
+        err = np.array([truncation_bound(w_ref, lv, lv) for lv in levels])
+        m_lim = levels.copy()
+    else:
+        levels = np.array([max(m_max, n_max)], dtype=np.int64)
+        k_prefix = np.array([beta_k.size], dtype=np.int64)
+        table = beta_k[None, :].copy()
+        err = np.zeros(1)  # not used: a fixed count is not chosen by tolerance
+        m_lim = levels.copy()
     kappa = np.pi * np.sqrt((mode_m / a) ** 2 + (mode_n / b) ** 2)
     lam = np.array([layer.wave_speed_m_per_s * kappa for layer in cfg.layers])
     gamma = np.array([layer.damping_n_s_per_m / (2 * layer.areal_density_kg_per_m2 * a * b / 4) for layer in cfg.layers])
-    beta_k = np.ascontiguousarray(beta[keep])
-    return ModalBasis(mode_m, mode_n, beta_k, lam, gamma, np.unique(mode_m), np.unique(mode_n))
+    return ModalBasis(
+        mode_m, mode_n, beta_k, lam, gamma, np.unique(mode_m), np.unique(mode_n), levels, k_prefix, m_lim, table, err
+    )
+
+
+def level_for(basis: ModalBasis, compression_m: float, tolerance_m: float) -> int:
+    """Index of the smallest level whose truncation error at ``compression_m`` is within ``tolerance_m``."""
+    for i in range(basis.level_modes.size):
+        if abs(compression_m) * basis.trunc_err[i] <= tolerance_m:
+            return i
+    return basis.level_modes.size - 1

@@ -93,6 +93,8 @@ class NumpySkinModel:
         self.centre = np.zeros((n_l, 2))
         self.driven = np.zeros(n_l, dtype=bool)
         self.compression_m = np.zeros(n_l)
+        self.level = np.zeros(n_l, dtype=int)
+        self.dropped_m = np.zeros(n_l)
         self.force_n = 0.0
         self.n_affected = 0
         self.flags = 0
@@ -133,11 +135,18 @@ class NumpySkinModel:
         else:
             n = 0
         prop = propagator_ref(self.basis.lam, self.basis.gamma, dt)
+        lod = self.cfg.lod
         for li in range(n_l):
             if li < n:
                 self.compression_m[li] = comp[li]
-                self.q[li] = comp[li] * self.basis.beta
-                self.v[li] = velocity * np.clip(comp[li] / d_eff, 0.0, 1.0) * self.basis.beta
+                bm = self.basis
+                lv = 0  # smallest level within tolerance (the last if none is)
+                if bm.level_modes.size > 1:
+                    ok = np.nonzero(abs(comp[li]) * bm.trunc_err <= lod.tolerance_m)[0]
+                    lv = int(ok[0]) if ok.size else bm.level_modes.size - 1
+                self.level[li], self.dropped_m[li] = lv, 0.0
+                self.q[li] = comp[li] * bm.beta_table[lv]
+                self.v[li] = velocity * np.clip(comp[li] / d_eff, 0.0, 1.0) * bm.beta_table[lv]
                 self.centre[li] = (x, y)
                 self.driven[li] = True
             else:
@@ -146,6 +155,19 @@ class NumpySkinModel:
                 q0, v0 = self.q[li].copy(), self.v[li].copy()
                 self.q[li] = prop[0, li] * q0 + prop[1, li] * v0
                 self.v[li] = prop[2, li] * q0 + prop[3, li] * v0
+                bound = np.sum(np.hypot(self.q[li], self.v[li] / self.basis.lam[li]))
+                lv = self.level[li]
+                if self.basis.level_modes.size > 1 and lv > 0:  # shed the outer shell once negligible
+                    shell = slice(self.basis.k_prefix[lv - 1], self.basis.k_prefix[lv])
+                    tail = np.sum(np.hypot(self.q[li, shell], self.v[li, shell] / self.basis.lam[li, shell]))
+                    if self.dropped_m[li] + tail <= lod.tolerance_m:
+                        self.q[li, shell] = 0.0
+                        self.v[li, shell] = 0.0
+                        self.level[li] -= 1
+                        self.dropped_m[li] += tail
+                if lod.affected_layers and bound < lod.tolerance_m:  # settled: set to rest
+                    self.q[li] = 0.0
+                    self.v[li] = 0.0
         self.force_n, self.n_affected, self.flags = force, n, flags
         return force
 

@@ -3,6 +3,8 @@
 The force path (:meth:`SkinModel.step`) never touches the grid; the per-layer grids
 and the assembled surface/interface heights are built only when
 :meth:`SkinModel.build_grid` is called (the first "no more than a scene needs" lever).
+The other levers are switched by ``cfg.lod`` (``lod.*`` parameters): adaptive mode count,
+affected layers only, patch-only grid work, and idle (no kernel call at rest).
 """
 
 from __future__ import annotations
@@ -53,8 +55,19 @@ class SkinModel:
         layers = cfg.layers
         n_l = len(layers)
         k_modes = self.basis.n_modes
-        m_max, n_max = cfg.modes
+        m_max = n_max = int(self.basis.m_lim.max())
         ny, nx = cfg.grid_shape
+        lod = cfg.lod
+        self._skip_settled = lod.affected_layers
+        self._mode_tol = lod.tolerance_m
+        self._settle_tol = lod.tolerance_m if (lod.affected_layers or lod.idle) else 0.0
+        self._idle_ok = lod.idle
+        self._patch_only = lod.patch_only
+        self.kernel_calls = 0  # step_kernel invocations (idle ticks make none)
+        self.idle_ticks = 0
+        self.last_tick_idle = False
+        self.version = 0  # changes whenever the state may have changed (a kernel call or a reset)
+        self.grid_builds = 0
         sx, sy = cfg.sheet_size_m
         self._k = np.array([la.stiffness_n_per_m for la in layers])
         self._b = np.array([la.damping_n_s_per_m for la in layers])
@@ -72,12 +85,17 @@ class SkinModel:
         self.centre = np.zeros((n_l, 2))
         self.driven = np.zeros(n_l, dtype=np.int8)
         self.compression_m = np.zeros(n_l)
+        self.level = np.zeros(n_l, dtype=np.int64)  # index into basis levels (mode count) per layer
+        self.dropped_m = np.zeros(n_l)  # displacement bound shed with outer modes since last driven
+        self.active = np.zeros(n_l, dtype=np.int8)
+        self.amplitude_bound_m = np.zeros(n_l)  # bound on a free layer's future displacement; inf when driven
         self._prop = np.zeros((4, n_l, k_modes))
-        self._prop_dt = np.full(1, np.nan)
+        self._prop_dt = np.full(n_l, np.nan)
+        self._prop_k = np.zeros(n_l, dtype=np.int64)
         self._bounds = np.zeros(n_l + 1)
         self._thick = np.zeros(n_l)
-        self._sx_buf = np.zeros(max(m_max, 1) + 1)
-        self._sy_buf = np.zeros(max(n_max, 1) + 1)
+        self._sx_buf = np.zeros(m_max + 1)
+        self._sy_buf = np.zeros(n_max + 1)
         self._out = np.zeros(kn.OUT_SIZE)
         self.flags = 0
         # grid buffers
@@ -87,17 +105,37 @@ class SkinModel:
         self._rest_tops = np.concatenate([np.zeros((1, ny, nx)), interface_depths_m(cfg, X, Y)])
         self._disp = np.zeros((n_l, ny, nx))
         self._heights = np.zeros((n_l, ny, nx))
+        kn.assemble_heights(self._disp, self._rest_tops, self._heights)
+        self._dirty = np.zeros((n_l, 4), dtype=np.int64)  # per layer: written box ix0, ix1, iy0, iy1
         self._q_dense = np.zeros((m_max, n_max))
         self._sx = np.zeros((m_max + 1, nx))
         self._sy = np.zeros((n_max + 1, ny))
         self._tmp = np.zeros((n_max + 1, nx))
+        b = self.basis
+        self._used = [
+            (b.m_used[b.m_used <= lim], b.n_used[b.n_used <= lim]) for lim in b.m_lim
+        ]  # distinct m, n of each level's prefix
+        self.reset()
 
     def reset(self) -> None:
         """Return to rest: no contact, no deformation."""
-        for a in (self.q, self.v, self.centre, self.compression_m, self._out):
+        for a in (self.q, self.v, self.centre, self.compression_m, self._out, self.amplitude_bound_m, self.dropped_m):
             a[...] = 0.0
         self.driven[:] = 0
+        self.level[:] = 0
+        self.active[:] = 0 if self._skip_settled else 1
         self.flags = 0
+        self._out[kn.OUT_SETTLED] = 1.0 if self._settle_tol > 0.0 else 0.0
+        self.version = getattr(self, "version", 0) + 1
+
+    @property
+    def settled(self) -> bool:
+        """No layer driven and every layer's displacement bound below ``lod.tolerance_m`` (as of the last kernel call)."""
+        return bool(self._out[kn.OUT_SETTLED])
+
+    def modes_per_axis(self) -> np.ndarray:
+        """Modes per axis each layer currently uses (its level)."""
+        return self.basis.level_modes[self.level]
 
     def release(self) -> None:
         """End contact now: every layer relaxes freely from its current shape and velocity."""
@@ -110,14 +148,28 @@ class SkinModel:
         since the previous tick; the release dynamics are exact for any ``dt >= 0``.
         """
         x, y, z = tool_xyz
+        if self._idle_ok and z >= 0.0 and self._out[kn.OUT_SETTLED]:
+            # idle: the tool is off the tissue and every layer has settled: no kernel work
+            self.idle_ticks += 1
+            self.last_tick_idle = True
+            if self.flags & ~kn.FLAG_OFF_SHEET:
+                self._out[: kn.OUT_SETTLED] = 0.0
+                self.compression_m[:] = 0.0
+            self.flags = 0 if abs(x) <= self._half[0] and abs(y) <= self._half[1] else kn.FLAG_OFF_SHEET
+            return 0.0
         vz = tool_velocity[2]
         b = self.basis
+        self.kernel_calls += 1
+        self.version += 1
+        self.last_tick_idle = False
         self.flags = kn.step_kernel(
             float(x), float(y), float(z), float(vz), float(dt),
             self._k, self._b, self._area, self._iface_mean, self._iface_amp, self._iface_kx, self._iface_ky,
             self._bottom, self._half[0], self._half[1],
-            b.beta, b.mode_m, b.mode_n, self._patch[0], self._patch[1], b.lam, b.gamma,
-            self.q, self.v, self.centre, self.driven, self.compression_m, self._prop, self._prop_dt,
+            b.beta_table, b.trunc_err, b.k_prefix, b.m_lim, b.mode_m, b.mode_n, self._patch[0], self._patch[1],
+            b.lam, b.gamma, self._mode_tol, self._settle_tol, self._skip_settled,
+            self.q, self.v, self.centre, self.driven, self.compression_m, self.level, self.dropped_m, self.active,
+            self.amplitude_bound_m, self._prop, self._prop_dt, self._prop_k,
             self._bounds, self._thick, self._sx_buf, self._sy_buf, self._out,
         )  # fmt: skip
         return float(self._out[kn.OUT_FORCE_N])
@@ -147,8 +199,9 @@ class SkinModel:
     def layer_displacement_at(self, layer: int, x: float, y: float) -> float:
         """Current downward displacement (m) of one layer at ``(x, y)`` (eq 2 at a point)."""
         b = self.basis
+        nk = b.k_prefix[self.level[layer]]
         return kn.layer_point_displacement(
-            self.q[layer], self.centre[layer, 0], self.centre[layer, 1], b.mode_m, b.mode_n,
+            self.q[layer, :nk], self.centre[layer, 0], self.centre[layer, 1], b.mode_m[:nk], b.mode_n[:nk],
             self._patch[0], self._patch[1], float(x), float(y), self._sx_buf, self._sy_buf,
         )  # fmt: skip
 
@@ -178,19 +231,56 @@ class SkinModel:
         ----------
         layers : iterable of int, optional
             Layers to evaluate; the others are taken as zero (default: all).
+
+        With ``lod.patch_only`` only the cells of each layer's patch are evaluated, and only
+        the box covering this build's and the previous build's patches is cleared and
+        re-assembled (elsewhere the heights are the rest heights already in the buffer); without
+        it every sheet cell is evaluated and assembled. With ``lod.affected_layers`` a layer at
+        rest is not evaluated.
         """
         b = self.basis
+        ny, nx = self._disp.shape[1:]
+        box = [nx, 0, ny, 0]  # union of the cells written now or last time
+        self.grid_builds += 1
         for li in range(self.q.shape[0]):
-            if layers is not None and li not in layers:
-                self._disp[li] = 0.0
-                continue
-            kn.layer_field(
-                self.q[li], self.centre[li, 0], self.centre[li, 1], b.mode_m, b.mode_n, b.m_used, b.n_used,
-                self._patch[0], self._patch[1], self.xs, self.ys,
+            wanted = layers is None or li in layers
+            at_rest = self._skip_settled and not self.active[li]
+            d = self._dirty[li]
+            if self._patch_only:
+                if d[1] > d[0] and d[3] > d[2]:
+                    self._disp[li, d[2] : d[3], d[0] : d[1]] = 0.0
+                    _grow(box, d)
+                d[:] = 0
+                if not wanted or at_rest:
+                    continue
+                ix0, ix1 = kn.patch_range(self.xs, self.centre[li, 0], self._patch[0])
+                iy0, iy1 = kn.patch_range(self.ys, self.centre[li, 1], self._patch[1])
+            else:
+                if not wanted or at_rest:
+                    self._disp[li] = 0.0
+                    continue
+                ix0, ix1, iy0, iy1 = 0, nx, 0, ny
+            lv = self.level[li]
+            nk = b.k_prefix[lv]
+            m_used, n_used = self._used[lv]
+            kn.layer_field_box(
+                self.q[li, :nk], self.centre[li, 0], self.centre[li, 1], b.mode_m[:nk], b.mode_n[:nk], m_used, n_used,
+                self._patch[0], self._patch[1], self.xs, self.ys, ix0, ix1, iy0, iy1,
                 self._q_dense, self._sx, self._sy, self._tmp, self._disp[li],
             )  # fmt: skip
-        kn.assemble_heights(self._disp, self._rest_tops, self._heights)
+            d[:] = (ix0, ix1, iy0, iy1)
+            _grow(box, d)
+        if not self._patch_only:
+            kn.assemble_heights(self._disp, self._rest_tops, self._heights)
+        elif box[1] > box[0] and box[3] > box[2]:
+            kn.assemble_heights_box(self._disp, self._rest_tops, box[0], box[1], box[2], box[3], self._heights)
         return Grid(self.xs, self.ys, self._disp, self._heights)
+
+
+def _grow(box: list, d) -> None:
+    """Grow ``box`` (ix0, ix1, iy0, iy1) to cover ``d``."""
+    box[0], box[1] = min(box[0], d[0]), max(box[1], d[1])
+    box[2], box[3] = min(box[2], d[2]), max(box[3], d[3])
 
 
 def warm_up(cfg: TissueConfig) -> None:
