@@ -1,4 +1,4 @@
-"""Regenerate config/default.yaml and config/paper.yaml from the parameter schema.
+"""Regenerate config/default.yaml, config/paper.yaml and docs/parameters.md from the parameter schema.
 
 default: every schema default. paper: one mode, no damping, LOD levers off, and each layer's tension set
 so that c = 0.0032 * 0.06 / (pi sqrt 2) m/s, i.e. lambda_11 = 0.0032 rad/s as in eq 9.
@@ -10,12 +10,38 @@ from pathlib import Path
 from msgs_schema.parameters import ALL_PARAMETERS, TISSUE_PREFIX
 from skin_sim_node.model.config import LAYER_NAMES, config_from_flat, dump_yaml, tissue_part
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
+ROOT = Path(__file__).resolve().parents[1]
+CONFIG = ROOT / "config"
+DOCS = ROOT / "docs" / "parameters.md"
 
 
-def main():
+def _bounds(spec) -> str:
+    lo = "" if spec.min is None else f"{spec.min:g} {'<' if spec.min_exclusive else '<='} "
+    hi = "" if spec.max is None else f" <= {spec.max:g}"
+    return f"{lo}x{hi}" if (lo or hi) else "-"
+
+
+def write_parameter_doc(path: Path = DOCS) -> None:
+    """One table row per parameter: the schema is the single source, this page is generated."""
+    rows = [
+        "# Parameters of skin_sim_node",
+        "",
+        "Generated from `msgs_schema/parameters.py` and `skin_sim_node/model/config.py` by",
+        "`python scripts/gen_presets.py`; do not edit by hand. Defaults are `config/default.yaml`.",
+        "",
+        "| name | type | default | unit | bounds | description |",
+        "|---|---|---|---|---|---|",
+    ]
+    for spec in ALL_PARAMETERS:
+        default = f"{spec.default:.6g}" if isinstance(spec.default, float) else str(spec.default)
+        desc = spec.description.replace("|", "\\|")
+        rows.append(f"| `{spec.name}` | {spec.type.__name__} | {default} | {spec.unit} | {_bounds(spec)} | {desc} |")
+    path.write_text("\n".join(rows) + "\n")
+
+
+def main(config_dir: Path = CONFIG, doc_path: Path = DOCS):
     default = {s.name: s.default for s in ALL_PARAMETERS}
-    dump_yaml(default, CONFIG / "default.yaml")
+    dump_yaml(default, config_dir / "default.yaml")
     paper = dict(default)
     paper[TISSUE_PREFIX + "modes.m"] = 1
     paper[TISSUE_PREFIX + "modes.n"] = 1
@@ -28,8 +54,9 @@ def main():
         paper[p + "damping_n_s_per_m"] = 0.0
         paper[p + "tension_n_per_m"] = paper[p + "density_kg_per_m3"] * paper[p + "thickness_m"] * c**2
     config_from_flat(tissue_part(paper, TISSUE_PREFIX))
-    dump_yaml(paper, CONFIG / "paper.yaml")
-    print("wrote", CONFIG / "default.yaml", CONFIG / "paper.yaml")
+    dump_yaml(paper, config_dir / "paper.yaml")
+    write_parameter_doc(doc_path)
+    print("wrote", config_dir / "default.yaml", config_dir / "paper.yaml", doc_path)
 
 
 if __name__ == "__main__":
