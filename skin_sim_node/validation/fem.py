@@ -48,7 +48,8 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse.linalg as spla
-from skfem import Basis, BilinearForm, ElementHexS2, ElementVector, MeshHex
+from skfem import Basis, BilinearForm, ElementHexS2, ElementVector, FacetBasis, LinearForm, MeshHex, condense
+from skfem import solve as solve_linear
 from skfem.helpers import ddot, sym_grad, trace
 from tqdm import tqdm
 
@@ -181,6 +182,58 @@ def _modulus_field(setup: FemSetup, x, y, z):
     return e
 
 
+def elasticity_form(setup: FemSetup, offset_xy_m=(0.0, 0.0)) -> BilinearForm:
+    """Isotropic linear elasticity with the modulus of :func:`_modulus_field` at each quadrature point."""
+    nu = setup.poisson
+    xc, yc = offset_xy_m
+
+    @BilinearForm
+    def elasticity(u, v, w):
+        e = _modulus_field(setup, w.x[0] + xc, w.x[1] + yc, w.x[2])
+        lam = e * nu / ((1 + nu) * (1 - 2 * nu))
+        mu = e / (2 * (1 + nu))
+        eu, ev = sym_grad(u), sym_grad(v)
+        return 2 * mu * ddot(eu, ev) + lam * trace(eu) * trace(ev)
+
+    return elasticity
+
+
+def layered_column(setup: FemSetup, pressure_pa: float, width_m: float = 1e-3, n_per_layer: int = 2) -> tuple[float, float]:
+    """Top settlement (m, down) of a laterally confined layered column under uniform pressure.
+
+    The same material law and assembly as :func:`solve`, on a ``width_m`` square column with
+    roller sides and a fixed bottom; flat interfaces at the layers' mean depths. Returns the
+    FEM settlement and the series-spring closed form ``p sum(h_i / M_i)``, with the
+    constrained modulus ``M = E (1 - nu) / ((1 + nu)(1 - 2 nu))`` (uniaxial strain).
+    """
+    (hs, ifaces, r0) = setup.tissue
+    flat = FemSetup(moduli_pa=setup.moduli_pa, poisson=setup.poisson,
+                    tissue=(hs, tuple((m, 0.0, 1.0, 1.0) for m, *_ in ifaces), r0))  # fmt: skip
+    edges = np.concatenate([[0.0], np.cumsum(hs)])
+    zs = np.unique(np.concatenate([np.linspace(a, b, n_per_layer + 1) for a, b in zip(edges[:-1], edges[1:])]))
+    mesh = MeshHex.init_tensor(np.linspace(0, width_m, 2), np.linspace(0, width_m, 2), -zs[::-1])
+    basis = Basis(mesh, ElementVector(ElementHexS2()), intorder=3)
+    K = elasticity_form(flat).assemble(basis)
+    top = FacetBasis(mesh, basis.elem, facets=mesh.facets_satisfying(lambda x: np.abs(x[2]) < 1e-12), intorder=3)
+
+    @LinearForm
+    def load(v, w):
+        return -pressure_pa * v[2]
+
+    f = load.assemble(top)
+    tol = 1e-12
+    fixed = np.concatenate([
+        basis.get_dofs(lambda x: np.abs(x[2] + edges[-1]) < tol).all(),
+        basis.get_dofs(lambda x: (np.abs(x[0]) < tol) | (np.abs(x[0] - width_m) < tol)).all("u^1"),
+        basis.get_dofs(lambda x: (np.abs(x[1]) < tol) | (np.abs(x[1] - width_m) < tol)).all("u^2"),
+    ])  # fmt: skip
+    u = solve_linear(*condense(K, f, D=np.unique(fixed)))
+    top_dofs = basis.get_dofs(lambda x: np.abs(x[2]) < tol).all("u^3")
+    nu = setup.poisson
+    m_con = np.array(setup.moduli_pa) * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
+    return float(-u[top_dofs].mean()), float(pressure_pa * np.sum(np.array(hs) / m_con))
+
+
 def sparse_solve(a, b):
     """Solve the SPD system: Intel MKL PARDISO when ``pypardiso`` is installed, else SuperLU.
 
@@ -201,16 +254,8 @@ def solve(setup: FemSetup, progress: bool = True, sample_step_m: float = 0.5e-3)
     mesh = build_mesh(setup)
     basis = Basis(mesh, ElementVector(ElementHexS2()), intorder=3)
     xc, yc = setup.contact_xy_m
-    nu = setup.poisson
 
-    @BilinearForm
-    def elasticity(u, v, w):
-        e = _modulus_field(setup, w.x[0] + xc, w.x[1] + yc, w.x[2])
-        lam = e * nu / ((1 + nu) * (1 - 2 * nu))
-        mu = e / (2 * (1 + nu))
-        eu, ev = sym_grad(u), sym_grad(v)
-        return 2 * mu * ddot(eu, ev) + lam * trace(eu) * trace(ev)
-
+    elasticity = elasticity_form(setup, (xc, yc))
     K = elasticity.assemble(basis).tocsr()
     steps.update()
     r0 = setup.tissue[2]
