@@ -36,7 +36,7 @@ from skin_sim_node.solvers import (  # noqa: E402
 
 from . import calibrate  # noqa: E402
 from .fem import FemSetup, mesh_levels, reference  # noqa: E402
-from .methods import FemMethod, GridMethod, ModalMethod, skin_membrane, static_force_n  # noqa: E402
+from .methods import AllLayersVariant, FemMethod, GridMethod, ModalMethod, skin_membrane, static_force_n  # noqa: E402
 from .metrics import field_error, field_max_error, force_depth_error, peak_error  # noqa: E402
 from .scenarios import BY_NAME, SUITE, paper_ramp_n  # noqa: E402
 from .stats import table_ii, table_markdown  # noqa: E402
@@ -153,13 +153,15 @@ def speed_accuracy(out: Path, fems: dict, extra: list | None = None) -> list[dic
     rows = [score(m, fems) for m in _methods(cfg, fem_by_level) + list(extra or [])]
     _write_csv(out / "speed_accuracy.csv", rows)
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
-    styles = {"modal model": "o", "mass-spring": "s", "explicit FD": "^", "FEM": "D", "calibrated": "*"}
+    styles = {"modal model": "o", "mass-spring": "s", "explicit FD": "^", "FEM": "D", "calibrated": "*", "variant": "P"}
     for ax, key, title in ((axes[0], "force_err_mean", "force-depth error (relative RMS)"),
                            (axes[1], "field_err_mean", "surface-field error (RMS / peak depth)")):  # fmt: skip
         for r in rows:
             kind = "calibrated" if "calibrated" in r["method"] else r["kind"]
             ax.loglog(r["s_per_update"], r[key], styles.get(kind, "x"), ms=7 if kind != "calibrated" else 12, alpha=0.8)
-            ax.annotate(r["method"], (r["s_per_update"], r[key]), fontsize=5.5, xytext=(3, 2), textcoords="offset points")
+            short = r["method"].replace("modal ", "").replace(", grid ", "/g").replace("explicit ", "")
+            off = (3, 2 + 5 * (len(short) % 3))
+            ax.annotate(short, (r["s_per_update"], r[key]), fontsize=5, xytext=off, textcoords="offset points")
         ax.axvline(HAPTIC_BUDGET_S, color="r", ls="--", lw=1)
         ax.axvline(DISPLAY_BUDGET_S, color="orange", ls="--", lw=1)
         ax.text(HAPTIC_BUDGET_S, ax.get_ylim()[1], " 1 ms haptic", color="r", fontsize=7, va="top")
@@ -382,7 +384,12 @@ def main(argv=None) -> int:
     modes, grid = khz_setting(rows)
     cal = calibration(out, fems, modes, grid)
     cal_method = ModalMethod(modes, grid, cal["cfg"], f"calibrated modal {modes}x{modes}, grid {grid}")
-    rows = speed_accuracy(out, fems, extra=[cal_method])
+    # the prototype form change: one series stiffness for all depths, best over the suite (relative errors)
+    ks = np.array([fems[sc.name].stiffness_n_per_m for sc in SUITE])
+    k_series = float(np.sum(1 / ks) / np.sum(1 / ks**2))
+    variant = AllLayersVariant(modes, grid, cal["cfg"], k_series, f"variant: all layers engaged, {modes}x{modes}")
+    rows = speed_accuracy(out, fems, extra=[cal_method, variant])
+    var_row = next(r for r in rows if r["method"] == variant.label)
     rel = release_chart(out)
     base = preset("default").replace(**{"modes.m": modes, "modes.n": modes, "grid.nx": grid, "grid.ny": grid})
     val = paper_validation(out, fems, {"uncalibrated": base, "calibrated": cal["cfg"]})
@@ -391,6 +398,11 @@ def main(argv=None) -> int:
     summary = {
         "khz_setting": {"modes": modes, "grid": grid, "s_per_update": cal_row["s_per_update"]},
         "calibrated_errors": {k: v for k, v in cal_row.items() if k.startswith(("force_", "field_"))},
+        "variant_all_layers": {
+            "series_stiffness_n_per_m": k_series,
+            **{k: v for k, v in var_row.items() if k.startswith(("force_", "field_"))},
+        },
+        "fem_k_per_scenario_n_per_m": {s.name: fems[s.name].stiffness_n_per_m for s in SUITE},
         "fem_solve_s_peak": fems[sc.name].solve_s,
         "fem_over_model_per_update": fems[sc.name].solve_s / cal_row["s_per_update"],
         "convergence_last_force_change_pct": conv["rows"][-1]["force_change_pct"],

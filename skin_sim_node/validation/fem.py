@@ -147,7 +147,7 @@ def z_nodes(cfg_key: tuple, nz: tuple[int, int, int]) -> np.ndarray:
 def build_mesh(setup: FemSetup) -> MeshHex:
     """The mapped hex mesh in local coordinates (tool centre at the origin)."""
     r0 = setup.tissue[2]
-    n_band = 3
+    n_band = 3 if setup.edge_distance_m is None else 1  # a near edge leaves room for one ring only
     s_pos = axis_nodes(r0, setup.n_tool, setup.edge_distance_m or setup.half_width_m, setup.n_out, n_band)
     s_y = axis_nodes(r0, setup.n_tool, setup.half_width_m, setup.n_out, n_band)
     xs = s_pos if setup.edge_distance_m is None else np.concatenate([-s_y[:0:-1], s_pos])

@@ -148,3 +148,24 @@ class FemMethod:
 
     def seconds_per_update(self) -> float:
         return float(np.mean([r.solve_s for r in self.results.values()]))
+
+
+class AllLayersVariant(ModalMethod):
+    """Prototype of a changed model form (not the model): every layer under the tool takes part from first contact.
+
+    The paper's form engages a layer only once the tip passes its top (Fig 3) and lets the
+    deepest engaged layer saturate, which makes the static force jump at each interface
+    (``docs/model.md``). In a continuum every layer under the tool is compressed at any depth,
+    so this variant uses the Reuss series of all three layers, ``F = d / sum(1 / k_i)``, with no
+    engagement and no saturation, and the (calibrated) model's own surface shape.
+    """
+
+    kind = "variant"
+
+    def __init__(self, modes: int, grid_n: int, cfg: TissueConfig, series_stiffness_n_per_m: float, label: str):
+        super().__init__(modes, grid_n, cfg, label)
+        self.k_series = series_stiffness_n_per_m
+
+    def run(self, sc: Scenario, fem: FemResult) -> Outcome:
+        o = super().run(sc, fem)
+        return Outcome(self.k_series * sc.depths_m, o.field_m)
