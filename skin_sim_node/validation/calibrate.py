@@ -164,3 +164,42 @@ def main(argv=None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+def fit_membrane(datasets: list[IndentData], cfg: TissueConfig, n: int = 59) -> dict:
+    """The mass-spring / FD baseline's two static parameters: tension ``T`` and foundation ``k_A``.
+
+    A single membrane has no layer structure, so these two are all it has: ``T`` sets how far
+    the indentation spreads, ``k_A`` (the Kelvin-Voigt grid's ground springs) how stiff it is.
+    Fitted to the same force and field data as :func:`fit` (contact offsets are ignored:
+    the membrane is homogeneous).
+    """
+    from skin_sim_node.solvers import static_indentation
+
+    from .methods import skin_membrane
+
+    def response(p):
+        mem = skin_membrane(cfg, float(np.exp(p[0])), float(np.exp(p[1])))
+        f1, u1 = static_indentation(mem, n, n, 1.0, (0.0, 0.0), cfg.tool_radius_m)
+        step = mem.size_x_m / (n + 1)
+        xs = -0.5 * mem.size_x_m + step * np.arange(1, n + 1)
+        return f1, xs, u1
+
+    def fun(p):
+        from scipy.interpolate import RegularGridInterpolator
+
+        f1, xs, u1 = response(p)
+        interp = RegularGridInterpolator((xs, xs), u1, bounds_error=False, fill_value=0.0)
+        out = []
+        for d in datasets:
+            out.append((f1 * d.depths_m - d.forces_n) / np.sqrt(np.mean(d.forces_n**2)) / np.sqrt(d.depths_m.size))
+            if d.field_xy_m is not None:
+                rel = d.field_xy_m - np.array([d.x_m, d.y_m])
+                u = interp(rel[:, ::-1]) * d.depths_m[-1]
+                out.append((u - d.field_down_m) / d.depths_m[-1] / np.sqrt(u.size))
+        return np.concatenate(out)
+
+    p0 = np.log([sum(la.tension_n_per_m for la in cfg.layers), 1e4])
+    sol = least_squares(fun, p0, diff_step=1e-4)
+    return {"tension_n_per_m": float(np.exp(sol.x[0])), "foundation_n_per_m3": float(np.exp(sol.x[1])),
+            "residual_rms": float(np.sqrt(np.mean(sol.fun**2) * sol.fun.size / len(datasets)))}  # fmt: skip
