@@ -139,8 +139,8 @@ class FemMethod:
 
     kind = "FEM"
 
-    def __init__(self, results: dict[str, FemResult], label: str):
-        self.results, self.label = results, label
+    def __init__(self, results: dict[str, FemResult], label: str, level: int):
+        self.results, self.label, self.level = results, label, level
 
     def run(self, sc: Scenario, fem: FemResult) -> Outcome:
         r = self.results[sc.name]
