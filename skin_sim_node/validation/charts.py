@@ -34,7 +34,7 @@ from skin_sim_node.solvers import (  # noqa: E402
     static_indentation,
 )
 
-from . import calibrate  # noqa: E402
+from . import calibrate, fem  # noqa: E402
 from .fem import FemSetup, mesh_levels, reference  # noqa: E402
 from .methods import AllLayersVariant, FemMethod, GridMethod, ModalMethod, skin_membrane, static_force_n  # noqa: E402
 from .metrics import field_error, field_max_error, force_depth_error, peak_error  # noqa: E402
@@ -392,6 +392,7 @@ def paper_validation(out: Path, fems: dict, cfgs: dict) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart validation", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(OUT))
+    ap.add_argument("--prune-cache", action="store_true", help="delete cached FEM solves this run did not use")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -435,6 +436,10 @@ def main(argv=None) -> int:
         "paper_validation": {k: {kk: vv for kk, vv in v.items() if kk != "table"} for k, v in val.items()},
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    if a.prune_cache:
+        for f in fem.CACHE_DIR.glob("*.npz"):
+            if f.stem not in fem.USED_KEYS:
+                f.unlink()
     print(json.dumps(summary, indent=1))
     return 0
 

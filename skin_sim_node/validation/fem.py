@@ -57,6 +57,7 @@ from skin_sim_node.model.config import _LAYER_DEFAULTS, _POISSON, TissueConfig, 
 
 FEM_VERSION = 1  # bump when the discretisation changes: part of the cache key
 CACHE_DIR = Path(__file__).resolve().parents[2] / "docs" / "validation" / "fem_cache"
+USED_KEYS: set[str] = set()  # cache keys asked for in this process (for pruning stale entries)
 
 
 @dataclass(frozen=True)
@@ -305,6 +306,7 @@ def solve(setup: FemSetup, progress: bool = True, sample_step_m: float = 0.5e-3)
 
 def reference(setup: FemSetup, cache_dir: Path | None = CACHE_DIR, progress: bool = True) -> FemResult:
     """:func:`solve` with an on-disk cache keyed by the hash of ``setup``."""
+    USED_KEYS.add(setup.key())
     path = None if cache_dir is None else Path(cache_dir) / f"{setup.key()}.npz"
     if path is not None and path.exists():
         z = np.load(path)
