@@ -1,0 +1,205 @@
+"""``skin-sim calibrate``: fit the model parameters its form cannot take from first principles.
+
+Fitted (log-parameters, ``scipy.optimize.least_squares``):
+
+- ``layers.{epidermis,dermis,fat}.stiffness_n_per_m``: the Kelvin-Voigt springs ``k`` of
+  eq 6. The paper gives none; the default (Sneddon's flat punch on a half-space of each
+  layer's material) ignores each layer's thickness, the load spreading of the layers above
+  and the fixed bottom, so it cannot be right for a thin stiff epidermis on soft dermis.
+- ``patch.size_x_m = patch.size_y_m`` (only when surface fields are given): the membrane's
+  static shape does not depend on ``T`` (it cancels when the shape is normalised to the
+  depth, ``docs/model.md`` section 3), so the patch side is the one parameter that sets how
+  far the static indentation spreads.
+
+Not fitted: thicknesses and interfaces (measured geometry), densities and tensions (they set
+only the dynamics, which static data cannot see), dampers ``b`` (no rate data in a static FEM).
+
+Data: the FEM reference (force-depth curves of the suite's peak and valley scenarios plus the
+surface field at each one's deepest point), or a user's CSV with columns ``x, y, depth, force``
+(metres, newtons; force only). Output: a config YAML (``tissue.*`` parameters) and the residuals.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from skin_sim_node.model import SkinModel, TissueConfig, preset
+from skin_sim_node.model.config import LAYER_NAMES, dump_yaml
+
+from .methods import static_force_n
+
+K_NAMES = tuple(f"layers.{n}.stiffness_n_per_m" for n in LAYER_NAMES)
+PATCH_NAMES = ("patch.size_x_m", "patch.size_y_m")
+
+
+@dataclass
+class IndentData:
+    """Force-depth samples at one contact, optionally the surface field at the deepest one."""
+
+    x_m: float
+    y_m: float
+    depths_m: np.ndarray
+    forces_n: np.ndarray
+    field_xy_m: np.ndarray | None = None  # (n, 2) sample points
+    field_down_m: np.ndarray | None = None  # (n,) downward surface displacement at depths_m[-1]
+
+
+def model_response(cfg: TissueConfig, data: IndentData) -> tuple[np.ndarray, np.ndarray | None]:
+    """The model's static forces at ``data.depths_m`` and its surface field at the last depth."""
+    model = SkinModel(cfg)
+    forces = np.array([static_force_n(model, data.x_m, data.y_m, d) for d in data.depths_m])
+    field = None
+    if data.field_xy_m is not None:
+        field = np.array([model.surface_displacement_at(x, y) for x, y in data.field_xy_m])
+    return forces, field
+
+
+def residuals(cfg: TissueConfig, datasets: list[IndentData]) -> np.ndarray:
+    """Per-set force residuals / rms(force) and field residuals / depth, each set weighted equally."""
+    out = []
+    for d in datasets:
+        f, u = model_response(cfg, d)
+        scale = np.sqrt(np.mean(d.forces_n**2))
+        out.append((f - d.forces_n) / scale / np.sqrt(f.size))
+        if u is not None:
+            out.append((u - d.field_down_m) / d.depths_m[-1] / np.sqrt(u.size))
+    return np.concatenate(out)
+
+
+def _apply(base: TissueConfig, log_p: np.ndarray, fit_patch: bool) -> TissueConfig:
+    changes = dict(zip(K_NAMES, np.exp(log_p[:3]).tolist()))
+    if fit_patch:
+        side = float(np.exp(log_p[3]))
+        changes.update({PATCH_NAMES[0]: side, PATCH_NAMES[1]: side})
+    return base.replace(**changes)
+
+
+@dataclass
+class Fit:
+    cfg: TissueConfig
+    params: dict
+    residual_rms: float
+    residual_rms_start: float
+    n_evals: int
+
+
+def fit(datasets: list[IndentData], base: TissueConfig | None = None, fit_patch: bool | None = None) -> Fit:
+    """Least-squares fit of the layer springs (and the patch side when fields are given)."""
+    base = base or preset("default")
+    if fit_patch is None:
+        fit_patch = any(d.field_xy_m is not None for d in datasets)
+    p0 = [np.log(base.as_flat()[n]) for n in K_NAMES]
+    lo, hi = [np.log(1e-3)] * 3, [np.log(1e7)] * 3
+    if fit_patch:
+        p0.append(np.log(base.patch_size_m[0]))
+        lo.append(np.log(2.05 * base.tool_radius_m))
+        hi.append(np.log(min(base.sheet_size_m)))
+    p0 = np.clip(np.array(p0), np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+
+    def fun(p):
+        return residuals(_apply(base, p, fit_patch), datasets)
+
+    r0 = fun(p0)
+    sol = least_squares(fun, p0, bounds=(lo, hi), x_scale=1.0, diff_step=1e-4, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    cfg = _apply(base, sol.x, fit_patch)
+    names = list(K_NAMES) + ([PATCH_NAMES[0]] if fit_patch else [])
+    params = {n: float(np.exp(v)) for n, v in zip(names, sol.x)}
+    rms = float(np.sqrt(np.mean(sol.fun**2) * sol.fun.size / len(datasets)))
+    rms0 = float(np.sqrt(np.mean(r0**2) * r0.size / len(datasets)))
+    return Fit(cfg, params, rms, rms0, int(sol.nfev))
+
+
+def read_csv(path: str | Path) -> list[IndentData]:
+    """A measured indentation CSV (columns x, y, depth, force; SI) grouped by contact point."""
+    rows = list(csv.DictReader(open(path)))
+    groups: dict[tuple[float, float], list] = {}
+    for r in rows:
+        groups.setdefault((float(r["x"]), float(r["y"])), []).append((float(r["depth"]), float(r["force"])))
+    out = []
+    for (x, y), pts in groups.items():
+        pts.sort()
+        out.append(IndentData(x, y, np.array([p[0] for p in pts]), np.array([p[1] for p in pts])))
+    return out
+
+
+def fem_datasets(progress: bool = True) -> list[IndentData]:
+    """Calibration data from the converged FEM: the suite's peak and valley scenarios."""
+    from .charts import converged_fem
+    from .scenarios import BY_NAME
+
+    out = []
+    for name in ("peak-1layer", "peak-2layer", "peak-3layer", "valley-3layer"):
+        sc = BY_NAME[name]
+        fem = converged_fem(sc, progress)
+        X, Y = np.meshgrid(fem.sample_x_m[::2], fem.sample_y_m[::2])
+        field = fem.surface_per_depth[::2, ::2] * sc.max_depth_m
+        xy = np.stack([X.ravel(), Y.ravel()], 1)
+        out.append(IndentData(*sc.contact_xy_m, sc.depths_m, fem.force_n(sc.depths_m), xy, field.ravel()))
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="skin-sim calibrate", description=__doc__.split("\n")[0])
+    ap.add_argument("--csv", help="measured indentation CSV (x, y, depth, force); default: the FEM reference")
+    ap.add_argument("--out", default="calibrated.yaml", help="config YAML to write (tissue.* parameters)")
+    ap.add_argument("--modes", type=int, default=None, help="modes per axis of the model being fitted")
+    a = ap.parse_args(argv)
+    base = preset("default")
+    if a.modes:
+        base = base.replace(**{"modes.m": a.modes, "modes.n": a.modes})
+    data = read_csv(a.csv) if a.csv else fem_datasets()
+    res = fit(data, base)
+    dump_yaml({f"tissue.{k}": v for k, v in res.cfg.as_flat().items()}, a.out)
+    print(json.dumps({"params": res.params, "residual_rms_start": res.residual_rms_start, "residual_rms": res.residual_rms,
+                      "evaluations": res.n_evals, "out": a.out}, indent=2))  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+
+def fit_membrane(datasets: list[IndentData], cfg: TissueConfig, n: int = 59) -> dict:
+    """The mass-spring / FD baseline's two static parameters: tension ``T`` and foundation ``k_A``.
+
+    A single membrane has no layer structure, so these two are all it has: ``T`` sets how far
+    the indentation spreads, ``k_A`` (the Kelvin-Voigt grid's ground springs) how stiff it is.
+    Fitted to the same force and field data as :func:`fit` (contact offsets are ignored:
+    the membrane is homogeneous).
+    """
+    from skin_sim_node.solvers import static_indentation
+
+    from .methods import skin_membrane
+
+    def response(p):
+        mem = skin_membrane(cfg, float(np.exp(p[0])), float(np.exp(p[1])))
+        f1, u1 = static_indentation(mem, n, n, 1.0, (0.0, 0.0), cfg.tool_radius_m)
+        step = mem.size_x_m / (n + 1)
+        xs = -0.5 * mem.size_x_m + step * np.arange(1, n + 1)
+        return f1, xs, u1
+
+    def fun(p):
+        from scipy.interpolate import RegularGridInterpolator
+
+        f1, xs, u1 = response(p)
+        interp = RegularGridInterpolator((xs, xs), u1, bounds_error=False, fill_value=0.0)
+        out = []
+        for d in datasets:
+            out.append((f1 * d.depths_m - d.forces_n) / np.sqrt(np.mean(d.forces_n**2)) / np.sqrt(d.depths_m.size))
+            if d.field_xy_m is not None:
+                rel = d.field_xy_m - np.array([d.x_m, d.y_m])
+                u = interp(rel[:, ::-1]) * d.depths_m[-1]
+                out.append((u - d.field_down_m) / d.depths_m[-1] / np.sqrt(u.size))
+        return np.concatenate(out)
+
+    p0 = np.log([sum(la.tension_n_per_m for la in cfg.layers), 1e4])
+    sol = least_squares(fun, p0, diff_step=1e-4)
+    return {"tension_n_per_m": float(np.exp(sol.x[0])), "foundation_n_per_m3": float(np.exp(sol.x[1])),
+            "residual_rms": float(np.sqrt(np.mean(sol.fun**2) * sol.fun.size / len(datasets)))}  # fmt: skip
