@@ -36,7 +36,15 @@ from skin_sim_node.solvers import (  # noqa: E402
 
 from . import calibrate, fem  # noqa: E402
 from .fem import FemSetup, mesh_levels, reference  # noqa: E402
-from .methods import AllLayersVariant, FemMethod, GridMethod, ModalMethod, skin_membrane, static_force_n  # noqa: E402
+from .methods import (  # noqa: E402
+    AllLayersVariant,
+    FemMethod,
+    GridMethod,
+    ModalMethod,
+    model_config,
+    skin_membrane,
+    static_force_n,
+)
 from .metrics import field_error, field_max_error, force_depth_error, peak_error  # noqa: E402
 from .scenarios import BY_NAME, SUITE, paper_ramp_n  # noqa: E402
 from .stats import table_ii, table_markdown  # noqa: E402
@@ -136,6 +144,7 @@ def convergence(out: Path) -> dict:
 
 def _methods(cfg, fem_by_level):
     ms = [ModalMethod(m, g) for g in MODAL_GRIDS for m in MODAL_MODES]
+    ms += [ModalMethod(MODAL_MODES[-1], g, adaptive=True) for g in MODAL_GRIDS]  # the shipped default (issue 7)
     mem = skin_membrane(cfg)
     ms += [GridMethod("mass-spring", n, mem, cfg) for n in GRID_NODES]
     ms += [GridMethod("explicit FD", n, mem, cfg) for n in GRID_NODES]
@@ -243,15 +252,23 @@ def release_chart(out: Path) -> dict:
     return summary
 
 
+KHZ_SETTING = (40, 120)
+"""The model setting scored as "1 kHz-capable": the most modes and the finer grid of the chart.
+Fixed rather than picked from this run's timings, so that a noisy run cannot change which setting
+is calibrated; :func:`khz_setting` prints its measured time against the 1 ms budget."""
+
+
 def khz_setting(rows: list[dict]) -> tuple[int, int]:
-    """The modal setting with the most modes (then the finer grid) that ran under 1 ms per update."""
-    ok = [r for r in rows if r["kind"] == "modal model" and r["s_per_update"] < HAPTIC_BUDGET_S]
-    best = max(ok, key=lambda r: (int(r["method"].split()[1].split("x")[0]), int(r["method"].split()[-1])))
-    return int(best["method"].split()[1].split("x")[0]), int(best["method"].split()[-1])
+    """:data:`KHZ_SETTING`, with its measured time per update (step + full grid) printed."""
+    modes, grid = KHZ_SETTING
+    row = next(r for r in rows if r["method"] == f"modal {modes}x{modes}, grid {grid}")
+    verdict = "within" if row["s_per_update"] < HAPTIC_BUDGET_S else "OVER"
+    print(f"1 kHz setting {modes}x{modes}, grid {grid}: {row['s_per_update'] * 1e3:.3f} ms per update, {verdict} the 1 ms budget")
+    return modes, grid
 
 
 def calibration(out: Path, fems: dict, modes: int, grid: int) -> dict:
-    base = preset("default").replace(**{"modes.m": modes, "modes.n": modes, "grid.nx": grid, "grid.ny": grid})
+    base = model_config(modes, grid)  # fixed modes x modes, as timed in the chart
     res = calibrate.fit(calibrate.fem_datasets(), base)
     dump_yaml({f"tissue.{k}": v for k, v in res.cfg.as_flat().items()}, out / "calibrated.yaml")
     before, after = ModalMethod(modes, grid, base, "uncalibrated"), ModalMethod(modes, grid, res.cfg, "calibrated")
@@ -415,7 +432,7 @@ def main(argv=None) -> int:
     rows = speed_accuracy(out, fems, extra=[cal_method, variant, *cal_grids])
     var_row = next(r for r in rows if r["method"] == variant.label)
     rel = release_chart(out)
-    base = preset("default").replace(**{"modes.m": modes, "modes.n": modes, "grid.nx": grid, "grid.ny": grid})
+    base = model_config(modes, grid)
     val = paper_validation(out, fems, {"uncalibrated": base, "calibrated": cal["cfg"]})
     sc = BY_NAME["peak-3layer"]
     cal_row = next(r for r in rows if r["method"] == cal_method.label)

@@ -47,10 +47,13 @@ def _on_samples(xs, ys, field, fem: FemResult) -> np.ndarray:
     return interp(np.stack([Y.ravel(), X.ravel()], axis=1)).reshape(X.shape)
 
 
-def model_config(modes: int, grid_n: int, base: TissueConfig | None = None) -> TissueConfig:
-    """``base`` (default preset) with ``modes x modes`` terms and a ``grid_n``-square output grid."""
+def model_config(modes: int, grid_n: int, base: TissueConfig | None = None, adaptive: bool = False) -> TissueConfig:
+    """``base`` (default preset) with a ``grid_n``-square output grid and either a fixed ``modes x modes``
+    (``lod.adaptive_modes`` off, so the count is what the label says) or the adaptive mode count."""
     base = base or preset("default")
-    return base.replace(**{"modes.m": modes, "modes.n": modes, "grid.nx": grid_n, "grid.ny": grid_n})
+    return base.replace(
+        **{"modes.m": modes, "modes.n": modes, "grid.nx": grid_n, "grid.ny": grid_n, "lod.adaptive_modes": adaptive}
+    )
 
 
 def static_force_n(model: SkinModel, x: float, y: float, depth_m: float) -> float:
@@ -64,10 +67,14 @@ class ModalMethod:
 
     kind = "modal model"
 
-    def __init__(self, modes: int, grid_n: int = 120, cfg: TissueConfig | None = None, label: str | None = None):
-        self.cfg = model_config(modes, grid_n, cfg)
+    def __init__(
+        self, modes: int, grid_n: int = 120, cfg: TissueConfig | None = None, label: str | None = None, adaptive: bool = False
+    ):
+        self.cfg = model_config(modes, grid_n, cfg, adaptive)
         self.model = SkinModel(self.cfg)
-        self.label = label or f"modal {modes}x{modes}, grid {grid_n}"
+        tol_um = self.cfg.lod.tolerance_m * 1e6
+        default = f"modal adaptive ({tol_um:g} um), grid {grid_n}" if adaptive else f"modal {modes}x{modes}, grid {grid_n}"
+        self.label = label or default
 
     def run(self, sc: Scenario, fem: FemResult) -> Outcome:
         x, y = sc.contact_xy_m
