@@ -227,6 +227,7 @@ class SkinSimNode(Node):
             s = self.session
             age_ms = (time.perf_counter_ns() - s.pose_rx_ns) * 1e-6 if s.pose_rx_ns else float("inf")
             counts = dict(s.counts)
+            regime = dict(s.regime_counts)
             stale, force, flags, n_aff = s.stale, s.force_n, s.model.flags, s.model.n_affected
             pose_ticks = self._n_pose_ticks
             overruns = self._loop.overruns
@@ -263,6 +264,7 @@ class SkinSimNode(Node):
             "idle_unpublished_total": str(self._n_idle_skipped),
         }
         values.update({f"count_{k}": str(v) for k, v in sorted(counts.items())})
+        values.update({f"regime_{k}": str(v) for k, v in sorted(regime.items())})  # docs/stability.md
         st = DiagnosticStatus()
         st.name = f"{self.get_fully_qualified_name()}: haptic loop"
         st.hardware_id = "skin_sim"

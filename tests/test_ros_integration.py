@@ -193,6 +193,9 @@ def test_bad_input_rejected_logged_once_node_survives(scene, monitor):
         after_bad.add(stamp)
         pub.publish(cv.fill_pose(msg, stamp, "tissue", (0.0, 0.0, -1e-3)))
         time.sleep(0.002)
+    for i in range(1, 41):  # then down through the bottom at 0.1 m/s: a model-regime event, not a rejection
+        pub.publish(cv.fill_pose(msg, monitor.now_ns(), "tissue", (0.0, 0.0, -1e-3 - 2e-4 * i)))
+        time.sleep(0.002)
     sent_all = monitor.now_ns()
     monitor.wait_for(lambda: any(rx > sent_all for rx, _, _, _ in list(monitor.diagnostics)), 10, "diagnostics after the input")
     log = node.log()
@@ -201,6 +204,7 @@ def test_bad_input_rejected_logged_once_node_survives(scene, monitor):
     d = monitor.diagnostics[-1][1]
     assert int(d["count_non_finite_input"]) >= 2 and int(d["count_unknown_frame"]) >= 2
     assert int(d["count_stamp_backwards"]) >= 2
+    assert int(d["regime_tool_below_tissue"]) >= 1 and log.count("[tool_below_tissue]") == 1
     f = monitor.forces()
     assert np.all(np.isfinite(f[:, 2]))
     answered = [fz for _, s, fz in list(monitor.wrench) if s in after_bad]
