@@ -176,16 +176,19 @@ def speed_accuracy(out: Path, fems: dict, extra: list | None = None) -> list[dic
     fem_by_level = {lvl: {sc.name: fem_for(sc, lvl) for sc in SUITE} for lvl in COARSE_LEVELS}
     rows = [score(m, fems) for m in _methods(cfg, fem_by_level) + list(extra or [])]
     _write_csv(out / "speed_accuracy.csv", rows)
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
-    styles = {"modal model": "o", "mass-spring": "s", "explicit FD": "^", "FEM": "D", "calibrated": "*", "variant": "P"}
+    groups = _chart_groups(rows)
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
     for ax, key, title in ((axes[0], "force_err_mean", "force-depth error (relative RMS)"),
                            (axes[1], "field_err_mean", "surface-field error (RMS / peak depth)")):  # fmt: skip
-        for r in rows:
-            kind = "calibrated" if "calibrated" in r["method"] else r["kind"]
-            ax.loglog(r["s_per_update"], r[key], styles.get(kind, "x"), ms=7 if kind != "calibrated" else 12, alpha=0.8)
-            short = r["method"].replace("modal ", "").replace(", grid ", "/g").replace("explicit ", "")
-            off = (3, 2 + 5 * (len(short) % 3))
-            ax.annotate(short, (r["s_per_update"], r[key]), fontsize=5, xytext=off, textcoords="offset points")
+        for (label, marker), members in groups.items():
+            xs = [r["s_per_update"] for r, _ in members]
+            ys = [r[key] for r, _ in members]
+            big = marker in "*P"
+            ax.loglog(xs, ys, marker=marker, ls="-" if len(members) > 1 else "", lw=0.8, ms=11 if big else 6,
+                      alpha=0.85, label=label)  # fmt: skip
+            for (_r, tag), x, y in zip(members, xs, ys):
+                if tag:
+                    ax.annotate(tag, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
         ax.axvline(HAPTIC_BUDGET_S, color="r", ls="--", lw=1)
         ax.axvline(DISPLAY_BUDGET_S, color="orange", ls="--", lw=1)
         ax.text(HAPTIC_BUDGET_S, ax.get_ylim()[1], " 1 ms haptic", color="r", fontsize=7, va="top")
@@ -193,13 +196,32 @@ def speed_accuracy(out: Path, fems: dict, extra: list | None = None) -> list[dic
         ax.set_xlabel("compute time per update on this machine (s)")
         ax.set_ylabel(title + ", mean over the suite")
         ax.grid(True, which="both", alpha=0.2)
-    handles = [plt.Line2D([], [], marker=m, ls="", label=k) for k, m in styles.items()]
-    axes[0].legend(handles=handles, fontsize=7, loc="lower left")
+    axes[1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="numbers: modes / nodes / mesh level",
+                   title_fontsize=6)  # fmt: skip
     fig.suptitle("Speed vs accuracy against the converged FEM (one run on this machine)", fontsize=10)
     fig.tight_layout()
     fig.savefig(out / "speed_accuracy.png", dpi=120)
     plt.close(fig)
     return rows
+
+
+def _chart_groups(rows: list[dict]) -> dict:
+    """Chart series: one line per method family (points tagged with their modes, nodes or level)."""
+    groups: dict = {}
+    for r in rows:
+        name = r["method"]
+        if name.startswith("modal ") and "adaptive" not in name:
+            modes, grid = name[len("modal ") :].split(", grid ")
+            key, tag = (f"modal model, grid {grid}", "o"), modes.split("x")[0]
+        elif name.startswith("FEM level"):
+            key, tag = ("FEM, coarser meshes", "D"), name.split()[-1]
+        elif r["kind"] in ("mass-spring", "explicit FD") and "calibrated" not in name:
+            key, tag = (f"{r['kind']} grid", "s" if r["kind"] == "mass-spring" else "^"), name.split()[-1].split("x")[0]
+        else:
+            marker = "*" if "calibrated" in name else ("P" if r["kind"] == "variant" else "v")
+            key, tag = (name, marker), ""
+        groups.setdefault(key, []).append((r, tag))
+    return groups
 
 
 def release_chart(out: Path) -> dict:
