@@ -36,8 +36,8 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         "max_force_rate_n_per_s", float, 1000.0, "N/s",
         "bound on the force's rate of change (0 disables): the fastest rise the default tissue gives a 0.1 m/s probing "
-        "press (epidermis k = 9.7 kN/m: ~1000 N/s) passes, while a step from an edge, teleport or pop-through is spread "
-        "over ticks (3.3 N over 3.3 ms). See docs/stability.md", 0.0, 1e6, False,
+        "press (epidermis k = 9.7 kN/m: ~1000 N/s) passes, while a step from an edge, teleport or fast stab is spread "
+        "over ticks (3.3 N over 3.3 ms); on the receive clock, with a 1 ms allowance. See docs/stability.md", 0.0, 1e6, False,
     ),
     ParamSpec(
         "teleport_distance_m", float, 0.02, "m",

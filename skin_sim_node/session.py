@@ -45,6 +45,12 @@ REGIME_EVENTS = frozenset(
 """Counted in :attr:`HapticSession.regime_counts`, not :attr:`HapticSession.counts` (rejections and safety
 actions): they occur in ordinary use (every fast release separates) and the model bounds them itself."""
 
+RATE_ALLOWANCE_S = 1e-3
+"""Allowance of the force-rate bound (a token bucket on the caller's clock): over any window of W
+seconds the published force changes by at most ``max_force_rate_n_per_s * (W + RATE_ALLOWANCE_S)``.
+A tick may spend what earlier ticks left unspent, up to one 1 kHz servo period, so poses processed
+in a burst after a stall share one period's change, and a stamp that jumps ahead buys nothing."""
+
 DEGENERATE_RETURN_S = 1.0
 """A layer whose fundamental mode needs longer than this for a quarter period (``pi / (2 lambda_11)``)
 to return has a degenerate wave speed: skin visibly recovers from an indent well within a second,
@@ -104,6 +110,7 @@ class HapticSession:
         self._advanced_since_pose_ns = 0
         self.stale = True
         self.force_n = 0.0
+        self._rate_budget_n = math.inf  # force-rate token bucket, capped at each tick
         self.answered_stamp_ns = 0
         self.velocity = (0.0, 0.0, 0.0)
         self.set_model(model)
@@ -266,14 +273,17 @@ class HapticSession:
             self._event(FORCE_CLAMPED, f"force {force:.2f} N clamped to max_force_n = {p.max_force_n} N")
             force = p.max_force_n
         if p.max_force_rate_n_per_s > 0:
-            step = p.max_force_rate_n_per_s * max(dt, max(elapsed_ns, 0) * 1e-9)  # a zero-dt pose still gets its tick
-            if abs(force - self.force_n) > step:
+            rate = p.max_force_rate_n_per_s
+            budget = min(self._rate_budget_n + rate * max(elapsed_ns, 0) * 1e-9, rate * RATE_ALLOWANCE_S)
+            if abs(force - self.force_n) > budget:
                 self._event(
                     FORCE_RATE_LIMITED,
-                    f"force step {self.force_n:.3f} -> {force:.3f} N in {dt * 1e3:.2f} ms limited to "
-                    f"max_force_rate_n_per_s = {p.max_force_rate_n_per_s:g} N/s",
+                    f"force step {self.force_n:.3f} -> {force:.3f} N after {max(elapsed_ns, 0) * 1e-6:.2f} ms limited "
+                    f"to {budget:.3f} N by max_force_rate_n_per_s = {rate:g} N/s",
                 )
-                force = self.force_n + math.copysign(step, force - self.force_n)
+                force = self.force_n + math.copysign(budget, force - self.force_n)
+            self._rate_budget_n = budget - abs(force - self.force_n)
+            force = min(force, p.max_force_n)  # the clamp is the hard limit, also right after a live lowering
         if stale:
             force = 0.0  # a safety stop is not rate limited
         self.force_n = force

@@ -9,6 +9,7 @@ from skin_sim_node.session import (
     FORCE_CLAMPED,
     FUTURE_STAMP,
     NON_FINITE,
+    RATE_ALLOWANCE_S,
     STALE_STAMP,
     STAMP_BACKWARDS,
     STAMP_DUPLICATE,
@@ -133,3 +134,39 @@ def test_non_finite_model_state_recovers(default_cfg):
         f = s.tick(T0 + i * MS, MS)
         assert math.isfinite(f)
     assert math.isfinite(s.model.energy())
+
+
+def _held_press(s, depth_m=1e-3, n=400):
+    """Press to ``depth_m`` at 5 mm/s and hold: returns the next stamp."""
+    st = T0
+    for i in range(n):
+        st = T0 + i * MS
+        s.on_pose(st, "tissue", (0.0, 0.0, -depth_m * min(1.0, (i + 1) / 200)), now_ns=st, rx_ns=st)
+        s.tick(st, MS)
+    return st + MS
+
+
+def test_force_rate_bound_holds_on_the_caller_clock_in_a_burst(default_cfg):
+    """Poses stamped 1 ms apart but processed 20 us apart (DDS catching up) share one allowance."""
+    rate = 100.0
+    s = HapticSession(SkinModel(default_cfg), SessionParams(max_force_rate_n_per_s=rate, max_stamp_age_s=0.0))
+    st = _held_press(s, depth_m=30e-6)  # epidermis only: 0.29 N
+    f0 = s.force_n
+    assert f0 > 0.2
+    s.counts.clear()
+    forces = []
+    for k in range(5):  # a fast lift: each pose alone would allow rate * 1 ms
+        stamp = st + k * MS
+        s.on_pose(stamp, "tissue", (0.0, 0.0, -30e-6 + 5e-6 * (k + 1)), now_ns=stamp, rx_ns=stamp)
+        forces.append(s.tick(stamp, 20_000))
+    assert abs(forces[-1] - f0) <= rate * (5 * 20e-6 + RATE_ALLOWANCE_S) + 1e-12
+    assert s.counts["force_rate_limited"] >= 1
+
+
+def test_live_lowering_of_max_force_applies_at_once(default_cfg):
+    s = HapticSession(SkinModel(default_cfg), SessionParams(max_force_rate_n_per_s=10.0, max_stamp_age_s=0.0))
+    st = _held_press(s, depth_m=30e-6, n=1000)
+    assert s.force_n > 0.2
+    s.params = SessionParams(max_force_rate_n_per_s=10.0, max_stamp_age_s=0.0, max_force_n=0.05)
+    s.on_pose(st, "tissue", (0.0, 0.0, -30e-6), now_ns=st, rx_ns=st)
+    assert s.tick(st, MS) <= 0.05

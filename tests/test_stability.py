@@ -16,6 +16,7 @@ from skin_sim_node.session import (
     DEGENERATE_WAVE_SPEED,
     FORCE_RATE_LIMITED,
     PATCH_CLIPPED,
+    RATE_ALLOWANCE_S,
     REUSS_BOUND,
     TELEPORT,
     TICK_CLAMPED,
@@ -54,22 +55,29 @@ class Run:
         self.stamp = T0
         self.forces = [0.0]
         self.dts = [0.0]
+        self.wall_s = [0.0]  # caller clock at each tick
 
     def feed(self, samples):
+        """``dt = 0``: a pose processed at the same caller-clock instant as the previous one
+        (a burst); its stamp is 1 us later, since a repeated stamp is rejected as a duplicate."""
         for dt, xyz, v in samples:
             dt_ns = int(round(dt * 1e9))
-            self.stamp += dt_ns
+            self.stamp += max(dt_ns, 1000)
             self.s.on_twist(self.stamp, "tissue", v)
             self.s.on_pose(self.stamp, "tissue", xyz)
             self.forces.append(self.s.tick(self.stamp, dt_ns))
             self.dts.append(dt)
+            self.wall_s.append(self.wall_s[-1] + dt)
         return self
 
     def check_invariants(self):
         """Finite, within the device limit, rate bounded, every event kind logged once."""
-        f, dt = np.array(self.forces), np.array(self.dts)
+        f = np.array(self.forces)
         assert np.all(np.isfinite(f)) and f.min() >= 0.0 and f.max() <= DEVICE_LIMIT_N
-        assert np.all(np.abs(np.diff(f)) <= RATE * np.minimum(dt[1:], self.s.params.max_dt_s) + 1e-12)
+        rate, t = self.s.params.max_force_rate_n_per_s, np.array(self.wall_s)
+        # the documented bound: over any caller-clock window W, |dF| <= rate (W + RATE_ALLOWANCE_S)
+        window = rate * (np.abs(t[:, None] - t[None, :]) + RATE_ALLOWANCE_S)
+        assert np.all(np.abs(f[:, None] - f[None, :]) <= window + 1e-12)
         assert len(self.logged) == len(set(self.logged))
         assert np.all(np.isfinite(self.s.model.q)) and np.all(np.isfinite(self.s.model.v))
         return self
@@ -117,12 +125,12 @@ def test_tool_deeper_than_the_tissue_is_held_at_the_bottom(default_cfg):
 
 def test_sliding_off_the_sheet_drops_force_at_the_bounded_rate(default_cfg):
     half = default_cfg.sheet_size_m[0] / 2
-    r = Run(default_cfg).feed(press(2e-3, 0.1, x=half - 5e-3))
+    r = Run(default_cfg, max_force_rate_n_per_s=5.0).feed(press(2e-3, 0.1, x=half - 5e-3))  # 5 mN per tick: it binds
     f_on = r.forces[-1]
     xs = np.linspace(half - 5e-3, half + 5e-3, 50)  # 10 mm in 50 ms: 0.2 m/s drag over the edge
     r.feed([(1e-3, (x, 0.0, -2e-3), (0.2, 0.0, 0.0)) for x in xs] + [(1e-3, (xs[-1], 0.0, -2e-3), (0.0, 0.0, 0.0))] * 50)
     r.check_invariants()
-    assert {TOOL_OFF_SHEET, PATCH_CLIPPED} <= r.events()
+    assert {TOOL_OFF_SHEET, PATCH_CLIPPED, FORCE_RATE_LIMITED} <= r.events()
     assert f_on > 0.01 and r.forces[-1] == 0.0
 
 
@@ -139,10 +147,11 @@ def test_contact_on_the_patch_and_sheet_edge(default_cfg):
 
 
 def test_teleport_between_ticks_restarts_contact_rate_bounded(default_cfg):
-    r = Run(default_cfg).feed(press(3e-3, 0.1))
+    r = Run(default_cfg, max_force_rate_n_per_s=5.0).feed(press(3e-3, 0.1))  # 5 mN per tick: it binds
     r.feed([(1e-3, (0.03, 0.02, -0.5e-3), (0.0, 0.0, 0.0))] * 30)  # 36 mm away in one tick
     r.check_invariants()
     assert TELEPORT in r.events() and r.s.counts[TELEPORT] == 1
+    assert FORCE_RATE_LIMITED in r.events()
 
 
 def test_paper_wave_speed_is_degenerate_and_released_from_rest(paper_cfg):
