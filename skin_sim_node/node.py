@@ -96,6 +96,7 @@ class SkinSimNode(Node):
         self._last_tick_ns = time.perf_counter_ns()
         self._last_diag_ns = self._last_tick_ns
         self._last_pub_ns = 0  # last wrench publish (idle heartbeat)
+        self._last_pub_force = 0.0  # last published force (N): the idle heartbeat holds back only zeros
         self._n_idle_skipped = 0
         self._display_key = None
         # I/O
@@ -181,10 +182,12 @@ class SkinSimNode(Node):
         self._n_pose_ticks += pose_driven
         self._last_tick_ns = now_ns
         hb = self.params.idle_heartbeat_hz
-        if hb > 0 and s.model.last_tick_idle and not s.stale and now_ns - self._last_pub_ns < 1e9 / hb:
+        quiet = force == 0.0 and self._last_pub_force == 0.0  # never hold back a force still ramping down
+        if hb > 0 and quiet and s.model.last_tick_idle and not s.stale and now_ns - self._last_pub_ns < 1e9 / hb:
             self._n_idle_skipped += 1  # lod idle: the tissue is at rest and untouched; heartbeat publishes only
             return
         self._last_pub_ns = now_ns
+        self._last_pub_force = force
         stamp = s.answered_stamp_ns if pose_driven else self._ros_now_ns()
         self._pub_wrench.publish(cv.fill_wrench(self._wrench, stamp, self._frame, (0.0, 0.0, force)))
         m = s.model

@@ -153,7 +153,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     base = preset("default")
     if a.modes:
-        base = base.replace(**{"modes.m": a.modes, "modes.n": a.modes})
+        base = base.replace(**{"modes.m": a.modes, "modes.n": a.modes, "lod.adaptive_modes": False})  # else ignored
     data = read_csv(a.csv) if a.csv else fem_datasets()
     res = fit(data, base)
     dump_yaml({f"tissue.{k}": v for k, v in res.cfg.as_flat().items()}, a.out)
