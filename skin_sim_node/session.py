@@ -48,8 +48,10 @@ actions): they occur in ordinary use (every fast release separates) and the mode
 RATE_ALLOWANCE_S = 1e-3
 """Allowance of the force-rate bound (a token bucket on the caller's clock): over any window of W
 seconds the published force changes by at most ``max_force_rate_n_per_s * (W + RATE_ALLOWANCE_S)``.
-A tick may spend what earlier ticks left unspent, up to one 1 kHz servo period, so poses processed
-in a burst after a stall share one period's change, and a stamp that jumps ahead buys nothing."""
+A tick may spend its own interval's change plus what earlier ticks left unspent, up to the larger of
+its interval and one 1 kHz servo period: a slow loop (250 Hz) still gets ``rate * dt`` per tick,
+poses processed in a burst after a stall share one period's change, and a stamp that jumps ahead
+buys nothing."""
 
 DEGENERATE_RETURN_S = 1.0
 """A layer whose fundamental mode needs longer than this for a quarter period (``pi / (2 lambda_11)``)
@@ -274,7 +276,8 @@ class HapticSession:
             force = p.max_force_n
         if p.max_force_rate_n_per_s > 0:
             rate = p.max_force_rate_n_per_s
-            budget = min(self._rate_budget_n + rate * max(elapsed_ns, 0) * 1e-9, rate * RATE_ALLOWANCE_S)
+            elapsed_s = max(elapsed_ns, 0) * 1e-9
+            budget = min(self._rate_budget_n + rate * elapsed_s, rate * max(elapsed_s, RATE_ALLOWANCE_S))
             if abs(force - self.force_n) > budget:
                 self._event(
                     FORCE_RATE_LIMITED,
