@@ -74,8 +74,32 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         0.0, 100.0, False,
     ),
     ParamSpec("diagnostics_period_s", float, 1.0, "s", "diagnostics publish period", 0.05, 60.0),
+    # haptic timing levers (read at start; measured in docs/performance_rate.md)
+    ParamSpec(
+        "rt_priority", int, 0, "1",
+        "SCHED_FIFO priority of the haptic threads, 1-99 (0: normal scheduling). Opt-in: needs root or "
+        "CAP_SYS_NICE; when refused the node logs a warning and runs at normal priority. 80 sits above "
+        "the kernel's threaded IRQs (50 on PREEMPT_RT) as servo loops usually do",
+        0, 99, False,
+    ),
+    ParamSpec(
+        "rt_scope", str, "haptic", "-",
+        "threads that get rt_priority: haptic (the tick clock and the executor that runs pose callbacks) "
+        "or process (every thread, DDS receive threads included)",
+    ),
+    ParamSpec(
+        "haptic_cpu", int, -1, "1", "pin the haptic clock thread to this CPU (-1: no pinning)", -1, 1023, False,
+    ),
+    ParamSpec(
+        "spin_tail_us", float, 0.0, "us",
+        "busy-wait this long before each haptic deadline instead of sleeping (0: sleep all the way)", 0.0, 1000.0, False,
+    ),
+    ParamSpec(
+        "precise_sleep", bool, True, "-",
+        "sleep to each deadline with clock_nanosleep(TIMER_ABSTIME), GIL released; false: time.sleep(remaining)",
+    ),
 )  # fmt: skip
-_STRING_CHOICES: dict[str, tuple[str, ...]] = {"loop_mode": ("input", "timer")}
+_STRING_CHOICES: dict[str, tuple[str, ...]] = {"loop_mode": ("input", "timer"), "rt_scope": ("haptic", "process")}
 
 ALL_PARAMETERS: tuple[ParamSpec, ...] = NODE_PARAMETERS + tuple(
     replace(s, name=TISSUE_PREFIX + s.name) for s in TISSUE_PARAMETERS
@@ -103,6 +127,11 @@ class NodeParams:
     mesh_stride: int
     mesh_rate_hz: float
     diagnostics_period_s: float
+    rt_priority: int
+    rt_scope: str
+    haptic_cpu: int
+    spin_tail_us: float
+    precise_sleep: bool
 
 
 def check_value(name: str, value):

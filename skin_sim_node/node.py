@@ -36,7 +36,7 @@ from .display import DisplayProcess
 from .model import ConfigError, SkinModel
 from .model.config import tissue_part
 from .model.skin_model import warm_up
-from .ros_util import PeriodicLoop, run_nodes
+from .ros_util import LoopTiming, PeriodicLoop, run_nodes, set_process_realtime, set_realtime
 from .session import HapticSession, SessionParams
 
 NODE_NAME = "skin_sim_node"
@@ -108,7 +108,8 @@ class SkinSimNode(Node):
         self._display = DisplayProcess(tissue_part(self._flat, "tissue."), self._display_settings(), args, self.get_namespace())
         self._display_loop = PeriodicLoop(self._display_period_ns(), self._on_display_clock, name="display-loop")
         self._display_loop.start()
-        self._loop = PeriodicLoop(self._clock_period_ns(), self._on_clock)
+        self._loop = PeriodicLoop(self._clock_period_ns(), self._on_clock, timing=self._haptic_timing(), on_warning=self._warn)
+        self._apply_rt_scope()
         self._loop.start()
         self.get_logger().info(
             f"live: {self.params.loop_mode} loop at {self.params.rate_hz:.0f} Hz, {self.session.model.basis.n_modes} modes, "
@@ -120,6 +121,29 @@ class SkinSimNode(Node):
         self._loop.stop()
         self._display_loop.stop()
         self._display.close()
+
+    def _warn(self, message: str) -> None:
+        self.get_logger().warning(message)
+
+    def _haptic_timing(self) -> LoopTiming:
+        p = self.params
+        return LoopTiming(
+            abs_sleep=p.precise_sleep,
+            spin_ns=int(p.spin_tail_us * 1e3),
+            rt_priority=p.rt_priority if p.rt_scope == "haptic" else 0,
+            cpus=(p.haptic_cpu,) if p.haptic_cpu >= 0 else (),
+        )
+
+    def _apply_rt_scope(self) -> None:
+        """rt_priority for the executor thread (this one: it runs the pose callbacks) or every thread."""
+        p = self.params
+        if p.rt_priority <= 0:
+            return
+        problem = set_process_realtime(p.rt_priority) if p.rt_scope == "process" else set_realtime(p.rt_priority)
+        if problem:
+            self._warn(problem)
+        else:
+            self.get_logger().info(f"SCHED_FIFO {p.rt_priority} for the {p.rt_scope} threads")
 
     def _period_ns(self) -> int:
         return int(1e9 / self.params.rate_hz)
