@@ -244,6 +244,7 @@ class SkinSimNode(Node):
         self._last_diag_ns = now
         target_us = 1e6 / self.params.rate_hz
         late = int(np.sum(per > 1.5 * target_us)) if per.size else 0
+        missed = int(np.sum(np.maximum(np.rint(per / target_us) - 1, 0))) if per.size else 0  # empty 1/rate slots
 
         def pct(a, q):
             return f"{np.percentile(a, q):.1f}" if a.size else "nan"
@@ -255,6 +256,7 @@ class SkinSimNode(Node):
             "ticks_total": str(self._n_ticks),
             "ticks_pose_driven": str(pose_ticks),
             "late_ticks_window": str(late),
+            "missed_slots_window": str(missed),
             "clock_overruns_total": str(overruns),
             "period_us_p50": pct(per, 50),
             "period_us_p99": pct(per, 99),

@@ -1,0 +1,1 @@
+"""Performance benchmarks and charts (issue 7)."""

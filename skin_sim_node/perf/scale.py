@@ -1,0 +1,173 @@
+"""``skin-sim scale``: how many 1 kHz tissue sessions this machine holds side by side.
+
+Session ``i`` is skin_sim_node + device bridge + simulated Touch (looping the ``drag`` hand
+path), all under the ROS namespace ``/s<i>`` in one DDS domain: three processes, each with a
+1 kHz loop. Sessions are added one at a time; after each addition every running session is
+measured for ``--step-s`` seconds from its node's own diagnostics (cheap: 1 Hz per session, so
+the observer does not load the machine it measures): missed ticks = empty 1/rate slots
+between the node's ticks (``missed_slots_window``) over the expected tick count, late = tick
+periods over 1.5 T. The machine "holds" n sessions while every session misses < 0.1 % (issue 7).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..scenes import DEFAULT_PARAMS, Scene
+
+MISSED_LIMIT_PCT = 0.1  # issue 7
+
+
+class DiagObserver:
+    """Collects the haptic-loop diagnostics of the nodes under the given namespaces."""
+
+    def __init__(self):
+        import rclpy
+
+        from ..ros_util import make_executor, spin_context
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node("scale_observer", context=self.context)
+        self.records: dict[str, list[dict]] = {}
+        self._lock = threading.Lock()
+        self._executor = make_executor("events", self.context)
+        self._executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=spin_context, args=(self._executor, self.context, self._stop), daemon=True)
+        self._thread.start()
+
+    def watch(self, ns: str) -> None:
+        from msgs_schema.qos import subscription
+
+        self.records[ns] = []
+
+        def cb(msg, ns=ns):
+            for st in msg.status:
+                if "haptic loop" in st.name:
+                    with self._lock:
+                        self.records[ns].append({kv.key: kv.value for kv in st.values})
+
+        subscription(self.node, "diagnostics", cb, name=f"{ns}/diagnostics")
+
+    def clear(self) -> None:
+        with self._lock:
+            for v in self.records.values():
+                v.clear()
+
+    def summary(self, ns: str, rate_hz: float) -> dict:
+        with self._lock:
+            recs = list(self.records[ns])
+        if len(recs) < 2:
+            return {"windows": len(recs), "missed_pct": float("nan"), "late_pct": float("nan")}
+        ticks = recs[-1]["ticks_total"], recs[0]["ticks_total"]
+        n = int(ticks[0]) - int(ticks[1])
+        recs = recs[1:]  # the first window began before the measurement
+        missed = sum(int(r["missed_slots_window"]) for r in recs)
+        late = sum(int(r["late_ticks_window"]) for r in recs)
+        return {
+            "windows": len(recs),
+            "ticks": n,
+            "missed_pct": 100.0 * missed / max(n + missed, 1),
+            "late_pct": 100.0 * late / max(n, 1),
+            "rate_hz": float(np.median([float(r["achieved_rate_hz"]) for r in recs])),
+            "period_us_p99": float(np.median([float(r["period_us_p99"]) for r in recs])),
+            "tick_us_p99": float(np.median([float(r["kernel_us_p99"]) for r in recs])),
+        }
+
+    def close(self) -> None:
+        import rclpy
+
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def start_session(scene: Scene, i: int, rate_hz: float, mode: str, node_params: list[str]):
+    ns = f"/s{i}"
+    ros = ("--ros-args", "-r", f"__ns:={ns}")
+    extra = [a for p in node_params for a in ("-p", p)]
+    node = scene.start(
+        f"node_s{i}", "node", *ros, "--params-file", str(DEFAULT_PARAMS),
+        "-p", f"loop_mode:={mode}", "-p", f"rate_hz:={rate_hz}", *extra,
+    )  # fmt: skip
+    scene.wait_for_log(node, "live:", timeout_s=180)
+    scene.start(f"bridge_s{i}", "bridge", *ros)
+    scene.start(f"device_s{i}", "device", "--hand-path", "drag", "--loop", "--start-delay-s", "1.0", *ros)
+    return ns
+
+
+def run_scale(max_sessions: int, step_s: float, rate_hz: float, mode: str, node_params: list[str], log_dir: Path) -> list[dict]:
+    rows = []
+    with Scene(log_dir) as scene:
+        os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+        obs = DiagObserver()
+        try:
+            for n in range(1, max_sessions + 1):
+                obs.watch(start_session(scene, n, rate_hz, mode, node_params))
+                time.sleep(3.0)  # discovery, the device's start delay
+                obs.clear()
+                load0 = os.getloadavg()[0]
+                time.sleep(step_s)
+                sessions = [obs.summary(f"/s{i}", rate_hz) for i in range(1, n + 1)]
+                worst = max(s["missed_pct"] for s in sessions)
+                row = {
+                    "sessions": n,
+                    "per_session": sessions,
+                    "worst_missed_pct": worst,
+                    "load_1min": (load0, os.getloadavg()[0]),
+                }
+                rows.append(row)
+                print(
+                    f"  {n} session(s): missed " + ", ".join(f"{s['missed_pct']:.3f}" for s in sessions)
+                    + " % | late " + ", ".join(f"{s['late_pct']:.3f}" for s in sessions)
+                    + " % | period p99 " + ", ".join(f"{s.get('period_us_p99', float('nan')):.0f}" for s in sessions)
+                    + f" us | worst missed {worst:.3f} % {'<=' if worst <= MISSED_LIMIT_PCT else '>'} {MISSED_LIMIT_PCT} %",
+                    flush=True,
+                )  # fmt: skip
+        finally:
+            obs.close()
+    return rows
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="skin-sim scale", description=__doc__.splitlines()[0])
+    ap.add_argument("--max-sessions", type=int, default=4)
+    ap.add_argument("--step-s", type=float, default=30.0, help="measured seconds after each added session")
+    ap.add_argument("--rate-hz", type=float, default=1000.0)
+    ap.add_argument(
+        "--mode", choices=("timer", "input"), default="timer", help="node loop_mode (timer: ticks are the node's own)"
+    )
+    ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE (repeatable)")
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args(argv)
+    log_dir = Path(tempfile.mkdtemp(prefix="skin_sim_scale_"))
+    print(
+        f"skin-sim scale: up to {args.max_sessions} sessions at {args.rate_hz:.0f} Hz ({args.mode} mode), {args.step_s:.0f} s each, "
+        f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; node params {args.node_param}; logs {log_dir}",
+        flush=True,
+    )
+    rows = run_scale(args.max_sessions, args.step_s, args.rate_hz, args.mode, args.node_param, log_dir)
+    held = 0
+    for r in rows:
+        if r["worst_missed_pct"] > MISSED_LIMIT_PCT:
+            break
+        held = r["sessions"]
+    print(f"sessions held with every session under {MISSED_LIMIT_PCT} % missed ticks: {held}")
+    if args.json:
+        args.json.write_text(json.dumps({"rows": rows, "held": held}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
