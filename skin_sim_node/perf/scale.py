@@ -153,7 +153,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     log_dir = Path(tempfile.mkdtemp(prefix="skin_sim_scale_"))
     print(
-        f"skin-sim scale: up to {args.max_sessions} sessions at {args.rate_hz:.0f} Hz ({args.mode} mode), {args.step_s:.0f} s each, "
+        f"skin-sim scale: up to {args.max_sessions} sessions at {args.rate_hz:.0f} Hz ({args.mode} mode), "
+        f"{args.step_s:.0f} s each, "
         f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; node params {args.node_param}; logs {log_dir}",
         flush=True,
     )

@@ -169,7 +169,8 @@ def main(argv=None) -> int:
     print(
         f"forces {r['forces']} ({r['force_rate_hz']:.1f} Hz, {r['pressing_pct']:.0f} % pressing)\n"
         f"node rss {r['node_rss_mib'][0]:.1f} -> {r['node_rss_mib'][1]:.1f} MiB after warm-up: growth "
-        f"{r['node_rss_growth_pct']:+.3f} % (aim <= {RSS_GROWTH_LIMIT_PCT} %); display worker {r['display_rss_growth_pct']:+.3f} %\n"
+        f"{r['node_rss_growth_pct']:+.3f} % (aim <= {RSS_GROWTH_LIMIT_PCT} %); "
+        f"display worker {r['display_rss_growth_pct']:+.3f} %\n"
         f"force stream gaps (stamps):  p50 {sg['p50_ms']:.3f} p99 {sg['p99_ms']:.3f} max {sg['max_gap_ms']:.2f} ms, "
         f"{sg['gaps_over_limit']} over {GAP_LIMIT_MS} ms of {sg['periods']} (aim: none)\n"
         f"force stream gaps (arrival): p50 {ag['p50_ms']:.3f} p99 {ag['p99_ms']:.3f} max {ag['max_gap_ms']:.2f} ms, "
