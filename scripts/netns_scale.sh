@@ -4,6 +4,7 @@
 # everything in one namespace for comparison. Needs root and iproute2 (exit 77 = skipped).
 #
 #   sudo bash scripts/netns_scale.sh [DURATION_S]      (default 20 s per case)
+#   CASES="cross_udp" ...                               (subset of: same_udp cross_udp same_shm cross_default)
 #
 # Discovery across the veth: ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (Fast DDS multicast SPDP on
 # 239.255.0.1, so each namespace gets a multicast route on its veth end). Data: UDPv4 only
@@ -61,7 +62,13 @@ run_case() {  # label sim_ns dev_ns transports
     --duration-s "$DURATION" --label "$label" --json "$OUT/$5.json"
   kill -TERM "$sim"; wait "$sim" || true
 }
-run_case "same namespace, UDPv4" "$NS_DEV" "$NS_DEV" UDPv4 same_udp
-run_case "across namespaces (veth), UDPv4" "$NS_SIM" "$NS_DEV" UDPv4 cross_udp
-run_case "same namespace, default (SHM)" "$NS_DEV" "$NS_DEV" DEFAULT same_shm
-"$PY" -m skin_sim_node.cli netns-role compare "$OUT/same_udp.json" "$OUT/cross_udp.json" "$OUT/same_shm.json"
+declare -A LABEL=([same_udp]="same namespace, UDPv4" [cross_udp]="across namespaces (veth), UDPv4"
+                   [same_shm]="same namespace, default (SHM)" [cross_default]="across namespaces, default transports")
+declare -A SIM_NS=([same_udp]="$NS_DEV" [cross_udp]="$NS_SIM" [same_shm]="$NS_DEV" [cross_default]="$NS_SIM")
+declare -A TRANSPORTS=([same_udp]=UDPv4 [cross_udp]=UDPv4 [same_shm]=DEFAULT [cross_default]=DEFAULT)
+JSONS=()
+for c in ${CASES:-same_udp cross_udp same_shm}; do
+  run_case "${LABEL[$c]}" "${SIM_NS[$c]}" "$NS_DEV" "${TRANSPORTS[$c]}" "$c"
+  JSONS+=("$OUT/$c.json")
+done
+"$PY" -m skin_sim_node.cli netns-role compare "${JSONS[@]}"
