@@ -84,8 +84,9 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         "rt_scope", str, "haptic", "-",
-        "threads that get rt_priority: haptic (the tick clock and the executor that runs pose callbacks) "
-        "or process (every thread, DDS receive threads included)",
+        "threads that get SCHED_FIFO: haptic (the tick clock and the executor that runs pose callbacks at "
+        "rt_priority, the display-loop thread that shares their lock at one less) or process (also every other "
+        "thread, DDS receive threads included, at one less)",
     ),
     ParamSpec(
         "haptic_cpu", int, -1, "1", "pin the haptic clock thread to this CPU (-1: no pinning)", -1, 1023, False,

@@ -193,11 +193,13 @@ def _ratio(a, b) -> str:
     return f"{a[0] / b[0]:.2f}x / {a[1] / b[1]:.2f}x / {a[2] / b[2]:.2f}x"
 
 
-def print_latency(echo: dict, node: dict) -> None:
+def print_latency(echo: dict, nodes: list[dict]) -> None:
     print("\npose-to-force latency across processes, ms (p50 p99 max); answered = wrenches / poses sent")
-    for r in (echo, node):
-        print(f"  {r['case']:>11}: {_fmt3(r['latency_ms'])} | answered {r['answered_pct']:5.1f} %")
-    print(f"  node / echo ratio (p50 / p99 / max): {_ratio(node['latency_ms'], echo['latency_ms'])}")
+    for r in (echo, *nodes):
+        line = f"  {r.get('label', r['case']):>16}: {_fmt3(r['latency_ms'])} | answered {r['answered_pct']:5.1f} %"
+        if r is not echo:
+            line += f" | ratio to echo (p50 / p99 / max) {_ratio(r['latency_ms'], echo['latency_ms'])}"
+        print(line)
 
 
 def print_periods(title: str, pairs: list[tuple[dict, dict]]) -> None:
@@ -234,6 +236,10 @@ def main(argv=None) -> int:
         "--lever", action="append", default=[],
         help=f"levers case NAME or NAME=P:=V,P:=V (repeatable; presets: {', '.join(LEVER_PRESETS)}; default all presets)",
     )  # fmt: skip
+    ap.add_argument(
+        "--latency-variant", action="append", default=[],
+        help="latency node case NAME=P:=V,P:=V (repeatable; default one case 'node' with --node-param only)",
+    )  # fmt: skip
     ap.add_argument("--json", type=Path, help="also write all figures to this JSON file")
     args = ap.parse_args(argv)
     sections = [s for s in args.sections.split(",") if s]
@@ -248,9 +254,14 @@ def main(argv=None) -> int:
     results: dict = {}
     if "latency" in sections:
         echo = run_case("echo", args.latency_s, 1000.0, log_dir / "latency_echo")
-        node = run_case("node", args.latency_s, 1000.0, log_dir / "latency_node", node_args)
-        results["latency"] = [echo, node]
-        print_latency(echo, node)
+        nodes = []
+        for spec in args.latency_variant or ["node="]:
+            name, _, params = spec.partition("=")
+            extra = node_args + tuple(a for p in params.split(",") if p for a in ("-p", p))
+            nodes.append(run_case("node", args.latency_s, 1000.0, log_dir / f"latency_{name}", extra))
+            nodes[-1]["label"] = name
+        results["latency"] = [echo, *nodes]
+        print_latency(echo, nodes)
     if "jitter" in sections:
         pairs = []
         for i, rate in enumerate(rates):

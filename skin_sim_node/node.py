@@ -130,20 +130,32 @@ class SkinSimNode(Node):
         return LoopTiming(
             abs_sleep=p.precise_sleep,
             spin_ns=int(p.spin_tail_us * 1e3),
-            rt_priority=p.rt_priority if p.rt_scope == "haptic" else 0,
+            rt_priority=p.rt_priority,
             cpus=(p.haptic_cpu,) if p.haptic_cpu >= 0 else (),
         )
 
     def _apply_rt_scope(self) -> None:
-        """rt_priority for the executor thread (this one: it runs the pose callbacks) or every thread."""
+        """SCHED_FIFO beyond the tick clock (which its loop sets itself, at ``rt_priority``).
+
+        The executor thread (this one; it runs the pose callbacks) gets ``rt_priority``; the threads
+        that take the haptic lock or the GIL beside it get one less, so a normal-priority holder
+        preempted by another process cannot stall a tick (priority inversion): the display-loop
+        thread in ``haptic`` scope, every other thread (DDS included) in ``process`` scope.
+        """
         p = self.params
         if p.rt_priority <= 0:
             return
-        problem = set_process_realtime(p.rt_priority) if p.rt_scope == "process" else set_realtime(p.rt_priority)
+        lower = max(p.rt_priority - 1, 1)
+        if p.rt_scope == "process":
+            problems = [set_process_realtime(lower)]
+        else:
+            problems = [set_realtime(lower, self._display_loop.native_id or 0)]
+        problems.append(set_realtime(p.rt_priority))
+        problem = next((m for m in problems if m), None)
         if problem:
             self._warn(problem)
         else:
-            self.get_logger().info(f"SCHED_FIFO {p.rt_priority} for the {p.rt_scope} threads")
+            self.get_logger().info(f"SCHED_FIFO {p.rt_priority} for the haptic threads ({p.rt_scope} scope)")
 
     def _period_ns(self) -> int:
         return int(1e9 / self.params.rate_hz)

@@ -214,6 +214,11 @@ class PeriodicLoop:
     def start(self) -> None:
         self._thread.start()
 
+    @property
+    def native_id(self) -> int | None:
+        """The loop thread's kernel thread id (None before :meth:`start`)."""
+        return self._thread.native_id
+
     def stop(self) -> None:
         self._stop.set()
         if self._thread.is_alive() and self._thread is not threading.current_thread():
