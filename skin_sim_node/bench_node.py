@@ -176,6 +176,7 @@ def run_startup(kind: str, log_dir: Path, cache_dir: Path | None, rate_hz: float
             proc = start_case(scene, kind, rate_hz)
             mon.wait_for(lambda: len(mon.wrench) > 0, 300, f"{kind} first force")
             first_s = time.monotonic() - t0
+            scene.wait_for_log(proc, "live:", timeout_s=60)
         finally:
             mon.close()
         log = proc.log()
