@@ -169,3 +169,24 @@ def test_dds_across_network_namespaces():
     assert int(line.split(":")[1].split()[0]) > 100  # forces crossed the veth both ways
     before = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
     assert "ssim_" not in before  # the trap removed the namespaces
+
+
+def test_bench_timer_case_reports_periods_and_node_counts(tmp_path):
+    """One short ``skin-sim bench`` jitter case end to end: the stamps of a real stream, the node's own counts."""
+    from skin_sim_node.bench_node import run_case
+
+    r = run_case("node-timer", 2.0, 1000.0, tmp_path, ("-p", "display_rate_hz:=0.0"))
+    assert r["samples"] > 100
+    assert 0.0 <= r["missed_pct"] <= 100.0 and 0.0 <= r["late_pct"] <= 100.0
+    assert r["period_ms"][0] <= r["period_ms"][1] <= r["period_ms"][2]
+    assert "node_late_ticks" in r and r["node_rate_hz"] > 0
+
+
+def test_scale_one_session_in_its_namespace(tmp_path):
+    """``skin-sim scale`` with one namespaced session: its diagnostics arrive and count missed slots."""
+    from skin_sim_node.perf.scale import run_scale
+
+    rows = run_scale(1, 3.0, 1000.0, "timer", ["display_rate_hz:=0.0"], tmp_path)
+    s = rows[0]["per_session"][0]
+    assert s["windows"] >= 1 and s["ticks"] > 100
+    assert 0.0 <= s["missed_pct"] <= 100.0
