@@ -241,8 +241,18 @@ def main(argv=None) -> int:
         "--latency-variant", action="append", default=[],
         help="latency node case NAME=P:=V,P:=V (repeatable; default one case 'node' with --node-param only)",
     )  # fmt: skip
+    ap.add_argument(
+        "--observer-rt", type=int, default=0,
+        help="SCHED_FIFO priority of this process (pose source and observer, as a device's servo loop would run); "
+        "0: normal. The processes it starts run normally (SCHED_RESET_ON_FORK)",
+    )  # fmt: skip
     ap.add_argument("--json", type=Path, help="also write all figures to this JSON file")
     args = ap.parse_args(argv)
+    if args.observer_rt > 0:  # before any thread or DDS participant exists: they all inherit it
+        from .ros_util import set_process_realtime
+
+        problem = set_process_realtime(args.observer_rt)
+        print(f"observer: {problem or f'SCHED_FIFO {args.observer_rt}'}", flush=True)
     sections = [s for s in args.sections.split(",") if s]
     rates = [float(r) for r in args.rates.split(",")]
     node_args = tuple(a for p in args.node_param for a in ("-p", p))

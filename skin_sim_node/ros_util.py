@@ -140,8 +140,14 @@ def set_realtime(priority: int, tid: int = 0) -> str | None:
 
 
 def set_process_realtime(priority: int) -> str | None:
-    """:func:`set_realtime` for every thread of this process (DDS threads included)."""
-    errors = [set_realtime(priority, int(tid)) for tid in os.listdir("/proc/self/task")]
+    """:func:`set_realtime` for every thread of this process (DDS threads included); threads
+    started later by one of them inherit it."""
+    return set_pid_realtime(os.getpid(), priority)
+
+
+def set_pid_realtime(pid: int, priority: int) -> str | None:
+    """:func:`set_realtime` for every thread of another process ``pid``."""
+    errors = [set_realtime(priority, int(tid)) for tid in os.listdir(f"/proc/{pid}/task")]
     return next((e for e in errors if e), None)
 
 

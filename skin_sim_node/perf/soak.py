@@ -88,9 +88,20 @@ class GapCounter:
         }
 
 
-def run_soak(duration_s: float, warmup_s: float, log_dir: Path, node_args: tuple[str, ...] = (), quiet: bool = False) -> dict:
-    """Run the soak scene; returns the figures (see the module docstring)."""
+def run_soak(
+    duration_s: float, warmup_s: float, log_dir: Path, node_args: tuple[str, ...] = (), quiet: bool = False, rt_priority: int = 0
+) -> dict:
+    """Run the soak scene; returns the figures (see the module docstring).
+
+    ``rt_priority`` > 0: the node runs its haptic threads SCHED_FIFO at it (``rt_priority``
+    parameter), the bridge, the simulated device and this observer run SCHED_FIFO one below
+    (a device's servo loop and its driver would).
+    """
     from ..monitor import Monitor
+    from ..ros_util import set_pid_realtime
+
+    if rt_priority > 0:
+        node_args = (*node_args, "-p", f"rt_priority:={rt_priority}")
 
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
@@ -99,8 +110,14 @@ def run_soak(duration_s: float, warmup_s: float, log_dir: Path, node_args: tuple
         scene.wait_for_log(node, "live:", timeout_s=180)
         mon = Monitor(name="soak_observer", images=False, record_depth=1000)
         try:
-            scene.start("bridge", "bridge")
-            scene.start("device", "device", "--hand-path", "drag", "--loop", "--start-delay-s", "1.0")
+            peers = [scene.start("bridge", "bridge")]
+            peers.append(scene.start("device", "device", "--hand-path", "drag", "--loop", "--start-delay-s", "1.0"))
+            if rt_priority > 0:
+                time.sleep(0.5)  # their threads exist
+                for p in [*peers, None]:
+                    problem = set_pid_realtime(p.popen.pid if p else os.getpid(), max(rt_priority - 1, 1))
+                    if problem:
+                        print(f"soak: {problem}", flush=True)
             mon.wait_for(lambda: any(abs(f) > 0 for _, _, f in mon.wrench[-2000:]), 60, "a pressing force")
             del mon.wrench[:]
             stamp_gaps, rx_gaps = GapCounter(GAP_LIMIT_MS * 1e6), GapCounter(GAP_LIMIT_MS * 1e6)
@@ -154,6 +171,7 @@ def main(argv=None) -> int:
         "--warmup-s", type=float, default=None, help="memory warm-up excluded from the growth (default 10 %%, >= 5 s)"
     )
     ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE (repeatable)")
+    ap.add_argument("--rt-priority", type=int, default=0, help="SCHED_FIFO: node at this, device side one below (0: off)")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     ap.add_argument("--no-check", action="store_true", help="exit 0 even when an aim is missed")
     args = ap.parse_args(argv)
@@ -161,10 +179,11 @@ def main(argv=None) -> int:
     node_args = tuple(a for p in args.node_param for a in ("-p", p))
     log_dir = Path(tempfile.mkdtemp(prefix="skin_sim_soak_"))
     print(
-        f"skin-sim soak: {args.duration_s:.0f} s, warm-up {warmup:.0f} s, load {os.getloadavg()[0]:.2f}; logs {log_dir}",
+        f"skin-sim soak: {args.duration_s:.0f} s, warm-up {warmup:.0f} s, rt priority {args.rt_priority}, "
+        f"load {os.getloadavg()[0]:.2f}; logs {log_dir}",
         flush=True,
     )
-    r = run_soak(args.duration_s, warmup, log_dir, node_args)
+    r = run_soak(args.duration_s, warmup, log_dir, node_args, rt_priority=args.rt_priority)
     sg, ag = r["stamp_gaps"], r["arrival_gaps"]
     print(
         f"forces {r['forces']} ({r['force_rate_hz']:.1f} Hz, {r['pressing_pct']:.0f} % pressing)\n"
