@@ -83,10 +83,10 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         0, 99, False,
     ),
     ParamSpec(
-        "rt_scope", str, "haptic", "-",
+        "rt_scope", str, "process", "-",
         "threads that get SCHED_FIFO: haptic (the tick clock and the executor that runs pose callbacks at "
         "rt_priority, the display-loop thread that shares their lock at one less) or process (also every other "
-        "thread, DDS receive threads included, at one less)",
+        "thread at one less: the DDS receive threads that deliver the poses are on the input-mode path)",
     ),
     ParamSpec(
         "haptic_cpu", int, -1, "1", "pin the haptic clock thread to this CPU (-1: no pinning)", -1, 1023, False,

@@ -43,6 +43,8 @@ LEVER_PRESETS = {
     "affinity-cpu1": ("precise_sleep:=true", "haptic_cpu:=1"),
     "rt-haptic": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=haptic"),
     "rt-process": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process"),
+    "rt-process-cpu1": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process", "haptic_cpu:=1"),
+    "rt-process-spin": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process", "spin_tail_us:=100.0"),
 }
 
 

@@ -115,7 +115,7 @@ def test_node_rt_priority_is_opt_in_and_degrades_with_a_warning(tmp_path):
                     time.sleep(0.1)
             granted_log, denied_log = procs["granted"][1].read_text(), procs["denied"][1].read_text()
             if os.geteuid() == 0:
-                assert "SCHED_FIFO 20 for the haptic threads (haptic scope)" in granted_log
+                assert "SCHED_FIFO 20 for the haptic threads (process scope)" in granted_log
                 assert _fifo_threads(procs["granted"][0].pid) >= 3  # the tick clock, the executor, the display loop
             assert "not permitted" in denied_log and "running at normal priority" in denied_log
             assert _fifo_threads(procs["denied"][0].pid) == 0
