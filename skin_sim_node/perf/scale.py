@@ -106,7 +106,10 @@ def start_session(scene: Scene, i: int, rate_hz: float, mode: str, node_params: 
     return ns
 
 
-def run_scale(max_sessions: int, step_s: float, rate_hz: float, mode: str, node_params: list[str], log_dir: Path) -> list[dict]:
+def run_scale(
+    max_sessions: int, step_s: float, rate_hz: float, mode: str, node_params: list[str], log_dir: Path, keep_going: bool = True
+) -> list[dict]:
+    """Add sessions one at a time up to ``max_sessions`` (or, unless ``keep_going``, until one misses > 0.1 %)."""
     rows = []
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
@@ -135,6 +138,8 @@ def run_scale(max_sessions: int, step_s: float, rate_hz: float, mode: str, node_
                     + f" us | worst missed {worst:.3f} % {'<=' if worst <= MISSED_LIMIT_PCT else '>'} {MISSED_LIMIT_PCT} %",
                     flush=True,
                 )  # fmt: skip
+                if worst > MISSED_LIMIT_PCT and not keep_going:
+                    break
         finally:
             obs.close()
     return rows
@@ -149,6 +154,7 @@ def main(argv=None) -> int:
         "--mode", choices=("timer", "input"), default="timer", help="node loop_mode (timer: ticks are the node's own)"
     )
     ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE (repeatable)")
+    ap.add_argument("--keep-going", action="store_true", help="add sessions past the first that misses > 0.1 %%")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
     log_dir = Path(tempfile.mkdtemp(prefix="skin_sim_scale_"))
@@ -158,7 +164,7 @@ def main(argv=None) -> int:
         f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; node params {args.node_param}; logs {log_dir}",
         flush=True,
     )
-    rows = run_scale(args.max_sessions, args.step_s, args.rate_hz, args.mode, args.node_param, log_dir)
+    rows = run_scale(args.max_sessions, args.step_s, args.rate_hz, args.mode, args.node_param, log_dir, args.keep_going)
     held = 0
     for r in rows:
         if r["worst_missed_pct"] > MISSED_LIMIT_PCT:
