@@ -34,7 +34,7 @@ import numpy as np
 
 from .scenes import Scene
 
-SECTIONS = ("latency", "jitter", "levers", "startup")
+SECTIONS = ("latency", "jitter", "levers", "startup", "tickcost")
 LEVER_PRESETS = {
     # name: node parameters (NAME:=VALUE) on top of timer mode; "off" is the loop before issue 7
     "off": ("precise_sleep:=false",),
@@ -45,6 +45,8 @@ LEVER_PRESETS = {
     "rt-process": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process"),
     "rt-process-cpu1": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process", "haptic_cpu:=1"),
     "rt-process-spin": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process", "spin_tail_us:=100.0"),
+    # no tool input at all (pose_rate_hz is the bench's, not a node parameter): what the pose callbacks cost the clock
+    "off-no-poses": ("precise_sleep:=false", "pose_rate_hz:=0"),
 }
 
 
@@ -133,13 +135,15 @@ def run_case(
             pose_pub.publish(cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, z)))
             sent.append(stamp)
 
-        if kind != "timer" and kind != "ticker":
+        if kind not in ("timer", "ticker") and (latency_case or pose_rate_hz > 0):
             end = time.monotonic() + 15
             while pose_pub.get_subscription_count() == 0 and time.monotonic() < end:
                 time.sleep(0.05)
-        loop = PeriodicLoop(int(1e9 / (1000.0 if latency_case else pose_rate_hz)), tick, name="bench-source")
+        source_hz = 1000.0 if latency_case else pose_rate_hz
+        loop = PeriodicLoop(int(1e9 / max(source_hz, 1.0)), tick, name="bench-source")
         t_start[0] = time.perf_counter_ns()
-        loop.start()
+        if source_hz > 0:
+            loop.start()
         mon.wait_for(lambda: len(mon.wrench) > 10, 30, f"{kind} wrenches")
         time.sleep(1.0)  # warm-up: discovery settles, caches fill
         mon.wrench.clear()
@@ -186,6 +190,72 @@ def run_startup(kind: str, log_dir: Path, cache_dir: Path | None, rate_hz: float
     if "numba warm-up" in log:
         out["numba_warmup_s"] = float(log.split("numba warm-up ")[1].split(" s")[0])
     return out
+
+
+def tick_cost(n: int = 5000) -> dict:
+    """In-process cost (us, p50/p99/max) of each step of the node's pose-to-force path, one thread, no load.
+
+    Shows how long each tick holds the GIL: everything except the numba model step (``nogil``).
+    A 1 Hz press 0-3 mm deep at 1 kHz stamps; publishers on an rclpy node with no subscriber.
+    """
+    import rclpy
+    from geometry_msgs.msg import PoseStamped, WrenchStamped
+    from sensor_msgs.msg import JointState
+
+    from msgs_schema import convert as cv
+    from msgs_schema.qos import publisher
+
+    from .model import SkinModel, preset
+    from .model.skin_model import warm_up
+    from .session import HapticSession, SessionParams
+
+    cfg = preset("default")
+    warm_up(cfg)
+    session = HapticSession(SkinModel(cfg), SessionParams(max_stamp_age_s=0.0))
+    model = session.model
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node("bench_tick_cost", context=ctx)
+    pub_w, pub_c = publisher(node, "tool_wrench"), publisher(node, "contact")
+    pose, wrench, contact = PoseStamped(), WrenchStamped(), JointState()
+    keys = ("read_pose", "on_pose", "tick (session + model)", "model step (nogil)", "publish wrench", "publish contact")
+    t = {k: np.zeros(n) for k in keys}
+    step = model.step
+    step_ns = [0]
+
+    def timed_step(*a, **k):
+        t0 = time.perf_counter_ns()
+        r = step(*a, **k)
+        step_ns[0] = time.perf_counter_ns() - t0
+        return r
+
+    model.step = timed_step
+    clock = time.perf_counter_ns
+    base = time.time_ns()
+    try:
+        for i in range(n):
+            stamp = base + i * 1_000_000
+            z = -1.5e-3 * (1 - math.cos(2 * math.pi * i / 1000))
+            cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, z))
+            t0 = clock()
+            st, frame, xyz = cv.read_pose(pose)
+            t1 = clock()
+            session.on_pose(st, frame, xyz, now_ns=stamp, rx_ns=t1)
+            t2 = clock()
+            force = session.tick(t2, 1_000_000)
+            t3 = clock()
+            pub_w.publish(cv.fill_wrench(wrench, st, "tissue", (0.0, 0.0, force)))
+            t4 = clock()
+            comp = model.compression_m
+            pub_c.publish(cv.fill_contact(contact, st, "tissue", comp, [0.0] * len(comp), [0.0] * len(comp)))
+            t5 = clock()
+            for k, dt in zip(keys, (t1 - t0, t2 - t1, t3 - t2, step_ns[0], t4 - t3, t5 - t4)):
+                t[k][i] = dt * 1e-3
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    warm = n // 10
+    return {k: _pcts(v[warm:]) for k, v in t.items()}
 
 
 def _fmt3(p) -> str:
@@ -292,12 +362,19 @@ def main(argv=None) -> int:
         for spec in levers:
             name, _, params = spec.partition("=")
             plist = tuple(p for p in params.split(",") if p) if params else LEVER_PRESETS[name]
-            extra = node_args + tuple(a for p in plist for a in ("-p", p))
-            r = run_case("node-timer", args.lever_s, rate, log_dir / f"lever_{name}", extra, args.pose_rate_hz)
+            pose_rate = next((float(p.split(":=")[1]) for p in plist if p.startswith("pose_rate_hz:=")), args.pose_rate_hz)
+            extra = node_args + tuple(a for p in plist if not p.startswith("pose_rate_hz:=") for a in ("-p", p))
+            r = run_case("node-timer", args.lever_s, rate, log_dir / f"lever_{name}", extra, pose_rate)
             r["label"] = name
             pairs.append((base, r))
         results["levers"] = pairs
         print_periods("levers (node in timer mode; same-run bare rclpy timer)", pairs)
+    if "tickcost" in sections:
+        cost = tick_cost()
+        results["tickcost"] = cost
+        print("\nper-tick cost of the pose-to-force path in one thread, us (p50 p99 max); all but the model step hold the GIL")
+        for k, v in cost.items():
+            print(f"  {k:>24}: {v[0]:7.1f} {v[1]:7.1f} {v[2]:8.1f}")
     if "startup" in sections:
         cache = Path(tempfile.mkdtemp(prefix="skin_sim_numba_cache_"))
         rows = [
