@@ -19,11 +19,11 @@ import threading
 import time
 from pathlib import Path
 
-import numpy as np
-
+from ..bench_node import diag_counts
 from ..scenes import DEFAULT_PARAMS, Scene
 
 MISSED_LIMIT_PCT = 0.1  # issue 7
+nan = float("nan")
 
 
 class DiagObserver:
@@ -63,25 +63,10 @@ class DiagObserver:
             for v in self.records.values():
                 v.clear()
 
-    def summary(self, ns: str, rate_hz: float) -> dict:
+    def summary(self, ns: str) -> dict:
         with self._lock:
             recs = list(self.records[ns])
-        if len(recs) < 2:
-            return {"windows": len(recs), "missed_pct": float("nan"), "late_pct": float("nan")}
-        ticks = recs[-1]["ticks_total"], recs[0]["ticks_total"]
-        n = int(ticks[0]) - int(ticks[1])
-        recs = recs[1:]  # the first window began before the measurement
-        missed = sum(int(r["missed_slots_window"]) for r in recs)
-        late = sum(int(r["late_ticks_window"]) for r in recs)
-        return {
-            "windows": len(recs),
-            "ticks": n,
-            "missed_pct": 100.0 * missed / max(n + missed, 1),
-            "late_pct": 100.0 * late / max(n, 1),
-            "rate_hz": float(np.median([float(r["achieved_rate_hz"]) for r in recs])),
-            "period_us_p99": float(np.median([float(r["period_us_p99"]) for r in recs])),
-            "tick_us_p99": float(np.median([float(r["kernel_us_p99"]) for r in recs])),
-        }
+        return diag_counts(recs)
 
     def close(self) -> None:
         import rclpy
@@ -122,8 +107,8 @@ def run_scale(
                 obs.clear()
                 load0 = os.getloadavg()[0]
                 time.sleep(step_s)
-                sessions = [obs.summary(f"/s{i}", rate_hz) for i in range(1, n + 1)]
-                worst = max(s["missed_pct"] for s in sessions)
+                sessions = [obs.summary(f"/s{i}") for i in range(1, n + 1)]
+                worst = max(s.get("node_missed_pct", float("inf")) for s in sessions)
                 row = {
                     "sessions": n,
                     "per_session": sessions,
@@ -132,9 +117,9 @@ def run_scale(
                 }
                 rows.append(row)
                 print(
-                    f"  {n} session(s): missed " + ", ".join(f"{s['missed_pct']:.3f}" for s in sessions)
-                    + " % | late " + ", ".join(f"{s['late_pct']:.3f}" for s in sessions)
-                    + " % | period p99 " + ", ".join(f"{s.get('period_us_p99', float('nan')):.0f}" for s in sessions)
+                    f"  {n} session(s): missed " + ", ".join(f"{s.get('node_missed_pct', nan):.3f}" for s in sessions)
+                    + " % | late " + ", ".join(f"{s.get('node_late_pct', nan):.3f}" for s in sessions)
+                    + " % | period p99 " + ", ".join(f"{s.get('node_period_us_p99', nan):.0f}" for s in sessions)
                     + f" us | worst missed {worst:.3f} % {'<=' if worst <= MISSED_LIMIT_PCT else '>'} {MISSED_LIMIT_PCT} %",
                     flush=True,
                 )  # fmt: skip
