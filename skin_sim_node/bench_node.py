@@ -76,6 +76,17 @@ def period_stats(stamps_ns, rate_hz: float) -> dict:
     }
 
 
+def cpu_steal_ms() -> float:
+    """Hypervisor steal time so far, summed over CPUs (ms; /proc/stat, USER_HZ ticks). On a VM,
+    time a vCPU was runnable but the host ran something else: no priority inside the guest helps."""
+    try:
+        with open("/proc/stat") as fh:
+            fields = fh.readline().split()
+        return float(fields[8]) * 1000.0 / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return float("nan")
+
+
 def diag_counts(diags: list[dict]) -> dict:
     """The node's own tick counts from its 1 Hz diagnostics (windows after the first, which began
     before the measurement): ticks, missed slots (% of ticks + missed), late periods (% of ticks)."""
@@ -160,13 +171,16 @@ def run_case(
         mon.wrench.clear()
         mon.diagnostics.clear()
         sent.clear()
+        steal0 = cpu_steal_ms()
         time.sleep(duration_s)
+        steal_ms = cpu_steal_ms() - steal0
         loop.stop()
         time.sleep(0.2)
         records = list(mon.wrench)
         diags = [d for _, d, _, _ in mon.diagnostics]
         mon.close()
     out = {"case": kind, "rate_hz": rate_hz, "duration_s": duration_s, "node_args": list(node_args), "wrenches": len(records)}
+    out["steal_ms"] = steal_ms
     if latency_case:
         sent_set = set(sent)
         lat = np.array([r - s for r, s, _ in records if s in sent_set], dtype=np.int64)
@@ -281,6 +295,7 @@ def print_latency(echo: dict, nodes: list[dict]) -> None:
     print("\npose-to-force latency across processes, ms (p50 p99 max); answered = wrenches / poses sent")
     for r in (echo, *nodes):
         line = f"  {r.get('label', r['case']):>16}: {_fmt3(r['latency_ms'])} | answered {r['answered_pct']:5.1f} %"
+        line += f" | steal {r['steal_ms']:.0f} ms"
         if r is not echo:
             line += f" | ratio to echo (p50 / p99 / max) {_ratio(r['latency_ms'], echo['latency_ms'])}"
         print(line)
@@ -300,7 +315,8 @@ def print_periods(title: str, pairs: list[tuple[dict, dict]]) -> None:
             label = r.get("label", r["case"])
             line = (
                 f"  {r['rate_hz']:6.0f} Hz {r['duration_s']:4.0f} s {label:>16}: {_fmt3(r['period_ms'])} | "
-                f"missed {r['missed_pct']:6.3f} % late {r['late_pct']:6.3f} % | {r['samples']} samples"
+                f"missed {r['missed_pct']:6.3f} % late {r['late_pct']:6.3f} % | {r['samples']} samples, "
+                f"steal {r['steal_ms']:.0f} ms"
             )
             if "node_ticks" in r:
                 line += (

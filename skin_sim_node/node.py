@@ -146,11 +146,13 @@ class SkinSimNode(Node):
         if p.rt_priority <= 0:
             return
         lower = max(p.rt_priority - 1, 1)
+        # no SCHED_RESET_ON_FORK in process scope: threads started later (the executor's) inherit it;
+        # the display worker process already runs, and the node starts no other process
         if p.rt_scope == "process":
-            problems = [set_process_realtime(lower)]
+            problems = [set_process_realtime(lower, reset_on_fork=False)]
         else:
             problems = [set_realtime(lower, self._display_loop.native_id or 0)]
-        problems.append(set_realtime(p.rt_priority))
+        problems.append(set_realtime(p.rt_priority, reset_on_fork=p.rt_scope != "process"))
         problem = next((m for m in problems if m), None)
         if problem:
             self._warn(problem)

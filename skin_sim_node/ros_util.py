@@ -125,29 +125,31 @@ def set_timer_slack_ns(slack_ns: int) -> bool:
     return _LIBC is not None and _LIBC.prctl(_PR_SET_TIMERSLACK, ctypes.c_ulong(slack_ns), 0, 0, 0) == 0
 
 
-def set_realtime(priority: int, tid: int = 0) -> str | None:
+def set_realtime(priority: int, tid: int = 0, reset_on_fork: bool = True) -> str | None:
     """SCHED_FIFO at ``priority`` (1-99) for thread ``tid`` (0: the calling thread).
 
-    With SCHED_RESET_ON_FORK, so processes it starts (the display worker) run normally.
-    Returns None on success, else the reason (e.g. no CAP_SYS_NICE, or RT throttled to 0 in
-    this cgroup); the caller logs it and carries on at normal priority.
+    ``reset_on_fork``: SCHED_RESET_ON_FORK, so processes it starts run normally; note that the
+    kernel applies it to new threads too (they start at normal priority). Returns None on
+    success, else the reason (e.g. no CAP_SYS_NICE, or no RT budget in this cgroup); the caller
+    logs it and carries on at normal priority.
     """
+    policy = os.SCHED_FIFO | (os.SCHED_RESET_ON_FORK if reset_on_fork else 0)
     try:
-        os.sched_setscheduler(tid, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(priority))
+        os.sched_setscheduler(tid, policy, os.sched_param(priority))
         return None
     except (OSError, AttributeError) as exc:
         return f"SCHED_FIFO {priority} not permitted ({exc}); running at normal priority"
 
 
-def set_process_realtime(priority: int) -> str | None:
-    """:func:`set_realtime` for every thread of this process (DDS threads included); threads
-    started later by one of them inherit it."""
-    return set_pid_realtime(os.getpid(), priority)
+def set_process_realtime(priority: int, reset_on_fork: bool = True) -> str | None:
+    """:func:`set_realtime` for every thread of this process (DDS threads included); without
+    ``reset_on_fork``, threads started later by one of them inherit it."""
+    return set_pid_realtime(os.getpid(), priority, reset_on_fork)
 
 
-def set_pid_realtime(pid: int, priority: int) -> str | None:
-    """:func:`set_realtime` for every thread of another process ``pid``."""
-    errors = [set_realtime(priority, int(tid)) for tid in os.listdir(f"/proc/{pid}/task")]
+def set_pid_realtime(pid: int, priority: int, reset_on_fork: bool = True) -> str | None:
+    """:func:`set_realtime` for every thread of process ``pid``."""
+    errors = [set_realtime(priority, int(tid), reset_on_fork) for tid in os.listdir(f"/proc/{pid}/task")]
     return next((e for e in errors if e), None)
 
 

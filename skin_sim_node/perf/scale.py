@@ -19,7 +19,7 @@ import threading
 import time
 from pathlib import Path
 
-from ..bench_node import diag_counts
+from ..bench_node import cpu_steal_ms, diag_counts
 from ..scenes import DEFAULT_PARAMS, Scene
 
 MISSED_LIMIT_PCT = 0.1  # issue 7
@@ -105,8 +105,9 @@ def run_scale(
                 obs.watch(start_session(scene, n, rate_hz, mode, node_params))
                 time.sleep(3.0)  # discovery, the device's start delay
                 obs.clear()
-                load0 = os.getloadavg()[0]
+                load0, steal0 = os.getloadavg()[0], cpu_steal_ms()
                 time.sleep(step_s)
+                steal_ms = cpu_steal_ms() - steal0
                 sessions = [obs.summary(f"/s{i}") for i in range(1, n + 1)]
                 worst = max(s.get("node_missed_pct", float("inf")) for s in sessions)
                 row = {
@@ -114,13 +115,15 @@ def run_scale(
                     "per_session": sessions,
                     "worst_missed_pct": worst,
                     "load_1min": (load0, os.getloadavg()[0]),
+                    "steal_ms": steal_ms,
                 }
                 rows.append(row)
                 print(
                     f"  {n} session(s): missed " + ", ".join(f"{s.get('node_missed_pct', nan):.3f}" for s in sessions)
                     + " % | late " + ", ".join(f"{s.get('node_late_pct', nan):.3f}" for s in sessions)
                     + " % | period p99 " + ", ".join(f"{s.get('node_period_us_p99', nan):.0f}" for s in sessions)
-                    + f" us | worst missed {worst:.3f} % {'<=' if worst <= MISSED_LIMIT_PCT else '>'} {MISSED_LIMIT_PCT} %",
+                    + f" us | worst missed {worst:.3f} % {'<=' if worst <= MISSED_LIMIT_PCT else '>'} {MISSED_LIMIT_PCT} %"
+                    + f" | steal {steal_ms:.0f} ms",
                     flush=True,
                 )  # fmt: skip
                 if worst > MISSED_LIMIT_PCT and not keep_going:

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import psutil
 
+from ..bench_node import cpu_steal_ms
 from ..scenes import Scene
 
 GAP_LIMIT_MS = 5.0  # issue 7
@@ -124,6 +125,7 @@ def run_soak(
             t_rss, rss, rss_kids = [], [], []
             n_force = n_pressing = 0
             t0 = time.monotonic()
+            steal0 = cpu_steal_ms()
             next_sample = t0
             while (now := time.monotonic()) < t0 + duration_s:
                 if node.popen.poll() is not None:
@@ -144,6 +146,7 @@ def run_soak(
                           f"forces {n_force}, max stamp gap {stamp_gaps.max_ns * 1e-6:.2f} ms", flush=True)  # fmt: skip
                 next_sample += SAMPLE_PERIOD_S
                 time.sleep(max(0.0, next_sample - time.monotonic()))
+            steal_ms = cpu_steal_ms() - steal0
         finally:
             mon.close()
     warm_n = int(np.searchsorted(np.asarray(t_rss), warmup_s))
@@ -157,6 +160,7 @@ def run_soak(
         "node_rss_mib": (rss[warm_n] / 2**20 if warm_n < len(rss) else float("nan"), rss[-1] / 2**20 if rss else float("nan")),
         "node_rss_growth_pct": growth_pct(rss, warm_n),
         "display_rss_growth_pct": growth_pct(rss_kids, warm_n),
+        "steal_ms": steal_ms,
         "stamp_gaps": stamp_gaps.summary(),
         "arrival_gaps": rx_gaps.summary(),
     }
@@ -194,6 +198,7 @@ def main(argv=None) -> int:
         f"{sg['gaps_over_limit']} over {GAP_LIMIT_MS} ms of {sg['periods']} (aim: none)\n"
         f"force stream gaps (arrival): p50 {ag['p50_ms']:.3f} p99 {ag['p99_ms']:.3f} max {ag['max_gap_ms']:.2f} ms, "
         f"{ag['gaps_over_limit']} over {GAP_LIMIT_MS} ms\n"
+        f"hypervisor steal during the run: {r['steal_ms']:.0f} ms (both vCPUs)\n"
         f"aims met: {r['aims_met']}",
         flush=True,
     )
