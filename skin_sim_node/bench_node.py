@@ -336,6 +336,7 @@ def main(argv=None) -> int:
     ap.add_argument("--latency-s", type=float, default=30.0, help="seconds of each latency case")
     ap.add_argument("--lever-s", type=float, default=20.0, help="seconds of each lever case")
     ap.add_argument("--rates", default="1000,2000,4000", help="force rates of the jitter cases (Hz)")
+    ap.add_argument("--lever-rate-hz", type=float, default=None, help="force rate of the lever cases (default: the first rate)")
     ap.add_argument("--pose-rate-hz", type=float, default=1000.0, help="held-pose rate fed to timer-mode cases")
     ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE for all node cases")
     ap.add_argument(
@@ -388,7 +389,7 @@ def main(argv=None) -> int:
         results["jitter"] = pairs
         print_periods("force period jitter (bare rclpy timer vs node in timer mode)", pairs)
     if "levers" in sections:
-        rate = rates[0]
+        rate = args.lever_rate_hz or rates[0]
         levers = args.lever or list(LEVER_PRESETS)
         base = run_case("timer", args.lever_s, rate, log_dir / "levers_timer")
         pairs = []
