@@ -369,6 +369,12 @@ def main(argv=None) -> int:
         flush=True,
     )
     results: dict = {}
+    if "tickcost" in sections:
+        cost = tick_cost()
+        results["tickcost"] = cost
+        print("\nper-tick cost of the pose-to-force path in one thread, us (p50 p99 max); all but the model step hold the GIL")
+        for k, v in cost.items():
+            print(f"  {k:>24}: {v[0]:7.1f} {v[1]:7.1f} {v[2]:8.1f}")
     if "latency" in sections:
         echo = run_case("echo", args.latency_s, 1000.0, log_dir / "latency_echo")
         nodes = []
@@ -403,12 +409,6 @@ def main(argv=None) -> int:
             pairs.append((base, r))
         results["levers"] = pairs
         print_periods("levers (node in timer mode; same-run bare rclpy timer)", pairs)
-    if "tickcost" in sections:
-        cost = tick_cost()
-        results["tickcost"] = cost
-        print("\nper-tick cost of the pose-to-force path in one thread, us (p50 p99 max); all but the model step hold the GIL")
-        for k, v in cost.items():
-            print(f"  {k:>24}: {v[0]:7.1f} {v[1]:7.1f} {v[2]:8.1f}")
     if "startup" in sections:
         cache = Path(tempfile.mkdtemp(prefix="skin_sim_numba_cache_"))
         rows = [
