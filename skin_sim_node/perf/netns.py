@@ -29,11 +29,11 @@ def _pcts(a) -> list[float]:
 
 
 def run_device_side(duration_s: float, label: str, log_dir: Path) -> dict:
-    from ..monitor import Monitor
+    from ..bench_node import StreamObserver
 
     with Scene(log_dir) as scene:  # keeps the caller's ROS_DOMAIN_ID and discovery range
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
-        mon = Monitor(name="netns_observer", images=False, record_depth=1)
+        mon = StreamObserver("netns_observer", record_depth=1)
         try:
             scene.start("bridge", "bridge")
             scene.start("device", "device", "--hand-path", "press_hold_release", "--loop", "--start-delay-s", "1.0")

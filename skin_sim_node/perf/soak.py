@@ -98,7 +98,7 @@ def run_soak(
     parameter), the bridge, the simulated device and this observer run SCHED_FIFO one below
     (a device's servo loop and its driver would).
     """
-    from ..monitor import Monitor
+    from ..bench_node import StreamObserver
     from ..ros_util import set_pid_realtime
 
     if rt_priority > 0:
@@ -109,7 +109,7 @@ def run_soak(
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
         node = scene.node(*node_args)
         scene.wait_for_log(node, "live:", timeout_s=180)
-        mon = Monitor(name="soak_observer", images=False, record_depth=1000)
+        mon = StreamObserver("soak_observer", record_depth=1000)
         try:
             peers = [scene.start("bridge", "bridge")]
             peers.append(scene.start("device", "device", "--hand-path", "drag", "--loop", "--start-delay-s", "1.0"))
