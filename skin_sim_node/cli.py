@@ -16,7 +16,7 @@ COMMANDS = {
     "bench-model": ("skin_sim_node.bench_model", "model step micro-benchmark (numba vs NumPy)"),
     "soak": ("skin_sim_node.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),
     "scale": ("skin_sim_node.perf.scale", "how many 1 kHz sessions (node + bridge + device, own namespaces) one machine holds"),
-    "netns-role": ("skin_sim_node.perf.netns", "one side of scripts/netns_scale.sh (simulation or bridge + device + observer)"),
+    "netns-role": ("skin_sim_node.perf.netns", "netns_scale.sh helper: device side (bridge, device, observer); comparison"),
     "echo": ("skin_sim_node.echo", "bare rclpy echo node (pose in, wrench out): the latency baseline"),
     "chart": ("skin_sim_node.figures", "regenerate figures: chart model|validation|stability|performance"),
     "record": ("skin_sim_node.bags.record", "record a scene's tool inputs and node outputs to a rosbag2 folder"),
