@@ -46,9 +46,12 @@ LEVER_PRESETS = {
     "rt-process": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process"),
     "rt-process-cpu1": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process", "haptic_cpu:=1"),
     "rt-process-spin": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process", "spin_tail_us:=100.0"),
+    # GIL switch interval of the node process (its --switch-interval-s; default 0.2 ms)
+    "rt-process-switch50us": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process", "switch_interval_s:=5e-5"),
     # no tool input at all (pose_rate_hz is the bench's, not a node parameter): what the pose callbacks cost the clock
     "off-no-poses": ("precise_sleep:=false", "pose_rate_hz:=0"),
 }
+BENCH_ONLY = ("pose_rate_hz:=", "switch_interval_s:=")  # lever entries that are not node parameters
 
 
 def _pcts(a) -> tuple[float, float, float]:
@@ -468,7 +471,8 @@ def main(argv=None) -> int:
             name, _, params = spec.partition("=")
             plist = tuple(p for p in params.split(",") if p) if params else LEVER_PRESETS[name]
             pose_rate = next((float(p.split(":=")[1]) for p in plist if p.startswith("pose_rate_hz:=")), args.pose_rate_hz)
-            extra = node_args + tuple(a for p in plist if not p.startswith("pose_rate_hz:=") for a in ("-p", p))
+            extra = node_args + tuple(a for p in plist if not p.startswith(BENCH_ONLY) for a in ("-p", p))
+            extra += tuple(a for p in plist if p.startswith("switch_interval_s:=") for a in ("--switch-interval-s", p[19:]))
             r = run_case("node-timer", args.lever_s, rate, log_dir / f"lever_{name}", extra, pose_rate)
             r["label"] = name
             pairs.append((base, r))
