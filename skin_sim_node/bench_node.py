@@ -51,6 +51,11 @@ LEVER_PRESETS = {
     # no tool input at all (pose_rate_hz is the bench's, not a node parameter): what the pose callbacks cost the clock
     "off-no-poses": ("precise_sleep:=false", "pose_rate_hz:=0"),
 }
+SETTLE_S = 5.0
+"""Seconds between the observer joining and the measurement. Measured (Fast DDS 2.14, the wheel):
+when a reader of ``tool/wrench`` joins, the writer's ``publish()`` blocked once for ~335 ms about
+2-3 s later in 8 of 23 trials, with the GIL held, so the whole node stalls; it did not recur in
+steady state. The figures are steady state; docs/performance_rate.md reports the join stall."""
 BENCH_ONLY = ("pose_rate_hz:=", "switch_interval_s:=")  # lever entries that are not node parameters
 
 
@@ -194,8 +199,11 @@ def run_case(
     log_dir: Path,
     node_args: tuple[str, ...] = (),
     pose_rate_hz: float = 1000.0,
+    settle_s: float | None = None,
 ) -> dict:
-    """Run one case for ``duration_s`` measured seconds; returns its figures (see the module doc)."""
+    """Run one case for ``duration_s`` measured seconds, from ``settle_s`` (default :data:`SETTLE_S`)
+    after the observer joined; returns its figures (see the module doc)."""
+    settle_s = SETTLE_S if settle_s is None else settle_s
     from geometry_msgs.msg import PoseStamped, TwistStamped
 
     from msgs_schema import convert as cv
@@ -210,6 +218,7 @@ def run_case(
         scene.wait_for_log(proc, "live:", timeout_s=180)
         # latency: depth 1 (arrival as a device sees it); periods: deep, so observer stalls lose no stamp
         mon = StreamObserver(f"bench_{kind.replace('-', '_')}", record_depth=1 if latency_case else 1000)
+        joined = time.monotonic()
         pose_pub, twist_pub = mon.publisher("tool_pose"), mon.publisher("tool_twist")
         pose, twist = PoseStamped(), TwistStamped()
         sent: list[int] = []
@@ -235,7 +244,7 @@ def run_case(
         if source_hz > 0:
             loop.start()
         mon.wait_for(lambda: len(mon.wrench) > 10, 30, f"{kind} wrenches")
-        time.sleep(1.0)  # warm-up: discovery settles, caches fill
+        time.sleep(max(0.0, joined + settle_s - time.monotonic()))  # see SETTLE_S
         mon.wrench.clear()
         mon.diagnostics.clear()
         sent.clear()

@@ -175,7 +175,7 @@ def test_bench_timer_case_reports_periods_and_node_counts(tmp_path):
     """One short ``skin-sim bench`` jitter case end to end: the stamps of a real stream, the node's own counts."""
     from skin_sim_node.bench_node import run_case
 
-    r = run_case("node-timer", 2.0, 1000.0, tmp_path, ("-p", "display_rate_hz:=0.0"))
+    r = run_case("node-timer", 2.0, 1000.0, tmp_path, ("-p", "display_rate_hz:=0.0"), settle_s=1.0)
     assert r["samples"] > 100
     assert 0.0 <= r["missed_pct"] <= 100.0 and 0.0 <= r["late_pct"] <= 100.0
     assert r["period_ms"][0] <= r["period_ms"][1] <= r["period_ms"][2]

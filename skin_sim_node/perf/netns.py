@@ -29,7 +29,7 @@ def _pcts(a) -> list[float]:
 
 
 def run_device_side(duration_s: float, label: str, log_dir: Path) -> dict:
-    from ..bench_node import StreamObserver
+    from ..bench_node import SETTLE_S, StreamObserver
 
     with Scene(log_dir) as scene:  # keeps the caller's ROS_DOMAIN_ID and discovery range
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
@@ -38,7 +38,7 @@ def run_device_side(duration_s: float, label: str, log_dir: Path) -> dict:
             scene.start("bridge", "bridge")
             scene.start("device", "device", "--hand-path", "press_hold_release", "--loop", "--start-delay-s", "1.0")
             mon.wait_for(lambda: len(mon.wrench) > 100, 60, "forces from the node (DDS discovery across namespaces)")
-            time.sleep(1.0)
+            time.sleep(SETTLE_S)  # a joining reader's stall: see SETTLE_S
             del mon.wrench[:]
             time.sleep(duration_s)
             rec = np.array(mon.wrench, dtype=np.float64).reshape(-1, 3)

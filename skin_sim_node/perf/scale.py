@@ -19,7 +19,7 @@ import threading
 import time
 from pathlib import Path
 
-from ..bench_node import cpu_steal_ms, diag_counts
+from ..bench_node import SETTLE_S, cpu_steal_ms, diag_counts
 from ..scenes import DEFAULT_PARAMS, Scene
 
 MISSED_LIMIT_PCT = 0.1  # issue 7
@@ -103,7 +103,7 @@ def run_scale(
         try:
             for n in range(1, max_sessions + 1):
                 obs.watch(start_session(scene, n, rate_hz, mode, node_params))
-                time.sleep(3.0)  # discovery, the device's start delay
+                time.sleep(SETTLE_S)  # discovery, the device's start delay, a joining reader's stall (see SETTLE_S)
                 obs.clear()
                 load0, steal0 = os.getloadavg()[0], cpu_steal_ms()
                 time.sleep(step_s)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import psutil
 
-from ..bench_node import cpu_steal_ms
+from ..bench_node import SETTLE_S, cpu_steal_ms
 from ..scenes import Scene
 
 GAP_LIMIT_MS = 5.0  # issue 7
@@ -110,6 +110,7 @@ def run_soak(
         node = scene.node(*node_args)
         scene.wait_for_log(node, "live:", timeout_s=180)
         mon = StreamObserver("soak_observer", record_depth=1000)
+        joined = time.monotonic()
         try:
             peers = [scene.start("bridge", "bridge")]
             peers.append(scene.start("device", "device", "--hand-path", "drag", "--loop", "--start-delay-s", "1.0"))
@@ -120,6 +121,7 @@ def run_soak(
                     if problem:
                         print(f"soak: {problem}", flush=True)
             mon.wait_for(lambda: any(abs(f) > 0 for _, _, f in mon.wrench[-2000:]), 60, "a pressing force")
+            time.sleep(max(0.0, joined + SETTLE_S - time.monotonic()))  # a joining reader's stall: see SETTLE_S
             del mon.wrench[:]
             stamp_gaps, rx_gaps = GapCounter(GAP_LIMIT_MS * 1e6), GapCounter(GAP_LIMIT_MS * 1e6)
             t_rss, rss, rss_kids = [], [], []
