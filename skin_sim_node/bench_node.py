@@ -35,7 +35,7 @@ import numpy as np
 
 from .scenes import Scene
 
-SECTIONS = ("latency", "jitter", "levers", "startup", "tickcost")
+SECTIONS = ("floor", "tickcost", "latency", "jitter", "levers", "startup")
 LEVER_PRESETS = {
     # name: node parameters (NAME:=VALUE) on top of timer mode; "off" is the loop before issue 7
     "off": ("precise_sleep:=false",),
@@ -360,6 +360,36 @@ def tick_cost(n: int = 5000) -> dict:
     return {k: _pcts(v[warm:]) for k, v in t.items()}
 
 
+def wake_floor(rt_priority: int, duration_s: float, rate_hz: float = 1000.0) -> dict:
+    """The platform's floor: a bare Python thread (no ROS, no other thread) sleeping to each
+    deadline with :func:`ros_util.sleep_until_ns`; wake latency = wake - deadline (us), and the
+    share of wakes later than half a period (what would make a 1.5 T period)."""
+    from .ros_util import set_realtime, sleep_until_ns
+
+    out: dict = {}
+
+    def run():
+        if rt_priority > 0:
+            out["problem"] = set_realtime(rt_priority)
+        period = int(1e9 / rate_hz)
+        n = int(duration_s * rate_hz)
+        lat = np.zeros(n)
+        clock = time.perf_counter_ns
+        nxt = clock() + period
+        for i in range(n):
+            while clock() < nxt:
+                sleep_until_ns(nxt)
+            lat[i] = (clock() - nxt) * 1e-3
+            nxt += period
+        out["wake_us"] = _pcts(lat)
+        out["over_half_period_pct"] = float(100.0 * np.mean(lat > 0.5e6 / rate_hz))
+
+    t = threading.Thread(target=run, name="wake-floor")
+    t.start()
+    t.join()
+    return out
+
+
 def _fmt3(p) -> str:
     return f"{p[0]:7.3f} {p[1]:7.3f} {p[2]:7.2f}"
 
@@ -411,6 +441,7 @@ def main(argv=None) -> int:
     ap.add_argument("--duration-s", type=float, default=60.0, help="seconds of the first-rate jitter case (missed ticks)")
     ap.add_argument("--jitter-s", type=float, default=20.0, help="seconds of the other rates' jitter cases")
     ap.add_argument("--latency-s", type=float, default=30.0, help="seconds of each latency case")
+    ap.add_argument("--floor-s", type=float, default=10.0, help="seconds of each platform-floor case")
     ap.add_argument("--lever-s", type=float, default=20.0, help="seconds of each lever case")
     ap.add_argument("--rates", default="1000,2000,4000", help="force rates of the jitter cases (Hz)")
     ap.add_argument("--lever-rate-hz", type=float, default=None, help="force rate of the lever cases (default: the first rate)")
@@ -452,6 +483,16 @@ def main(argv=None) -> int:
         print("\nper-tick cost of the pose-to-force path in one thread, us (p50 p99 max); all but the model step hold the GIL")
         for k, v in cost.items():
             print(f"  {k:>24}: {v[0]:7.1f} {v[1]:7.1f} {v[2]:8.1f}")
+    if "floor" in sections:
+        rows = {prio: wake_floor(prio, args.floor_s) for prio in (0, 80)}
+        results["floor"] = rows
+        print(f"\nplatform floor: a bare Python thread sleeping to 1 kHz deadlines, {args.floor_s:.0f} s; wake latency, us")
+        for prio, r in rows.items():
+            w = r["wake_us"]
+            name = f"SCHED_FIFO {prio}" if prio else "normal"
+            note = f" ({r['problem']})" if r.get("problem") else ""
+            late = r["over_half_period_pct"]
+            print(f"  {name:>14}: p50 {w[0]:6.0f} p99 {w[1]:6.0f} max {w[2]:7.0f} | later than T/2: {late:.3f} %{note}")
     if "latency" in sections:
         echo = run_case("echo", args.latency_s, 1000.0, log_dir / "latency_echo")
         nodes = []
