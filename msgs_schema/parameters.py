@@ -92,8 +92,33 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "lod: snapshot the model for the display only when it changed, and rebuild the grid only when it moved "
         "by more than tissue.lod.tolerance_m (at most at display_rate_hz); false rebuilds every display frame",
     ),
+    # haptic timing levers (read at start; measured in docs/performance_rate.md)
+    ParamSpec(
+        "rt_priority", int, 0, "1",
+        "SCHED_FIFO priority of the haptic threads, 1-99 (0: normal scheduling). Opt-in: needs root or "
+        "CAP_SYS_NICE; when refused the node logs a warning and runs at normal priority. 80 sits above "
+        "the kernel's threaded IRQs (50 on PREEMPT_RT) as servo loops usually do",
+        0, 99, False,
+    ),
+    ParamSpec(
+        "rt_scope", str, "process", "-",
+        "threads that get SCHED_FIFO: haptic (the tick clock and the executor that runs pose callbacks at "
+        "rt_priority, the display-loop thread that shares their lock at one less) or process (also every other "
+        "thread at one less: the DDS receive threads that deliver the poses are on the input-mode path)",
+    ),
+    ParamSpec(
+        "haptic_cpu", int, -1, "1", "pin the haptic clock thread to this CPU (-1: no pinning)", -1, 1023, False,
+    ),
+    ParamSpec(
+        "spin_tail_us", float, 0.0, "us",
+        "busy-wait this long before each haptic deadline instead of sleeping (0: sleep all the way)", 0.0, 1000.0, False,
+    ),
+    ParamSpec(
+        "precise_sleep", bool, True, "-",
+        "sleep to each deadline with clock_nanosleep(TIMER_ABSTIME), GIL released; false: time.sleep(remaining)",
+    ),
 )  # fmt: skip
-_STRING_CHOICES: dict[str, tuple[str, ...]] = {"loop_mode": ("input", "timer")}
+_STRING_CHOICES: dict[str, tuple[str, ...]] = {"loop_mode": ("input", "timer"), "rt_scope": ("haptic", "process")}
 
 ALL_PARAMETERS: tuple[ParamSpec, ...] = NODE_PARAMETERS + tuple(
     replace(s, name=TISSUE_PREFIX + s.name) for s in TISSUE_PARAMETERS
@@ -124,6 +149,11 @@ class NodeParams:
     diagnostics_period_s: float
     idle_heartbeat_hz: float
     display_on_change: bool
+    rt_priority: int
+    rt_scope: str
+    haptic_cpu: int
+    spin_tail_us: float
+    precise_sleep: bool
 
 
 def check_value(name: str, value):

@@ -1,22 +1,33 @@
-"""``skin-sim bench``: skin_sim_node's latency, rate and jitter against bare rclpy baselines.
+"""``skin-sim bench``: skin_sim_node's latency, rate, jitter and start-up against bare rclpy baselines.
 
-All cases run in one invocation on this machine, each as separate processes over DDS:
+Every figure is printed as median, p99 and max next to a baseline measured in the same run,
+each case in its own processes over DDS (the pose source and the observer live in this process):
 
-1. ``echo``   a bare rclpy node that answers each pose with a zero wrench (latency baseline);
-2. ``node``   skin_sim_node in ``input`` mode answering the same poses;
-3. ``ticker`` a bare 1 kHz publishing thread (period-jitter baseline);
-4. ``node-timer`` skin_sim_node in ``timer`` mode at ``--rate-hz`` with the tool held pressed.
-
-The pose source and the observer live in this process: poses at ``--rate-hz`` follow a
-1 Hz press 0-3 mm deep, stamped with the send time; latency = wrench arrival - stamp.
+- ``latency``: pose-to-force latency across processes. Baseline: ``skin-sim echo``, a bare
+  rclpy node answering each pose with a zero wrench; then the node in ``input`` mode. Poses at
+  1 kHz follow a 1 Hz press 0-3 mm deep, stamped at send; latency = wrench arrival - stamp,
+  observed with reader depth 1 (as a device sees it).
+- ``jitter``: force period at each ``--rates`` rate. Baseline: a bare rclpy timer publishing a
+  wrench (``skin-sim echo --ticker-hz R``); then the node in ``timer`` mode at the same rate
+  with the tool held 2 mm deep (poses at ``--pose-rate-hz``). Periods come from the wrench
+  stamps (the publisher's clock at publish), recorded with a deep reader so observer stalls
+  lose nothing. The first rate runs ``--duration-s`` (60 s: the missed-tick figure), the others
+  ``--jitter-s``. Missed ticks = slots of the nominal grid that got no force sample
+  (``sum(round(period / T) - 1)`` over the expected count); late = periods over 1.5 T.
+- ``levers``: the node in ``timer`` mode at the first rate with each ``--lever`` parameter set.
+- ``startup``: time from process start to the first force at the observer, the node with a
+  cold numba cache (a fresh ``NUMBA_CACHE_DIR``) then warm (the same directory again).
+  Baseline: the bare rclpy timer (no numba at all).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -24,123 +35,514 @@ import numpy as np
 
 from .scenes import Scene
 
+SECTIONS = ("floor", "tickcost", "latency", "jitter", "levers", "startup")
+LEVER_PRESETS = {
+    # name: node parameters (NAME:=VALUE) on top of timer mode; "off" is the loop before issue 7
+    "off": ("precise_sleep:=false",),
+    "abs-sleep": ("precise_sleep:=true",),
+    "spin-100us": ("precise_sleep:=true", "spin_tail_us:=100.0"),
+    "affinity-cpu1": ("precise_sleep:=true", "haptic_cpu:=1"),
+    "rt-haptic": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=haptic"),
+    "rt-process": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process"),
+    "rt-process-cpu1": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process", "haptic_cpu:=1"),
+    "rt-process-spin": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process", "spin_tail_us:=100.0"),
+    # GIL switch interval of the node process (its --switch-interval-s; default 0.2 ms)
+    "rt-process-switch50us": ("precise_sleep:=true", "rt_priority:=80", "rt_scope:=process", "switch_interval_s:=5e-5"),
+    # no tool input at all (pose_rate_hz is the bench's, not a node parameter): what the pose callbacks cost the clock
+    "off-no-poses": ("precise_sleep:=false", "pose_rate_hz:=0"),
+}
+SETTLE_S = 5.0
+"""Seconds between the observer joining and the measurement. Measured (Fast DDS 2.14, the wheel):
+when a reader of ``tool/wrench`` joins, the writer's ``publish()`` blocked once for ~335 ms about
+2-3 s later in 8 of 23 trials, with the GIL held, so the whole node stalls; it did not recur in
+steady state. The figures are steady state; docs/performance_rate.md reports the join stall."""
+BENCH_ONLY = ("pose_rate_hz:=", "switch_interval_s:=")  # lever entries that are not node parameters
 
-def _pcts(a):
+
+def _pcts(a) -> tuple[float, float, float]:
     a = np.asarray(a, dtype=float)
     if a.size == 0:
         return (float("nan"),) * 3
     return float(np.percentile(a, 50)), float(np.percentile(a, 99)), float(a.max())
 
 
-def run_case(kind: str, duration_s: float, rate_hz: float, log_dir: Path, node_args: tuple[str, ...] = ()) -> dict:
+def period_stats(stamps_ns, rate_hz: float) -> dict:
+    """Period figures of a force stream from its stamps (ns): median/p99/max period (ms),
+    missed ticks (% of the nominal slots without a sample), late periods (> 1.5 T, %)."""
+    s = np.sort(np.unique(np.asarray(stamps_ns, dtype=np.int64)))
+    period_ns = 1e9 / rate_hz
+    d = np.diff(s).astype(float)
+    if d.size == 0:
+        return {"period_ms": (float("nan"),) * 3, "missed_pct": float("nan"), "late_pct": float("nan"), "samples": int(s.size)}
+    slots = np.maximum(np.rint(d / period_ns) - 1, 0)
+    expected = d.sum() / period_ns
+    return {
+        "period_ms": _pcts(d * 1e-6),
+        "missed_pct": float(100.0 * slots.sum() / expected),
+        "late_pct": float(100.0 * np.mean(d > 1.5 * period_ns)),
+        "samples": int(s.size),
+        "achieved_hz": float((s.size - 1) / (d.sum() * 1e-9)),
+    }
+
+
+def cpu_steal_ms() -> float:
+    """Hypervisor steal time so far, summed over CPUs (ms; /proc/stat, USER_HZ ticks). On a VM,
+    time a vCPU was runnable but the host ran something else: no priority inside the guest helps."""
+    try:
+        with open("/proc/stat") as fh:
+            fields = fh.readline().split()
+        return float(fields[8]) * 1000.0 / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return float("nan")
+
+
+def diag_counts(diags: list[dict]) -> dict:
+    """The node's own tick counts from its 1 Hz diagnostics (windows after the first, which began
+    before the measurement): ticks, missed slots (% of ticks + missed), late periods (% of ticks)."""
+    if len(diags) < 2:
+        return {"node_windows": len(diags)}
+    ticks = int(diags[-1]["ticks_total"]) - int(diags[0]["ticks_total"])
+    rest = diags[1:]
+    missed = sum(int(d.get("missed_slots_window", 0)) for d in rest)
+    late = sum(int(d["late_ticks_window"]) for d in rest)
+    return {
+        "node_windows": len(rest),
+        "node_ticks": ticks,
+        "node_missed_pct": 100.0 * missed / max(ticks + missed, 1),
+        "node_late_ticks": late,
+        "node_late_pct": 100.0 * late / max(ticks, 1),
+        "node_rate_hz": float(np.median([float(d["achieved_rate_hz"]) for d in rest])),
+        "node_period_us_p99": float(np.median([float(d["period_us_p99"]) for d in rest])),
+        "node_tick_us_p99": float(np.median([float(d["kernel_us_p99"]) for d in rest])),
+    }
+
+
+class StreamObserver:
+    """The benchmark's observer: ``tool/wrench`` and ``diagnostics`` only, in its own rclpy context.
+
+    Lighter than :class:`skin_sim_node.monitor.Monitor` (no ``contact`` reader): at 4 kHz each
+    reader is 4000 Python callbacks a second in this process, and an observer that cannot keep
+    up would count its own losses as the node's missed ticks. Records as the Monitor does:
+    ``wrench`` (rx_ns, stamp_ns, fz), ``diagnostics`` (rx_ns, {key: value}, level, message).
+    """
+
+    def __init__(self, name: str, record_depth: int):
+        import rclpy
+
+        from msgs_schema.qos import subscription
+
+        from .ros_util import make_executor, spin_context
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.wrench: list[tuple[int, int, float]] = []
+        self.diagnostics: list = []
+        clock = self.node.get_clock()
+        self.now_ns = lambda: clock.now().nanoseconds
+
+        def on_wrench(msg):
+            from msgs_schema import convert as cv
+
+            stamp, _, f = cv.read_wrench(msg)
+            self.wrench.append((self.now_ns(), stamp, f[2]))
+
+        def on_diag(msg):
+            for st in msg.status:
+                self.diagnostics.append((self.now_ns(), {kv.key: kv.value for kv in st.values}, st.level, st.message))
+
+        subscription(self.node, "tool_wrench", on_wrench, depth=record_depth)
+        subscription(self.node, "diagnostics", on_diag)
+        self._executor = make_executor("events", self.context)
+        self._executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=spin_context, args=(self._executor, self.context, self._stop), daemon=True)
+        self._thread.start()
+
+    def publisher(self, key: str):
+        from msgs_schema.qos import publisher
+
+        return publisher(self.node, key)
+
+    def wait_for(self, predicate, timeout_s: float, what: str) -> None:
+        end = time.monotonic() + timeout_s
+        while not predicate():
+            if time.monotonic() > end:
+                raise TimeoutError(f"observer: {what} not met within {timeout_s} s")
+            time.sleep(0.02)
+
+    def close(self) -> None:
+        import rclpy
+
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        try:
+            self.node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=self.context)
+
+
+def start_case(scene: Scene, kind: str, rate_hz: float, node_args: tuple[str, ...] = ()):
+    """Start the process(es) of one case in ``scene``; returns the process that publishes forces."""
+    if kind == "echo":
+        return scene.start("echo", "echo")
+    if kind in ("timer", "ticker"):
+        return scene.start(kind, "echo", "--ticker-hz", str(rate_hz), "--ticker-kind", "timer" if kind == "timer" else "thread")
+    mode = "timer" if kind == "node-timer" else "input"
+    return scene.node("-p", f"loop_mode:={mode}", "-p", f"rate_hz:={rate_hz}", *node_args)
+
+
+def run_case(
+    kind: str,
+    duration_s: float,
+    rate_hz: float,
+    log_dir: Path,
+    node_args: tuple[str, ...] = (),
+    pose_rate_hz: float = 1000.0,
+    settle_s: float | None = None,
+) -> dict:
+    """Run one case for ``duration_s`` measured seconds, from ``settle_s`` (default :data:`SETTLE_S`)
+    after the observer joined; returns its figures (see the module doc)."""
+    settle_s = SETTLE_S if settle_s is None else settle_s
     from geometry_msgs.msg import PoseStamped, TwistStamped
 
     from msgs_schema import convert as cv
 
-    from .monitor import Monitor
     from .ros_util import PeriodicLoop
 
-    with Scene(log_dir / kind) as scene:
+    latency_case = kind in ("echo", "node")
+    with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
-        if kind == "echo":
-            proc = scene.start("echo", "echo")
-        elif kind == "ticker":
-            proc = scene.start("ticker", "echo", "--ticker-hz", str(rate_hz))
-        else:
-            mode = "timer" if kind == "node-timer" else "input"
-            proc = scene.node("-p", f"loop_mode:={mode}", "-p", f"rate_hz:={rate_hz}", *node_args)
-        scene.wait_for_log(proc, "live:", timeout_s=120)
-        mon = Monitor(name=f"bench_{kind.replace('-', '_')}", images=False, record_depth=1)  # newest sample
-        pose_pub = mon.publisher("tool_pose")
-        twist_pub = mon.publisher("tool_twist")
+        proc = start_case(scene, kind, rate_hz, node_args)
+        scene.wait_for_log(proc, "live:", timeout_s=180)
+        # latency: depth 1 (arrival as a device sees it); periods: deep, so observer stalls lose no stamp
+        mon = StreamObserver(f"bench_{kind.replace('-', '_')}", record_depth=1 if latency_case else 1000)
+        joined = time.monotonic()
+        pose_pub, twist_pub = mon.publisher("tool_pose"), mon.publisher("tool_twist")
         pose, twist = PoseStamped(), TwistStamped()
         sent: list[int] = []
-        publishing = kind != "ticker"
-        hold = kind == "node-timer"
+        hold = not latency_case
         t_start = [0]
 
         def tick(now_ns, _elapsed):
             t = (now_ns - t_start[0]) * 1e-9
-            z = -1.5e-3 * (1 - math.cos(2 * math.pi * t)) if not hold else -2e-3
-            vz = -1.5e-3 * 2 * math.pi * math.sin(2 * math.pi * t) if not hold else 0.0
+            z = -2e-3 if hold else -1.5e-3 * (1 - math.cos(2 * math.pi * t))
+            vz = 0.0 if hold else -1.5e-3 * 2 * math.pi * math.sin(2 * math.pi * t)
             stamp = mon.now_ns()
             twist_pub.publish(cv.fill_twist(twist, stamp, "tissue", (0.0, 0.0, vz)))  # twist first: see docs/ros.md
             pose_pub.publish(cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, z)))
             sent.append(stamp)
 
-        if publishing:
+        if kind not in ("timer", "ticker") and (latency_case or pose_rate_hz > 0):
             end = time.monotonic() + 15
             while pose_pub.get_subscription_count() == 0 and time.monotonic() < end:
                 time.sleep(0.05)
-        mon.wait_for(lambda: publishing or len(mon.wrench) > 10, 15, "ticker wrenches")
-        loop = PeriodicLoop(int(1e9 / rate_hz), tick, name="bench-source")
+        source_hz = 1000.0 if latency_case else pose_rate_hz
+        loop = PeriodicLoop(int(1e9 / max(source_hz, 1.0)), tick, name="bench-source")
         t_start[0] = time.perf_counter_ns()
-        if publishing:
+        if source_hz > 0:
             loop.start()
-        time.sleep(1.0)  # warm-up: discovery settles, caches fill
+        mon.wait_for(lambda: len(mon.wrench) > 10, 30, f"{kind} wrenches")
+        time.sleep(max(0.0, joined + settle_s - time.monotonic()))  # see SETTLE_S
         mon.wrench.clear()
         mon.diagnostics.clear()
         sent.clear()
+        steal0 = cpu_steal_ms()
         time.sleep(duration_s)
+        steal_ms = cpu_steal_ms() - steal0
         loop.stop()
         time.sleep(0.2)
         records = list(mon.wrench)
-        f = mon.forces()
         diags = [d for _, d, _, _ in mon.diagnostics]
         mon.close()
-    out = {"case": kind, "sent": len(sent), "wrenches": len(f)}
-    rx = np.sort(f[:, 0]) if len(f) else np.zeros(0)
-    periods_ms = np.diff(rx) * 1e-6
-    out["obs_period_ms"] = _pcts(periods_ms)
-    out["obs_missed_pct"] = float(np.mean(periods_ms > 1.5e3 / rate_hz) * 100) if periods_ms.size else float("nan")
-    out["obs_rate_hz"] = (len(rx) - 1) / ((rx[-1] - rx[0]) * 1e-9) if len(rx) > 1 else float("nan")
-    if publishing and len(f):
+    out = {"case": kind, "rate_hz": rate_hz, "duration_s": duration_s, "node_args": list(node_args), "wrenches": len(records)}
+    out["steal_ms"] = steal_ms
+    if latency_case:
         sent_set = set(sent)
-        answered = np.array([r - s for r, s, _ in records if s in sent_set], dtype=np.int64)
-        out["answered_pct"] = 100.0 * len(answered) / max(len(sent), 1)
-        out["latency_ms"] = _pcts(answered * 1e-6)
-    if diags:
-        out["node_rate_hz"] = float(np.median([float(d["achieved_rate_hz"]) for d in diags]))
-        out["node_period_us_p99"] = float(np.median([float(d["period_us_p99"]) for d in diags]))
-        out["node_kernel_us_p99"] = float(np.median([float(d["kernel_us_p99"]) for d in diags]))
-        out["node_late_ticks"] = int(sum(int(d["late_ticks_window"]) for d in diags))
+        lat = np.array([r - s for r, s, _ in records if s in sent_set], dtype=np.int64)
+        out["answered_pct"] = 100.0 * lat.size / max(len(sent), 1)
+        out["latency_ms"] = _pcts(lat * 1e-6)
+    else:
+        out.update(period_stats([s for _, s, _ in records], rate_hz))
+    out.update(diag_counts(diags))
     return out
+
+
+def run_startup(kind: str, log_dir: Path, cache_dir: Path | None, rate_hz: float = 1000.0) -> dict:
+    """Seconds from starting the process to the first wrench at the observer (and the node's numba warm-up)."""
+    from .monitor import Monitor
+
+    with Scene(log_dir) as scene:
+        os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+        if cache_dir is not None:
+            scene.env["NUMBA_CACHE_DIR"] = str(cache_dir)
+        mon = Monitor(name=f"bench_start_{kind.replace('-', '_')}", images=False)
+        try:
+            t0 = time.monotonic()
+            proc = start_case(scene, kind, rate_hz)
+            mon.wait_for(lambda: len(mon.wrench) > 0, 300, f"{kind} first force")
+            first_s = time.monotonic() - t0
+            scene.wait_for_log(proc, "live:", timeout_s=60)
+        finally:
+            mon.close()
+        log = proc.log()
+    out = {"case": kind, "first_force_s": first_s}
+    if "numba warm-up" in log:
+        out["numba_warmup_s"] = float(log.split("numba warm-up ")[1].split(" s")[0])
+    return out
+
+
+def tick_cost(n: int = 5000) -> dict:
+    """In-process cost (us, p50/p99/max) of each step of the node's pose-to-force path, one thread, no load.
+
+    Shows how long each tick holds the GIL: everything except the numba model step (``nogil``).
+    A 1 Hz press 0-3 mm deep at 1 kHz stamps; publishers on an rclpy node with no subscriber.
+    """
+    import rclpy
+    from geometry_msgs.msg import PoseStamped, WrenchStamped
+    from sensor_msgs.msg import JointState
+
+    from msgs_schema import convert as cv
+    from msgs_schema.qos import publisher
+
+    from .model import SkinModel, preset
+    from .model.skin_model import warm_up
+    from .session import HapticSession, SessionParams
+
+    cfg = preset("default")
+    warm_up(cfg)
+    session = HapticSession(SkinModel(cfg), SessionParams(max_stamp_age_s=0.0))
+    model = session.model
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node("bench_tick_cost", context=ctx)
+    pub_w, pub_c = publisher(node, "tool_wrench"), publisher(node, "contact")
+    pose, wrench, contact = PoseStamped(), WrenchStamped(), JointState()
+    keys = ("read_pose", "on_pose", "tick (session + model)", "model step (nogil)", "publish wrench", "publish contact")
+    t = {k: np.zeros(n) for k in keys}
+    step = model.step
+    step_ns = [0]
+
+    def timed_step(*a, **k):
+        t0 = time.perf_counter_ns()
+        r = step(*a, **k)
+        step_ns[0] = time.perf_counter_ns() - t0
+        return r
+
+    model.step = timed_step
+    clock = time.perf_counter_ns
+    base = time.time_ns()
+    try:
+        for i in range(n):
+            stamp = base + i * 1_000_000
+            z = -1.5e-3 * (1 - math.cos(2 * math.pi * i / 1000))
+            cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, z))
+            t0 = clock()
+            st, frame, xyz = cv.read_pose(pose)
+            t1 = clock()
+            session.on_pose(st, frame, xyz, now_ns=stamp, rx_ns=t1)
+            t2 = clock()
+            force = session.tick(t2, 1_000_000)
+            t3 = clock()
+            pub_w.publish(cv.fill_wrench(wrench, st, "tissue", (0.0, 0.0, force)))
+            t4 = clock()
+            comp = model.compression_m
+            pub_c.publish(cv.fill_contact(contact, st, "tissue", comp, [0.0] * len(comp), [0.0] * len(comp)))
+            t5 = clock()
+            for k, dt in zip(keys, (t1 - t0, t2 - t1, t3 - t2, step_ns[0], t4 - t3, t5 - t4)):
+                t[k][i] = dt * 1e-3
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    warm = n // 10
+    return {k: _pcts(v[warm:]) for k, v in t.items()}
+
+
+def wake_floor(rt_priority: int, duration_s: float, rate_hz: float = 1000.0) -> dict:
+    """The platform's floor: a bare Python thread (no ROS, no other thread) sleeping to each
+    deadline with :func:`ros_util.sleep_until_ns`; wake latency = wake - deadline (us), and the
+    share of wakes later than half a period (what would make a 1.5 T period)."""
+    from .ros_util import set_realtime, sleep_until_ns
+
+    out: dict = {}
+
+    def run():
+        if rt_priority > 0:
+            out["problem"] = set_realtime(rt_priority)
+        period = int(1e9 / rate_hz)
+        n = int(duration_s * rate_hz)
+        lat = np.zeros(n)
+        clock = time.perf_counter_ns
+        nxt = clock() + period
+        for i in range(n):
+            while clock() < nxt:
+                sleep_until_ns(nxt)
+            lat[i] = (clock() - nxt) * 1e-3
+            nxt += period
+        out["wake_us"] = _pcts(lat)
+        out["over_half_period_pct"] = float(100.0 * np.mean(lat > 0.5e6 / rate_hz))
+
+    t = threading.Thread(target=run, name="wake-floor")
+    t.start()
+    t.join()
+    return out
+
+
+def _fmt3(p) -> str:
+    return f"{p[0]:7.3f} {p[1]:7.3f} {p[2]:7.2f}"
+
+
+def _ratio(a, b) -> str:
+    return f"{a[0] / b[0]:.2f}x / {a[1] / b[1]:.2f}x / {a[2] / b[2]:.2f}x"
+
+
+def print_latency(echo: dict, nodes: list[dict]) -> None:
+    print("\npose-to-force latency across processes, ms (p50 p99 max); answered = wrenches / poses sent")
+    for r in (echo, *nodes):
+        line = f"  {r.get('label', r['case']):>16}: {_fmt3(r['latency_ms'])} | answered {r['answered_pct']:5.1f} %"
+        line += f" | steal {r['steal_ms']:.0f} ms"
+        if r is not echo:
+            line += f" | ratio to echo (p50 / p99 / max) {_ratio(r['latency_ms'], echo['latency_ms'])}"
+        print(line)
+
+
+def print_periods(title: str, pairs: list[tuple[dict, dict]]) -> None:
+    print(
+        f"\n{title}: force period from the stamps seen by the observer (p50 p99 max, ms); missed = empty slots, "
+        "late = periods > 1.5 T; the node's own count covers its ticks only (no transport)"
+    )
+    shown = set()
+    for base, node in pairs:
+        for r in (base, node):
+            if id(r) in shown:
+                continue
+            shown.add(id(r))
+            label = r.get("label", r["case"])
+            line = (
+                f"  {r['rate_hz']:6.0f} Hz {r['duration_s']:4.0f} s {label:>16}: {_fmt3(r['period_ms'])} | "
+                f"missed {r['missed_pct']:6.3f} % late {r['late_pct']:6.3f} % | {r['samples']} samples, "
+                f"steal {r['steal_ms']:.0f} ms"
+            )
+            if "node_ticks" in r:
+                line += (
+                    f" | node's own count: missed {r['node_missed_pct']:.3f} % late {r['node_late_pct']:.3f} %, "
+                    f"tick p99 {r['node_tick_us_p99']:.0f} us"
+                )
+            print(line)
+        print(f"  {'':>14} ratio {node.get('label', node['case'])}/{base['case']} p99 period: "
+              f"{node['period_ms'][1] / base['period_ms'][1]:.2f}x")  # fmt: skip
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim bench", description=__doc__.splitlines()[0])
-    ap.add_argument("--duration-s", type=float, default=30.0, help="measured seconds per case (default 30)")
-    ap.add_argument("--rate-hz", type=float, default=1000.0)
-    ap.add_argument("--cases", default="echo,node,ticker,node-timer")
-    ap.add_argument("--node-param", action="append", default=[], help="extra node parameter NAME:=VALUE (repeatable)")
+    ap.add_argument("--sections", default=",".join(SECTIONS), help=f"comma list of {', '.join(SECTIONS)}")
+    ap.add_argument("--duration-s", type=float, default=60.0, help="seconds of the first-rate jitter case (missed ticks)")
+    ap.add_argument("--jitter-s", type=float, default=20.0, help="seconds of the other rates' jitter cases")
+    ap.add_argument("--latency-s", type=float, default=30.0, help="seconds of each latency case")
+    ap.add_argument("--floor-s", type=float, default=10.0, help="seconds of each platform-floor case")
+    ap.add_argument("--lever-s", type=float, default=20.0, help="seconds of each lever case")
+    ap.add_argument("--rates", default="1000,2000,4000", help="force rates of the jitter cases (Hz)")
+    ap.add_argument("--lever-rate-hz", type=float, default=None, help="force rate of the lever cases (default: the first rate)")
+    ap.add_argument("--pose-rate-hz", type=float, default=1000.0, help="held-pose rate fed to timer-mode cases")
+    ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE for all node cases")
+    ap.add_argument(
+        "--lever", action="append", default=[],
+        help=f"levers case NAME or NAME=P:=V,P:=V (repeatable; presets: {', '.join(LEVER_PRESETS)}; default all presets)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--latency-variant", action="append", default=[],
+        help="latency node case NAME=P:=V,P:=V (repeatable; default one case 'node' with --node-param only)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--observer-rt", type=int, default=0,
+        help="SCHED_FIFO priority of this process (pose source and observer, as a device's servo loop would run); "
+        "0: normal. The processes it starts run normally (SCHED_RESET_ON_FORK)",
+    )  # fmt: skip
+    ap.add_argument("--json", type=Path, help="also write all figures to this JSON file")
     args = ap.parse_args(argv)
+    if args.observer_rt > 0:  # before any thread or DDS participant exists: they all inherit it
+        from .ros_util import set_process_realtime
+
+        problem = set_process_realtime(args.observer_rt)
+        print(f"observer: {problem or f'SCHED_FIFO {args.observer_rt}'}", flush=True)
+    sections = [s for s in args.sections.split(",") if s]
+    rates = [float(r) for r in args.rates.split(",")]
     node_args = tuple(a for p in args.node_param for a in ("-p", p))
     log_dir = Path(tempfile.mkdtemp(prefix="skin_sim_bench_"))
-    print(f"skin-sim bench: {args.duration_s:.0f} s per case at {args.rate_hz:.0f} Hz, {os.cpu_count()} cores; logs {log_dir}")
-    rows = {c: run_case(c, args.duration_s, args.rate_hz, log_dir, node_args) for c in args.cases.split(",")}
-    for r in rows.values():
-        line = f"{r['case']:>10}: wrenches {r['wrenches']:6d} at observer {r['obs_rate_hz']:7.1f} Hz"
-        p = r["obs_period_ms"]
-        line += f" | period p50 {p[0]:.3f} p99 {p[1]:.3f} max {p[2]:.2f} ms, missed(>1.5T) {r['obs_missed_pct']:.2f} %"
-        if "latency_ms" in r:
-            lat = r["latency_ms"]
-            line += f" | answered {r['answered_pct']:.1f} % latency p50 {lat[0]:.3f} p99 {lat[1]:.3f} max {lat[2]:.2f} ms"
-        if "node_rate_hz" in r:
-            line += (
-                f" | node diag: rate {r['node_rate_hz']:.0f} Hz, period p99 {r['node_period_us_p99']:.0f} us, "
-                f"tick p99 {r['node_kernel_us_p99']:.0f} us, late ticks {r['node_late_ticks']}"
-            )
-        print(line, flush=True)
-    if "echo" in rows and "node" in rows and "latency_ms" in rows["node"]:
-        e, n = rows["echo"]["latency_ms"], rows["node"]["latency_ms"]
-        print(f"latency ratio node/echo: p50 {n[0] / e[0]:.2f}x, p99 {n[1] / e[1]:.2f}x")
-    if "ticker" in rows and "node-timer" in rows:
-        t, n = rows["ticker"]["obs_period_ms"], rows["node-timer"]["obs_period_ms"]
-        print(
-            f"period p99 ratio node-timer/ticker: {n[1] / t[1]:.2f}x; missed ticks node-timer "
-            f"{rows['node-timer']['obs_missed_pct']:.2f} % vs ticker {rows['ticker']['obs_missed_pct']:.2f} %"
-        )
+    print(
+        f"skin-sim bench: sections {','.join(sections)}; {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; "
+        f"node params {list(args.node_param)}; logs {log_dir}",
+        flush=True,
+    )
+    results: dict = {}
+    if "tickcost" in sections:
+        cost = tick_cost()
+        results["tickcost"] = cost
+        print("\nper-tick cost of the pose-to-force path in one thread, us (p50 p99 max); all but the model step hold the GIL")
+        for k, v in cost.items():
+            print(f"  {k:>24}: {v[0]:7.1f} {v[1]:7.1f} {v[2]:8.1f}")
+    if "floor" in sections:
+        rows = {prio: wake_floor(prio, args.floor_s) for prio in (0, 80)}
+        results["floor"] = rows
+        print(f"\nplatform floor: a bare Python thread sleeping to 1 kHz deadlines, {args.floor_s:.0f} s; wake latency, us")
+        for prio, r in rows.items():
+            w = r["wake_us"]
+            name = f"SCHED_FIFO {prio}" if prio else "normal"
+            note = f" ({r['problem']})" if r.get("problem") else ""
+            late = r["over_half_period_pct"]
+            print(f"  {name:>14}: p50 {w[0]:6.0f} p99 {w[1]:6.0f} max {w[2]:7.0f} | later than T/2: {late:.3f} %{note}")
+    if "latency" in sections:
+        echo = run_case("echo", args.latency_s, 1000.0, log_dir / "latency_echo")
+        nodes = []
+        for spec in args.latency_variant or ["node="]:
+            name, _, params = spec.partition("=")
+            extra = node_args + tuple(a for p in params.split(",") if p for a in ("-p", p))
+            nodes.append(run_case("node", args.latency_s, 1000.0, log_dir / f"latency_{name}", extra))
+            nodes[-1]["label"] = name
+        results["latency"] = [echo, *nodes]
+        print_latency(echo, nodes)
+    if "jitter" in sections:
+        pairs = []
+        for i, rate in enumerate(rates):
+            dur = args.duration_s if i == 0 else args.jitter_s
+            base = run_case("timer", dur, rate, log_dir / f"jitter_timer_{rate:.0f}")
+            node = run_case("node-timer", dur, rate, log_dir / f"jitter_node_{rate:.0f}", node_args, args.pose_rate_hz)
+            pairs.append((base, node))
+        results["jitter"] = pairs
+        print_periods("force period jitter (bare rclpy timer vs node in timer mode)", pairs)
+    if "levers" in sections:
+        rate = args.lever_rate_hz or rates[0]
+        levers = args.lever or list(LEVER_PRESETS)
+        base = run_case("timer", args.lever_s, rate, log_dir / "levers_timer")
+        pairs = []
+        for spec in levers:
+            name, _, params = spec.partition("=")
+            plist = tuple(p for p in params.split(",") if p) if params else LEVER_PRESETS[name]
+            pose_rate = next((float(p.split(":=")[1]) for p in plist if p.startswith("pose_rate_hz:=")), args.pose_rate_hz)
+            extra = node_args + tuple(a for p in plist if not p.startswith(BENCH_ONLY) for a in ("-p", p))
+            extra += tuple(a for p in plist if p.startswith("switch_interval_s:=") for a in ("--switch-interval-s", p[19:]))
+            r = run_case("node-timer", args.lever_s, rate, log_dir / f"lever_{name}", extra, pose_rate)
+            r["label"] = name
+            pairs.append((base, r))
+        results["levers"] = pairs
+        print_periods("levers (node in timer mode; same-run bare rclpy timer)", pairs)
+    if "startup" in sections:
+        cache = Path(tempfile.mkdtemp(prefix="skin_sim_numba_cache_"))
+        rows = [
+            run_startup("timer", log_dir / "start_timer", None),
+            run_startup("node-timer", log_dir / "start_cold", cache),
+            run_startup("node-timer", log_dir / "start_warm", cache),
+        ]
+        rows[1]["label"], rows[2]["label"] = "node cold cache", "node warm cache"
+        results["startup"] = rows
+        print("\nstart to first force at the observer, s (fresh NUMBA_CACHE_DIR, then the same again)")
+        for r in rows:
+            warm = f" (numba warm-up in the node {r['numba_warmup_s']:.2f} s)" if "numba_warmup_s" in r else ""
+            print(f"  {r.get('label', 'bare rclpy timer'):>16}: {r['first_force_s']:6.2f}{warm}")
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1))
     return 0
 
 

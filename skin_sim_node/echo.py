@@ -20,19 +20,22 @@ from .ros_util import PeriodicLoop, run_nodes
 
 class EchoNode(Node):
     """Echo each pose as a zero wrench; with ``ticker_hz`` > 0, instead publish a wrench at that
-    rate from the same kind of thread loop as skin_sim_node (the bare-timer jitter baseline)."""
+    rate (the period-jitter baseline) from a bare rclpy timer (``ticker_kind="timer"``) or from
+    the same thread loop as skin_sim_node (``"thread"``)."""
 
-    def __init__(self, ticker_hz: float = 0.0):
+    def __init__(self, ticker_hz: float = 0.0, ticker_kind: str = "timer"):
         super().__init__("skin_sim_echo")
         self._msg = WrenchStamped()
         self._pub = publisher(self, "tool_wrench")
         self._loop = None
-        if ticker_hz > 0:
+        if ticker_hz > 0 and ticker_kind == "thread":
             self._loop = PeriodicLoop(int(1e9 / ticker_hz), self._on_tick)
             self._loop.start()
+        elif ticker_hz > 0:
+            self.create_timer(1.0 / ticker_hz, lambda: self._on_tick(0, 0))
         else:
             subscription(self, "tool_pose", self._on_pose)
-        self.get_logger().info("live: echo" + (f" ticker at {ticker_hz} Hz" if ticker_hz else ""))
+        self.get_logger().info("live: echo" + (f" {ticker_kind} ticker at {ticker_hz} Hz" if ticker_hz else ""))
 
     def stop(self) -> None:
         if self._loop:
@@ -51,9 +54,10 @@ def main(argv=None) -> int:
     ap.add_argument("--executor", choices=("events", "single"), default="events")
     ap.add_argument("--switch-interval-s", type=float, default=2e-4)
     ap.add_argument("--ticker-hz", type=float, default=0.0, help="publish at this rate instead of echoing")
+    ap.add_argument("--ticker-kind", choices=("timer", "thread"), default="timer", help="rclpy timer or a PeriodicLoop thread")
     args, rest = ap.parse_known_args(argv)
     sys.setswitchinterval(args.switch_interval_s)
-    return run_nodes([lambda: EchoNode(args.ticker_hz)], args=rest, executor=args.executor)
+    return run_nodes([lambda: EchoNode(args.ticker_hz, args.ticker_kind)], args=rest, executor=args.executor)
 
 
 if __name__ == "__main__":

@@ -36,7 +36,7 @@ from .display import DisplayProcess
 from .model import ConfigError, SkinModel
 from .model.config import tissue_part
 from .model.skin_model import warm_up
-from .ros_util import PeriodicLoop, run_nodes
+from .ros_util import LoopTiming, PeriodicLoop, run_nodes, set_process_realtime, set_realtime
 from .session import HapticSession, SessionParams
 
 NODE_NAME = "skin_sim_node"
@@ -113,7 +113,8 @@ class SkinSimNode(Node):
         self._display = DisplayProcess(tissue_part(self._flat, "tissue."), self._display_settings(), args, self.get_namespace())
         self._display_loop = PeriodicLoop(self._display_period_ns(), self._on_display_clock, name="display-loop")
         self._display_loop.start()
-        self._loop = PeriodicLoop(self._clock_period_ns(), self._on_clock)
+        self._loop = PeriodicLoop(self._clock_period_ns(), self._on_clock, timing=self._haptic_timing(), on_warning=self._warn)
+        self._apply_rt_scope()
         self._loop.start()
         self.get_logger().info(
             f"live: {self.params.loop_mode} loop at {self.params.rate_hz:.0f} Hz, {self.session.model.basis.n_modes} modes, "
@@ -125,6 +126,43 @@ class SkinSimNode(Node):
         self._loop.stop()
         self._display_loop.stop()
         self._display.close()
+
+    def _warn(self, message: str) -> None:
+        self.get_logger().warning(message)
+
+    def _haptic_timing(self) -> LoopTiming:
+        p = self.params
+        return LoopTiming(
+            abs_sleep=p.precise_sleep,
+            spin_ns=int(p.spin_tail_us * 1e3),
+            rt_priority=p.rt_priority,
+            cpus=(p.haptic_cpu,) if p.haptic_cpu >= 0 else (),
+        )
+
+    def _apply_rt_scope(self) -> None:
+        """SCHED_FIFO beyond the tick clock (which its loop sets itself, at ``rt_priority``).
+
+        The executor thread (this one; it runs the pose callbacks) gets ``rt_priority``; the threads
+        that take the haptic lock or the GIL beside it get one less, so a normal-priority holder
+        preempted by another process cannot stall a tick (priority inversion): the display-loop
+        thread in ``haptic`` scope, every other thread (DDS included) in ``process`` scope.
+        """
+        p = self.params
+        if p.rt_priority <= 0:
+            return
+        lower = max(p.rt_priority - 1, 1)
+        # no SCHED_RESET_ON_FORK in process scope: threads started later (the executor's) inherit it;
+        # the display worker process already runs, and the node starts no other process
+        if p.rt_scope == "process":
+            problems = [set_process_realtime(lower, reset_on_fork=False)]
+        else:
+            problems = [set_realtime(lower, self._display_loop.native_id or 0)]
+        problems.append(set_realtime(p.rt_priority, reset_on_fork=p.rt_scope != "process"))
+        problem = next((m for m in problems if m), None)
+        if problem:
+            self._warn(problem)
+        else:
+            self.get_logger().info(f"SCHED_FIFO {p.rt_priority} for the haptic threads ({p.rt_scope} scope)")
 
     def _period_ns(self) -> int:
         return int(1e9 / self.params.rate_hz)
@@ -239,6 +277,7 @@ class SkinSimNode(Node):
         self._last_diag_ns = now
         target_us = 1e6 / self.params.rate_hz
         late = int(np.sum(per > 1.5 * target_us)) if per.size else 0
+        missed = int(np.sum(np.maximum(np.rint(per / target_us) - 1, 0))) if per.size else 0  # empty 1/rate slots
 
         def pct(a, q):
             return f"{np.percentile(a, q):.1f}" if a.size else "nan"
@@ -250,6 +289,7 @@ class SkinSimNode(Node):
             "ticks_total": str(self._n_ticks),
             "ticks_pose_driven": str(pose_ticks),
             "late_ticks_window": str(late),
+            "missed_slots_window": str(missed),
             "clock_overruns_total": str(overruns),
             "period_us_p50": pct(per, 50),
             "period_us_p99": pct(per, 99),

@@ -6,10 +6,14 @@ Every executable (node, bridge, simulated device, mock tool, echo baseline) star
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import gc
+import os
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -84,22 +88,131 @@ def spin_context(executor, context, stop: threading.Event) -> None:
             raise
 
 
+# --- scheduling levers (Linux) -------------------------------------------------------
+_CLOCK_MONOTONIC = 1  # <time.h>; time.perf_counter_ns reads this clock on Linux
+_TIMER_ABSTIME = 1
+_PR_SET_TIMERSLACK = 29  # <linux/prctl.h>
+
+
+class _Timespec(ctypes.Structure):
+    _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
+
+
+try:  # ctypes.CDLL releases the GIL for the duration of each foreign call
+    _LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+    _LIBC.clock_nanosleep.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.POINTER(_Timespec), ctypes.c_void_p]
+except (OSError, AttributeError):  # pragma: no cover - not glibc/Linux
+    _LIBC = None
+
+
+def sleep_until_ns(deadline_ns: int) -> None:
+    """Sleep until ``deadline_ns`` on CLOCK_MONOTONIC (``time.perf_counter_ns``'s clock).
+
+    ``clock_nanosleep(TIMER_ABSTIME)``: a preemption between reading the clock and sleeping
+    cannot push the wake-up past the deadline, and the GIL is free while asleep.
+    """
+    if _LIBC is None:  # pragma: no cover
+        rem = deadline_ns - time.perf_counter_ns()
+        if rem > 0:
+            time.sleep(rem / 1e9)
+        return
+    ts = _Timespec(deadline_ns // 1_000_000_000, deadline_ns % 1_000_000_000)
+    _LIBC.clock_nanosleep(_CLOCK_MONOTONIC, _TIMER_ABSTIME, ctypes.byref(ts), None)  # EINTR: the caller loops
+
+
+def set_timer_slack_ns(slack_ns: int) -> bool:
+    """prctl(PR_SET_TIMERSLACK) for the calling thread (Linux default 50 us; RT threads have 0)."""
+    return _LIBC is not None and _LIBC.prctl(_PR_SET_TIMERSLACK, ctypes.c_ulong(slack_ns), 0, 0, 0) == 0
+
+
+def set_realtime(priority: int, tid: int = 0, reset_on_fork: bool = True) -> str | None:
+    """SCHED_FIFO at ``priority`` (1-99) for thread ``tid`` (0: the calling thread).
+
+    ``reset_on_fork``: SCHED_RESET_ON_FORK, so processes it starts run normally; note that the
+    kernel applies it to new threads too (they start at normal priority). Returns None on
+    success, else the reason (e.g. no CAP_SYS_NICE, or no RT budget in this cgroup); the caller
+    logs it and carries on at normal priority.
+    """
+    policy = os.SCHED_FIFO | (os.SCHED_RESET_ON_FORK if reset_on_fork else 0)
+    try:
+        os.sched_setscheduler(tid, policy, os.sched_param(priority))
+        return None
+    except (OSError, AttributeError) as exc:
+        return f"SCHED_FIFO {priority} not permitted ({exc}); running at normal priority"
+
+
+def set_process_realtime(priority: int, reset_on_fork: bool = True) -> str | None:
+    """:func:`set_realtime` for every thread of this process (DDS threads included); without
+    ``reset_on_fork``, threads started later by one of them inherit it."""
+    return set_pid_realtime(os.getpid(), priority, reset_on_fork)
+
+
+def set_pid_realtime(pid: int, priority: int, reset_on_fork: bool = True) -> str | None:
+    """:func:`set_realtime` for every thread of process ``pid``."""
+    errors = [set_realtime(priority, int(tid), reset_on_fork) for tid in os.listdir(f"/proc/{pid}/task")]
+    return next((e for e in errors if e), None)
+
+
+def set_affinity(cpus, tid: int = 0) -> str | None:
+    """Pin thread ``tid`` (0: calling) to ``cpus``; None on success, else the reason."""
+    try:
+        os.sched_setaffinity(tid, set(cpus))
+        return None
+    except (OSError, ValueError) as exc:
+        return f"cpu affinity {sorted(cpus)} not applied ({exc})"
+
+
+@dataclass(frozen=True)
+class LoopTiming:
+    """How a :class:`PeriodicLoop` waits for its deadlines and is scheduled.
+
+    Attributes
+    ----------
+    abs_sleep : bool
+        Sleep with ``clock_nanosleep(TIMER_ABSTIME)`` to the deadline (GIL free); else
+        ``time.sleep(deadline - now)``. Either way deadlines advance by whole periods, so
+        the schedule never drifts.
+    spin_ns : int
+        Busy-wait this tail before each deadline (0: none). The wait calls ``time.sleep(0)``
+        in a loop, so other threads may take the GIL meanwhile.
+    rt_priority : int
+        SCHED_FIFO priority of the loop thread (0: normal scheduling).
+    cpus : tuple of int
+        CPUs to pin the loop thread to (empty: no pinning).
+    timer_slack_ns : int
+        prctl timer slack of the loop thread (< 0: keep the kernel's 50 us default).
+    """
+
+    abs_sleep: bool = True
+    spin_ns: int = 0
+    rt_priority: int = 0
+    cpus: tuple[int, ...] = ()
+    timer_slack_ns: int = -1
+
+
 class PeriodicLoop:
     """Run ``fn(now_ns, elapsed_ns)`` every ``period_ns`` in a thread, to an absolute deadline.
 
-    Plain ``time.sleep`` to the deadline by default: measured on this 2-core machine it
-    gave a 1.12 ms p99 period at 1 kHz with 5.9 % CPU, better than a sleep + 0.3 ms
-    busy-spin (1.70 ms p99, 26.9 % CPU, and it holds the GIL). ``spin=True`` adds the
-    busy-spin. A tick that comes more than one period late counts as an overrun and the
-    schedule resynchronises instead of bursting. ``period_ns`` may be changed live.
+    Sleeps to each deadline (see :class:`LoopTiming` for the levers; measured in
+    ``docs/performance_rate.md``). A tick that comes more than one period late counts as an
+    overrun and the schedule resynchronises instead of bursting. ``period_ns`` may be changed
+    live. Scheduling problems (no RT permission) are collected in :attr:`warnings`, and
+    ``on_warning`` (if given) is called with each.
     """
 
-    SPIN_NS = 300_000
-
-    def __init__(self, period_ns: int, fn: Callable[[int, int], None], name: str = "haptic-loop", spin: bool = False):
+    def __init__(
+        self,
+        period_ns: int,
+        fn: Callable[[int, int], None],
+        name: str = "haptic-loop",
+        timing: LoopTiming | None = None,
+        on_warning: Callable[[str], None] | None = None,
+    ):
         self.period_ns = int(period_ns)
         self.fn = fn
-        self.spin = spin
+        self.timing = timing or LoopTiming()
+        self.on_warning = on_warning
+        self.warnings: list[str] = []
         self.overruns = 0
         self.ticks = 0
         self._reported: set[type] = set()
@@ -109,21 +222,51 @@ class PeriodicLoop:
     def start(self) -> None:
         self._thread.start()
 
+    @property
+    def native_id(self) -> int | None:
+        """The loop thread's kernel thread id (None before :meth:`start`)."""
+        return self._thread.native_id
+
     def stop(self) -> None:
         self._stop.set()
         if self._thread.is_alive() and self._thread is not threading.current_thread():
             self._thread.join(timeout=2.0)
 
+    def _setup_thread(self) -> None:
+        t = self.timing
+        problems = []
+        if t.rt_priority > 0:
+            problems.append(set_realtime(t.rt_priority))
+        if t.cpus:
+            problems.append(set_affinity(t.cpus))
+        if t.timer_slack_ns >= 0 and not set_timer_slack_ns(t.timer_slack_ns):
+            problems.append(f"timer slack {t.timer_slack_ns} ns not applied")
+        for msg in filter(None, problems):
+            self.warnings.append(f"{self._thread.name}: {msg}")
+            if self.on_warning:
+                self.on_warning(self.warnings[-1])
+
+    def _wait(self, nxt: int) -> None:
+        clock = time.perf_counter_ns
+        t = self.timing
+        wake = nxt - t.spin_ns
+        if t.abs_sleep:
+            while clock() < wake and not self._stop.is_set():
+                sleep_until_ns(wake)
+        else:
+            rem = wake - clock()
+            if rem > 0:
+                time.sleep(rem / 1e9)
+        while t.spin_ns and clock() < nxt:
+            time.sleep(0)
+
     def _run(self) -> None:
+        self._setup_thread()
         clock = time.perf_counter_ns
         last = clock()
         nxt = last + self.period_ns
         while not self._stop.is_set():
-            rem = nxt - clock()
-            if rem > self.SPIN_NS or (not self.spin and rem > 0):
-                time.sleep((rem - (self.SPIN_NS if self.spin else 0)) / 1e9)
-            while self.spin and clock() < nxt:
-                pass
+            self._wait(nxt)
             now = clock()
             try:
                 self.fn(now, now - last)

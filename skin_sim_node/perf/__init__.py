@@ -1,1 +1,1 @@
-"""Performance: level-of-detail scene benchmark and cost-growth charts (issue 7)."""
+"""Performance: level-of-detail levers, cost growth, rate and latency benchmarks, soak and scale-out (issue 7)."""

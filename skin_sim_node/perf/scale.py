@@ -1,0 +1,168 @@
+"""``skin-sim scale``: how many 1 kHz tissue sessions this machine holds side by side.
+
+Session ``i`` is skin_sim_node + device bridge + simulated Touch (looping the ``drag`` hand
+path), all under the ROS namespace ``/s<i>`` in one DDS domain: three processes, each with a
+1 kHz loop. Sessions are added one at a time; after each addition every running session is
+measured for ``--step-s`` seconds from its node's own diagnostics (cheap: 1 Hz per session, so
+the observer does not load the machine it measures): missed ticks = empty 1/rate slots
+between the node's ticks (``missed_slots_window``) over the expected tick count, late = tick
+periods over 1.5 T. The machine "holds" n sessions while every session misses < 0.1 % (issue 7).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from ..bench_node import SETTLE_S, cpu_steal_ms, diag_counts
+from ..scenes import DEFAULT_PARAMS, Scene
+
+MISSED_LIMIT_PCT = 0.1  # issue 7
+nan = float("nan")
+
+
+class DiagObserver:
+    """Collects the haptic-loop diagnostics of the nodes under the given namespaces."""
+
+    def __init__(self):
+        import rclpy
+
+        from ..ros_util import make_executor, spin_context
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node("scale_observer", context=self.context)
+        self.records: dict[str, list[dict]] = {}
+        self._lock = threading.Lock()
+        self._executor = make_executor("events", self.context)
+        self._executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=spin_context, args=(self._executor, self.context, self._stop), daemon=True)
+        self._thread.start()
+
+    def watch(self, ns: str) -> None:
+        from msgs_schema.qos import subscription
+
+        self.records[ns] = []
+
+        def cb(msg, ns=ns):
+            for st in msg.status:
+                if "haptic loop" in st.name:
+                    with self._lock:
+                        self.records[ns].append({kv.key: kv.value for kv in st.values})
+
+        subscription(self.node, "diagnostics", cb, name=f"{ns}/diagnostics")
+
+    def clear(self) -> None:
+        with self._lock:
+            for v in self.records.values():
+                v.clear()
+
+    def summary(self, ns: str) -> dict:
+        with self._lock:
+            recs = list(self.records[ns])
+        return diag_counts(recs)
+
+    def close(self) -> None:
+        import rclpy
+
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def start_session(scene: Scene, i: int, rate_hz: float, mode: str, node_params: list[str]):
+    ns = f"/s{i}"
+    ros = ("--ros-args", "-r", f"__ns:={ns}")
+    extra = [a for p in node_params for a in ("-p", p)]
+    node = scene.start(
+        f"node_s{i}", "node", *ros, "--params-file", str(DEFAULT_PARAMS),
+        "-p", f"loop_mode:={mode}", "-p", f"rate_hz:={rate_hz}", *extra,
+    )  # fmt: skip
+    scene.wait_for_log(node, "live:", timeout_s=180)
+    scene.start(f"bridge_s{i}", "bridge", *ros)
+    scene.start(f"device_s{i}", "device", "--hand-path", "drag", "--loop", "--start-delay-s", "1.0", *ros)
+    return ns
+
+
+def run_scale(
+    max_sessions: int, step_s: float, rate_hz: float, mode: str, node_params: list[str], log_dir: Path, keep_going: bool = True
+) -> list[dict]:
+    """Add sessions one at a time up to ``max_sessions`` (or, unless ``keep_going``, until one misses > 0.1 %)."""
+    rows = []
+    with Scene(log_dir) as scene:
+        os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+        obs = DiagObserver()
+        try:
+            for n in range(1, max_sessions + 1):
+                obs.watch(start_session(scene, n, rate_hz, mode, node_params))
+                time.sleep(SETTLE_S)  # discovery, the device's start delay, a joining reader's stall (see SETTLE_S)
+                obs.clear()
+                load0, steal0 = os.getloadavg()[0], cpu_steal_ms()
+                time.sleep(step_s)
+                steal_ms = cpu_steal_ms() - steal0
+                sessions = [obs.summary(f"/s{i}") for i in range(1, n + 1)]
+                worst = max(s.get("node_missed_pct", float("inf")) for s in sessions)
+                row = {
+                    "sessions": n,
+                    "per_session": sessions,
+                    "worst_missed_pct": worst,
+                    "load_1min": (load0, os.getloadavg()[0]),
+                    "steal_ms": steal_ms,
+                }
+                rows.append(row)
+                print(
+                    f"  {n} session(s): missed " + ", ".join(f"{s.get('node_missed_pct', nan):.3f}" for s in sessions)
+                    + " % | late " + ", ".join(f"{s.get('node_late_pct', nan):.3f}" for s in sessions)
+                    + " % | period p99 " + ", ".join(f"{s.get('node_period_us_p99', nan):.0f}" for s in sessions)
+                    + f" us | worst missed {worst:.3f} % {'<=' if worst <= MISSED_LIMIT_PCT else '>'} {MISSED_LIMIT_PCT} %"
+                    + f" | steal {steal_ms:.0f} ms",
+                    flush=True,
+                )  # fmt: skip
+                if worst > MISSED_LIMIT_PCT and not keep_going:
+                    break
+        finally:
+            obs.close()
+    return rows
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="skin-sim scale", description=__doc__.splitlines()[0])
+    ap.add_argument("--max-sessions", type=int, default=4)
+    ap.add_argument("--step-s", type=float, default=30.0, help="measured seconds after each added session")
+    ap.add_argument("--rate-hz", type=float, default=1000.0)
+    ap.add_argument(
+        "--mode", choices=("timer", "input"), default="timer", help="node loop_mode (timer: ticks are the node's own)"
+    )
+    ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE (repeatable)")
+    ap.add_argument("--keep-going", action="store_true", help="add sessions past the first that misses > 0.1 %%")
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args(argv)
+    log_dir = Path(tempfile.mkdtemp(prefix="skin_sim_scale_"))
+    print(
+        f"skin-sim scale: up to {args.max_sessions} sessions at {args.rate_hz:.0f} Hz ({args.mode} mode), "
+        f"{args.step_s:.0f} s each, "
+        f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; node params {args.node_param}; logs {log_dir}",
+        flush=True,
+    )
+    rows = run_scale(args.max_sessions, args.step_s, args.rate_hz, args.mode, args.node_param, log_dir, args.keep_going)
+    held = 0
+    for r in rows:
+        if r["worst_missed_pct"] > MISSED_LIMIT_PCT:
+            break
+        held = r["sessions"]
+    print(f"sessions held with every session under {MISSED_LIMIT_PCT} % missed ticks: {held}")
+    if args.json:
+        args.json.write_text(json.dumps({"rows": rows, "held": held}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
