@@ -25,7 +25,7 @@ import numpy as np
 from ..mock_tool import TRAJECTORIES
 from ..model import config_from_flat
 from ..model.config import default_flat
-from .haptic_loop import DECAY_RATIO, SETTLED_FRACTION, TissueEnv, Verdict, run_loop
+from .haptic_loop import TissueEnv, Verdict, run_loop, verdict_kind
 
 PATH = "press_hold_release"
 WALL_THICKNESS_M = 4e-3
@@ -67,14 +67,7 @@ def classify_press(t_s: np.ndarray, force_n: np.ndarray) -> Verdict:
     late = (t_s >= t0 + 0.85) & (t_s < t0 + 1.15)
     s_e, s_l = float(force_n[early].std()), float(force_n[late].std())
     mean = float(force_n[late].mean())
-    if s_l <= SETTLED_FRACTION * max(mean, 0.1):
-        kind = "settled"
-    elif s_l < DECAY_RATIO * s_e:
-        kind = "decaying"
-    elif s_l > 1.5 * s_e:
-        kind = "growing"
-    else:
-        kind = "limit cycle"
+    kind = verdict_kind(s_e, s_l, max(mean, 0.1))
     return Verdict(kind in ("settled", "decaying"), kind, s_e, s_l, mean, np.nan)
 
 

@@ -115,6 +115,17 @@ class Verdict:
     energy_late_j: float  # net work of the applied force on the stylus over the late window (> 0: energy put in)
 
 
+def verdict_kind(std_early_n: float, std_late_n: float, scale_n: float) -> str:
+    """Classify a force trace from its std early and late in the hold, against a force scale (N)."""
+    if std_late_n <= SETTLED_FRACTION * scale_n:
+        return "settled"
+    if std_late_n < DECAY_RATIO * std_early_n:
+        return "decaying"
+    if std_late_n > 1.5 * std_early_n:
+        return "growing"
+    return "limit cycle"
+
+
 def classify(tr: Trace, force_n: float = HOLD_FORCE_N) -> Verdict:
     """Unstable when the force neither settles nor decays, or grows (see the module docstring)."""
 
@@ -126,16 +137,7 @@ def classify(tr: Trace, force_n: float = HOLD_FORCE_N) -> Verdict:
     idx = np.flatnonzero(la)
     dz = np.diff(tr.z_m[idx[0] : idx[-1] + 2])
     energy = float(np.sum(tr.applied_n[idx[0] : idx[0] + dz.size] * dz))
-    if not np.all(np.isfinite(tr.force_n)):
-        kind = "growing"
-    elif s_l <= SETTLED_FRACTION * force_n:
-        kind = "settled"
-    elif s_l < DECAY_RATIO * s_e:
-        kind = "decaying"
-    elif s_l > 1.5 * s_e:
-        kind = "growing"
-    else:
-        kind = "limit cycle"
+    kind = "growing" if not np.all(np.isfinite(tr.force_n)) else verdict_kind(s_e, s_l, force_n)
     return Verdict(kind in ("settled", "decaying"), kind, s_e, s_l, float(tr.force_n[la].mean()), energy)
 
 
