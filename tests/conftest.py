@@ -1,3 +1,5 @@
+import os
+
 import numpy as np
 import pytest
 
@@ -32,3 +34,21 @@ def compiled(request):
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+@pytest.fixture(scope="module")
+def ros_domain():
+    """This test module's own DDS domain with localhost-only discovery, so parallel runs never meet."""
+    from skin_sim_node.scenes import pick_domain_id
+
+    keys = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY")
+    saved = {k: os.environ.get(k) for k in keys}
+    os.environ["ROS_DOMAIN_ID"] = str(pick_domain_id())
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; it overrides the range
+    yield int(os.environ["ROS_DOMAIN_ID"])
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v

@@ -30,7 +30,6 @@ from skin_sim_node.bags.io import (
 from skin_sim_node.bags.offline import bag_topic, replay_to_bag
 from skin_sim_node.bags.offline import replay as replay_offline
 from skin_sim_node.bridge import DeviceMapping
-from skin_sim_node.scenes import pick_domain_id
 
 DATA = Path(__file__).parent / "data"
 PRESS = DATA / "press_hold_release" / "input"
@@ -227,15 +226,8 @@ def test_missing_bag(tmp_path):
 
 
 # --- live against offline (real processes) ----------------------------------------------
-@pytest.fixture
-def isolated_domain(monkeypatch):
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(pick_domain_id()))
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
-
-
 @pytest.mark.ros
-def test_live_replay_agrees_with_offline(tmp_path, isolated_domain):
+def test_live_replay_agrees_with_offline(tmp_path, ros_domain):
     pytest.importorskip("rclpy")
     bag = tmp_path / "in"
     shutil.copytree(PRESS, bag)

@@ -182,7 +182,7 @@ def test_layer_field_box_and_assemble_box_match_reference(compiled, rng):
 
 
 @pytest.mark.ros
-def test_node_idle_does_no_kernel_work_and_heartbeats(tmp_path, monkeypatch):
+def test_node_idle_does_no_kernel_work_and_heartbeats(tmp_path, ros_domain):
     """Over real DDS: a hovering tool makes no kernel call (counted in diagnostics) and, with the
     idle heartbeat on, gets far fewer wrenches than poses; touching brings both back."""
     pytest.importorskip("rclpy")
@@ -191,12 +191,9 @@ def test_node_idle_does_no_kernel_work_and_heartbeats(tmp_path, monkeypatch):
     from geometry_msgs.msg import PoseStamped
 
     from msgs_schema import convert as cv
-    from skin_sim_node.scenes import Scene, pick_domain_id
+    from skin_sim_node.scenes import Scene
 
-    domain = pick_domain_id()
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
+    domain = ros_domain
     from skin_sim_node.monitor import Monitor
 
     with Scene(tmp_path / "logs", domain_id=domain) as scene:

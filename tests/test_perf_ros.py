@@ -22,17 +22,10 @@ from msgs_schema.qos import subscription  # noqa: E402
 from skin_sim_node.bench_node import period_stats  # noqa: E402
 from skin_sim_node.perf.soak import GapCounter, growth_pct, run_soak  # noqa: E402
 from skin_sim_node.ros_util import LoopTiming, PeriodicLoop, set_realtime  # noqa: E402
-from skin_sim_node.scenes import DEFAULT_PARAMS, REPO, Scene, pick_domain_id  # noqa: E402
+from skin_sim_node.scenes import DEFAULT_PARAMS, REPO, Scene  # noqa: E402
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
 MS = 1_000_000
-
-
-@pytest.fixture(scope="module", autouse=True)
-def isolated_domain():
-    os.environ["ROS_DOMAIN_ID"] = str(pick_domain_id())
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.pop("ROS_LOCALHOST_ONLY", None)
 
 
 def _policy(tid: int) -> int:

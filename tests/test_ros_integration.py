@@ -16,18 +16,11 @@ from geometry_msgs.msg import PoseStamped, TwistStamped  # noqa: E402
 from msgs_schema import convert as cv  # noqa: E402
 from skin_sim_node.model import SkinModel, load_tissue_config  # noqa: E402
 from skin_sim_node.ros_util import PeriodicLoop  # noqa: E402
-from skin_sim_node.scenes import DEFAULT_PARAMS, Scene, pick_domain_id  # noqa: E402
+from skin_sim_node.scenes import DEFAULT_PARAMS, Scene  # noqa: E402
 from skin_sim_node.session import HapticSession, SessionParams  # noqa: E402
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
 NS = 1_000_000_000
-
-
-@pytest.fixture(scope="module", autouse=True)
-def isolated_domain():
-    os.environ["ROS_DOMAIN_ID"] = str(pick_domain_id())
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.pop("ROS_LOCALHOST_ONLY", None)
 
 
 @pytest.fixture

@@ -284,15 +284,11 @@ def test_modal_integrator_bounded_and_energy_non_increasing_1e5_steps(default_cf
 
 # --- over real DDS ------------------------------------------------------------------------------------
 @pytest.mark.ros
-def test_dds_loop_naive_limit_cycles_and_passivity_settles(tmp_path, monkeypatch):
+def test_dds_loop_naive_limit_cycles_and_passivity_settles(tmp_path, ros_domain):
     """Node + bridge + simulated Touch at 1 kHz on a 4 N/mm wall: the sweep's two verdicts, over DDS."""
     pytest.importorskip("rclpy")
-    from skin_sim_node.scenes import pick_domain_id
     from skin_sim_node.stability.dds_confirm import over_dds
 
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(pick_domain_id()))
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
     naive, _ = over_dds(1000.0, 4000.0, "none", tmp_path / "naive")
     stab, stats = over_dds(1000.0, 4000.0, "passivity", tmp_path / "passivity")
     assert not naive.stable and naive.std_late_n > 0.2, naive
