@@ -7,19 +7,19 @@ import sys
 
 COMMANDS = {
     "demo": ("skin_sim_node.demo", "headless demo scene: node + bridge + simulated device, summary and picture"),
-    "node": ("skin_sim_node.node", "run skin_sim_node (the haptic server)"),
-    "bridge": ("skin_sim_node.bridge", "device bridge between Geomagic Touch drivers (CRTK / omni) and the node"),
-    "device": ("skin_sim_node.sim_device", "simulated Touch device following a hand path"),
-    "mock-tool": ("skin_sim_node.mock_tool", "scripted tool pose/twist publisher"),
+    "node": ("skin_sim_node.server.node", "run skin_sim_node (the haptic server)"),
+    "bridge": ("skin_sim_node.device.bridge", "device bridge between Geomagic Touch drivers (CRTK / omni) and the node"),
+    "device": ("skin_sim_node.device.sim_device", "simulated Touch device following a hand path"),
+    "mock-tool": ("skin_sim_node.device.mock_tool", "scripted tool pose/twist publisher"),
     "scene": ("skin_sim_node.scenes", "start a scene as separate processes"),
-    "bench": ("skin_sim_node.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
-    "bench-model": ("skin_sim_node.bench_model", "model step micro-benchmark (numba vs NumPy)"),
+    "bench": ("skin_sim_node.perf.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
+    "bench-model": ("skin_sim_node.perf.bench_model", "model step micro-benchmark (numba vs NumPy)"),
     "perf-lod": ("skin_sim_node.perf.lod", "node CPU in four scenes with the level-of-detail levers off and on"),
     "soak": ("skin_sim_node.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),
     "scale": ("skin_sim_node.perf.scale", "how many 1 kHz sessions (node + bridge + device, own namespaces) one machine holds"),
     "netns-role": ("skin_sim_node.perf.netns", "netns_scale.sh helper: device side (bridge, device, observer); comparison"),
-    "echo": ("skin_sim_node.echo", "bare rclpy echo node (pose in, wrench out): the latency baseline"),
-    "chart": ("skin_sim_node.figures", "regenerate figures: chart model|validation|stability|performance"),
+    "echo": ("skin_sim_node.perf.echo", "bare rclpy echo node (pose in, wrench out): the latency baseline"),
+    "chart": ("skin_sim_node.viz.figures", "regenerate figures: chart model|validation|stability|performance"),
     "stability-loop": ("skin_sim_node.stability.haptic_loop", "haptic loop stability sweep (naive vs passivity controller)"),
     "stability-numerics": ("skin_sim_node.stability.numerics", "measured explicit solver limits vs CFL / omega*dt < 2"),
     "stability-dds": ("skin_sim_node.stability.dds_confirm", "confirm haptic-loop sweep points with real processes over DDS"),
@@ -32,7 +32,7 @@ COMMANDS = {
 
 # ``skin-sim chart TARGET``: each target's module regenerates its own docs figures.
 CHART_TARGETS = {
-    "model": "skin_sim_node.figures",
+    "model": "skin_sim_node.viz.figures",
     "validation": "skin_sim_node.validation.charts",
     "stability": "skin_sim_node.stability.charts",
     "performance": "skin_sim_node.perf.charts",

@@ -54,7 +54,7 @@ def main(argv=None) -> int:
     scene = Scene(args.out / "logs")
     os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
-    from .monitor import Monitor  # rclpy reads the domain at init
+    from .perf.monitor import Monitor  # rclpy reads the domain at init
 
     cfg = load_tissue_config(DEFAULT_PARAMS)
     print(f"skin-sim demo: ROS_DOMAIN_ID={scene.env['ROS_DOMAIN_ID']}, source={args.source}, path={args.path}", flush=True)
@@ -100,7 +100,7 @@ def main(argv=None) -> int:
         sx, sy = cfg.sheet_size_m
         xs = -sx / 2 + (np.arange(nx) + 0.5) * sx / nx
         ys = -sy / 2 + (np.arange(ny) + 0.5) * sy / ny
-        from .plots import layer_heights_figure
+        from .viz.plots import layer_heights_figure
 
         pic = layer_heights_figure(
             xs, ys, img, 0.0, args.out / "deformation_at_peak.png",

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from conftest import kernel
 
-from skin_sim_node.bench_model import scene_path
-from skin_sim_node.display import _moved
 from skin_sim_node.model import SkinModel
 from skin_sim_node.model import kernels as kn
 from skin_sim_node.model import reference as ref
 from skin_sim_node.model.modal import REFERENCE_MODES, level_for, shape_coefficients
+from skin_sim_node.perf.bench_model import scene_path
+from skin_sim_node.server.display import _moved
 
 ALL_OFF = {"lod.adaptive_modes": False, "lod.affected_layers": False, "lod.patch_only": False, "lod.idle": False}
 LEVERS = ("lod.adaptive_modes", "lod.affected_layers", "lod.patch_only", "lod.idle")
@@ -194,7 +194,7 @@ def test_node_idle_does_no_kernel_work_and_heartbeats(tmp_path, ros_domain):
     from skin_sim_node.scenes import Scene
 
     domain = ros_domain
-    from skin_sim_node.monitor import Monitor
+    from skin_sim_node.perf.monitor import Monitor
 
     with Scene(tmp_path / "logs", domain_id=domain) as scene:
         node = scene.node("-p", "idle_heartbeat_hz:=100.0", "-p", "diagnostics_period_s:=0.2", "-p", "display_rate_hz:=0.0")

@@ -19,7 +19,7 @@ import pytest
 rclpy = pytest.importorskip("rclpy")
 
 from msgs_schema.qos import subscription  # noqa: E402
-from skin_sim_node.bench_node import period_stats  # noqa: E402
+from skin_sim_node.perf.bench_node import period_stats  # noqa: E402
 from skin_sim_node.perf.soak import GapCounter, growth_pct, run_soak  # noqa: E402
 from skin_sim_node.ros_util import LoopTiming, PeriodicLoop, set_realtime  # noqa: E402
 from skin_sim_node.scenes import DEFAULT_PARAMS, REPO, Scene  # noqa: E402
@@ -88,7 +88,7 @@ def _fifo_threads(pid: int) -> int:
 @pytest.mark.skipif(shutil.which("setpriv") is None, reason="needs setpriv (util-linux) to drop CAP_SYS_NICE")
 def test_node_rt_priority_is_opt_in_and_degrades_with_a_warning(tmp_path):
     """Two nodes ask for SCHED_FIFO: one may (root here), one runs without CAP_SYS_NICE. Both serve forces."""
-    from skin_sim_node.monitor import Monitor
+    from skin_sim_node.perf.monitor import Monitor
 
     with Scene(tmp_path, domain_id=int(os.environ["ROS_DOMAIN_ID"])) as scene:
         base = [sys.executable, "-m", "skin_sim_node.cli", "node", "--ros-args", "--params-file", str(DEFAULT_PARAMS),
@@ -166,7 +166,7 @@ def test_dds_across_network_namespaces():
 
 def test_bench_timer_case_reports_periods_and_node_counts(tmp_path):
     """One short ``skin-sim bench`` jitter case end to end: the stamps of a real stream, the node's own counts."""
-    from skin_sim_node.bench_node import run_case
+    from skin_sim_node.perf.bench_node import run_case
 
     r = run_case("node-timer", 2.0, 1000.0, tmp_path, ("-p", "display_rate_hz:=0.0"), settle_s=1.0)
     assert r["samples"] > 100

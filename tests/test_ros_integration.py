@@ -33,7 +33,7 @@ def scene(tmp_path):
 
 @pytest.fixture
 def monitor():
-    from skin_sim_node.monitor import Monitor
+    from skin_sim_node.perf.monitor import Monitor
 
     m = Monitor(name=f"test_monitor_{os.getpid()}")
     yield m

@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from skin_sim_node.device.passivity import PassivityController
 from skin_sim_node.model import SkinModel
 from skin_sim_node.session import (
     CONTACT_SEPARATED,
@@ -34,7 +35,6 @@ from skin_sim_node.stability.haptic_loop import (
     run_loop,
     wall_point,
 )
-from skin_sim_node.stability.passivity import PassivityController
 
 MS = 1_000_000
 T0 = 10**18

@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ..plots import LAYER_COLOURS, draw_cross_section, draw_surface  # noqa: E402
+from ..viz.plots import LAYER_COLOURS, draw_cross_section, draw_surface  # noqa: E402
 from .offline import ReplayResult  # noqa: E402
 
 

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bench_model import LOD_OFF
 from ..model import SkinModel, preset
+from .bench_model import LOD_OFF
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "performance"
 MODES = (1, 2, 3, 4, 5, 6, 8, 10, 12, 15, 20, 25, 30, 35, 40, 45, 50, 55, 60)
@@ -147,7 +147,7 @@ def plot(rows: dict, slopes: dict, out_dir: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..plots import save_figure
+    from ..viz.plots import save_figure
 
     paths = []
     for axis, xlabel, name in (

@@ -29,7 +29,7 @@ def _pcts(a) -> list[float]:
 
 
 def run_device_side(duration_s: float, label: str, log_dir: Path) -> dict:
-    from ..bench_node import SETTLE_S, StreamObserver
+    from .bench_node import SETTLE_S, StreamObserver
 
     with Scene(log_dir) as scene:  # keeps the caller's ROS_DOMAIN_ID and discovery range
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]

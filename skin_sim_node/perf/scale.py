@@ -19,8 +19,8 @@ import threading
 import time
 from pathlib import Path
 
-from ..bench_node import SETTLE_S, cpu_steal_ms, diag_counts
 from ..scenes import DEFAULT_PARAMS, Scene
+from .bench_node import SETTLE_S, cpu_steal_ms, diag_counts
 
 MISSED_LIMIT_PCT = 0.1  # issue 7
 nan = float("nan")

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 import psutil
 
-from ..bench_node import SETTLE_S, cpu_steal_ms
 from ..scenes import Scene
+from .bench_node import SETTLE_S, cpu_steal_ms
 
 GAP_LIMIT_MS = 5.0  # issue 7
 RSS_GROWTH_LIMIT_PCT = 1.0  # issue 7
@@ -98,8 +98,8 @@ def run_soak(
     parameter), the bridge, the simulated device and this observer run SCHED_FIFO one below
     (a device's servo loop and its driver would).
     """
-    from ..bench_node import StreamObserver
     from ..ros_util import set_pid_realtime
+    from .bench_node import StreamObserver
 
     if rt_priority > 0:
         node_args = (*node_args, "-p", f"rt_priority:={rt_priority}")

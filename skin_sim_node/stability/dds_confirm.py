@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..mock_tool import TRAJECTORIES
+from ..device.mock_tool import TRAJECTORIES
 from ..model import config_from_flat
 from ..model.config import default_flat
 from .haptic_loop import TissueEnv, Verdict, run_loop, verdict_kind
@@ -81,7 +81,7 @@ def over_dds(rate_hz: float, k_n_per_m: float, stabiliser: str, log_dir: Path, m
 
     Returns the verdict from the node's wrenches and the device's (ticks, overruns, commands received).
     """
-    from ..monitor import Monitor
+    from ..perf.monitor import Monitor
     from ..scenes import Scene
 
     own = monitor is None
@@ -121,7 +121,7 @@ def main(argv=None) -> int:
     os.environ.setdefault("ROS_DOMAIN_ID", str(pick_domain_id()))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="skin_sim_stability_dds_"))
-    from ..monitor import Monitor
+    from ..perf.monitor import Monitor
 
     mon = Monitor(name=f"stability_monitor_{os.getpid()}", images=False)
     print(f"wall tissue (4 mm epidermis, k = K, b = 0), hand path {PATH}; logs in {log_dir}")

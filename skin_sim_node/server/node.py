@@ -32,12 +32,12 @@ from msgs_schema.parameters import ALL_PARAMETERS, SPEC_BY_NAME, NodeParams, val
 from msgs_schema.qos import publisher, subscription
 from msgs_schema.topics import FRAMES
 
+from ..model import ConfigError, SkinModel
+from ..model.config import tissue_part
+from ..model.skin_model import warm_up
+from ..ros_util import LoopTiming, PeriodicLoop, run_nodes, set_process_realtime, set_realtime
+from ..session import HapticSession, SessionParams
 from .display import DisplayProcess
-from .model import ConfigError, SkinModel
-from .model.config import tissue_part
-from .model.skin_model import warm_up
-from .ros_util import LoopTiming, PeriodicLoop, run_nodes, set_process_realtime, set_realtime
-from .session import HapticSession, SessionParams
 
 NODE_NAME = "skin_sim_node"
 STATS_LEN = 16384

@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .model import SkinModel  # noqa: E402
+from ..model import SkinModel  # noqa: E402
 
 LAYER_COLOURS = ("#f2c9a5", "#d9777a", "#f5e08e")  # epidermis, dermis, fat
 

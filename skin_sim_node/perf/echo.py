@@ -15,7 +15,7 @@ from rclpy.node import Node
 from msgs_schema import convert as cv
 from msgs_schema.qos import publisher, subscription
 
-from .ros_util import PeriodicLoop, run_nodes
+from ..ros_util import PeriodicLoop, run_nodes
 
 
 class EchoNode(Node):

@@ -16,10 +16,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .model import SkinModel, preset  # noqa: E402
+from ..model import SkinModel, preset  # noqa: E402
 from .plots import draw_cross_section  # noqa: E402
 
-DOCS = Path(__file__).resolve().parents[1] / "docs" / "figures"
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "figures"
 
 
 def press(model: SkinModel, x: float, y: float, depth: float, dt: float = 1e-3, ticks: int = 200) -> None:

@@ -16,7 +16,7 @@ import rclpy
 from msgs_schema import convert as cv
 from msgs_schema.qos import publisher, subscription
 
-from .ros_util import make_executor, spin_context
+from ..ros_util import make_executor, spin_context
 
 RECORD_DEPTH = 200  # samples; 0.2 s at 1 kHz
 

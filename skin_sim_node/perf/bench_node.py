@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .scenes import Scene
+from ..scenes import Scene
 
 SECTIONS = ("floor", "tickcost", "latency", "jitter", "levers", "startup")
 LEVER_PRESETS = {
@@ -120,7 +120,7 @@ def diag_counts(diags: list[dict]) -> dict:
 class StreamObserver:
     """The benchmark's observer: ``tool/wrench`` and ``diagnostics`` only, in its own rclpy context.
 
-    Lighter than :class:`skin_sim_node.monitor.Monitor` (no ``contact`` reader): at 4 kHz each
+    Lighter than :class:`skin_sim_node.perf.monitor.Monitor` (no ``contact`` reader): at 4 kHz each
     reader is 4000 Python callbacks a second in this process, and an observer that cannot keep
     up would count its own losses as the node's missed ticks. Records as the Monitor does:
     ``wrench`` (rx_ns, stamp_ns, fz), ``diagnostics`` (rx_ns, {key: value}, level, message).
@@ -131,7 +131,7 @@ class StreamObserver:
 
         from msgs_schema.qos import subscription
 
-        from .ros_util import make_executor, spin_context
+        from ..ros_util import make_executor, spin_context
 
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
@@ -208,7 +208,7 @@ def run_case(
 
     from msgs_schema import convert as cv
 
-    from .ros_util import PeriodicLoop
+    from ..ros_util import PeriodicLoop
 
     latency_case = kind in ("echo", "node")
     with Scene(log_dir) as scene:
@@ -307,9 +307,9 @@ def tick_cost(n: int = 5000) -> dict:
     from msgs_schema import convert as cv
     from msgs_schema.qos import publisher
 
-    from .model import SkinModel, preset
-    from .model.skin_model import warm_up
-    from .session import HapticSession, SessionParams
+    from ..model import SkinModel, preset
+    from ..model.skin_model import warm_up
+    from ..session import HapticSession, SessionParams
 
     cfg = preset("default")
     warm_up(cfg)
@@ -364,7 +364,7 @@ def wake_floor(rt_priority: int, duration_s: float, rate_hz: float = 1000.0) -> 
     """The platform's floor: a bare Python thread (no ROS, no other thread) sleeping to each
     deadline with :func:`ros_util.sleep_until_ns`; wake latency = wake - deadline (us), and the
     share of wakes later than half a period (what would make a 1.5 T period)."""
-    from .ros_util import set_realtime, sleep_until_ns
+    from ..ros_util import set_realtime, sleep_until_ns
 
     out: dict = {}
 
@@ -463,7 +463,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path, help="also write all figures to this JSON file")
     args = ap.parse_args(argv)
     if args.observer_rt > 0:  # before any thread or DDS participant exists: they all inherit it
-        from .ros_util import set_process_realtime
+        from ..ros_util import set_process_realtime
 
         problem = set_process_realtime(args.observer_rt)
         print(f"observer: {problem or f'SCHED_FIFO {args.observer_rt}'}", flush=True)

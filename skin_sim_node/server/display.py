@@ -19,7 +19,7 @@ from multiprocessing import shared_memory
 
 import numpy as np
 
-from .model import SkinModel, config_from_flat
+from ..model import SkinModel, config_from_flat
 
 MAX_LAYERS = 3
 MAX_MODES = 31 * 31  # odd-odd modes of the 61 x 61 parameter bound

@@ -20,8 +20,8 @@ import time
 
 import numpy as np
 
-from .model import SkinModel, preset
-from .model.reference import NumpySkinModel
+from ..model import SkinModel, preset
+from ..model.reference import NumpySkinModel
 
 
 def scripted_path(n_ticks: int, dt: float = 1e-3):
@@ -111,7 +111,7 @@ def scene_path(trajectory: str | None, rate_hz: float = 1000.0, jitter_s: float 
     propagator is recomputed every tick; 20 us is a stated choice, well inside the measured DDS jitter.
     ``trajectory`` None: the tool hovers 5 mm above the tissue for ``idle_s``.
     """
-    from .mock_tool import LIFT_Z_M, TRAJECTORIES
+    from ..device.mock_tool import LIFT_Z_M, TRAJECTORIES
 
     rng = np.random.default_rng(seed)
     duration = TRAJECTORIES[trajectory].duration_s if trajectory else idle_s
@@ -127,7 +127,7 @@ def scene_path(trajectory: str | None, rate_hz: float = 1000.0, jitter_s: float 
 
 def time_lod_case(cfg, path, grid_mode: str) -> dict:
     """Force-path and grid thread CPU time per tick (us) over ``path`` for one configuration."""
-    from .display import _moved
+    from ..server.display import _moved
 
     model = SkinModel(cfg)
     for pos, vel, dt in path[:200]:  # compile / warm caches, then start from rest

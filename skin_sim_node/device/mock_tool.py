@@ -2,7 +2,7 @@
 
 The pure part (:data:`TRAJECTORIES`, :class:`Trajectory`) imports no ROS code; the
 simulated device uses the same paths as its hand path. :class:`MockToolNode` is built
-on first access (PEP 562 module ``__getattr__``), so ``from skin_sim_node.mock_tool
+on first access (PEP 562 module ``__getattr__``), so ``from skin_sim_node.device.mock_tool
 import TRAJECTORIES`` works without rclpy.
 
 Every trajectory is a chain of cosine ramps ``p(s) = a + (b - a) (1 - cos(pi s)) / 2``
@@ -220,8 +220,8 @@ def _build_node_class():
     from msgs_schema.qos import publisher
     from msgs_schema.topics import FRAMES
 
+    from ..ros_util import PeriodicLoop, ros_now_ns
     from .bridge import HOUSEKEEPING_PERIOD_S, publish_while_ok
-    from .ros_util import PeriodicLoop, ros_now_ns
 
     class MockToolNode(Node):
         """Publishes a scripted trajectory on ``tool/pose`` (and ``tool/twist``) in the tissue frame.
@@ -343,7 +343,7 @@ def main(argv=None) -> int:
         }.items()
         if v is not None
     }
-    from .ros_util import run_nodes
+    from ..ros_util import run_nodes
 
     cls = _build_node_class()
     return run_nodes([lambda: cls(overrides)], args=rest, executor=EXECUTOR)

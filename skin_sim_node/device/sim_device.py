@@ -1,13 +1,13 @@
 """A simulated Phantom / Geomagic Touch, so the haptic loop closes headless.
 
 The stylus is a point mass pulled by a hand impedance (spring + damper) towards a
-scripted hand path (a :data:`skin_sim_node.mock_tool.TRAJECTORIES` entry), pushed by the
+scripted hand path (a :data:`skin_sim_node.device.mock_tool.TRAJECTORIES` entry), pushed by the
 commanded device force (zero-order hold, applied one tick late, saturated at the
 Touch's peak force) and slowed by a small device damping.
 
 Device frame: the same axes as the tissue frame, origin at tissue ``(0, 0, +0.05)`` m,
 i.e. ``p_tissue = p_device + (0, 0, 0.05)``; this is the default
-:class:`skin_sim_node.bridge.DeviceMapping`, so the default bridge needs no options.
+:class:`skin_sim_node.device.bridge.DeviceMapping`, so the default bridge needs no options.
 Positions are reported in the device frame (frame_id ``device_base``).
 
 The pure part (:class:`SimulatedDevice`, :class:`DeviceParams`) imports no ROS code;
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 from .bridge import TOUCH_PEAK_FORCE_N, DeviceMapping, clamp_magnitude
 from .mock_tool import TRAJECTORIES, ScriptClock, Trajectory
-from .stability.passivity import PassivityController
+from .passivity import PassivityController
 
 Vec3 = tuple[float, float, float]
 STABILISERS = ("none", "passivity")
@@ -59,7 +59,7 @@ class DeviceParams:
         and hand behave as continuous-time physics and only the loop is sampled.
     stabiliser : str
         ``"none"`` or ``"passivity"``: the device-side passivity observer and controller of
-        :class:`skin_sim_node.stability.passivity.PassivityController`, run in the device tick.
+        :class:`skin_sim_node.device.passivity.PassivityController`, run in the device tick.
     """
 
     mass_kg: float = 0.045
@@ -111,7 +111,7 @@ class SimulatedDevice:
     mapping : DeviceMapping
         Device <-> tissue frame; the hand path is mapped into the device frame with it.
     start_delay_s, repeat, tail_s : float, int, float
-        As :class:`skin_sim_node.mock_tool.ScriptClock`: hold the start pose first, run
+        As :class:`skin_sim_node.device.mock_tool.ScriptClock`: hold the start pose first, run
         ``repeat`` times (``<= 0``: forever), hold the end pose ``tail_s`` before :attr:`done`.
 
     Notes
@@ -235,8 +235,8 @@ def _build_node_class():
     from msgs_schema.qos import PROFILES, publisher
     from msgs_schema.topics import TOPICS
 
+    from ..ros_util import PeriodicLoop, ros_now_ns
     from .bridge import HOUSEKEEPING_PERIOD_S, publish_while_ok
-    from .ros_util import PeriodicLoop, ros_now_ns
 
     def frange(lo, hi):
         return [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
@@ -417,7 +417,7 @@ def main(argv=None) -> int:
         }.items()
         if v is not None
     }
-    from .ros_util import run_nodes
+    from ..ros_util import run_nodes
 
     cls = _build_node_class()
     return run_nodes([lambda: cls(overrides)], args=rest, executor=EXECUTOR)

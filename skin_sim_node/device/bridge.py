@@ -30,7 +30,7 @@ TOUCH_PEAK_FORCE_N = 3.3
 """Peak force of a Geomagic Touch (3D Systems spec sheet: max exertable force 3.3 N at nominal position)."""
 
 DEFAULT_OFFSET_M: Vec3 = (0.0, 0.0, 0.05)
-"""Tissue-frame position of the device origin (m). Matches :mod:`skin_sim_node.sim_device`,
+"""Tissue-frame position of the device origin (m). Matches :mod:`skin_sim_node.device.sim_device`,
 whose origin sits 50 mm above the rest surface: about a Touch's usable workspace half-height
 (workspace 160 x 120 x 70 mm), so the stylus reaches the tissue from mid-workspace."""
 
@@ -258,7 +258,7 @@ def _build_node_class():
     from msgs_schema.qos import PROFILES, publisher, subscription
     from msgs_schema.topics import FRAMES, TOPICS
 
-    from .ros_util import ros_now_ns
+    from ..ros_util import ros_now_ns
 
     def frange(lo, hi):
         return [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
@@ -442,7 +442,7 @@ def main(argv=None) -> int:
     overrides = {k: v for k, v in vars(opts).items() if v is not None}
     if "axes" in overrides:
         axes_matrix(overrides["axes"])  # fail early with a clear message
-    from .ros_util import run_nodes
+    from ..ros_util import run_nodes
 
     cls = _build_node_class()
     return run_nodes([lambda: cls(overrides)], args=rest, executor=EXECUTOR)

@@ -1,0 +1,1 @@
+"""The device side: Touch bridge, simulated device, mock tool, passivity controller."""

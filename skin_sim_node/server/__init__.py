@@ -1,0 +1,1 @@
+"""The ROS 2 haptic server: the node and its display worker."""

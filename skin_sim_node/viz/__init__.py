@@ -1,0 +1,1 @@
+"""Static pictures: model figures and cross-section plots."""
