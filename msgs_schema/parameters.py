@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 
-from skin_sim_node.model.config import TISSUE_PARAMETERS, ConfigError, ParamSpec, config_from_flat, tissue_part
+from .spec import ConfigError, ParamSpec
+from .tissue import TISSUE_PARAMETERS
 
 TISSUE_PREFIX = "tissue."
 
@@ -68,6 +69,7 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         "loop_mode", str, "input", "-",
         "input: tick on every pose (lowest latency) with a rate_hz fallback clock; timer: fixed rate_hz only",
+        choices=("input", "timer"),
     ),
     ParamSpec("publish_mesh", bool, True, "-", "publish the RViz mesh marker at display rate"),
     ParamSpec(
@@ -105,6 +107,7 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "threads that get SCHED_FIFO: haptic (the tick clock and the executor that runs pose callbacks at "
         "rt_priority, the display-loop thread that shares their lock at one less) or process (also every other "
         "thread at one less: the DDS receive threads that deliver the poses are on the input-mode path)",
+        choices=("haptic", "process"),
     ),
     ParamSpec(
         "haptic_cpu", int, -1, "1", "pin the haptic clock thread to this CPU (-1: no pinning)", -1, 1023, False,
@@ -118,7 +121,6 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "sleep to each deadline with clock_nanosleep(TIMER_ABSTIME), GIL released; false: time.sleep(remaining)",
     ),
 )  # fmt: skip
-_STRING_CHOICES: dict[str, tuple[str, ...]] = {"loop_mode": ("input", "timer"), "rt_scope": ("haptic", "process")}
 
 ALL_PARAMETERS: tuple[ParamSpec, ...] = NODE_PARAMETERS + tuple(
     replace(s, name=TISSUE_PREFIX + s.name) for s in TISSUE_PARAMETERS
@@ -161,17 +163,6 @@ def check_value(name: str, value):
     spec = SPEC_BY_NAME.get(name)
     if spec is None:
         raise ConfigError(f"unknown parameter {name!r}")
-    if spec.type is str:
-        if not isinstance(value, str):
-            raise ConfigError(f"{name}: expected a string, got {value!r}")
-        choices = _STRING_CHOICES.get(name)
-        if choices and value not in choices:
-            raise ConfigError(f"{name} = {value!r}: must be one of {', '.join(choices)}")
-        return value
-    if spec.type is bool:
-        if not isinstance(value, bool):
-            raise ConfigError(f"{name}: expected true/false, got {value!r}")
-        return value
     return spec.check(value)
 
 
@@ -181,8 +172,3 @@ def node_params_from_flat(flat: dict) -> NodeParams:
         if not name.startswith(TISSUE_PREFIX):
             values[name] = check_value(name, value)
     return NodeParams(**{f.name: values[f.name] for f in fields(NodeParams)})
-
-
-def validate_all(flat: dict):
-    """Validate a full dotted parameter dict: returns (NodeParams, TissueConfig)."""
-    return node_params_from_flat(flat), config_from_flat(tissue_part(flat, TISSUE_PREFIX))

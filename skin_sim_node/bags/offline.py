@@ -17,11 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import validate_all
 from msgs_schema.topics import LAYER_LABELS, TOPICS
 
 from ..model import SkinModel
-from ..model.config import load_yaml
+from ..model.config import load_yaml, validate_all
 from ..scenes import DEFAULT_PARAMS
 from ..session import HapticSession, SessionParams
 from .inputs import POSE, Inputs

@@ -28,12 +28,12 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import ALL_PARAMETERS, SPEC_BY_NAME, NodeParams, validate_all
+from msgs_schema.parameters import ALL_PARAMETERS, SPEC_BY_NAME, NodeParams
 from msgs_schema.qos import publisher, subscription
 from msgs_schema.topics import FRAMES
 
 from ..model import ConfigError, SkinModel
-from ..model.config import tissue_part
+from ..model.config import tissue_part, validate_all
 from ..model.skin_model import warm_up
 from ..ros_util import LoopTiming, PeriodicLoop, run_nodes, set_process_realtime, set_realtime
 from ..session import HapticSession, SessionParams

@@ -1,0 +1,152 @@
+"""The tissue parameter schema: every ``tissue.*`` parameter with default, unit, bounds and reason.
+
+The single definition of every tissue parameter. The ROS node declares its parameters from
+it, the YAML presets in ``config/`` use its names under ``ros__parameters`` (with the
+``tissue.`` prefix), and :func:`skin_sim_node.model.config.config_from_flat` builds the
+frozen config the model runs on. Defaults are the ``default`` preset; their sources are in
+``docs/model.md`` (section "Parameter sources"). Imports nothing from the implementation.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .spec import ParamSpec
+
+LAYER_NAMES = ("epidermis", "dermis", "fat")
+INTERFACE_NAMES = ("epidermis_dermis", "dermis_fat")
+
+
+def _f(name, default, unit, desc, lo=0.0, hi=None, lo_excl=True):
+    return ParamSpec(name, float, default, unit, desc, lo, hi, lo_excl)
+
+
+def _i(name, default, desc, lo=1, hi=None):
+    return ParamSpec(name, int, default, "1", desc, lo, hi, False)
+
+
+def _b(name, default, desc):
+    return ParamSpec(name, bool, default, "-", desc)
+
+
+# Level of detail ("no more than a scene needs", issue 7); docs/performance.md measures each lever.
+LOD_TOLERANCE_M = 10e-6
+"""Displacement tolerance (m). Stated choice: 1 % of the 1 mm height-map cell, invisible in the
+display, and about the smallest skin indentation a fingertip detects (of the order of 10 um)."""
+
+
+def _lod_specs() -> list[ParamSpec]:
+    return [
+        _f(
+            "lod.tolerance_m", LOD_TOLERANCE_M, "m",
+            "displacement tolerance: adaptive mode count, settled layers, idle and display change detection "
+            "(10 um: 1 % of a 1 mm height-map cell)",
+        ),
+        _b(
+            "lod.adaptive_modes", True,
+            "choose each driven layer's modes per axis (1..59 odd, against a 60 x 60 reference) from its compression "
+            "and lod.tolerance_m; off: the fixed modes.m x modes.n",
+        ),
+        _b(
+            "lod.affected_layers", True,
+            "compute only layers that are driven or still moving: a free layer whose displacement bound falls "
+            "below lod.tolerance_m is set to rest and skipped",
+        ),
+        _b("lod.patch_only", True, "grid builds touch only the cells of the deformation patches, not the whole sheet"),
+        _b("lod.idle", True, "no kernel call while the tool is off the tissue and every layer has settled"),
+    ]  # fmt: skip
+
+
+# Default layer values (the `default` preset). Sources: docs/model.md, "Parameter sources".
+_TOOL_RADIUS_M = 2.5e-3
+_TOOL_AREA_M2 = math.pi * _TOOL_RADIUS_M**2
+_LAYER_DEFAULTS = {
+    # thickness_m, youngs_modulus_pa, density_kg_per_m3, shear_wave_speed_m_per_s
+    "epidermis": (75e-6, 1.5e6, 1150.0, 2.2),
+    "dermis": (1.2e-3, 20e3, 1116.0, 2.2),
+    "fat": (4.0e-3, 2.5e3, 971.0, 0.9),
+}
+_POISSON = 0.48
+_PATCH_M = 0.06
+
+
+def critical_damping_n_s_per_m(density_kg_per_m3: float, thickness_m: float, wave_speed_m_per_s: float) -> float:
+    """``b`` that critically damps a layer's fundamental release mode: ``b = 2 m11 lambda_11``.
+
+    ``m11 = rho_A a b / 4`` is the (1,1) modal mass of the default 60 mm patch and
+    ``lambda_11 = c pi sqrt(2) / a`` (eq 3); see ``gamma`` in :mod:`.modal`.
+    """
+    m11 = density_kg_per_m3 * thickness_m * _PATCH_M**2 / 4
+    return 2 * m11 * wave_speed_m_per_s * math.pi * math.sqrt(2) / _PATCH_M
+
+
+def flat_punch_stiffness_n_per_m(youngs_modulus_pa: float, radius_m: float) -> float:
+    """Indentation stiffness ``k = 2 E r / (1 - nu^2)`` of a rigid flat punch on a half-space.
+
+    Sneddon (1965); used for the default per-layer ``k`` so that ``k`` depends on the
+    layer's material and the tool, not on the paper's unstated spring constants.
+    """
+    return 2.0 * youngs_modulus_pa * radius_m / (1.0 - _POISSON**2)
+
+
+def _layer_specs() -> list[ParamSpec]:
+    specs = []
+    for name, (h, e, rho, c) in _LAYER_DEFAULTS.items():
+        k = flat_punch_stiffness_n_per_m(e, _TOOL_RADIUS_M)
+        damping = critical_damping_n_s_per_m(rho, h, c)
+        tension = rho * h * c**2  # T = rho_areal c^2 (eq 1) with c from elastography
+        p = f"layers.{name}."
+        specs += [
+            _f(p + "thickness_m", h, "m", f"mean {name} thickness"),
+            _f(p + "stiffness_n_per_m", k, "N/m", f"{name} Kelvin-Voigt spring k (eq 6)"),
+            _f(p + "damping_n_s_per_m", damping, "N*s/m", f"{name} Kelvin-Voigt damper b (eq 6)", 0.0, None, False),
+            _f(p + "area_m2", _TOOL_AREA_M2, "m^2", f"{name} loaded area A (eq 6)"),
+            _f(
+                p + "density_kg_per_m3",
+                rho,
+                "kg/m^3",
+                f"{name} volumetric density; areal rho = density*thickness (eq 1)",
+            ),
+            _f(p + "tension_n_per_m", tension, "N/m", f"{name} membrane tension T (eq 1)"),
+        ]
+    return specs
+
+
+def _interface_specs() -> list[ParamSpec]:
+    # Egg-carton interfaces (section II.C). Amplitudes and wavelengths: docs/model.md.
+    defaults = {"epidermis_dermis": (40e-6, 0.2e-3), "dermis_fat": (0.5e-3, 5.0e-3)}
+    specs = []
+    for name, (amp, wl) in defaults.items():
+        p = f"interfaces.{name}."
+        specs += [
+            _f(p + "amplitude_m", amp, "m", f"{name} egg-carton amplitude", 0.0, None, False),
+            _f(p + "wavelength_x_m", wl, "m", f"{name} egg-carton wavelength along x"),
+            _f(p + "wavelength_y_m", wl, "m", f"{name} egg-carton wavelength along y"),
+        ]
+    return specs
+
+
+TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
+    [
+        _f("sheet.size_x_m", 0.12, "m", "tissue sheet extent along x, centred on the frame origin"),
+        _f("sheet.size_y_m", 0.12, "m", "tissue sheet extent along y, centred on the frame origin"),
+        _f("patch.size_x_m", 0.06, "m", "deformation patch side along x (paper: 60 mm)"),
+        _f("patch.size_y_m", 0.06, "m", "deformation patch side along y (paper: 60 mm)"),
+        _i("grid.nx", 120, "output height-map cells along x over the sheet", 2, 1024),
+        _i("grid.ny", 120, "output height-map cells along y over the sheet", 2, 1024),
+        _i(
+            "modes.m",
+            15,
+            "modal terms along x (M in eq 2); <= 61: with jittery tick intervals the propagator "
+            "is recomputed every tick, ~67 us at 61 x 61",
+            1,
+            61,
+        ),
+        _i("modes.n", 15, "modal terms along y (N in eq 2); <= 61, as modes.m", 1, 61),
+        _f("tool.radius_m", _TOOL_RADIUS_M, "m", "tool tip radius; the disk load of the indentation shape"),
+    ]
+    + _layer_specs()
+    + _interface_specs()
+    + _lod_specs()
+)
+SPEC_BY_NAME = {s.name: s for s in TISSUE_PARAMETERS}
