@@ -16,6 +16,7 @@ import numpy as np
 
 from . import kernels as kn
 from .config import TissueConfig
+from .contact import ContactTangent, normal_tangent
 from .interfaces import interface_depths_m
 from .modal import ModalBasis, modal_basis
 
@@ -195,6 +196,21 @@ class SkinModel:
     @property
     def in_contact(self) -> bool:
         return bool(self.flags & kn.FLAG_CONTACT)
+
+    def tangent(self) -> ContactTangent:
+        """The force of the last step and its local derivatives (see :mod:`.contact`).
+
+        Paper form: the engaged layers are springs and dampers in series under the common
+        velocity of eq 6, so ``dF/dz = -A_0 / sum(A_i / k_i)`` and
+        ``dF/dv_z = -A_0 sum(b_i / k_i) / sum(A_i / k_i)`` (from ``sigma`` in :func:`kernels.reuss_split`).
+        """
+        n = self.n_affected if self.in_contact else 0
+        if n == 0:
+            return normal_tangent(0.0, 0.0, 0.0, 0.0)
+        s_a = float(np.sum(self._area[:n] / self._k[:n]))
+        s_b = float(np.sum(self._b[:n] / self._k[:n]))
+        a0 = float(self._area[0])
+        return normal_tangent(self.force_n, a0 / s_a, a0 * s_b / s_a, self.cfg.tool_radius_m)
 
     def layer_displacement_at(self, layer: int, x: float, y: float) -> float:
         """Current downward displacement (m) of one layer at ``(x, y)`` (eq 2 at a point)."""

@@ -1,0 +1,57 @@
+"""The local linearisation of the contact that the model hands to the session (issue 12).
+
+The device side renders ``F(x, v) = f0 + K (x - x0) + D (v - v0)`` between server updates
+(Mark et al. 1996, "Adding force feedback to graphics systems": plane-and-probe local model;
+sawSensablePhantom ``servo_ci``). The model gives ``f0`` and the Jacobians; the session adds the
+pose it answers, the time-to-live, the validity radius and a sequence number.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+Z_UP = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class ContactTangent:
+    """The tissue's reaction force and its derivatives at the current tool state (tissue frame, SI).
+
+    Attributes
+    ----------
+    force_n : ndarray, shape (3,)
+        Reaction force on the tool ``f0`` (N).
+    stiffness_n_per_m : ndarray, shape (3, 3)
+        ``K = dF/dx`` (N/m), row-major: ``F(x) ~ f0 + K (x - x0)``. A press (tool moving
+        along ``-normal``) raises the force along ``+normal``, so ``normal . K . normal <= 0``.
+    damping_n_s_per_m : ndarray, shape (3, 3)
+        ``D = dF/dv`` (N s/m), the same sign convention.
+    normal : ndarray, shape (3,)
+        Unit contact normal, out of the tissue (``+z`` on an undeformed flat sheet).
+    contact_radius_m : float
+        Radius of the contact patch (m); 0 out of contact.
+    """
+
+    force_n: np.ndarray
+    stiffness_n_per_m: np.ndarray
+    damping_n_s_per_m: np.ndarray
+    normal: np.ndarray
+    contact_radius_m: float
+
+    @property
+    def in_contact(self) -> bool:
+        return self.contact_radius_m > 0.0
+
+
+def normal_tangent(force_z_n: float, k_normal_n_per_m: float, b_normal_n_s_per_m: float, radius_m: float) -> ContactTangent:
+    """A tangent with force and stiffness along ``+z`` only (no tangential terms)."""
+    nn = np.outer(Z_UP, Z_UP)
+    return ContactTangent(
+        force_n=force_z_n * Z_UP,
+        stiffness_n_per_m=-k_normal_n_per_m * nn,
+        damping_n_s_per_m=-b_normal_n_s_per_m * nn,
+        normal=Z_UP.copy(),
+        contact_radius_m=radius_m,
+    )
