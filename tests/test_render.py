@@ -52,7 +52,7 @@ def test_linear_model_between_updates():
 def test_crossfade_is_continuous_and_reaches_the_new_model():
     r = uncapped()
     x = np.zeros((200, 3)) + [0, 0, -1e-3]
-    models = {0: model(1, f0=(0, 0, 1.0), ttl=1.0), 100: model(2, f0=(0, 0, 2.0), ttl=1.0), 104: model(3, f0=(0, 0, 1.2), ttl=1.0)}
+    models = {i: model(s, f0=(0, 0, f), ttl=1.0) for i, s, f in ((0, 1, 1.0), (100, 2, 2.0), (104, 3, 1.2))}
     f = run(r, x, models)[:, 2]
     steps = np.abs(np.diff(f))
     # first model fades in from zero over CROSSFADE_MAX (20 ms): <= 1 N / 20 per tick
@@ -70,7 +70,7 @@ def test_ttl_fade_never_steps_and_ends_at_zero():
     x = np.zeros((200, 3)) + [0, 0, -1e-3]
     f = run(r, x, {0: model(1, f0=(0, 0, 2.0), ttl=0.05)})[:, 2]
     assert f[50] == pytest.approx(2.0)  # still fresh at 50 ms: age <= ttl
-    fading = f[50:52 + round(FADE_S / DT)]
+    fading = f[50 : 52 + round(FADE_S / DT)]
     assert np.all(np.diff(fading) <= 1e-12)
     assert np.abs(np.diff(f[20:])).max() <= 2.0 * DT / FADE_S + 1e-9  # <= 2 N / 50 ticks per tick
     assert f[51 + round(FADE_S / DT)] == pytest.approx(0.0, abs=1e-12)
