@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from skin_sim_node.device.bridge import DeviceMapping, axes_matrix, clamp_magnitude
-from skin_sim_node.device.mock_tool import LIFT_Z_M, TRAJECTORIES, ScriptClock
-from skin_sim_node.device.sim_device import DeviceParams, SimulatedDevice
+from skin_sim_node.device.mapping import DeviceMapping, axes_matrix, clamp_magnitude
+from skin_sim_node.device.stylus import DeviceParams, SimulatedDevice
+from skin_sim_node.device.trajectories import LIFT_Z_M, TRAJECTORIES, ScriptClock
 from skin_sim_node.model import SkinModel, classify, interface_depths_m
 
 NAMES = ["press_hold_release", "press_all_layers", "drag", "edge_press", "fast_stab", "lift_during_relax", "light_touch"]
@@ -29,9 +29,9 @@ def test_pure_import_does_not_load_rclpy():
     import sys
 
     code = (
-        "import sys; from skin_sim_node.device.mock_tool import TRAJECTORIES; "
-        "from skin_sim_node.device.sim_device import SimulatedDevice; "
-        "from skin_sim_node.device.bridge import DeviceMapping; print('rclpy' in sys.modules)"
+        "import sys; from skin_sim_node.device.trajectories import TRAJECTORIES; "
+        "from skin_sim_node.device.stylus import SimulatedDevice; from skin_sim_node.device.render import ContactRenderer; "
+        "from skin_sim_node.device.mapping import DeviceMapping; print('rclpy' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "False"

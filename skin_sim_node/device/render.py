@@ -28,14 +28,8 @@ import numpy as np
 
 from msgs_schema.contact_model import LocalModel
 
+from .mapping import TOUCH_MAX_STIFFNESS_N_PER_M, TOUCH_PEAK_FORCE_N
 from .passivity import PassivityController
-
-TOUCH_PEAK_FORCE_N = 3.3
-"""Peak force of a Geomagic Touch (3D Systems spec sheet: max exertable force 3.3 N at nominal position)."""
-
-TOUCH_MAX_STIFFNESS_N_PER_M = 1020.0
-"""Largest stiffness the renderer gives a Touch (N/m): the spec sheet's lowest axis figure (3D Systems
-Touch: stiffness X > 1.26 N/mm, Y > 2.31 N/mm, Z > 1.02 N/mm), so the cap holds in every direction."""
 
 FADE_S = 0.05
 """Fade to zero when the model is stale or left (s): issue 12 asks ~50 ms, about a hand's reflex latency
@@ -197,7 +191,9 @@ class ContactRenderer:
         if self._from is not None and self._last_x is not None:
             base = self._from.force(self._last_x, self._last_v if self.use_damping else None)
         self._offset = self._last_out - base
-        self._blend_t0, self._blend_T = now_s, duration_s
+        # the blend starts where that force was rendered, so the next tick already moves towards the new model
+        t0 = self._last_t if self._last_t is not None and self._last_t <= now_s else now_s
+        self._blend_t0, self._blend_T = t0, duration_s
         self._fade_t0 = None
 
     # --- the servo tick -------------------------------------------------------------------
