@@ -58,6 +58,7 @@ class ReplayResult:
     peak_state: dict | None = None  # the model's dynamic state at peak force (SkinModel.state)
     cfg: object = None
     layer_names: tuple[str, ...] = field(default_factory=tuple)
+    tissue_frame: str = "tissue"  # the frame_id the replayed poses had to carry
 
     @property
     def peak_force_n(self) -> float:
@@ -170,7 +171,7 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
     return ReplayResult(
         np.array(stamps, dtype=np.int64), np.array(forces), np.array(n_aff, dtype=int), np.array(depths),
         np.array(xyzs).reshape(-1, 3), dict(session.counts), inputs.n_poses, inputs.n_twists, n_grids, peak_i,
-        peak_state, cfg, tuple(LAYER_LABELS),
+        peak_state, cfg, tuple(LAYER_LABELS), frame,
     )  # fmt: skip
 
 
