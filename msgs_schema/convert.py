@@ -84,6 +84,16 @@ def fill_contact(msg, t_ns: int, frame: str, compression_m, rate_m_s, stress_pa)
     return msg
 
 
+def fill_wrench_from_tick(msg, result, t_ns: int, frame: str):
+    """``tool/wrench`` from a haptic tick's result (``skin_sim_node.session.TickResult``, read by attribute)."""
+    return fill_wrench(msg, t_ns, frame, result.force_n)
+
+
+def fill_contact_from_tick(msg, result, t_ns: int, frame: str):
+    """``tissue/contact`` from a haptic tick's result: per layer compression, its rate and the Reuss stress."""
+    return fill_contact(msg, t_ns, frame, result.compression_m, result.compression_rate_m_s, result.stress_pa)
+
+
 def read_contact(msg):
     return stamp_ns(msg.header), np.array(msg.position), np.array(msg.velocity), np.array(msg.effort)
 

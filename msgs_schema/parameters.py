@@ -8,7 +8,7 @@ into a frozen :class:`NodeParams`. Imports no ROS code.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import field, fields, make_dataclass, replace
 
 from .spec import ConfigError, ParamSpec
 from .tissue import TISSUE_PARAMETERS
@@ -63,7 +63,7 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "pose/twist reader history (read at start): 1 answers the newest sample only (lowest latency, "
         "for live haptics); 10 lets a node descheduled for a few ms answer every sample in order "
         "(replay agreement), at the cost of a latency tail",
-        1, 100, False,
+        1, 100, False, read_only=True,
     ),
     ParamSpec("tissue_frame", str, "tissue", "-", "frame_id the tool pose must carry"),
     ParamSpec(
@@ -100,25 +100,26 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "SCHED_FIFO priority of the haptic threads, 1-99 (0: normal scheduling). Opt-in: needs root or "
         "CAP_SYS_NICE; when refused the node logs a warning and runs at normal priority. 80 sits above "
         "the kernel's threaded IRQs (50 on PREEMPT_RT) as servo loops usually do",
-        0, 99, False,
+        0, 99, False, read_only=True,
     ),
     ParamSpec(
         "rt_scope", str, "process", "-",
         "threads that get SCHED_FIFO: haptic (the tick clock and the executor that runs pose callbacks at "
         "rt_priority, the display-loop thread that shares their lock at one less) or process (also every other "
         "thread at one less: the DDS receive threads that deliver the poses are on the input-mode path)",
-        choices=("haptic", "process"),
+        choices=("haptic", "process"), read_only=True,
     ),
     ParamSpec(
-        "haptic_cpu", int, -1, "1", "pin the haptic clock thread to this CPU (-1: no pinning)", -1, 1023, False,
+        "haptic_cpu", int, -1, "1", "pin the haptic clock thread to this CPU (-1: no pinning)", -1, 1023, False, read_only=True,
     ),
     ParamSpec(
         "spin_tail_us", float, 0.0, "us",
         "busy-wait this long before each haptic deadline instead of sleeping (0: sleep all the way)", 0.0, 1000.0, False,
+        read_only=True,
     ),
     ParamSpec(
         "precise_sleep", bool, True, "-",
-        "sleep to each deadline with clock_nanosleep(TIMER_ABSTIME), GIL released; false: time.sleep(remaining)",
+        "sleep to each deadline with clock_nanosleep(TIMER_ABSTIME), GIL released; false: time.sleep(remaining)", read_only=True,
     ),
 )  # fmt: skip
 
@@ -128,34 +129,55 @@ ALL_PARAMETERS: tuple[ParamSpec, ...] = NODE_PARAMETERS + tuple(
 SPEC_BY_NAME = {s.name: s for s in ALL_PARAMETERS}
 
 
-@dataclass(frozen=True)
-class NodeParams:
-    """The node's non-tissue parameters, read once."""
+SESSION_ONLY_PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec(
+        "max_dt_s", float, 0.1, "s",
+        "longest interval one tick advances the model (a stalled caller does not jump the tissue ahead): "
+        "100 ticks at 1 kHz, twice the default watchdog_s", 0.0, 10.0,
+    ),
+    ParamSpec(
+        "max_future_s", float, 0.05, "s",
+        "a pose stamp this far ahead of the node clock is rejected (clock skew allowance, as watchdog_s)", 0.0, 3600.0, False,
+    ),
+    ParamSpec(
+        "resync_after", int, 50, "1",
+        "this many consecutive backwards stamps: accept the new time line (a restarted publisher; 50 ms at 1 kHz)", 1, 100000,
+        False,
+    ),
+)  # fmt: skip
+"""Session limits that are not node parameters (the session's own; see :class:`SessionParams`)."""
 
-    rate_hz: float
-    display_rate_hz: float
-    watchdog_s: float
-    max_stamp_age_s: float
-    max_force_n: float
-    max_force_rate_n_per_s: float
-    teleport_distance_m: float
-    max_tool_speed_m_s: float
-    twist_max_skew_s: float
-    fallback_rate_hz: float
-    input_queue_depth: int
-    tissue_frame: str
-    loop_mode: str
-    publish_mesh: bool
-    mesh_stride: int
-    mesh_rate_hz: float
-    diagnostics_period_s: float
-    idle_heartbeat_hz: float
-    display_on_change: bool
-    rt_priority: int
-    rt_scope: str
-    haptic_cpu: int
-    spin_tail_us: float
-    precise_sleep: bool
+SESSION_KEYS = (
+    "tissue_frame", "watchdog_s", "max_stamp_age_s", "max_force_n", "teleport_distance_m", "max_tool_speed_m_s",
+    "twist_max_skew_s", "max_force_rate_n_per_s",
+)  # fmt: skip
+"""The node parameters the haptic session reads (input checks and force limits)."""
+
+READ_ONLY = tuple(s.name for s in NODE_PARAMETERS if s.read_only)
+"""Parameters read once at start: declared read-only, so a live set is refused with rclpy's reason."""
+
+
+def params_class(name: str, specs: tuple[ParamSpec, ...], doc: str, namespace: dict | None = None) -> type:
+    """A frozen dataclass with one field per spec (its type and default): the schema's view, not a retyped copy."""
+    cls = make_dataclass(name, [(s.name, s.type, field(default=s.default)) for s in specs], frozen=True, namespace=namespace)
+    cls.__module__ = __name__
+    cls.__doc__ = doc
+    return cls
+
+
+NodeParams = params_class("NodeParams", NODE_PARAMETERS, "The node's non-tissue parameters, read once (fields: NODE_PARAMETERS).")
+
+SESSION_PARAMETERS: tuple[ParamSpec, ...] = tuple(s for s in NODE_PARAMETERS if s.name in SESSION_KEYS) + SESSION_ONLY_PARAMETERS
+
+SessionParams = params_class(
+    "SessionParams", SESSION_PARAMETERS,
+    "Input and safety parameters of the haptic session (fields: SESSION_PARAMETERS; sources in their descriptions).",
+)  # fmt: skip
+
+
+def session_params(node_params, **overrides) -> SessionParams:
+    """The :class:`SessionParams` view of a :class:`NodeParams` (the one mapping; offline replay overrides the stamp age)."""
+    return SessionParams(**({k: getattr(node_params, k) for k in SESSION_KEYS} | overrides))
 
 
 def check_value(name: str, value):

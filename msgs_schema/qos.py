@@ -49,7 +49,5 @@ def subscription(node, key: str, callback, name: str | None = None, depth: int |
     spec = TOPICS[key]
     profile = qos_for(key)
     if depth is not None and depth != profile.depth:
-        profile = QoSProfile(
-            reliability=profile.reliability, history=profile.history, depth=depth, durability=profile.durability
-        )
+        profile = QoSProfile(reliability=profile.reliability, history=profile.history, depth=depth, durability=profile.durability)
     return node.create_subscription(spec.msg_class, name or spec.name, callback, profile)

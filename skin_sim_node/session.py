@@ -14,8 +14,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from msgs_schema.parameters import SessionParams
+
 from .model import SkinModel
 from .model import kernels as kn
+from .model.contact import ContactTangent
+
+__all__ = ["HapticSession", "SessionParams", "TickResult"]
 
 # Rejection / event kinds (diagnostics keys).
 NON_FINITE = "non_finite_input"
@@ -62,20 +67,66 @@ rest (``B*_mn = 0``, as eq 9 itself), since with no restoring force in human tim
 
 
 @dataclass(frozen=True)
-class SessionParams:
-    """Input and safety parameters (see ``msgs_schema.parameters`` for sources and bounds)."""
+class TickResult:
+    """What one haptic tick produced: the one output path (node, offline replay and benchmarks read only this).
 
-    tissue_frame: str = "tissue"
-    watchdog_s: float = 0.05
-    max_stamp_age_s: float = 1.0  # 0 disables the check (offline replay)
-    max_force_n: float = 10.0
-    teleport_distance_m: float = 0.02
-    max_tool_speed_m_s: float = 3.0
-    twist_max_skew_s: float = 0.005
-    max_dt_s: float = 0.1
-    max_future_s: float = 0.05  # a stamp this far ahead of the clock is rejected (clock skew allowance)
-    resync_after: int = 50  # this many consecutive backwards stamps: accept the new time line
-    max_force_rate_n_per_s: float = 1000.0  # see msgs_schema.parameters; 0 disables
+    :func:`msgs_schema.convert.fill_wrench_from_tick` and :func:`msgs_schema.convert.fill_contact_from_tick`
+    turn it into the ``tool/wrench`` and ``tissue/contact`` messages.
+
+    Attributes
+    ----------
+    seq : int
+        Tick sequence number, increasing by one per tick of this session (from 1).
+    stamp_ns : int
+        Stamp of the pose the model ran at (the last accepted pose; 0 before any).
+    answered : bool
+        This tick consumed a newly accepted pose (it answers that pose).
+    x0_m : tuple of 3 float
+        Tool position the model ran at (tissue frame, m); ``z = 1 m`` (lifted off) when stale.
+    velocity_m_s : tuple of 3 float
+        Tool velocity the model ran at (m/s).
+    force_n : tuple of 3 float
+        Published reaction force on the tool (N) after the session's clamp, rate bound and watchdog.
+    depth_m : float
+        Tool depth of the Reuss split (eq 6), 0 out of contact.
+    n_affected : int
+        Layers engaged by the contact (the deepest reached).
+    compression_m, compression_rate_m_s, stress_pa : tuple of float, one per layer
+        Reuss compression of each layer, its rate (the normal speed shared in proportion to the
+        compression), and the common Reuss stress on the engaged layers (0 on the others).
+    flags : int
+        Model regime flags of the step (``model.kernels.FLAG_*``).
+    events : tuple of str
+        Rejection, safety and regime event kinds raised since the previous tick (each occurrence).
+    stale : bool
+        The input watchdog fired: the force is zero and the tissue released.
+    idle : bool
+        The model skipped the kernel (tissue at rest, tool off it).
+    tangent : ContactTangent
+        The model's local linearisation at ``x0_m`` (:meth:`SkinModel.tangent`), for the local contact model.
+    """
+
+    seq: int
+    stamp_ns: int
+    answered: bool
+    x0_m: tuple[float, float, float]
+    velocity_m_s: tuple[float, float, float]
+    force_n: tuple[float, float, float]
+    depth_m: float
+    n_affected: int
+    compression_m: tuple[float, ...]
+    compression_rate_m_s: tuple[float, ...]
+    stress_pa: tuple[float, ...]
+    flags: int
+    events: tuple[str, ...]
+    stale: bool
+    idle: bool
+    tangent: ContactTangent
+
+    @property
+    def force_z_n(self) -> float:
+        """The force along the tissue normal ``+z`` (N), the model's single force component."""
+        return self.force_n[2]
 
 
 class HapticSession:
@@ -115,11 +166,15 @@ class HapticSession:
         self._rate_budget_n = math.inf  # force-rate token bucket, capped at each tick
         self.answered_stamp_ns = 0
         self.velocity = (0.0, 0.0, 0.0)
+        self._seq = 0
+        self._tick_events: list[str] = []
+        self.last: TickResult | None = None  # the last tick's result
         self.set_model(model)
 
     # --- events -----------------------------------------------------------------------
     def _event(self, kind: str, message: str) -> str:
         (self.regime_counts if kind in REGIME_EVENTS else self.counts)[kind] += 1
+        self._tick_events.append(kind)
         if kind not in self._logged:
             self._logged.add(kind)
             if self._log:
@@ -217,12 +272,13 @@ class HapticSession:
             v = tuple(c * p.max_tool_speed_m_s / s for c in v)
         return v
 
-    def tick(self, now_ns: int, elapsed_ns: int) -> float:
+    def tick(self, now_ns: int, elapsed_ns: int) -> TickResult:
         """One haptic tick. ``elapsed_ns``: caller-clock time since the previous tick.
 
         If a new pose arrived, the model advances by the pose stamps' difference (less
         the time already advanced by pose-less ticks); otherwise by ``elapsed_ns`` with the
-        last pose held. Returns the force (N, along +z) and stores it in :attr:`force_n`.
+        last pose held. Returns the tick's :class:`TickResult` (also kept in :attr:`last`);
+        the force (N, along +z) is also stored in :attr:`force_n`.
         """
         p = self.params
         model = self.model
@@ -232,7 +288,8 @@ class HapticSession:
         if stale and not self.stale:
             self._event(WATCHDOG, f"no valid tool pose for {p.watchdog_s * 1e3:.0f} ms: force set to zero, tissue released")
         self.stale = stale
-        if self._pending and not stale:
+        answered = self._pending and not stale
+        if answered:
             self._pending = False
             if self._last_used_stamp_ns is None:
                 dt_ns = elapsed_ns
@@ -290,7 +347,66 @@ class HapticSession:
         if stale:
             force = 0.0  # a safety stop is not rate limited
         self.force_n = force
-        return force
+        return self._result(answered, pos, v, force, stale)
+
+    def _result(self, answered: bool, pos, v, force: float, stale: bool) -> TickResult:
+        """The frozen record of this tick (the contact message's per-layer rate and stress included)."""
+        m = self.model
+        n = m.n_affected
+        depth = m.depth_m
+        comp = m.compression_m.tolist()
+        vn = -v[2]
+        self._seq += 1
+        events, self._tick_events = tuple(self._tick_events), []
+        stress = m.stress_pa
+        self.last = TickResult(
+            seq=self._seq, stamp_ns=self.answered_stamp_ns, answered=answered, x0_m=tuple(pos), velocity_m_s=tuple(v),
+            force_n=(0.0, 0.0, force), depth_m=depth, n_affected=n, compression_m=tuple(comp),
+            compression_rate_m_s=tuple(vn * c / depth if depth > 0 else 0.0 for c in comp),
+            stress_pa=tuple(stress if li < n else 0.0 for li in range(len(comp))),
+            flags=m.flags, events=events, stale=stale, idle=m.last_tick_idle, tangent=m.tangent(),
+        )  # fmt: skip
+        return self.last
+
+    # --- read-outs for the node's diagnostics, display and logs (no caller reads the model) ---------------------
+    @property
+    def kernel_calls(self) -> int:
+        """Model kernel invocations so far (idle ticks make none)."""
+        return self.model.kernel_calls
+
+    @property
+    def idle_ticks(self) -> int:
+        return self.model.idle_ticks
+
+    @property
+    def state_key(self) -> tuple[int, int]:
+        """Changes whenever the deformation may have changed (a kernel call, a reset or a new model)."""
+        return id(self.model), self.model.version
+
+    def display_state(self) -> dict:
+        """Live views of the modal state the display rebuilds the grid from (copy them before the next tick)."""
+        m = self.model
+        return {"q": m.q, "centre": m.centre, "driven": m.driven, "level": m.level, "active": m.active}
+
+    def build_grid(self):
+        """The display grid of the current deformation (:meth:`SkinModel.build_grid`)."""
+        return self.model.build_grid()
+
+    def state(self) -> dict:
+        """A copy of the model's dynamic state (see :meth:`SkinModel.state`), e.g. at peak force."""
+        return self.model.state()
+
+    def describe_modes(self) -> str:
+        """The mode counts the model really runs: adaptive levels, or the fixed ``modes.m x modes.n``."""
+        cfg, b = self.model.cfg, self.model.basis
+        if cfg.lod.adaptive_modes:
+            top = int(b.level_modes[-1])
+            return (
+                f"adaptive modes on (tissue.lod.adaptive_modes): each layer uses 1x1 to {top}x{top} modes per axis "
+                f"({b.n_modes} odd modes at most) to keep the truncation within tissue.lod.tolerance_m = "
+                f"{cfg.lod.tolerance_m:g} m; tissue.modes.m x n = {cfg.modes[0]}x{cfg.modes[1]} applies only with it off"
+            )
+        return f"fixed modes: {cfg.modes[0]}x{cfg.modes[1]} per axis ({b.n_modes} odd modes), adaptive modes off"
 
     # --- model regime ---------------------------------------------------------------------
     def _regime_events(self, pos) -> None:
@@ -312,7 +428,6 @@ class HapticSession:
     def _release_degenerate_from_rest(self, driven_before, q_before) -> None:
         """A degenerate layer released this tick restarts from its last driven shape at rest (eq 9's ``B* = 0``)."""
         m = self.model
-        for li in np.flatnonzero(driven_before.astype(bool) & ~m.driven.astype(bool) & self._degenerate):
-            prop = m._prop  # this tick's exact modal propagator, filled by the kernel
-            m.q[li] = prop[0, li] * q_before[li]
-            m.v[li] = prop[2, li] * q_before[li]
+        released = np.flatnonzero(driven_before.astype(bool) & ~m.driven.astype(bool) & self._degenerate)
+        if released.size:
+            m.restart_from_rest(released, q_before)

@@ -201,6 +201,53 @@ def test_truncated_bag(tmp_path, storage):
         read_inputs(bag, InputOptions())
 
 
+def _zero_mid_file(bag: Path, frac: float, n: int = 4096) -> Path:
+    (f,) = [p for p in bag.iterdir() if p.suffix == ".mcap"]
+    data = bytearray(f.read_bytes())
+    i = int(len(data) * frac)
+    data[i : i + n] = bytes(n)
+    f.write_bytes(bytes(data))
+    return f
+
+
+@pytest.mark.parametrize("frac", [0.3, 0.5, 0.7])
+def test_corrupt_mcap_is_one_line_error_in_replay_and_compare(tmp_path, capsys, frac):
+    """4 kB zeroed mid-file: a record that does not decode (SerdeError), a bad length, or a scan that ends
+    early without an error (0.3: 789 of 2301 poses) - each a one-line "truncated or corrupt" error, exit 2."""
+    bag = write_trajectory_bag(tmp_path / "in", "press_hold_release", compress=False)
+    replay_to_bag(read_inputs(bag, InputOptions()), tmp_path / "out", grid_rate_hz=0)
+    f = _zero_mid_file(bag, frac)
+    assert replay.main([str(bag), "--out", str(tmp_path / "o"), "--no-report"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"skin-sim replay: error: bag file {f} is truncated or corrupt (") and err.count("\n") == 1, err
+    assert "Traceback" not in err
+    f_out = _zero_mid_file(tmp_path / "out", frac)
+    assert compare.main([str(tmp_path / "out"), str(tmp_path / "out"), "--no-grids"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"skin-sim compare: error: bag file {f_out} is truncated or corrupt (") and err.count("\n") == 1, err
+
+
+def test_pose_topic_without_messages_is_an_error(tmp_path, capsys):
+    bag = tmp_path / "empty_pose"
+    with BagWriter(bag, "mcap") as w:
+        w.add_topic("/tool/pose", TOPICS["tool_pose"].type)
+        w.add_topic("/tool/twist", TOPICS["tool_twist"].type)
+    assert replay.main([str(bag), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"skin-sim replay: error: {bag}: pose topic '/tool/pose' holds no messages") and err.count("\n") == 1
+    assert not (tmp_path / "o" / "report.png").exists()
+
+
+def test_foreign_frame_says_which_frames_and_how_to_map(tmp_path, capsys):
+    bag = write_trajectory_bag(tmp_path / "foreign", "press_hold_release", compress=False, frame="skin_patch")
+    assert replay.main([str(bag), "--out", str(tmp_path / "o"), "--grid-rate-hz", "0"]) == 2
+    err = capsys.readouterr().err
+    assert f"{bag}: none of 2301 poses was answered (unknown_frame" in err
+    assert "/tool/pose holds poses in frame 'skin_patch' (2301 poses)" in err and "--frame skin_patch" in err
+    assert replay.main([str(bag), "--out", str(tmp_path / "o"), "--grid-rate-hz", "0", "--frame", "skin_patch"]) == 0
+    assert "answered 2301" in capsys.readouterr().out
+
+
 def test_unknown_message_type_on_pose_topic(tmp_path):
     bag = tmp_path / "unknown"
     with BagWriter(bag, "mcap") as w:  # a type no typestore knows, declared with its own definition
@@ -241,3 +288,22 @@ def test_live_replay_agrees_with_offline(tmp_path, ros_domain):
     assert s["fraction_answered"] >= 0.90, s
     assert code in (0, 1) and s["pass"] == (code == 0)
     assert len(raw_messages(tmp_path / "o" / "live", bag_topic("tool_wrench"))) >= s["live_answered"]
+
+
+@pytest.mark.parametrize("scene_name", ["press_hold_release", "press_all_layers"])
+def test_report_surface_map_and_cross_section_agree_at_peak(scene_name):
+    """The report's two pictures come from one model at peak force: its grid (the surface map), its pointwise
+    cross-section and the tool depth must agree there (the model used to get q and centres but not the mode
+    levels and active layer set: a flat map beside a dent half the tool's depth)."""
+    res = short_forces(DATA / scene_name / "input", InputOptions())
+    x, y, z = res.tool_xyz_m[res.peak_index]
+    m = res.model_at_peak()
+    g = m.build_grid()
+    ix, iy = np.argmin(np.abs(g.xs_m - x)), np.argmin(np.abs(g.ys_m - y))
+    surface_map = g.heights_m[0][iy, ix]
+    section = m.cross_section([x], y)[0, 0]
+    depth = res.depth_m[res.peak_index]
+    assert depth > 0 and z == pytest.approx(-depth)
+    assert section == pytest.approx(z, rel=0.02)  # the tool sits on the surface it dents
+    assert surface_map == pytest.approx(section, rel=0.02)  # the grid cell nearest the tool (cell-centred)
+    assert g.heights_m[0].min() == pytest.approx(surface_map, rel=0.02)  # the deepest point of the map is there

@@ -115,7 +115,7 @@ def test_press_force_matches_offline_model(scene, monitor):
     for stamp, xyz, v in src.sent:
         session.on_pose(stamp, "tissue", xyz)
         session.on_twist(stamp, "tissue", v)
-        offline[stamp] = session.tick(stamp, 0 if prev is None else stamp - prev)
+        offline[stamp] = session.tick(stamp, 0 if prev is None else stamp - prev).force_z_n
         prev = stamp
     common = sorted(set(live) & set(offline))
     assert len(common) > 0.8 * len(src.sent), f"only {len(common)} of {len(src.sent)} poses answered"
@@ -242,7 +242,13 @@ def test_parameter_change_applied_or_rejected(scene, monitor):
         raise TimeoutError("set_parameters got no response in 3 attempts")
 
     (r,) = set_params(Parameter("tissue.layers.dermis.stiffness_n_per_m", Parameter.Type.DOUBLE, -5.0))
-    assert not r.successful and "must be >" in r.reason
+    assert not r.successful and r.reason.startswith("tissue.layers.dermis.stiffness_n_per_m = -5.0 N/m: must be >")
+    (r,) = set_params(Parameter("tissue.tool.radius_m", Parameter.Type.DOUBLE, -1.0))
+    assert not r.successful and r.reason.startswith("tissue.tool.radius_m"), r.reason
+    for name, ptype, value in (("rt_priority", Parameter.Type.INTEGER, 10), ("precise_sleep", Parameter.Type.BOOL, False),
+                               ("input_queue_depth", Parameter.Type.INTEGER, 5)):  # fmt: skip
+        (r,) = set_params(Parameter(name, ptype, value))  # read at start only: a live set is refused with the reason
+        assert not r.successful and "read-only" in r.reason and name in r.reason, r.reason
     (r,) = set_params(Parameter("tissue.interfaces.dermis_fat.amplitude_m", Parameter.Type.DOUBLE, 3e-3))
     assert not r.successful and "interfaces cross" in r.reason
     (r,) = set_params(Parameter("tissue.modes.m", Parameter.Type.INTEGER, 0))

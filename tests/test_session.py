@@ -1,10 +1,12 @@
 """HapticSession: input checks, watchdog, velocity, force safety (no ROS)."""
 
+import dataclasses
 import math
 
 import pytest
 
 from skin_sim_node.model import SkinModel
+from skin_sim_node.model.contact import ContactTangent
 from skin_sim_node.session import (
     FORCE_CLAMPED,
     FUTURE_STAMP,
@@ -39,7 +41,7 @@ def feed(s, stamps_z, now_offset=0, vz=None):
         r = s.on_pose(st, "tissue", (0.0, 0.0, z), now_ns=st + now_offset, rx_ns=st)
         if vz is not None:
             s.on_twist(st, "tissue", (0.0, 0.0, vz))
-        out.append((r, s.tick(st, MS)))
+        out.append((r, s.tick(st, MS).force_z_n))
     return out
 
 
@@ -71,7 +73,7 @@ def test_new_time_line_is_followed_after_resync(session):
     """Offline (no clock) a restarted driver's stamps go back: after resync_after of them, follow."""
     feed(session, [(T0 + i * MS, -1e-3) for i in range(5)])
     restart = [(T0 // 2 + i * MS, -1e-3) for i in range(60)]
-    res = [(session.on_pose(st, "tissue", (0, 0, z)), session.tick(st, MS)) for st, z in restart]
+    res = [(session.on_pose(st, "tissue", (0, 0, z)), session.tick(st, MS).force_z_n) for st, z in restart]
     rejected = sum(r is not None for r, _ in res)
     assert rejected == session.params.resync_after - 1
     assert session.counts[STAMP_RESYNC] == 1 and res[-1][0] is None and res[-1][1] > 0
@@ -82,7 +84,7 @@ def test_watchdog_zeroes_force_and_releases(session):
     assert res[-1][1] > 0
     now = T0 + 19 * MS
     for k in range(1, 80):
-        f = session.tick(now + k * MS, MS)
+        f = session.tick(now + k * MS, MS).force_z_n
     assert f == 0.0 and session.stale and session.counts[WATCHDOG] == 1
     assert not session.model.driven.any()
 
@@ -131,7 +133,7 @@ def test_non_finite_model_state_recovers(default_cfg):
     s.model.driven[:] = 0
     for i in range(3, 200):
         s.on_pose(T0 + i * MS, "tissue", (0.0, 0.0, 0.01))
-        f = s.tick(T0 + i * MS, MS)
+        f = s.tick(T0 + i * MS, MS).force_z_n
         assert math.isfinite(f)
     assert math.isfinite(s.model.energy())
 
@@ -158,7 +160,7 @@ def test_force_rate_bound_holds_on_the_caller_clock_in_a_burst(default_cfg):
     for k in range(5):  # a fast lift: each pose alone would allow rate * 1 ms
         stamp = st + k * MS
         s.on_pose(stamp, "tissue", (0.0, 0.0, -30e-6 + 5e-6 * (k + 1)), now_ns=stamp, rx_ns=stamp)
-        forces.append(s.tick(stamp, 20_000))
+        forces.append(s.tick(stamp, 20_000).force_z_n)
     assert abs(forces[-1] - f0) <= rate * (5 * 20e-6 + RATE_ALLOWANCE_S) + 1e-12
     assert s.counts["force_rate_limited"] >= 1
 
@@ -169,4 +171,70 @@ def test_live_lowering_of_max_force_applies_at_once(default_cfg):
     assert s.force_n > 0.2
     s.params = SessionParams(max_force_rate_n_per_s=10.0, max_stamp_age_s=0.0, max_force_n=0.05)
     s.on_pose(st, "tissue", (0.0, 0.0, -30e-6), now_ns=st, rx_ns=st)
-    assert s.tick(st, MS) <= 0.05
+    assert s.tick(st, MS).force_z_n <= 0.05
+
+
+def test_tick_result_is_the_frozen_sequenced_output(session):
+    """Every tick returns a frozen TickResult: sequence, answered pose, force vector, tangent, events."""
+    res = [session.tick(T0, MS)]  # no pose yet: stale, nothing answered
+    for i in range(1, 40):
+        st = T0 + i * MS
+        session.on_pose(st, "tissue", (0.0, 0.0, -2e-3 * i / 40), now_ns=st, rx_ns=st)
+        res.append(session.tick(st, MS))
+    assert [r.seq for r in res] == list(range(1, 41))
+    assert res[0].stale and not res[0].answered and res[0].force_n == (0.0, 0.0, 0.0)
+    r = res[-1]
+    assert r.answered and r.stamp_ns == T0 + 39 * MS and r.x0_m == (0.0, 0.0, -2e-3 * 39 / 40)
+    assert r.force_z_n == session.force_n > 0 and r.force_n[:2] == (0.0, 0.0)
+    assert isinstance(r.tangent, ContactTangent) and r.tangent.force_n[2] == pytest.approx(r.force_z_n)
+    assert r.tangent.stiffness_n_per_m[2, 2] < 0  # a deeper press pushes back harder
+    assert r.depth_m > 0 and len(r.compression_m) == 3 and sum(r.compression_m) == pytest.approx(r.depth_m)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        r.seq = 0
+    session.on_pose(T0 + 40 * MS, "world", (0.0, 0.0, -1e-3))  # rejected: reported by the next tick
+    assert UNKNOWN_FRAME in session.tick(T0 + 40 * MS, MS).events
+    assert session.tick(T0 + 41 * MS, MS).events == ()
+
+
+def test_converter_fills_wrench_and_contact_from_a_tick(session):
+    """The one converter: the messages carry exactly the TickResult's numbers."""
+    from geometry_msgs.msg import WrenchStamped
+    from sensor_msgs.msg import JointState
+
+    from msgs_schema import convert as cv
+
+    for i in range(30):
+        st = T0 + i * MS
+        session.on_pose(st, "tissue", (0.0, 0.0, -3e-3 * i / 30), now_ns=st, rx_ns=st)
+        session.on_twist(st, "tissue", (0.0, 0.0, -0.1))
+        r = session.tick(st, MS)
+    w = cv.fill_wrench_from_tick(WrenchStamped(), r, r.stamp_ns, "tissue")
+    assert cv.read_wrench(w) == (r.stamp_ns, "tissue", r.force_n)
+    c = cv.fill_contact_from_tick(JointState(), r, r.stamp_ns, "tissue")
+    stamp, comp, rate, stress = cv.read_contact(c)
+    assert stamp == r.stamp_ns and list(comp) == list(r.compression_m) and list(stress) == list(r.stress_pa)
+    assert rate == pytest.approx([0.1 * x / r.depth_m for x in r.compression_m])  # normal speed shared as compressed
+    assert stress[: r.n_affected] == pytest.approx([r.stress_pa[0]] * r.n_affected) and r.stress_pa[0] > 0
+
+
+def test_params_are_views_of_the_one_schema():
+    """NodeParams and SessionParams are generated from msgs_schema.parameters: same names, types and defaults."""
+    from dataclasses import fields
+
+    from msgs_schema.parameters import (
+        NODE_PARAMETERS,
+        READ_ONLY,
+        SESSION_KEYS,
+        SESSION_PARAMETERS,
+        NodeParams,
+        node_params_from_flat,
+        session_params,
+    )
+
+    assert [(f.name, f.type, f.default) for f in fields(NodeParams)] == [(s.name, s.type, s.default) for s in NODE_PARAMETERS]
+    assert [(f.name, f.default) for f in fields(SessionParams)] == [(s.name, s.default) for s in SESSION_PARAMETERS]
+    node = node_params_from_flat({"watchdog_s": 0.2, "tissue.tool.radius_m": 1e-3})
+    sp = session_params(node, max_stamp_age_s=0.0)
+    assert sp.watchdog_s == 0.2 and sp.max_stamp_age_s == 0.0 and set(SESSION_KEYS) < {f.name for f in fields(sp)}
+    assert sp == SessionParams(watchdog_s=0.2, max_stamp_age_s=0.0)  # the defaults are the schema's, written once
+    assert set(READ_ONLY) == {"input_queue_depth", "rt_priority", "rt_scope", "haptic_cpu", "spin_tail_us", "precise_sleep"}

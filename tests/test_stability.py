@@ -65,7 +65,7 @@ class Run:
             self.stamp += max(dt_ns, 1000)
             self.s.on_twist(self.stamp, "tissue", v)
             self.s.on_pose(self.stamp, "tissue", xyz)
-            self.forces.append(self.s.tick(self.stamp, dt_ns))
+            self.forces.append(self.s.tick(self.stamp, dt_ns).force_z_n)
             self.dts.append(dt)
             self.wall_s.append(self.wall_s[-1] + dt)
         return self

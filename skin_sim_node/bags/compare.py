@@ -19,7 +19,7 @@ import numpy as np
 from msgs_schema import convert as cv
 from msgs_schema.topics import TOPICS
 
-from .io import BagError, UnknownMessageTypeError, describe_topics, deserialize, iter_raw, open_bag, topic_types
+from .io import BagError, UnknownMessageTypeError, describe_topics, iter_messages, open_bag, topic_types
 
 FORCE_ABS_N = 1e-6
 FORCE_REL = 1e-6
@@ -52,8 +52,7 @@ def read_outputs(bag, wrench_topic: str = TOPICS["tool_wrench"].name, grid_topic
             )
         gt = _topic(types, grid_topic) if grids else None
         forces, images = {}, {}
-        for topic, msgtype, _, raw in iter_raw(bag, reader, [t for t in (wt, gt) if t]):
-            msg = deserialize(raw, msgtype)
+        for topic, _, _, msg in iter_messages(bag, reader, [t for t in (wt, gt) if t]):
             if topic == wt:
                 stamp, _, f = cv.read_wrench(msg)
                 forces[stamp] = f[2]

@@ -8,6 +8,7 @@ as the bridge does), and returns them merged in header-stamp order.
 from __future__ import annotations
 
 import argparse
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -16,7 +17,7 @@ from msgs_schema.topics import FRAMES, TOPICS
 
 from ..device.mapping import CONVENTIONS, DEFAULTS, DeviceMapping
 from ..device.mapping import parse_vec3 as _vec3
-from .io import NoPoseTopicError, UnknownMessageTypeError, describe_topics, deserialize, iter_raw, open_bag, topic_types
+from .io import EmptyTopicError, NoPoseTopicError, UnknownMessageTypeError, describe_topics, iter_messages, open_bag, topic_types
 
 POSE_TYPE = TOPICS["tool_pose"].type
 TWIST_TYPE = TOPICS["tool_twist"].type
@@ -84,6 +85,18 @@ class Inputs:
     n_poses: int
     n_twists: int
     first_bag_ns: int
+    pose_frames: dict[str, int] = field(default_factory=dict)  # frame_id -> poses, as recorded (before any mapping)
+
+    def frame_hint(self, tissue_frame: str) -> str | None:
+        """What to do when poses arrive in frames other than ``tissue_frame`` (None: all poses are in it)."""
+        foreign = {f: n for f, n in self.pose_frames.items() if f != tissue_frame}
+        if not foreign:
+            return None
+        held = ", ".join(f"'{f}' ({n} poses)" for f, n in sorted(foreign.items(), key=lambda kv: -kv[1]))
+        top = max(foreign, key=foreign.get)
+        return (f"{self.pose_topic} holds poses in frame {held}; the model answers only frame '{tissue_frame}': "
+                f"map one with --frame {top} (it is then treated as the tissue frame), or --convention crtk|omni "
+                "for a device driver's frame")  # fmt: skip
 
     @property
     def poses(self):
@@ -135,15 +148,16 @@ def read_inputs(bag, opts: InputOptions, tissue_frame: str = FRAMES["tissue"]) -
             _check_type(bag, types, twist_topic, "twist", TWIST_TYPE)
         events = []
         n_pose = n_twist = 0
+        frames: Counter[str] = Counter()
         first = None
         m = opts.mapping if opts.convention else None
-        for topic, msgtype, t_ns, raw in iter_raw(bag, reader, [pose_topic, twist_topic] if twist_topic else [pose_topic]):
-            msg = deserialize(raw, msgtype)
+        for topic, _, t_ns, msg in iter_messages(bag, reader, [pose_topic, twist_topic] if twist_topic else [pose_topic]):
             first = t_ns if first is None else first
             if topic == pose_topic:
                 stamp, frame, xyz = cv.read_pose(msg)
                 rank = POSE
                 n_pose += 1
+                frames[frame] += 1
                 if m is not None:
                     xyz, frame = m.to_tissue(xyz), tissue_frame
             else:
@@ -155,8 +169,13 @@ def read_inputs(bag, opts: InputOptions, tissue_frame: str = FRAMES["tissue"]) -
             if opts.frame is not None and frame == opts.frame:
                 frame = tissue_frame
             events.append((stamp or t_ns, rank, frame, tuple(float(c) for c in xyz)))  # stamp 0: bag time, as the bridge
+    if n_pose == 0:
+        raise EmptyTopicError(
+            f"{bag}: pose topic '{pose_topic}' holds no messages ({n_twist} on the twist topic); nothing to replay. "
+            "Was the recording stopped before the tool moved, or is the pose on another topic (--pose-topic)?"
+        )
     events.sort(key=lambda e: (e[0], e[1]))
-    return Inputs(bag, pose_topic, twist_topic, events, n_pose, n_twist, first or 0)
+    return Inputs(bag, pose_topic, twist_topic, events, n_pose, n_twist, first or 0, dict(frames))
 
 
 # --- command-line options (shared by replay and live replay) --------------------------------

@@ -51,6 +51,10 @@ class NoPoseTopicError(BagError):
     """The bag has no tool pose topic."""
 
 
+class EmptyTopicError(BagError):
+    """A topic the replay needs is in the bag but holds no messages."""
+
+
 class UnknownMessageTypeError(BagError):
     """A topic the replay needs carries a message type it cannot use."""
 
@@ -191,7 +195,8 @@ def storage_files(path: Path) -> list[Path]:
 def _truncated(path: Path, exc: BaseException) -> TruncatedBagError:
     files = storage_files(path) if path.exists() else []
     name = ", ".join(str(f) for f in files) or str(path)
-    return TruncatedBagError(f"bag file {name} is truncated or corrupt ({type(exc).__name__}: {exc})")
+    detail = (str(exc).strip().splitlines() or [""])[0][:200]  # one line: the error is printed as one
+    return TruncatedBagError(f"bag file {name} is truncated or corrupt ({type(exc).__name__}: {detail})")
 
 
 @contextmanager
@@ -242,13 +247,35 @@ def iter_raw(path, reader: Reader, topics) -> Iterator[tuple[str, str, int, byte
     conns = [c for c in reader.connections if c.topic in set(topics)]
     if not conns:
         return
+    read = dict.fromkeys((c.id for c in conns), 0)
     try:
         for conn, t_ns, raw in reader.messages(connections=conns):
+            read[conn.id] += 1
             yield conn.topic, conn.msgtype, t_ns, raw
     except BagError:
         raise
     except Exception as exc:  # noqa: BLE001 - see open_bag
         raise _truncated(Path(path), exc) from exc
+    # a record zeroed mid-file can end the reader's scan early without an error: compare with the index
+    short = [f"{c.topic} {read[c.id]} of {c.msgcount}" for c in conns if c.msgcount and read[c.id] < c.msgcount]
+    if short:
+        raise _truncated(Path(path), EOFError(f"read {', '.join(short)} messages listed in its metadata"))
+
+
+def iter_messages(path, reader: Reader, topics) -> Iterator[tuple[str, str, int, object]]:
+    """``(topic, msgtype, bag_t_ns, message)``: :func:`iter_raw` with each record decoded.
+
+    Raises
+    ------
+    TruncatedBagError
+        Also when a record's bytes do not decode (zeroed or overwritten mid-file).
+    """
+    for topic, msgtype, t_ns, raw in iter_raw(path, reader, topics):
+        try:
+            msg = deserialize(raw, msgtype)
+        except Exception as exc:  # noqa: BLE001 - rosbags raises SerdeError, struct and index errors
+            raise _truncated(Path(path), exc) from exc
+        yield topic, msgtype, t_ns, msg
 
 
 def describe_topics(types: dict[str, str]) -> str:

@@ -11,18 +11,19 @@ timestamp is its header stamp, so two runs write identical message bytes.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from msgs_schema import convert as cv
+from msgs_schema.parameters import session_params
 from msgs_schema.topics import LAYER_LABELS, TOPICS
 
 from ..model import SkinModel
 from ..model.config import load_yaml, validate_all
 from ..scenes import DEFAULT_PARAMS
-from ..session import HapticSession, SessionParams
+from ..session import HapticSession
 from .inputs import POSE, Inputs
 from .io import BagWriter, new_message, qos_profiles
 
@@ -37,10 +38,7 @@ def bag_topic(key: str) -> str:
 def load_params(path=DEFAULT_PARAMS):
     """(SessionParams with the stamp-age check off, TissueConfig) from a node parameter file."""
     node_params, cfg = validate_all(load_yaml(path))
-    names = {f.name for f in fields(SessionParams)}
-    kw = {k: getattr(node_params, k) for k in names if hasattr(node_params, k)}
-    kw["max_stamp_age_s"] = 0.0  # offline: stamps are not compared with any clock
-    return SessionParams(**kw), cfg
+    return session_params(node_params, max_stamp_age_s=0.0), cfg  # offline: stamps are not compared with any clock
 
 
 @dataclass
@@ -57,10 +55,10 @@ class ReplayResult:
     n_twists: int
     n_grids: int
     peak_index: int
-    peak_q: np.ndarray | None = None
-    peak_centre: np.ndarray | None = None
+    peak_state: dict | None = None  # the model's dynamic state at peak force (SkinModel.state)
     cfg: object = None
     layer_names: tuple[str, ...] = field(default_factory=tuple)
+    tissue_frame: str = "tissue"  # the frame_id the replayed poses had to carry
 
     @property
     def peak_force_n(self) -> float:
@@ -72,11 +70,11 @@ class ReplayResult:
         return list(self.layer_names[:n])
 
     def model_at_peak(self) -> SkinModel:
-        """A model holding the deformation at peak force (modal state copied at that tick)."""
+        """A model holding the deformation at peak force: the whole dynamic state copied at that tick
+        (modal amplitudes, patch centres, mode levels and the active layer set)."""
         m = SkinModel(self.cfg)
-        if self.peak_q is not None:
-            m.q[...] = self.peak_q
-            m.centre[...] = self.peak_centre
+        if self.peak_state is not None:
+            m.set_state(self.peak_state)
         return m
 
     def summary(self) -> dict:
@@ -125,14 +123,13 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
         time; 0 writes none.
     """
     sp, cfg = load_params(params)
-    model = SkinModel(cfg)
-    session = HapticSession(model, sp)
+    session = HapticSession(SkinModel(cfg), sp)
     frame = sp.tissue_frame
     out = _Out()
     grid_ns = int(round(1e9 / grid_rate_hz)) if grid_rate_hz > 0 else 0
     next_grid = None
     stamps, forces, n_aff, depths, xyzs = [], [], [], [], []
-    peak_f, peak_i, peak_q, peak_c = -1.0, 0, None, None
+    peak_f, peak_i, peak_state = -1.0, 0, None
     prev = None
     n_grids = 0
     wq, cq = qos_profiles("tool_wrench"), qos_profiles("contact")
@@ -142,27 +139,22 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
             continue
         if session.on_pose(stamp, fr, xyz) is not None:
             continue
-        force = session.tick(stamp, 0 if prev is None else stamp - prev)
+        r = session.tick(stamp, 0 if prev is None else stamp - prev)
         prev = stamp
-        n = model.n_affected
-        depth = model.depth_m
+        force = r.force_z_n
         stamps.append(stamp)
         forces.append(force)
-        n_aff.append(n)
-        depths.append(depth)
-        xyzs.append(session.pose)
+        n_aff.append(r.n_affected)
+        depths.append(r.depth_m)
+        xyzs.append(r.x0_m)
         if force > peak_f:
             peak_f, peak_i = force, len(forces) - 1
-            peak_q, peak_c = model.q.copy(), model.centre.copy()
+            peak_state = session.state()
         if writer is None:
             continue
         writer.write(bag_topic("tool_wrench"), TOPICS["tool_wrench"].type, stamp,
-                     cv.fill_wrench(out.wrench, stamp, frame, (0.0, 0.0, force)), wq)  # fmt: skip
-        vn = -session.velocity[2]  # as the node fills tissue/contact
-        comp = model.compression_m
-        rate = [vn * c / depth if depth > 0 else 0.0 for c in comp]
-        stress = [model.stress_pa if li < n else 0.0 for li in range(comp.shape[0])]
-        msg = cv.fill_contact(out.contact, stamp, frame, comp, rate, stress)
+                     cv.fill_wrench_from_tick(out.wrench, r, stamp, frame), wq)  # fmt: skip
+        msg = cv.fill_contact_from_tick(out.contact, r, stamp, frame)
         msg.position, msg.velocity, msg.effort = (
             np.asarray(a, dtype=np.float64) for a in (msg.position, msg.velocity, msg.effort)
         )
@@ -171,7 +163,7 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
             if next_grid is None:
                 next_grid = stamp
             if stamp >= next_grid:
-                g = model.build_grid()
+                g = session.build_grid()
                 _write_image(writer, out, "height_map", stamp, frame, g.heights_m[0])
                 _write_image(writer, out, "layer_heights", stamp, frame, np.moveaxis(g.heights_m, 0, -1))
                 n_grids += 1
@@ -179,7 +171,7 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
     return ReplayResult(
         np.array(stamps, dtype=np.int64), np.array(forces), np.array(n_aff, dtype=int), np.array(depths),
         np.array(xyzs).reshape(-1, 3), dict(session.counts), inputs.n_poses, inputs.n_twists, n_grids, peak_i,
-        peak_q, peak_c, cfg, tuple(LAYER_LABELS),
+        peak_state, cfg, tuple(LAYER_LABELS), frame,
     )  # fmt: skip
 
 

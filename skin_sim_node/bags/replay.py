@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 from ..scenes import DEFAULT_PARAMS
+from ..session import UNKNOWN_FRAME
 from .inputs import add_input_arguments, input_options, read_inputs
 from .io import STORAGES, BagError
 from .offline import replay_to_bag
@@ -53,10 +54,20 @@ def main(argv=None) -> int:
     except BagError as exc:
         print(f"skin-sim replay: error: {exc}", file=sys.stderr)
         return 2
+    hint = inputs.frame_hint(res.tissue_frame) if res.counts.get(UNKNOWN_FRAME) else None
+    if res.stamps_ns.size == 0:
+        print(f"skin-sim replay: error: {args.bag}: none of {res.n_poses} poses was answered ("
+              + (", ".join(f"{k} {v}" for k, v in sorted(res.counts.items())) or "no events") + ")"
+              + (f"; {hint}" if hint else ""), file=sys.stderr)  # fmt: skip
+        return 2
     summary = write_report(res, out, title=f"offline replay of {args.bag}") if not args.no_report else res.summary()
     print(f"offline replay of {args.bag} ({inputs.pose_topic}" + (f", {inputs.twist_topic}" if inputs.twist_topic else "")
           + f") in {t_replay:.2f} s -> {out / 'outputs'}")  # fmt: skip
     print(format_summary(summary))
+    if hint:
+        print(f"note: {hint}")
+    if not args.no_report:
+        print(f"report: {out / 'report.png'} (force over time; surface and cross-section at peak force), {out / 'summary.json'}")
     if not args.live:
         return 0
     from .live import run_live

@@ -292,6 +292,27 @@ class SkinModel:
             kn.assemble_heights_box(self._disp, self._rest_tops, box[0], box[1], box[2], box[3], self._heights)
         return Grid(self.xs, self.ys, self._disp, self._heights)
 
+    # --- state hand-over (the session; the replay report's model at peak) -------------------
+    _STATE = ("q", "v", "centre", "driven", "compression_m", "level", "dropped_m", "active", "amplitude_bound_m", "_out")
+
+    def state(self) -> dict:
+        """A copy of the dynamic state (modal amplitudes, patch centres, mode levels, active set, outputs)."""
+        return {"flags": self.flags, **{k: getattr(self, k).copy() for k in self._STATE}}
+
+    def set_state(self, state: dict) -> None:
+        """Restore a :meth:`state` copy of a model of the same configuration."""
+        for k in self._STATE:
+            getattr(self, k)[...] = state[k]
+        self.flags = state["flags"]
+        self.version += 1
+
+    def restart_from_rest(self, layers, q_before) -> None:
+        """Restart ``layers``, released this step, from their shape ``q_before`` at rest (eq 9's ``B* = 0``),
+        advanced over the step with its exact modal propagator."""
+        for li in layers:
+            self.q[li] = self._prop[0, li] * q_before[li]
+            self.v[li] = self._prop[2, li] * q_before[li]
+
 
 def _grow(box: list, d) -> None:
     """Grow ``box`` (ix0, ix1, iy0, iy1) to cover ``d``."""

@@ -186,8 +186,9 @@ class DisplayProcess:
         )
         self.proc.start()
 
-    def write(self, model: SkinModel) -> None:
-        self.snap.write(model.q, model.centre, model.driven, self.version, model.level, model.active)
+    def write(self, state: dict) -> None:
+        """Copy the modal state (:meth:`HapticSession.display_state`) into shared memory."""
+        self.snap.write(state["q"], state["centre"], state["driven"], self.version, state["level"], state["active"])
 
     def set_tissue(self, tissue_flat: dict) -> None:
         self.version += 1

@@ -28,7 +28,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import ALL_PARAMETERS, SPEC_BY_NAME, NodeParams
+from msgs_schema.parameters import ALL_PARAMETERS, SPEC_BY_NAME, TISSUE_PREFIX, check_value, session_params
 from msgs_schema.qos import publisher, subscription
 from msgs_schema.topics import FRAMES
 
@@ -36,28 +36,17 @@ from ..model import ConfigError, SkinModel
 from ..model.config import tissue_part, validate_all
 from ..model.skin_model import warm_up
 from ..ros_util import LoopTiming, PeriodicLoop, run_nodes, set_process_realtime, set_realtime
-from ..session import HapticSession, SessionParams
+from ..session import HapticSession, TickResult
 from .display import DisplayProcess
 
 NODE_NAME = "skin_sim_node"
 STATS_LEN = 16384
 
 
-def session_params(p: NodeParams) -> SessionParams:
-    return SessionParams(
-        tissue_frame=p.tissue_frame,
-        watchdog_s=p.watchdog_s,
-        max_stamp_age_s=p.max_stamp_age_s,
-        max_force_n=p.max_force_n,
-        max_force_rate_n_per_s=p.max_force_rate_n_per_s,
-        teleport_distance_m=p.teleport_distance_m,
-        max_tool_speed_m_s=p.max_tool_speed_m_s,
-        twist_max_skew_s=p.twist_max_skew_s,
-    )
-
-
 def descriptor(spec) -> ParameterDescriptor:
-    d = ParameterDescriptor(description=f"{spec.description} [{spec.unit}]")
+    """The ROS descriptor of a schema entry: description with unit, range, read-only for start-only parameters."""
+    read_only = " (read-only: read at start; set it with --ros-args -p or a parameter file)" if spec.read_only else ""
+    d = ParameterDescriptor(description=f"{spec.description} [{spec.unit}]{read_only}", read_only=spec.read_only)
     if spec.type is float and spec.min is not None and spec.max is not None:
         d.floating_point_range = [FloatingPointRange(from_value=float(spec.min), to_value=float(spec.max), step=0.0)]
     elif spec.type is int and spec.min is not None and spec.max is not None:
@@ -65,6 +54,24 @@ def descriptor(spec) -> ParameterDescriptor:
     elif spec.min is not None:
         d.additional_constraints = f"{'>' if spec.min_exclusive else '>='} {spec.min}"
     return d
+
+
+_TISSUE_NAMES = {s.name[len(TISSUE_PREFIX) :] for s in ALL_PARAMETERS if s.name.startswith(TISSUE_PREFIX)}
+
+
+def reason(exc: Exception) -> str:
+    """A rejection reason naming the parameter as the node declares it (``tissue.`` prefix kept)."""
+    msg = str(exc)
+    head = msg.split(" ", 1)[0].rstrip(":")
+    return TISSUE_PREFIX + msg if head in _TISSUE_NAMES else msg
+
+
+def validate(flat: dict, changed=()):
+    """``(NodeParams, TissueConfig)`` of a full dotted parameter dict; each ``changed`` name is checked
+    against its own (prefixed) schema entry first, so the reason names it as declared. Raises ConfigError."""
+    for name in changed:
+        check_value(name, flat[name])
+    return validate_all(flat)
 
 
 class SkinSimNode(Node):
@@ -75,7 +82,7 @@ class SkinSimNode(Node):
         for spec in ALL_PARAMETERS:
             self.declare_parameter(spec.name, spec.default, descriptor(spec))
         self._flat = {s.name: self.get_parameter(s.name).value for s in ALL_PARAMETERS}
-        self.params, cfg = validate_all(self._flat)  # ConfigError: refuse to start, with the reason
+        self.params, cfg = validate(self._flat, self._flat)  # ConfigError: refuse to start, with the reason
         t0 = time.perf_counter()
         warm_up(cfg)
         self._warmup_s = time.perf_counter() - t0
@@ -99,11 +106,13 @@ class SkinSimNode(Node):
         self._last_pub_force = 0.0  # last published force (N): the idle heartbeat holds back only zeros
         self._n_idle_skipped = 0
         self._display_key = None
+        self._last: TickResult | None = None
         # I/O
         self._pub_wrench = publisher(self, "tool_wrench")
         self._pub_contact = publisher(self, "contact")
         self._pub_diag = publisher(self, "diagnostics")
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_on_set_parameters_callback(self._on_set_parameters)  # validate (ros2/demos: on_set checks)
+        self.add_post_set_parameters_callback(self._post_set_parameters)  # apply the accepted set
         depth = self.params.input_queue_depth
         subscription(self, "tool_pose", self._on_pose, depth=depth)
         subscription(self, "tool_twist", self._on_twist, depth=depth)
@@ -117,8 +126,8 @@ class SkinSimNode(Node):
         self._apply_rt_scope()
         self._loop.start()
         self.get_logger().info(
-            f"live: {self.params.loop_mode} loop at {self.params.rate_hz:.0f} Hz, {self.session.model.basis.n_modes} modes, "
-            f"grid {cfg.grid_shape[1]}x{cfg.grid_shape[0]}, numba warm-up {self._warmup_s:.2f} s"
+            f"live: {self.params.loop_mode} loop at {self.params.rate_hz:.0f} Hz, grid {cfg.grid_shape[1]}x{cfg.grid_shape[0]}, "
+            f"numba warm-up {self._warmup_s:.2f} s; {self.session.describe_modes()}"
         )
 
     # --- lifecycle --------------------------------------------------------------------
@@ -211,8 +220,10 @@ class SkinSimNode(Node):
         s = self.session
         elapsed = now_ns - self._last_tick_ns
         t0 = time.perf_counter_ns()
-        force = s.tick(now_ns, elapsed)
+        r = s.tick(now_ns, elapsed)
         t1 = time.perf_counter_ns()
+        self._last = r
+        force = r.force_z_n
         i = self._n_ticks % STATS_LEN
         self._kernel_us[i] = (t1 - t0) * 1e-3
         self._period_us[i] = elapsed * 1e-3
@@ -221,21 +232,14 @@ class SkinSimNode(Node):
         self._last_tick_ns = now_ns
         hb = self.params.idle_heartbeat_hz
         quiet = force == 0.0 and self._last_pub_force == 0.0  # never hold back a force still ramping down
-        if hb > 0 and quiet and s.model.last_tick_idle and not s.stale and now_ns - self._last_pub_ns < 1e9 / hb:
+        if hb > 0 and quiet and r.idle and not r.stale and now_ns - self._last_pub_ns < 1e9 / hb:
             self._n_idle_skipped += 1  # lod idle: the tissue is at rest and untouched; heartbeat publishes only
             return
         self._last_pub_ns = now_ns
         self._last_pub_force = force
-        stamp = s.answered_stamp_ns if pose_driven else self._ros_now_ns()
-        self._pub_wrench.publish(cv.fill_wrench(self._wrench, stamp, self._frame, (0.0, 0.0, force)))
-        m = s.model
-        n = m.n_affected
-        depth = m.depth_m
-        vn = -s.velocity[2]
-        comp = m.compression_m
-        rate = [vn * c / depth if depth > 0 else 0.0 for c in comp]
-        stress = [m.stress_pa if li < n else 0.0 for li in range(comp.shape[0])]
-        self._pub_contact.publish(cv.fill_contact(self._contact, stamp, self._frame, comp, rate, stress))
+        stamp = r.stamp_ns if pose_driven else self._ros_now_ns()
+        self._pub_wrench.publish(cv.fill_wrench_from_tick(self._wrench, r, stamp, self._frame))
+        self._pub_contact.publish(cv.fill_contact_from_tick(self._contact, r, stamp, self._frame))
 
     # --- display (built and published by the display worker process) -------------------
     def _display_settings(self) -> dict:
@@ -250,12 +254,11 @@ class SkinSimNode(Node):
 
     def _snapshot_display(self) -> None:
         with self._lock:
-            m = self.session.model
-            key = (id(m), m.version)
+            key = self.session.state_key
             if self.params.display_on_change and key == self._display_key:
                 return  # lod: the model did not change since the last snapshot (idle)
             self._display_key = key
-            self._display.write(m)
+            self._display.write(self.session.display_state())
 
     # --- diagnostics ------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
@@ -269,7 +272,10 @@ class SkinSimNode(Node):
             age_ms = (time.perf_counter_ns() - s.pose_rx_ns) * 1e-6 if s.pose_rx_ns else float("inf")
             counts = dict(s.counts)
             regime = dict(s.regime_counts)
-            stale, force, flags, n_aff = s.stale, s.force_n, s.model.flags, s.model.n_affected
+            last = self._last
+            stale, force = s.stale, s.force_n
+            flags, n_aff = (last.flags, last.n_affected) if last is not None else (0, 0)
+            kernel_calls, idle_ticks = s.kernel_calls, s.idle_ticks
             pose_ticks = self._n_pose_ticks
             overruns = self._loop.overruns
         now = time.perf_counter_ns()
@@ -302,8 +308,8 @@ class SkinSimNode(Node):
             "n_affected_layers": str(n_aff),
             "model_flags": str(flags),
             "warmup_s": f"{self._warmup_s:.3f}",
-            "kernel_calls_total": str(s.model.kernel_calls),
-            "idle_ticks_total": str(s.model.idle_ticks),
+            "kernel_calls_total": str(kernel_calls),
+            "idle_ticks_total": str(idle_ticks),
             "idle_unpublished_total": str(self._n_idle_skipped),
         }
         values.update({f"count_{k}": str(v) for k, v in sorted(counts.items())})
@@ -322,25 +328,35 @@ class SkinSimNode(Node):
         self._diag.status = [st]
         self._pub_diag.publish(self._diag)
 
-    # --- live parameters --------------------------------------------------------------
+    # --- live parameters: validated in on_set, applied in post_set (as ros2/demos) -------------
     def _on_set_parameters(self, params) -> SetParametersResult:
-        flat = dict(self._flat)
-        params = [p for p in params if p.name in SPEC_BY_NAME]  # use_sim_time, qos overrides: rclpy's own
-        if not params:
+        """Validate a set against the whole parameter set; nothing is applied here."""
+        ours = [p for p in params if p.name in SPEC_BY_NAME]  # use_sim_time, qos overrides: rclpy's own
+        if not ours:
             return SetParametersResult(successful=True)
-        for p in params:
-            flat[p.name] = p.value
+        flat = dict(self._flat)
+        flat.update({p.name: p.value for p in ours})
         try:
-            node_params, cfg = validate_all(flat)
+            validate(flat, [p.name for p in ours])
         except ConfigError as exc:
-            self.get_logger().warning(f"parameter change rejected: {exc}")
-            return SetParametersResult(successful=False, reason=str(exc))
-        tissue_changed = any(p.name.startswith("tissue.") for p in params)
-        new_model = SkinModel(cfg) if tissue_changed else None
+            why = reason(exc)
+            self.get_logger().warning(f"parameter change rejected: {why}")
+            return SetParametersResult(successful=False, reason=why)
+        return SetParametersResult(successful=True)
+
+    def _post_set_parameters(self, params) -> None:
+        """Apply an accepted set: new session limits, loop periods, display settings; a new model on a tissue change."""
+        ours = [p for p in params if p.name in SPEC_BY_NAME]
+        if not ours:
+            return
+        flat = dict(self._flat)
+        flat.update({p.name: p.value for p in ours})
+        node_params, cfg = validate_all(flat)  # on_set accepted exactly this set
+        new_model = SkinModel(cfg) if any(p.name.startswith(TISSUE_PREFIX) for p in ours) else None
         with self._lock:
             if new_model is not None:
                 self.session.set_model(new_model)
-                self._display.set_tissue(tissue_part(flat, "tissue."))  # under the lock: snapshots carry the new version
+                self._display.set_tissue(tissue_part(flat, TISSUE_PREFIX))  # under the lock: snapshots carry the new version
             self.session.params = session_params(node_params)
             self.params = node_params
             self._flat = flat
@@ -348,11 +364,9 @@ class SkinSimNode(Node):
         self._display_loop.period_ns = self._display_period_ns()
         self._display.set_display(self._display_settings())
         self.get_logger().info(
-            "parameters applied: "
-            + ", ".join(f"{p.name}={p.value}" for p in params)
+            "parameters applied: " + ", ".join(f"{p.name}={p.value}" for p in ours)
             + (" (tissue restarts at rest)" if new_model else "")
-        )
-        return SetParametersResult(successful=True)
+        )  # fmt: skip
 
 
 def main(argv=None) -> int:

@@ -69,7 +69,7 @@ class TissueEnv:
         stamp = int(round(t_s * 1e9)) + 1
         self.session.on_twist(stamp, "tissue", vel)
         self.session.on_pose(stamp, "tissue", pos)
-        return self.session.tick(stamp, int(round(dt * 1e9)))
+        return self.session.tick(stamp, int(round(dt * 1e9))).force_z_n
 
 
 # --- the loop -------------------------------------------------------------------------------

@@ -1,0 +1,150 @@
+"""The package's import graph, read from the source with ``ast`` (nothing is imported).
+
+Rules (issue 13): no import cycles among ``skin_sim_node`` modules, the contract
+(``msgs_schema``) imports nothing from the implementation, and at most 8 flat modules sit at the
+top of ``skin_sim_node/``. Run as a script to print the graph's figures (modules per folder,
+edges, cycles, upward ties).
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("skin_sim_node", "msgs_schema")
+MAX_FLAT_MODULES = 8
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def modules() -> dict[str, Path]:
+    return {module_name(p): p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))}
+
+
+def _resolve(mod: str, is_pkg: bool, node: ast.ImportFrom) -> str:
+    if node.level == 0:
+        return node.module or ""
+    base = mod.split(".")
+    base = base if is_pkg else base[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def import_graph() -> dict[str, set[str]]:
+    """``{module: {imported project modules}}``, every import in the file (function-level ones too)."""
+    mods = modules()
+    graph: dict[str, set[str]] = defaultdict(set)
+
+    def target(name: str) -> str | None:
+        while name and name not in mods:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    for mod, path in mods.items():
+        graph[mod]
+        is_pkg = path.name == "__init__.py"
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names: list[str] = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = _resolve(mod, is_pkg, node)
+                names = [f"{base}.{a.name}" for a in node.names] + [base]
+            for n in names:
+                t = target(n)
+                # a package's own __init__ re-exports are not edges of its submodules
+                if t and t != mod and not mod.startswith(t + "."):
+                    graph[mod].add(t)
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+    sys.setrecursionlimit(10_000)
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def flat_modules() -> list[str]:
+    return sorted(p.stem for p in (ROOT / "skin_sim_node").glob("*.py") if p.stem != "__init__")
+
+
+def test_no_import_cycles():
+    assert cycles(import_graph()) == []
+
+
+def test_contract_imports_nothing_from_the_implementation():
+    g = import_graph()
+    bad = {m: sorted(t for t in ts if t.startswith("skin_sim_node")) for m, ts in g.items() if m.startswith("msgs_schema")}
+    assert {m: ts for m, ts in bad.items() if ts} == {}
+
+
+def test_flat_modules_at_most_eight():
+    assert len(flat_modules()) <= MAX_FLAT_MODULES, flat_modules()
+
+
+def test_graph_reader_sees_real_edges():
+    """The reader finds imports the code is known to make (else the rules above would pass vacuously)."""
+    g = import_graph()
+    assert "skin_sim_node.session" in g["skin_sim_node.server.node"]
+    assert "msgs_schema.convert" in g["skin_sim_node.bags.offline"]
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def report() -> str:
+    g = import_graph()
+    per_folder: dict[str, int] = defaultdict(int)
+    for p in modules().values():
+        per_folder[str(p.parent.relative_to(ROOT))] += 1
+    # package-level ties that run both ways (folder A imports folder B and B imports A)
+    pkg = {m: m.rpartition(".")[0] if modules()[m].name != "__init__.py" else m for m in g}
+    pkg_edges = {(pkg[m], pkg[t]) for m, ts in g.items() for t in ts if pkg[m] != pkg[t]}
+    two_way = sorted((a, b) for a, b in pkg_edges if (b, a) in pkg_edges and a < b)
+    lines = [
+        f"modules {len(g)}, edges {sum(len(v) for v in g.values())}, flat modules at the top {len(flat_modules())}",
+        "modules per folder: " + ", ".join(f"{k} {v}" for k, v in sorted(per_folder.items())),
+        f"cycles: {cycles(g) or 'none'}",
+        f"package edges {len(pkg_edges)}; ties both ways between packages: {two_way or 'none'}",
+    ]
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(report())
