@@ -99,3 +99,31 @@ def read_contact_model(msg) -> LocalModel:
         validity_radius_m=float(msg.validity_radius_m),
         time_to_live_s=float(msg.time_to_live_s),
     )
+
+
+def fill_contact_model_from_tick(
+    msg, result, t_ns: int, frame: str, ttl_s: float = DEFAULT_TTL_S, radius_m: float = DEFAULT_VALIDITY_RADIUS_M
+):
+    """``tool/contact_model`` from a haptic tick's result (``skin_sim_node.session.TickResult``, read by attribute).
+
+    ``f0`` is the published force (after the session's clamp, rate bound and watchdog); ``K``, ``D`` and the
+    normal are the model's tangent (:class:`skin_sim_node.model.contact.ContactTangent`). A stale tick (no
+    valid tool input) sends a zero model: nothing to render.
+    """
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
+    msg.header.frame_id = frame
+    msg.sequence = int(result.seq)
+    tg = result.tangent
+    msg.x0_m[:] = result.x0_m
+    msg.v0_m_s[:] = result.velocity_m_s
+    msg.f0_n[:] = result.force_n
+    if result.stale:
+        msg.stiffness_n_per_m[:] = 0.0
+        msg.damping_n_s_per_m[:] = 0.0
+    else:
+        msg.stiffness_n_per_m[:] = np.asarray(tg.stiffness_n_per_m).ravel()
+        msg.damping_n_s_per_m[:] = np.asarray(tg.damping_n_s_per_m).ravel()
+    msg.normal[:] = tg.normal
+    msg.validity_radius_m = float(radius_m)
+    msg.time_to_live_s = float(ttl_s)
+    return msg
