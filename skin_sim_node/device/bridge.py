@@ -21,6 +21,7 @@ ticks without a fresh model and the model ages. See ``docs/devices.md``.
 from __future__ import annotations
 
 import math
+import os
 import time
 
 import numpy as np
@@ -37,6 +38,12 @@ from .base import DeviceNode, Param, publish_while_ok
 from .mapping import CONVENTIONS, DEFAULTS, TOUCH_MAX_STIFFNESS_N_PER_M, DeviceMapping, axes_matrix
 from .render import FADE_S, ContactRenderer
 from .stylus import DeviceParams
+
+UDP_ONLY = "UDPv4"
+"""Fast DDS transports of the bridge's participant. Measured (tests/test_force_path_ros.py): with the default
+shared-memory transport, a node killed with SIGKILL stalls every sample the bridge receives through shared
+memory, the device's poses included, for 1000 ms (Fast DDS's port health-check timeout): the watchdog then steps
+the force to zero instead of the renderer fading it. Over UDP loopback the device's poses keep flowing."""
 
 SOURCES = ("model", "wrench")
 STABILISERS = ("none", "passivity")
@@ -99,9 +106,16 @@ class BridgeNode(DeviceNode):
     def add_arguments(cls, ap) -> None:
         ap.add_argument("--restamp", dest="restamp", action="store_true", default=None,
                         help="stamp tool poses with the bridge clock instead of the driver's")  # fmt: skip
+        ap.add_argument(
+            "--shm", action="store_true",
+            help="keep Fast DDS's shared-memory transport (default: UDP only for the bridge, see docs/devices.md: a "
+            "killed node stalls every shared-memory reception of the bridge for 1 s)",
+        )  # fmt: skip
 
     @classmethod
     def before_start(cls, opts) -> int | None:
+        if not opts.shm:
+            os.environ.setdefault("FASTDDS_BUILTIN_TRANSPORTS", UDP_ONLY)
         if opts.axes is not None:
             try:
                 axes_matrix(opts.axes)
