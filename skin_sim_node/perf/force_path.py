@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -160,7 +161,12 @@ def main(argv=None) -> int:
     ap.add_argument("--device-limits", action="store_true", help="apply the Touch's force and stiffness caps (default: off)")
     ap.add_argument("--chart", type=Path, default=REPO / "docs" / "figures" / "force_path_rate.png")
     ap.add_argument("--no-chart", action="store_true")
+    ap.add_argument("--msg-cost", action="store_true", help="measure the contact model message types instead (about 10 s)")
     args = ap.parse_args(argv)
+    if args.msg_cost:
+        print("skin-sim force-path --msg-cost: contact model message candidates ...", flush=True)
+        print_msg_cost(5.0)
+        return 0
     print("skin-sim force-path: offline server-rate lever (press, drag, release; device at 1 kHz) ...", flush=True)
     cfg = load_tissue_config(DEFAULT_PARAMS)
     t0 = time.perf_counter()
@@ -189,6 +195,124 @@ def main(argv=None) -> int:
     if not args.no_chart:
         print(f"  chart: {chart(results, rates, args.chart)}")
     return 0
+
+
+# --- message type cost (issue 12: custom interface package vs a documented layout in standard messages) -------
+def _layout_values(m: LocalModel) -> list[float]:
+    """The 31 numbers of a contact model in the standard-message layout that was measured against the package."""
+    return [float(m.sequence), *m.x0_m, *m.v0_m_s, *m.f0_n, *m.stiffness_n_per_m.ravel(), *m.damping_n_s_per_m.ravel(),
+            *m.normal, m.validity_radius_m, m.time_to_live_s]  # fmt: skip
+
+
+def msg_cost(duration_s: float = 3.0, rate_hz: float = 1000.0) -> dict:
+    """Fill + serialize, and fill + publish to a matched reader, per message, for each candidate type at ``rate_hz``.
+
+    Candidates: ``skin_sim_msgs/ContactModel`` (the package), ``sensor_msgs/JointState`` with the 31 numbers in
+    ``position`` (stamp and frame in the header; names empty, or 31 labels), ``std_msgs/Float64MultiArray`` (no
+    header) and, as the same-run baseline, ``geometry_msgs/WrenchStamped`` (the force alone, ``tool/wrench``).
+    Returns {name: (fill+serialize us p50, p99, fill+publish us p50, p99, bytes)}.
+    """
+    import threading
+
+    import rclpy
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+    from skin_sim_msgs.msg import ContactModel
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+    from msgs_schema.contact_model import fill_contact_model
+    from msgs_schema.convert import fill_wrench, set_stamp
+    from msgs_schema.qos import PROFILES
+
+    from ..ros_util import sleep_until_ns
+
+    rng = np.random.default_rng(0)
+    lm = LocalModel(1, 0, "tissue", rng.normal(size=3), rng.normal(size=3), rng.normal(size=3), rng.normal(size=(3, 3)),
+                    rng.normal(size=(3, 3)), (0, 0, 1), DEFAULT_VALIDITY_RADIUS_M, DEFAULT_TTL_S)  # fmt: skip
+    labels = [f"v{i}" for i in range(31)]
+
+    def fill_js(msg, t_ns, names):
+        set_stamp(msg.header, t_ns)
+        msg.header.frame_id = "tissue"
+        if names and len(msg.name) != 31:
+            msg.name = labels
+        msg.position = _layout_values(lm)
+        return msg
+
+    def fill_fa(msg, t_ns):
+        if not msg.layout.dim:
+            msg.layout.dim = [MultiArrayDimension(label="skin_sim_contact_model_v1", size=31, stride=31)]
+        msg.data = _layout_values(lm)
+        return msg
+
+    kinds = {
+        "WrenchStamped (force only, baseline)": (WrenchStamped, lambda m, t: fill_wrench(m, t, "tissue", lm.f0_n)),
+        "skin_sim_msgs/ContactModel": (ContactModel, lambda m, t: fill_contact_model(m, lm)),
+        "JointState layout, no names": (JointState, lambda m, t: fill_js(m, t, False)),
+        "JointState layout, 31 names": (JointState, lambda m, t: fill_js(m, t, True)),
+        "Float64MultiArray layout (no header)": (Float64MultiArray, fill_fa),
+    }
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    pub_node = rclpy.create_node(f"msg_cost_pub_{os.getpid()}", context=ctx)
+    sub_node = rclpy.create_node(f"msg_cost_sub_{os.getpid()}", context=ctx)
+    received = dict.fromkeys(kinds, 0)
+    pubs = {}
+    for i, (name, (cls, _)) in enumerate(kinds.items()):
+        topic = f"msg_cost/t{i}"
+        pubs[name] = pub_node.create_publisher(cls, topic, PROFILES["haptic"])
+        sub_node.create_subscription(cls, topic, lambda _m, n=name: received.__setitem__(n, received[n] + 1), PROFILES["haptic"])
+    ex = rclpy.executors.SingleThreadedExecutor(context=ctx)
+    ex.add_node(sub_node)
+    stop = threading.Event()
+    th = threading.Thread(target=lambda: [ex.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)], daemon=True)
+    th.start()
+    time.sleep(1.0)  # discovery
+    msgs = {name: cls() for name, (cls, _) in kinds.items()}
+    ser = {name: [] for name in kinds}
+    pub = {name: [] for name in kinds}
+    size = {}
+    n = int(duration_s * rate_hz)
+    period = int(1e9 / rate_hz)
+    nxt = time.perf_counter_ns()
+    order = list(kinds.items())
+    for k in range(n):
+        nxt += period
+        sleep_until_ns(nxt)
+        j = k % len(order)
+        for name, (_, fill) in order[j:] + order[:j]:  # interleaved, first place rotating: the same machine state for all
+            t0 = time.perf_counter_ns()
+            b = serialize_message(fill(msgs[name], t0))
+            t1 = time.perf_counter_ns()
+            pubs[name].publish(fill(msgs[name], t1))
+            t2 = time.perf_counter_ns()
+            ser[name].append(t1 - t0)
+            pub[name].append(t2 - t1)
+            size[name] = len(b)
+    time.sleep(0.3)
+    stop.set()
+    th.join(timeout=2)
+    out = {}
+    for name in kinds:
+        s, p = np.array(ser[name]) * 1e-3, np.array(pub[name]) * 1e-3
+        out[name] = (np.percentile(s, 50), np.percentile(s, 99), np.percentile(p, 50), np.percentile(p, 99), size[name],
+                     received[name] / n)  # fmt: skip
+    pub_node.destroy_node()
+    sub_node.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+    return out
+
+
+def print_msg_cost(duration_s: float) -> None:
+    print(f"  message cost at 1 kHz for {duration_s:.0f} s, one matched reader in this process, types interleaved "
+          "(shared machine: read the ratios to the WrenchStamped baseline of the same run)")  # fmt: skip
+    res = msg_cost(duration_s)
+    base = res["WrenchStamped (force only, baseline)"]
+    print(f"  {'type':40s} | fill+serialize us p50 / p99 | fill+publish us p50 / p99 (x baseline p50) | bytes | received")
+    for name, (s50, s99, p50, p99, nbytes, rx) in res.items():
+        print(f"  {name:40s} | {s50:7.1f} / {s99:7.1f}            | {p50:7.1f} / {p99:7.1f} ({p50 / base[2]:.2f}x)"
+              f"                | {nbytes:5d} | {100 * rx:.1f} %")  # fmt: skip
 
 
 if __name__ == "__main__":
