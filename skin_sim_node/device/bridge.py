@@ -302,6 +302,7 @@ class BridgeNode(DeviceNode):
             "force_source": self.p.force_source,
         }
         values.update({f"{k}_total": str(v) for k, v in c.items()})
+        values.update({f"{k}_total": str(v) for k, v in self.renderer.counts.items() if k.startswith("fades_")})
         self._win = {"rendered": 0, "models": 0, "t_ns": now, "age_from": self._n_age, "period_max_ns": 0}
         st = DiagnosticStatus()
         st.name = f"{self.get_fully_qualified_name()}: device render"
