@@ -22,6 +22,7 @@ Units: SI, tissue frame (the bridge maps the device pose in and the force out, s
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,6 +42,13 @@ CROSSFADE_MIN_S = 1e-3
 CROSSFADE_MAX_S = 0.02
 """Longest crossfade (s): two periods of the slowest server rate of the rate lever (100 Hz); models further
 apart than that are not spread out further (the crossfade lags the model by half its length)."""
+
+PASSIVITY_DELAY_TICKS = 2
+"""Ticks from the bridge rendering a force (at device pose ``k``) to the device applying it: the command reaches
+the device before its next tick (DDS on one host: well under 1 ms) and a servo loop applies a command from the
+tick after it arrives (zero-order hold, as :class:`skin_sim_node.device.stylus.SimulatedDevice`): it acts over
+the displacement from pose ``k + 1`` to ``k + 2``. The passivity observer (Hannaford & Ryu 2002) must book that
+displacement against that force, or it misses the energy the delayed loop generates."""
 
 STATES = ("none", "model", "crossfade", "fade")
 
@@ -96,6 +104,9 @@ class ContactRenderer:
         Bounds of the crossfade to a new model (its length is the interval since the previous model).
     passivity_mass_kg : float or None
         Apparent device mass for the passivity controller (tissue units); None: no controller.
+    passivity_delay_ticks : int
+        Device ticks from rendering a force to the start of the tick over which the device applies it
+        (:data:`PASSIVITY_DELAY_TICKS`); the passivity observer books each displacement against that force.
     use_damping : bool
         Render ``D (v - v0)`` when a velocity is given.
 
@@ -116,6 +127,7 @@ class ContactRenderer:
         crossfade_min_s: float = CROSSFADE_MIN_S,
         crossfade_max_s: float = CROSSFADE_MAX_S,
         passivity_mass_kg: float | None = None,
+        passivity_delay_ticks: int = PASSIVITY_DELAY_TICKS,
         use_damping: bool = True,
     ):
         for name, val in (("max_force_n", max_force_n), ("max_stiffness_n_per_m", max_stiffness_n_per_m),
@@ -130,7 +142,10 @@ class ContactRenderer:
         self.fade_s = float(fade_s)
         self.cf_min, self.cf_max = float(crossfade_min_s), float(crossfade_max_s)
         self.use_damping = use_damping
-        self.passivity = PassivityController(passivity_mass_kg) if passivity_mass_kg else None
+        # the controller's damping acts delay_ticks late: a damper b delayed by tau on a mass m is stable for
+        # b tau / m < pi / 2; the controller's bound m / dt becomes m / ((delay + 1) dt), b tau / m <= 0.83 at delay 2
+        d = max(int(passivity_delay_ticks), 1)
+        self.passivity = PassivityController(passivity_mass_kg / (d + 1)) if passivity_mass_kg else None
         self.counts = {"models": 0, "rejected_non_finite": 0, "rejected_out_of_order": 0, "fades_ttl": 0, "fades_radius": 0}
         self._model: _Slot | None = None
         self._from: _Slot | None = None
@@ -143,8 +158,9 @@ class ContactRenderer:
         self._last_x: np.ndarray | None = None
         self._last_v: np.ndarray | None = None
         self._last_t: float | None = None
-        self._applied = np.zeros(3)
-        self._env_prev = np.zeros(3)
+        self._sent: deque = deque(
+            [(np.zeros(3), np.zeros(3))] * max(int(passivity_delay_ticks), 1), maxlen=max(int(passivity_delay_ticks), 1)
+        )
         self.state = "none"
 
     # --- models -------------------------------------------------------------------------
@@ -241,13 +257,14 @@ class ContactRenderer:
             dt = now_s - self._last_t if self._last_t is not None else 0.0
             if self._last_x is not None:
                 dx = x - self._last_x
-                self.passivity.observe(tuple(self._applied), tuple(self._env_prev), tuple(dx))
+                applied_then, env_then = self._sent[0]  # the force that acted over dx (rendered delay ticks ago)
+                self.passivity.observe(tuple(applied_then), tuple(env_then), tuple(dx))
                 vel = v if v is not None else (dx / dt if dt > 0 else np.zeros(3))
             else:
                 vel = np.zeros(3)
             applied = clamp_vec(np.array(self.passivity.force(tuple(f), tuple(vel), dt)), self.max_force_n)
-        self._env_prev = f
-        self._applied = applied
+        if finite_x:
+            self._sent.append((applied, f))
         if finite_x:
             self._last_x, self._last_v, self._last_t = x, v, now_s
         return applied
