@@ -94,6 +94,11 @@ TOPICS = {
         "measured_cv", "geometry_msgs/msg/TwistStamped", "haptic", "m/s", "device base", "device rate",
         "CRTK measured Cartesian velocity.",
     ),
+    "crtk_measured_cf": TopicSpec(
+        "measured_cf", "geometry_msgs/msg/WrenchStamped", "haptic", "N", "device base", "device rate",
+        "CRTK measured Cartesian force: what the device applied over the servo tick that ended at the pose of the "
+        "same stamp (the bridge's passivity observer books it).",
+    ),
     "crtk_servo_cf": TopicSpec(
         "servo_cf", "geometry_msgs/msg/WrenchStamped", "haptic", "N", "device base", "device rate",
         "CRTK Cartesian force command.",

@@ -2,16 +2,19 @@
 
 Device side, under ``device_ns`` (relative, default ``device``):
 
-- ``convention:=crtk`` (jhu-saw sawSensablePhantom): reads ``measured_cp`` (PoseStamped) and
-  ``measured_cv`` (TwistStamped), writes ``servo_cf`` (WrenchStamped): a force every servo tick.
+- ``convention:=crtk`` (jhu-saw sawSensablePhantom): reads ``measured_cp`` (PoseStamped),
+  ``measured_cv`` (TwistStamped) and, if the driver publishes it, ``measured_cf`` (the force applied over
+  the tick: the passivity observer books it exactly), writes ``servo_cf`` (WrenchStamped): a force every
+  servo tick.
 - ``convention:=omni`` (omni_common family): reads ``phantom/pose``, writes ``phantom/force_feedback``.
 
 Node side: publishes ``tool/pose`` and ``tool/twist`` in the tissue frame. With ``force_source:=model``
 (default) it subscribes ``tool/contact_model`` and, for every device pose, renders the force from the
 newest model at that pose (:class:`skin_sim_node.device.render.ContactRenderer`: crossfade, TTL and
 radius fade, one-sided normal, force and stiffness caps, optional passivity controller) and sends it
-at once: the device gets a force every tick, never a stale one. ``force_source:=wrench`` forwards
-``tool/wrench`` as it arrives (the old hold-last bridge, for servers without a contact model).
+at once: the device gets a force every tick, never a stale one. ``force_source:=wrench`` holds the last
+``tool/wrench`` instead (the hold-last bridge, for servers without a contact model), through the same
+renderer (a model with no stiffness: held, faded once older than ``watchdog_s``) and passivity controller.
 
 A watchdog sends one zero force when the device pose is older than ``watchdog_s`` (the device has
 stopped reporting; no tick to render on). Diagnostics (``diagnostics``, 1 Hz) report the render rate,
@@ -28,14 +31,22 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 
-from msgs_schema.contact_model import read_contact_model
+from msgs_schema.contact_model import LocalModel, read_contact_model
 from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_pose, read_twist, read_wrench, set_stamp, stamp_ns
 from msgs_schema.qos import PROFILES, publisher, subscription
 from msgs_schema.topics import FRAMES, TOPICS
 
 from ..ros_util import ros_now_ns
 from .base import DeviceNode, Param, publish_while_ok
-from .mapping import CONVENTIONS, DEFAULTS, TOUCH_MAX_STIFFNESS_N_PER_M, DeviceMapping, axes_matrix
+from .mapping import (
+    CONVENTIONS,
+    DEFAULTS,
+    MEASURED_FORCE,
+    TOUCH_MAX_STIFFNESS_N_PER_M,
+    DeviceMapping,
+    axes_matrix,
+    force_to_tissue,
+)
 from .render import FADE_S, ContactRenderer
 from .stylus import DeviceParams
 
@@ -48,6 +59,7 @@ the force to zero instead of the renderer fading it. Over UDP loopback the devic
 SOURCES = ("model", "wrench")
 STABILISERS = ("none", "passivity")
 TWIST_MAX_SKEW_NS = 5_000_000  # a device twist this close to the pose's stamp is the pose's velocity (as the node's 5 ms)
+HOLD_RADIUS_M = 1.0  # wrench source: a held force does not depend on the pose (any pose on a Touch's workspace)
 AGE_RING = 4096  # model ages kept for the diagnostics window (4 s at 1 kHz)
 
 
@@ -156,12 +168,18 @@ class BridgeNode(DeviceNode):
         subscription(self, pose_key, self._on_device_pose, name=dev(pose_key))
         if twist_key:
             subscription(self, twist_key, self._on_device_twist, name=dev(twist_key))
+        cf_key = MEASURED_FORCE[p.convention]
+        if cf_key:
+            subscription(self, cf_key, self._on_device_force, name=dev(cf_key))
+        self._cf_tissue: np.ndarray | None = None
+        self._cf_stamp_ns = -1
         if self.model_source:
             subscription(self, "contact_model", self._on_model)
         else:
             subscription(self, "tool_wrench", self._on_wrench)
         self._v_tissue: np.ndarray | None = None
         self._v_stamp_ns = 0
+        self._wrench_seq = 0
         self.last_pose_rx_ns: int | None = None
         self.last_wrench_rx_ns: int | None = None
         self.stale = False  # the first watchdog check sends one zero force
@@ -198,6 +216,10 @@ class BridgeNode(DeviceNode):
         publish_while_ok(self, self._twist_pub, fill_twist(self._twist_out, self._stamp(msg), self.tissue_frame, vt))
         self.counts["twists"] += 1
 
+    def _on_device_force(self, msg) -> None:
+        t_ns, _, f = read_wrench(msg)
+        self._cf_tissue, self._cf_stamp_ns = np.array(force_to_tissue(self.mapping, f)), t_ns
+
     def _on_device_pose(self, msg) -> None:
         t_ns, frame, pos = read_pose(msg)
         if not all(math.isfinite(c) for c in pos):
@@ -216,11 +238,12 @@ class BridgeNode(DeviceNode):
         x = self.mapping.to_tissue(pos)
         stamp = self._stamp(msg)
         self.counts["poses"] += 1
-        if self.model_source:  # the servo tick: render at this pose, command at once
-            v = self._v_tissue if self._v_tissue is not None and abs(self._v_stamp_ns - t_ns) <= TWIST_MAX_SKEW_NS else None
-            f = self.renderer.render(now * 1e-9, x, v)
-            self._publish_force(stamp, self.mapping.force_to_device(tuple(f)))
-            self._count_render(now)
+        # the servo tick: render at this pose and command at once (wrench source: the last force, held)
+        v = self._v_tissue if self._v_tissue is not None and abs(self._v_stamp_ns - t_ns) <= TWIST_MAX_SKEW_NS else None
+        cf = self._cf_tissue if self._cf_stamp_ns == t_ns else None  # applied over the tick that ended here
+        f = self.renderer.render(now * 1e-9, x, v, cf)
+        self._publish_force(stamp, self.mapping.force_to_device(tuple(f)))
+        self._count_render(now)
         publish_while_ok(self, self._pose_pub, fill_pose(self._pose_out, stamp, self.tissue_frame, x, q))
 
     def _count_render(self, now_ns: int) -> None:
@@ -256,31 +279,30 @@ class BridgeNode(DeviceNode):
             self.get_logger().warning(f"contact model dropped: {why} (logged once per kind)")
 
     def _on_wrench(self, msg) -> None:
+        """Wrench source: the node's force as a model with no stiffness (held until the next, faded after watchdog_s)."""
         now = time.monotonic_ns()
         self.last_wrench_rx_ns = now
         self.counts["wrenches"] += 1
-        if self.last_pose_rx_ns is None or now - self.last_pose_rx_ns > self.watchdog_ns:
-            return  # device pose stale: the watchdog has commanded zero
         t_ns, _, f = read_wrench(msg)
-        self._publish_force(t_ns or ros_now_ns(self), self.mapping.force_to_device(f))
-        self.counts["forwarded"] += 1
+        self._wrench_seq += 1
+        m = LocalModel(self._wrench_seq, t_ns, self.tissue_frame, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), f, np.zeros((3, 3)),
+                       np.zeros((3, 3)), (0.0, 0.0, 1.0), HOLD_RADIUS_M, self.p.watchdog_s)  # fmt: skip
+        if self.renderer.set_model(m, now * 1e-9) is None:
+            self.counts["forwarded"] += 1
+            self._first_model = True
 
     def _publish_force(self, t_ns: int, f) -> None:
         publish_while_ok(self, self._force_pub, fill_wrench(self._force_out, t_ns, self.device_frame or "device_base", f))
 
     def _watchdog(self) -> None:
         now = time.monotonic_ns()
-        pose_stale = self.last_pose_rx_ns is None or now - self.last_pose_rx_ns > self.watchdog_ns
-        wrench_stale = not self.model_source and (
-            self.last_wrench_rx_ns is None or now - self.last_wrench_rx_ns > self.watchdog_ns
-        )
-        stale = pose_stale or wrench_stale
+        # a stale node is the renderer's business (it fades); a silent device has no tick to render on
+        stale = self.last_pose_rx_ns is None or now - self.last_pose_rx_ns > self.watchdog_ns
         if stale and not self.stale:
             self._publish_force(ros_now_ns(self), (0.0, 0.0, 0.0))
             self.counts["zeros"] += 1
-            if self.counts["poses"] or self.counts["wrenches"]:
-                what = "device pose" if pose_stale else "node wrench"
-                self.get_logger().warn(f"no {what} for {self.watchdog_ns * 1e-6:.0f} ms: device force set to zero")
+            if self.counts["poses"]:
+                self.get_logger().warn(f"no device pose for {self.watchdog_ns * 1e-6:.0f} ms: device force set to zero")
         self.stale = stale
 
     # --- diagnostics --------------------------------------------------------------------

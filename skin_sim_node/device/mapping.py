@@ -191,6 +191,13 @@ class DeviceMapping:
         return clamp_magnitude(f, self.max_force_n)
 
 
+def force_to_tissue(mapping: DeviceMapping, f_device) -> Vec3:
+    """Device force (N) -> tissue force (N): the inverse of :meth:`DeviceMapping.force_to_device` before its clamp."""
+    if mapping.force_scale <= 0 or not _finite(f_device):
+        return (0.0, 0.0, 0.0)
+    return tuple(c / mapping.force_scale for c in _mat_vec(mapping.R, f_device))
+
+
 def clamp_magnitude(f, max_n: float) -> Vec3:
     """``f`` scaled down to magnitude ``max_n`` if longer (direction kept); non-finite -> zero."""
     if not _finite(f):
@@ -215,6 +222,8 @@ DEFAULTS = {
     "device_frame": "",  # frame_id of force commands; empty: the device pose's frame_id
     "restamp": False,  # stamp tool/pose with the bridge's clock instead of the driver's
 }
+MEASURED_FORCE = {"crtk": "crtk_measured_cf", "omni": None}
+"""Topic of the force the device reports it applied, per convention (None: the bridge assumes its own commands)."""
 CONVENTIONS = {
     # convention: (pose key, twist key or None, force key)
     "crtk": ("crtk_measured_cp", "crtk_measured_cv", "crtk_servo_cf"),

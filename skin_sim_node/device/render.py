@@ -213,11 +213,14 @@ class ContactRenderer:
         self._fade_t0 = None
 
     # --- the servo tick -------------------------------------------------------------------
-    def render(self, now_s: float, x, v=None) -> np.ndarray:
+    def render(self, now_s: float, x, v=None, applied_over_dx=None) -> np.ndarray:
         """The force (N, tissue frame) to command for the coming servo tick at tool position ``x`` (m).
 
         ``v`` (m/s): the device's measured velocity; None differentiates the positions for the
         passivity controller and renders no ``D`` term. A non-finite ``x`` fades out like a stale model.
+        ``applied_over_dx`` (N, tissue frame): the force the device reports it applied while moving from the
+        previous ``x`` to this one (CRTK ``measured_cf``); the passivity observer books it exactly, else it
+        assumes the force rendered ``passivity_delay_ticks`` ago.
         """
         x = np.asarray(x, dtype=float)
         v = None if v is None else np.asarray(v, dtype=float)
@@ -257,7 +260,10 @@ class ContactRenderer:
             dt = now_s - self._last_t if self._last_t is not None else 0.0
             if self._last_x is not None:
                 dx = x - self._last_x
-                applied_then, env_then = self._sent[0]  # the force that acted over dx (rendered delay ticks ago)
+                if applied_over_dx is not None and np.isfinite(applied_over_dx).all():  # the device said what it applied
+                    applied_then = env_then = np.asarray(applied_over_dx, dtype=float)
+                else:
+                    applied_then, env_then = self._sent[0]  # the force that acted over dx (rendered delay ticks ago)
                 self.passivity.observe(tuple(applied_then), tuple(env_then), tuple(dx))
                 vel = v if v is not None else (dx / dt if dt > 0 else np.zeros(3))
             else:
@@ -286,7 +292,7 @@ class HoldLastRenderer:
         self._m, self._rx = m, now_s
         return None
 
-    def render(self, now_s: float, x, v=None) -> np.ndarray:
+    def render(self, now_s: float, x, v=None, applied_over_dx=None) -> np.ndarray:
         if self._m is None or now_s - self._rx > self._m.time_to_live_s:
             self.state = "none" if self._m is None else "fade"
             return np.zeros(3)

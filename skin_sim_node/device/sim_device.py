@@ -5,7 +5,8 @@ device rate and applies the force commands it receives (zero-order hold, one tic
 the Touch's peak force). It only applies: the bridge renders the force for every device tick from the
 node's contact model, and runs the passivity controller, as it would for a real Touch.
 
-``crtk``: publishes ``<device_ns>/measured_cp`` and ``measured_cv``, subscribes ``servo_cf``. ``omni``:
+``crtk``: publishes ``<device_ns>/measured_cp``, ``measured_cv`` and ``measured_cf`` (the force it applied
+over the tick), subscribes ``servo_cf``. ``omni``:
 publishes ``<device_ns>/phantom/pose``, subscribes ``phantom/force_feedback``. Device frame: the tissue
 axes, origin at tissue ``(0, 0, +0.05)`` m (the bridge's default mapping). Run alone it receives no
 force commands; it says so (start ``skin-sim node`` and ``skin-sim bridge`` first, docs/devices.md).
@@ -15,13 +16,13 @@ from __future__ import annotations
 
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 
-from msgs_schema.convert import fill_pose, fill_twist, read_wrench
+from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_wrench
 from msgs_schema.qos import PROFILES, publisher
 from msgs_schema.topics import TOPICS
 
 from ..ros_util import PeriodicLoop, ros_now_ns
 from .base import HOUSEKEEPING_PERIOD_S, DeviceNode, Param, publish_while_ok, shutdown_when
-from .mapping import CONVENTIONS, DeviceMapping
+from .mapping import CONVENTIONS, MEASURED_FORCE, DeviceMapping
 from .stylus import DeviceParams, SimulatedDevice
 from .trajectories import TRAJECTORIES
 
@@ -96,6 +97,9 @@ class SimDeviceNode(DeviceNode):
         pose_key, twist_key, cmd_key = CONVENTIONS[p.convention]
         self._pose_pub = publisher(self, pose_key, name=dev(pose_key))
         self._twist_pub = publisher(self, twist_key, name=dev(twist_key)) if twist_key else None
+        cf_key = MEASURED_FORCE[p.convention]
+        self._cf_pub = publisher(self, cf_key, name=dev(cf_key)) if cf_key else None
+        self._cf = WrenchStamped()
         self.create_subscription(WrenchStamped, dev(cmd_key), self._on_command, PROFILES["driver"])
         self._pose, self._twist = PoseStamped(), TwistStamped()
         self._cmd = (0.0, 0.0, 0.0)
@@ -127,9 +131,11 @@ class SimDeviceNode(DeviceNode):
         dt = min(max(elapsed_ns, 0), MAX_DT_PERIODS * self._period_ns) * 1e-9
         pos, vel = self.device.step(self._cmd, dt)
         stamp = ros_now_ns(self)
-        # twist first: a receiver that ticks on the pose then finds the twist of the same stamp
+        # twist and applied force first: a receiver that ticks on the pose then finds those of the same stamp
         if self._twist_pub is not None:
             publish_while_ok(self, self._twist_pub, fill_twist(self._twist, stamp, self.p.frame_id, vel))
+        if self._cf_pub is not None:
+            publish_while_ok(self, self._cf_pub, fill_wrench(self._cf, stamp, self.p.frame_id, self.device.applied_force_n))
         if not publish_while_ok(self, self._pose_pub, fill_pose(self._pose, stamp, self.p.frame_id, pos)):
             return
         if self.p.exit_when_done and self.device.done:

@@ -91,7 +91,8 @@ def over_dds(rate_hz: float, k_n_per_m: float, stabiliser: str, log_dir: Path, m
             params = [a for name, v in wall_overrides(k_n_per_m).items() for a in ("-p", f"tissue.{name}:={v}")]
             node = scene.node(*params, "-p", "watchdog_s:=0.5", "-p", f"rate_hz:={rate_hz}")
             scene.wait_for_log(node, "live:", timeout_s=180)
-            scene.start("bridge", "bridge", "--watchdog-s", "0.5", "--stabiliser", stabiliser)  # the bridge runs the controller
+            # the sweep's coupling (the node's force held per device tick); the bridge runs the passivity controller
+            scene.start("bridge", "bridge", "--watchdog-s", "0.5", "--force-source", "wrench", "--stabiliser", stabiliser)
             device = scene.start(
                 "device", "device", "--hand-path", PATH, "--rate-hz", str(rate_hz),
                 "--substep-s", "5e-5", "--start-delay-s", "3.0",
