@@ -42,12 +42,14 @@ def summarize(monitor, wall_s: float, poses: list) -> dict:
     out["peak_force_n"] = float(f[:, 2].max()) if len(f) else 0.0
     out["layers_reached"] = int(max((np.count_nonzero(c[3] > 0) for c in contact), default=0))
     out["node_rate_hz"] = _median([float(d["achieved_rate_hz"]) for d in node_d if d.get("input_stale") == "False"])
-    rendering = [d for d in bridge_d if int(d.get("rendered_total", 0)) > 0][1:]  # windows with the device running
-    rates = [float(d["render_rate_hz"]) for d in rendering]
+    # windows in which the device ran throughout: the total grew since the window before and grows in the next
+    tot = [int(d.get("rendered_total", 0)) for d in bridge_d]
+    rates = [float(bridge_d[i]["render_rate_hz"]) for i in range(1, len(tot) - 1) if tot[i - 1] > 0 and tot[i + 1] > tot[i]]
     out["render_rate_hz_median"] = _median(rates)
     out["render_rate_hz_min"] = min(rates) if rates else float("nan")
     last = bridge_d[-1] if bridge_d else {}
-    for key in ("rendered_total", "rendered_fresh_total", "rendered_no_model_total", "device_gaps_2ms_total", "models_total"):
+    keys = ("rendered_total", "rendered_fresh_total", "rendered_no_model_total", "device_gaps_2ms_total", "models_total")
+    for key in keys:
         out[key] = int(last.get(key, 0))
     ages = [float(d["model_age_ms_max"]) for d in bridge_d if d.get("model_age_ms_max") not in (None, "nan")]
     out["model_age_ms_max"] = max(ages) if ages else float("nan")
@@ -108,7 +110,7 @@ def deepest_figure(cfg, poses: list, layer_heights: list, path: Path, title: str
     a1.set_xlabel("x (mm)")
     a1.set_ylabel("z (mm)")
     a1.set_title(f"cross-section at y = {ys[row] * 1e3:.1f} mm, grid image nearest the deepest instant", fontsize=9)
-    a1.legend(handles=handles, fontsize=8, loc="lower right")
+    a1.legend(handles=handles, fontsize=8, loc="upper right")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -184,7 +186,8 @@ def main(argv=None) -> int:
         )
         print(
             f"  device ticks: {s['rendered_total']} rendered by the bridge, {s['rendered_fresh_total']} from a contact model "
-            f"younger than its TTL, {s['rendered_no_model_total']} without one (TTL or radius fade) after the first model; "
+            f"younger than its TTL, {s['rendered_no_model_total']} without one (TTL or radius fade) after the first model, "
+            f"{s['rendered_total'] - s['rendered_fresh_total'] - s['rendered_no_model_total']} before it (lifted, discovery); "
             f"oldest model used {s['model_age_ms_max']:.1f} ms; {s['device_gaps_2ms_total']} device pose gaps > 2 ms at the "
             f"bridge; {s['models_total']} contact models received"
             + (f"; the simulated device ran {dev_ticks.group(1)} ticks ({dev_ticks.group(2)} overruns)" if dev_ticks else "")
