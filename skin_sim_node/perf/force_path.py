@@ -125,15 +125,24 @@ def chart(results: dict, rates, path: Path) -> Path:
     colours = {"press": "tab:blue", "drag": "tab:orange", "release": "tab:green"}
     for name, by_rate in results.items():
         c = colours.get(name, "k")
-        ax.plot(rates, [by_rate[r]["render_p99_pct"] for r in rates], "o-", color=c, label=f"{name}: local model rendered")
-        ax.plot(rates, [by_rate[r]["hold_p99_pct"] for r in rates], "s--", color=c, alpha=0.7, label=f"{name}: hold last force")
+        ax.plot(
+            rates, [max(by_rate[r]["render_p99_pct"], 0.01) for r in rates], "o-", color=c, label=f"{name}: local model rendered"
+        )
+        ax.plot(
+            rates,
+            [max(by_rate[r]["hold_p99_pct"], 0.01) for r in rates],
+            "s--",
+            color=c,
+            alpha=0.7,
+            label=f"{name}: hold last force",
+        )
     ax.axhline(5.0, color="grey", lw=0.8, ls=":")
     ax.text(rates[-1], 5.3, "5 % of peak", color="grey", fontsize=8)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xticks(rates, [f"{r:.0f}" for r in rates])
     ax.set_xlabel("server (model) rate, Hz; device renders at 1 kHz")
-    ax.set_ylabel("p99 |F_device - F_full model| (% of scene peak)")
+    ax.set_ylabel("p99 |F_device - F_full model| (% of scene peak; floor 0.01)")
     ax.set_title("Force error at the device vs server rate")
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
@@ -186,11 +195,13 @@ def main(argv=None) -> int:
         for r in rates:
             res = run_scene(cfg, sc, r, latency, kw)
             results.setdefault(sc.name, {})[r] = res
-            ratio = res["hold_p99_pct"] / res["render_p99_pct"] if res["render_p99_pct"] > 0 else float("inf")
+            ratio = res["hold_p99_pct"] / max(res["render_p99_pct"], 0.01)  # floor: 0.01 % of peak
+            bound = ">" if res["render_p99_pct"] < 0.01 else ""
             ren = f"{res['render_p99_pct']:8.2f} / {res['render_max_pct']:6.2f}"
             hold = f"{res['hold_p99_pct']:9.2f} / {res['hold_max_pct']:6.2f}"
             print(
-                f"  {sc.name:8s} {r:7.0f} | {res['peak_n']:6.3f} | {ren}   | {hold}     | hold/rendered {ratio:.1f}x", flush=True
+                f"  {sc.name:8s} {r:7.0f} | {res['peak_n']:6.3f} | {ren}   | {hold}     | hold/rendered {bound}{ratio:.1f}x",
+                flush=True,
             )
     if not args.no_chart:
         print(f"  chart: {chart(results, rates, args.chart)}")
