@@ -28,12 +28,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import RegularGridInterpolator
 from scipy.optimize import least_squares
 
 from skin_sim_node.model import SkinModel, TissueConfig, preset
 from skin_sim_node.model.config import LAYER_NAMES, dump_yaml
+from skin_sim_node.solvers import static_indentation
 
-from .methods import static_force_n
+from .methods import skin_membrane, static_force_n
+from .references import converged_fem
+from .scenarios import BY_NAME
 
 K_NAMES = tuple(f"layers.{n}.stiffness_n_per_m" for n in LAYER_NAMES)
 PATCH_NAMES = ("patch.size_x_m", "patch.size_y_m")
@@ -131,9 +135,6 @@ def read_csv(path: str | Path) -> list[IndentData]:
 
 def fem_datasets(progress: bool = True) -> list[IndentData]:
     """Calibration data from the converged FEM: the suite's peak and valley scenarios."""
-    from .charts import converged_fem
-    from .scenarios import BY_NAME
-
     out = []
     for name in ("peak-1layer", "peak-2layer", "peak-3layer", "valley-3layer"):
         sc = BY_NAME[name]
@@ -174,10 +175,6 @@ def fit_membrane(datasets: list[IndentData], cfg: TissueConfig, n: int = 59) -> 
     Fitted to the same force and field data as :func:`fit` (contact offsets are ignored:
     the membrane is homogeneous).
     """
-    from skin_sim_node.solvers import static_indentation
-
-    from .methods import skin_membrane
-
     def response(p):
         mem = skin_membrane(cfg, float(np.exp(p[0])), float(np.exp(p[1])))
         f1, u1 = static_indentation(mem, n, n, 1.0, (0.0, 0.0), cfg.tool_radius_m)
@@ -186,8 +183,6 @@ def fit_membrane(datasets: list[IndentData], cfg: TissueConfig, n: int = 59) -> 
         return f1, xs, u1
 
     def fun(p):
-        from scipy.interpolate import RegularGridInterpolator
-
         f1, xs, u1 = response(p)
         interp = RegularGridInterpolator((xs, xs), u1, bounds_error=False, fill_value=0.0)
         out = []
