@@ -70,7 +70,7 @@ def layer_moduli_pa(cfg: TissueConfig, poisson: float = _POISSON) -> tuple[float
         e = flat.get(f"layers.{n}.youngs_modulus_pa")
         if e is None:
             e = flat[f"layers.{n}.stiffness_n_per_m"] * (1 - poisson**2) / (2 * cfg.tool_radius_m)
-        out.append(float(e))
+        out.append(float(f"{e:.12g}"))  # round-off free, so cache keys are stable
     return tuple(out)
 
 
@@ -236,6 +236,7 @@ class AxiProblem:
         self.surface_r = b.doflocs[0, self.surf_z_dofs]
         self.edge_r_dof = self.surf_r_dofs[int(np.argmin(np.abs(b.doflocs[0, self.surf_r_dofs] - r0)))]
         self.law = neo_hookean if s.law == "neo-hookean" else linear_elastic
+        self.u = np.zeros(b.N)
 
     def gradient(self, u):
         ue = u[self.edofs]  # (n_local, ne)
@@ -260,7 +261,6 @@ def solve(s: AxiSetup, progress: bool = True) -> AxiResult:
     t0 = time.perf_counter()
     pb = AxiProblem(s)
     N = pb.basis.N
-    u = np.zeros(N)
     saves = [d for d in SAVE_DEPTHS_M if d <= s.max_depth_m * (1 + 1e-12)]
     stops = np.unique(np.round(np.concatenate([np.linspace(0, s.max_depth_m, s.n_steps + 1)[1:], saves]), 12))
     depths, forces, slips, prof_d, prof_ur, prof_dn = [], [], [], [], [], []
@@ -268,6 +268,7 @@ def solve(s: AxiSetup, progress: bool = True) -> AxiResult:
     bar = tqdm(total=len(stops), desc=f"{s.law} axisym {s.key()[:8]} ({N} dofs)", disable=not progress, leave=False)
 
     def record(d, f_int):
+        u = pb.u
         depths.append(d)
         forces.append(float(f_int[pb.tool].sum()))
         slips.append(float(u[pb.edge_r_dof]))
@@ -277,49 +278,67 @@ def solve(s: AxiSetup, progress: bool = True) -> AxiResult:
             prof_dn.append(-u[pb.surf_z_dofs].copy())
 
     if s.law == "linear":  # one solve at unit depth, scaled
-        f0, K, _ = pb.assemble(u)
+        _, K, _ = pb.assemble(pb.u)
         u1 = np.zeros(N)
         u1[pb.tool] = -1.0
         u1[pb.free] = spla.spsolve(K[pb.free][:, pb.free].tocsc(), -K[pb.free][:, pb.known] @ u1[pb.known])
         f1 = K @ u1
         for d in stops:
-            u = u1 * d
+            pb.u = u1 * d
             record(d, f1 * d)
             bar.update()
         bar.close()
         return _result(s, pb, depths, forces, prof_d, prof_ur, prof_dn, slips, 1, time.perf_counter() - t0)
 
-    d_done, du_prev = 0.0, None
+    iters = march(pb, stops, lambda d, f: (record(d, f), bar.update(), bar.set_postfix(depth_mm=f"{d * 1e3:.2f}",
+                  force_n=f"{-forces[-1]:.3g}")), s.max_depth_m)  # fmt: skip
+    bar.close()
+    return _result(s, pb, depths, forces, prof_d, prof_ur, prof_dn, slips, iters, time.perf_counter() - t0)
+
+
+def march(pb, stops, on_stop, depth_range_m: float, solver=None) -> int:
+    """Load steps through ``stops`` (depths, m) with step halving; ``on_stop(depth, internal_force)`` at each.
+
+    ``pb`` has ``assemble(u, tangent)``, ``tool`` (punch z DOFs), ``free``, ``n_dofs`` and a mutable
+    ``u``. Returns the total Newton iterations.
+    """
+    d_done, du_prev, iters = 0.0, None, 0
     for d_target in stops:
         while d_done < d_target - 1e-15:
             step = d_target - d_done
             while True:
                 d_try = d_done + step
-                u_try = u.copy()
+                u_try = pb.u.copy()
                 if du_prev is not None:  # linear extrapolation of the last increment
                     u_try += du_prev[0] * (step / du_prev[1])
+                else:  # first step: the tangent (linear) solution, so no element starts inverted
+                    _, K, _ = pb.assemble(pb.u)
+                    du = np.zeros_like(u_try)
+                    du[pb.tool] = -d_try - pb.u[pb.tool]
+                    du[pb.free] = (solver or _superlu)(K[pb.free][:, pb.free], -K[pb.free][:, pb.tool] @ du[pb.tool])
+                    u_try += du
                 u_try[pb.tool] = -d_try
-                ok, n_it, u_try = _newton(pb, u_try)
+                ok, n_it, u_try = _newton(pb, u_try, solver=solver)
                 iters += n_it
                 if ok:
                     break
                 step *= 0.5
-                if step < s.max_depth_m * 1e-5:
-                    bar.close()
+                if step < depth_range_m * 1e-5:
                     raise RuntimeError(f"Newton failed at depth {d_done * 1e3:.4f} mm (step < 1e-5 of the range)")
-            inc = u_try - u
-            du_prev = (inc, step)
-            u, d_done = u_try, d_try
-        f_int, _, _ = pb.assemble(u, tangent=False)
-        record(d_target, f_int)
-        bar.update()
-        bar.set_postfix(depth_mm=f"{d_target * 1e3:.2f}", force_n=f"{-forces[-1]:.3g}")
-    bar.close()
-    return _result(s, pb, depths, forces, prof_d, prof_ur, prof_dn, slips, iters, time.perf_counter() - t0)
+            du_prev = (u_try - pb.u, step)
+            pb.u, d_done = u_try, d_try
+        f_int, _, _ = pb.assemble(pb.u, tangent=False)
+        on_stop(d_target, f_int)
+    return iters
 
 
-def _newton(pb: AxiProblem, u, max_it: int = 15, rtol: float = 1e-9):
-    """Newton on the free DOFs; returns (converged, iterations, u)."""
+def _superlu(a, b):
+    return spla.spsolve(a.tocsc(), b)
+
+
+def _newton(pb, u, max_it: int = 15, rtol: float = 1e-9, solver=None):
+    """Newton on the free DOFs; returns (converged, iterations, u). ``solver(A, b)``: sparse solve (SuperLU)."""
+    solver = solver or _superlu
     fr = pb.free
     scale = None
     for it in range(1, max_it + 1):
@@ -331,7 +350,7 @@ def _newton(pb: AxiProblem, u, max_it: int = 15, rtol: float = 1e-9):
             scale = max(np.abs(f[pb.tool]).sum(), 1e-30)
         if np.linalg.norm(r) <= rtol * scale:
             return True, it, u
-        du = spla.spsolve(K[fr][:, fr].tocsc(), -r)
+        du = solver(K[fr][:, fr], -r)
         if not np.all(np.isfinite(du)):
             return False, it, u
         u = u.copy()

@@ -20,7 +20,16 @@ import numpy as np  # noqa: E402
 
 from skin_sim_node.model import TissueConfig, preset  # noqa: E402
 
-from .references import AXI_LEVELS, AXI_REFERENCE_LEVEL, axisym, converged_fem  # noqa: E402
+from .references import (  # noqa: E402
+    AXI_LEVELS,
+    AXI_REFERENCE_LEVEL,
+    THREE_D_LEVEL,
+    THREE_D_SCENARIOS,
+    axisym,
+    converged_fem,
+    linear_3d,
+    nonlinear_3d,
+)
 from .scenarios import BY_NAME  # noqa: E402
 
 OUT = Path(__file__).resolve().parents[2] / "docs" / "validation"
@@ -84,6 +93,25 @@ def markdown(rows: list[dict], k3d: dict[str, float]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def three_d_markdown(cfg: TissueConfig | None = None, fresh: bool = False) -> str:
+    """The 3D egg-carton neo-Hookean solves: force at 1, 2, 3 mm, over the linear 3D FEM and the axisymmetric reference."""
+    ax = axisym(cfg)
+    lines = [f"## 3D, egg-carton interfaces (mesh level {THREE_D_LEVEL})", "",
+             "| scenario | DOFs | F 1 mm (N) | F 2 mm (N) | F 3 mm (N) | nonlinear / linear 3D at 0.125, 1, 2, 3 mm "
+             "| 3D / axisymmetric at 1, 2, 3 mm | Newton its | solve (s) |", "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for name in THREE_D_SCENARIOS:
+        sc = BY_NAME[name]
+        r = nonlinear_3d(sc, cfg, fresh=fresh)
+        k = linear_3d(sc, cfg, progress=False).stiffness_n_per_m
+        d = np.array([1e-3, 2e-3, 3e-3])
+        f = r.force_n(d)
+        ratio_lin = "; ".join(f"{r.force_n(x) / (k * x):.4f}" for x in (r.depths_m[0], *d))
+        ratio_ax = "; ".join(f"{a / b:.3f}" for a, b in zip(f, ax.force_n(d)))
+        lines.append(f"| {name} | {r.n_dofs} | {f[0]:.4f} | {f[1]:.4f} | {f[2]:.4f} | {ratio_lin} | {ratio_ax} "
+                     f"| {r.newton_iterations} | {r.solve_s:.0f} |")  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
 def chart(out: Path, cfg: TissueConfig | None, k3d: dict[str, float]) -> None:
     nh = axisym(cfg)
     lin = axisym(cfg, law="linear")
@@ -121,7 +149,7 @@ def run(out: Path = OUT, fresh: bool = False, cfg: TissueConfig | None = None) -
     k3d = {}
     if cfg is None or cfg == preset("default"):  # the cached 3D solves are of the default preset
         k3d = {n: converged_fem(BY_NAME[n], progress=False).stiffness_n_per_m for n in ("peak-3layer", "valley-3layer")}
-    text = markdown(rows, k3d)
+    text = markdown(rows, k3d) + "\n" + three_d_markdown(cfg, fresh)
     (out / "large_deformation.md").write_text(text)
     chart(out, cfg, k3d)
     print(text)

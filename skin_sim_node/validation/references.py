@@ -10,7 +10,7 @@ from dataclasses import replace
 
 from skin_sim_node.model import TissueConfig
 
-from . import hyperelastic
+from . import hyperelastic, hyperelastic3d
 from .fem import FemSetup, mesh_levels, reference
 
 FINEST_LEVEL = 1  # the converged linear 3D reference (convergence study: docs/validation/convergence.md)
@@ -44,3 +44,20 @@ def axisym(cfg: TissueConfig | None = None, level: int = AXI_REFERENCE_LEVEL, la
     """The axisymmetric flat-layer punch solve of ``cfg`` (default preset) to 3 mm (cached)."""
     s = hyperelastic.setup_from_config(cfg, level)
     return hyperelastic.reference(replace(s, law=law), progress=progress, fresh=fresh)
+
+
+THREE_D_LEVEL = -2
+"""Mesh level of the 3D neo-Hookean solves (about 9k DOFs quarter model, 18k half model): what a
+Newton solve to 3 mm fits in a few minutes here. The linear 3D FEM at this level is within 0.6 %
+of its finest level (docs/validation/convergence.md)."""
+THREE_D_SCENARIOS = ("peak-3layer", "valley-3layer", "edge-3layer")
+
+
+def nonlinear_3d(sc, cfg: TissueConfig | None = None, progress: bool = True, fresh: bool = False):
+    """The 3D egg-carton neo-Hookean solve of scenario ``sc`` at :data:`THREE_D_LEVEL` (cached)."""
+    return hyperelastic3d.reference(hyperelastic3d.setup_for(sc, cfg, THREE_D_LEVEL), progress=progress, fresh=fresh)
+
+
+def linear_3d(sc, cfg: TissueConfig | None = None, progress: bool = True):
+    """The linear 3D FEM on the same mesh as :func:`nonlinear_3d` (cached)."""
+    return reference(hyperelastic3d.setup_for(sc, cfg, THREE_D_LEVEL).fem, progress=progress)
