@@ -28,7 +28,24 @@ OUT_DEPTH_M = 2
 OUT_N_AFFECTED = 3
 OUT_SURFACE_M = 4  # surface displacement under the tool before this tick
 OUT_SETTLED = 5  # 1.0: no layer driven and every layer's displacement bound below settle_tol
-OUT_SIZE = 8
+OUT_FX = 6  # reaction force vector on the tool (N), tissue frame
+OUT_FY = 7
+OUT_FZ = 8
+OUT_NX = 9  # unit contact normal
+OUT_NY = 10
+OUT_NZ = 11
+OUT_RADIUS_M = 12  # contact radius (m), 0 out of contact
+OUT_DFN_DX = 13  # gradient of the normal force magnitude w.r.t. the tool position (N/m): x, y, z
+OUT_DFN_DY = 14
+OUT_DFN_DZ = 15
+OUT_SIZE = 16
+
+# Slots of the state array ``contact`` (layered form).
+CS_NX = 0  # contact normal, fixed at first contact
+CS_NY = 1
+CS_NZ = 2
+CS_T = 3  # last chain force per unit scale (N): the Newton warm start
+CS_SIZE = 4
 
 
 @njit(**JIT)
@@ -171,58 +188,203 @@ def layer_point_displacement(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y
     return u
 
 
+# Rows of the per-layer property array ``lp`` (shape (LP_SIZE, L)) of the grouped kernels.
+LP_K = 0  # Kelvin-Voigt spring k (N/m), eq 6
+LP_B = 1  # Kelvin-Voigt damper b (N s/m), eq 6
+LP_AREA = 2  # loaded area A (m^2), eq 6 (paper form)
+LP_EA = 3  # k times mean thickness (N): the layer's modulus times the tool area (layered form)
+LP_N = 4  # stiffening exponent n of the compression law (layered form)
+LP_SIZE = 5
+# Rows of the interface array ``ifc`` (shape (IF_SIZE, L - 1)).
+IF_MEAN = 0
+IF_AMP = 1
+IF_KX = 2  # 2 pi / wavelength_x
+IF_KY = 3
+IF_SIZE = 4
+# Slots of the scalar array ``sp``.
+SP_BOTTOM = 0  # tissue bottom (m)
+SP_HALF_X = 1
+SP_HALF_Y = 2
+SP_PATCH_A = 3
+SP_PATCH_B = 4
+SP_MODE_TOL = 5
+SP_SETTLE_TOL = 6
+SP_SKIP_SETTLED = 7  # 1.0: skip settled layers (lod.affected_layers)
+SP_TOOL_R = 8  # tool radius (m): flat punch radius or sphere radius
+SP_SPHERE = 9  # 1.0: spherical tip
+SP_MU = 10  # Coulomb friction coefficient
+SP_V_SLIP = 11  # viscous regularisation speed of the friction (m/s)
+SP_WALL = 12  # strain beyond which the compression law continues linearly (the wall)
+SP_SIZE = 16
+
+
 @njit(**JIT)
-def step_kernel(
-    tool_x, tool_y, tool_z, tool_vz, dt,
-    k, b, area, iface_mean, iface_amp, iface_kx, iface_ky, bottom_m, half_x, half_y,
-    beta_table, trunc_err, k_prefix, m_lim, mode_m, mode_n, patch_a, patch_b, lam, gamma,
-    mode_tol, settle_tol, skip_settled,
-    q, v, centre, driven, comp, level, dropped, active, amp, prop, prop_dt, prop_k, bounds, thick, sx_buf, sy_buf, out,
-):  # fmt: skip
-    """One haptic tick of the layered model: contact, Reuss force and modal state.
+def prepare_propagators(lam, gamma, dt, level, k_prefix, prop, prop_dt, prop_k):
+    """Every layer's propagator for ``dt`` at its current level (cached in ``prop_dt``/``prop_k``)."""
+    for li in range(level.shape[0]):
+        nk = k_prefix[level[li]]
+        if prop_dt[li] != dt or prop_k[li] < nk:
+            layer_propagator(lam, gamma, dt, li, nk, prop)
+            prop_dt[li] = dt
+            prop_k[li] = nk
 
-    Steps 1-5 of section II.D.4. Layers the tool affects are driven quasi-statically
-    (``q = dx_l * beta``, centred on the tool); the others evolve freely with the exact
-    damped modal propagator (release and return). Contact is unilateral and is tested
-    against the current deformed surface. Writes ``out`` (see ``OUT_*``) and returns flags.
 
-    Level of detail: layer ``l`` uses the first ``k_prefix[level[l]]`` modes. With several
-    levels (adaptive modes) a driven layer takes the smallest level whose truncation bound
-    ``|dx_l| trunc_err`` is within ``mode_tol`` (m). With ``settle_tol > 0`` a free layer's
-    displacement bound ``amp[l] = sum_k sqrt(q_k^2 + (v_k/lam_k)^2)`` (energy: no future
-    displacement exceeds it) is kept; with ``skip_settled`` a layer below ``settle_tol`` is set
-    to rest and, while ``active[l] == 0``, skipped. ``prop_dt``/``prop_k`` (L,) cache each
-    layer's propagator. A free layer with several levels sheds its outermost shell of modes when
-    that shell's displacement bound, added to what the layer already shed since it was last
-    driven (``dropped``, m), is within ``mode_tol``: relaxation keeps within ``2 mode_tol`` of the
-    reference and its cost falls as it decays.
-    """
-    n_layers = q.shape[0]
-    n_levels = beta_table.shape[0]
-    flags = 0
-    if not skip_settled:  # every layer's propagator, driven or not, as without the lever
-        for li in range(n_layers):
+@njit(**JIT)
+def surface_at(x, y, sp, basis, state, sx_buf, sy_buf):
+    """Downward surface displacement (m) at ``(x, y)``: eq 2 summed over the active layers."""
+    beta_table, trunc_err, k_prefix, m_lim, mode_m, mode_n, lam, gamma = basis
+    q, v, centre, driven, comp, level, dropped, active, amp, prop, prop_dt, prop_k, contact = state
+    surface = 0.0
+    for li in range(q.shape[0]):
+        if active[li]:
             nk = k_prefix[level[li]]
-            if prop_dt[li] != dt or prop_k[li] < nk:
-                layer_propagator(lam, gamma, dt, li, nk, prop)
-                prop_dt[li] = dt
-                prop_k[li] = nk
+            ml = m_lim[level[li]] + 1
+            surface += layer_point_displacement(
+                q[li, :nk], centre[li, 0], centre[li, 1], mode_m[:nk], mode_n[:nk], sp[SP_PATCH_A], sp[SP_PATCH_B], x, y,
+                sx_buf[:ml], sy_buf[:ml],
+            )  # fmt: skip
+    return surface
+
+
+@njit(**JIT)
+def drive_layer(li, comp_m, rate_m_s, x, y, sp, basis, state):
+    """Drive layer ``li`` quasi-statically: ``q = dx_l beta``, ``v = dxdot_l beta``, centred on the tool.
+
+    With several levels (adaptive modes) the layer takes the smallest level whose truncation
+    bound ``|dx_l| trunc_err`` is within ``sp[SP_MODE_TOL]``.
+    """
+    beta_table, trunc_err, k_prefix, m_lim, mode_m, mode_n, lam, gamma = basis
+    q, v, centre, driven, comp, level, dropped, active, amp, prop, prop_dt, prop_k, contact = state
+    n_levels = beta_table.shape[0]
+    lv = 0
+    if n_levels > 1:
+        lv = n_levels - 1
+        for i in range(n_levels):
+            if abs(comp_m) * trunc_err[i] <= sp[SP_MODE_TOL]:
+                lv = i
+                break
+    nk = k_prefix[lv]
+    for kk in range(nk):
+        q[li, kk] = comp_m * beta_table[lv, kk]
+        v[li, kk] = rate_m_s * beta_table[lv, kk]
+    for kk in range(nk, k_prefix[level[li]]):  # fewer modes than last tick
+        q[li, kk] = 0.0
+        v[li, kk] = 0.0
+    comp[li] = comp_m
+    level[li] = lv
+    dropped[li] = 0.0
+    centre[li, 0] = x
+    centre[li, 1] = y
+    driven[li] = 1
+    active[li] = 1
+    amp[li] = math.inf
+
+
+@njit(**JIT)
+def relax_layer(li, dt, sp, basis, state):
+    """Advance a free layer by the exact damped modal propagator (release and return, eq 2).
+
+    Keeps the displacement bound ``amp[l] = sum_k sqrt(q_k^2 + (v_k/lam_k)^2)`` when
+    ``settle_tol > 0``; sheds the outermost shell of modes once its bound, added to what the layer
+    already shed since it was last driven, is within the mode tolerance; with ``skip_settled`` a
+    layer below ``settle_tol`` is set to rest (``active = 0``).
+    """
+    beta_table, trunc_err, k_prefix, m_lim, mode_m, mode_n, lam, gamma = basis
+    q, v, centre, driven, comp, level, dropped, active, amp, prop, prop_dt, prop_k, contact = state
+    settle_tol = sp[SP_SETTLE_TOL]
+    skip_settled = sp[SP_SKIP_SETTLED] > 0.0
+    n_levels = beta_table.shape[0]
+    driven[li] = 0
+    if not active[li]:
+        return
+    nk = k_prefix[level[li]]
+    if skip_settled and (prop_dt[li] != dt or prop_k[li] < nk):
+        layer_propagator(lam, gamma, dt, li, nk, prop)
+        prop_dt[li] = dt
+        prop_k[li] = nk
+    bound = 0.0
+    for kk in range(nk):
+        q0 = q[li, kk]
+        v0 = v[li, kk]
+        q1 = prop[0, li, kk] * q0 + prop[1, li, kk] * v0
+        v1 = prop[2, li, kk] * q0 + prop[3, li, kk] * v0
+        q[li, kk] = q1
+        v[li, kk] = v1
+        if settle_tol > 0.0:
+            r = v1 / lam[li, kk]
+            bound += math.sqrt(q1 * q1 + r * r)
+    amp[li] = bound if settle_tol > 0.0 else math.inf
+    lv = level[li]
+    if n_levels > 1 and lv > 0:  # shed the outer shell once it is negligible
+        k0 = k_prefix[lv - 1]
+        tail = 0.0
+        for kk in range(k0, nk):
+            r = v[li, kk] / lam[li, kk]
+            tail += math.sqrt(q[li, kk] * q[li, kk] + r * r)
+        if dropped[li] + tail <= sp[SP_MODE_TOL]:
+            for kk in range(k0, nk):
+                q[li, kk] = 0.0
+                v[li, kk] = 0.0
+            level[li] = lv - 1
+            dropped[li] += tail
+    if skip_settled and bound < settle_tol:
+        for kk in range(nk):
+            q[li, kk] = 0.0
+            v[li, kk] = 0.0
+        active[li] = 0
+        amp[li] = 0.0
+
+
+@njit(**JIT)
+def settled_flag(sp, state):
+    """1.0 when no layer is driven and every layer's displacement bound is below ``settle_tol``."""
+    q, v, centre, driven, comp, level, dropped, active, amp, prop, prop_dt, prop_k, contact = state
+    settle_tol = sp[SP_SETTLE_TOL]
+    if settle_tol <= 0.0:
+        return 0.0
+    for li in range(driven.shape[0]):
+        if driven[li] or not amp[li] < settle_tol:
+            return 0.0
+    return 1.0
+
+
+@njit(**JIT)
+def step_kernel(tool_x, tool_y, tool_z, tool_vz, dt, props, basis, state, scratch, out):
+    """One haptic tick of the paper's layered model: contact, Reuss force and modal state.
+
+    Steps 1-5 of section II.D.4. Layers the tool affects (Fig 3) are driven quasi-statically
+    (``q = dx_l * beta``, centred on the tool, :func:`drive_layer`); the others evolve freely with
+    the exact damped modal propagator (release and return, :func:`relax_layer`). Contact is
+    unilateral and is tested against the current deformed surface. Writes ``out`` (see ``OUT_*``)
+    and returns flags.
+
+    Arguments are grouped: ``props = (lp, ifc, sp)`` (per-layer rows ``LP_*``, interface rows
+    ``IF_*``, scalars ``SP_*``); ``basis = (beta_table, trunc_err, k_prefix, m_lim, mode_m, mode_n,
+    lam, gamma)`` (:class:`~skin_sim_node.model.modal.ModalBasis`); ``state = (q, v, centre, driven,
+    comp, level, dropped, active, amp, prop, prop_dt, prop_k, contact)`` (``contact``: the layered form's
+    ``CS_*`` slots); ``scratch = (bounds, thick, sx_buf,
+    sy_buf, aux)``, ``aux`` (AUX_SIZE, L) per-layer scratch.
+
+    Level of detail: layer ``l`` uses the first ``k_prefix[level[l]]`` modes; with several levels
+    (adaptive modes) a driven layer takes the smallest level whose truncation bound is within the
+    mode tolerance. With ``settle_tol > 0`` a free layer's displacement bound is kept; with
+    ``skip_settled`` a layer below ``settle_tol`` is set to rest and skipped while inactive.
+    """
+    lp, ifc, sp = props
+    q, v, centre, driven, comp, level, dropped, active, amp, prop, prop_dt, prop_k, contact = state
+    bounds, thick, sx_buf, sy_buf, aux = scratch
+    n_layers = q.shape[0]
+    flags = 0
+    if not sp[SP_SKIP_SETTLED] > 0.0:  # every layer's propagator, driven or not, as without the lever
+        prepare_propagators(basis[6], basis[7], dt, level, basis[2], prop, prop_dt, prop_k)
     depth = -tool_z
     velocity = -tool_vz
     was_contact = False
     for li in range(n_layers):
         if driven[li]:
             was_contact = True
-    surface = 0.0
-    for li in range(n_layers):
-        if active[li]:
-            nk = k_prefix[level[li]]
-            ml = m_lim[level[li]] + 1
-            surface += layer_point_displacement(
-                q[li, :nk], centre[li, 0], centre[li, 1], mode_m[:nk], mode_n[:nk], patch_a, patch_b, tool_x, tool_y,
-                sx_buf[:ml], sy_buf[:ml],
-            )  # fmt: skip
-    on_sheet = abs(tool_x) <= half_x and abs(tool_y) <= half_y
+    surface = surface_at(tool_x, tool_y, sp, basis, state, sx_buf, sy_buf)
+    on_sheet = abs(tool_x) <= sp[SP_HALF_X] and abs(tool_y) <= sp[SP_HALF_Y]
     if not on_sheet:
         flags |= FLAG_OFF_SHEET
     n = 0
@@ -231,7 +393,7 @@ def step_kernel(
     d_eff = 0.0
     touching = on_sheet and depth > 0.0 and (was_contact or depth >= surface)
     if touching:
-        layer_bounds(tool_x, tool_y, iface_mean, iface_amp, iface_kx, iface_ky, bottom_m, bounds)
+        layer_bounds(tool_x, tool_y, ifc[IF_MEAN], ifc[IF_AMP], ifc[IF_KX], ifc[IF_KY], sp[SP_BOTTOM], bounds)
         d_eff = depth
         if depth > bounds[n_layers]:
             d_eff = bounds[n_layers]
@@ -239,7 +401,7 @@ def step_kernel(
         n = count_affected(d_eff, bounds)
         for li in range(n_layers):
             thick[li] = bounds[li + 1] - bounds[li]
-        sigma, force, hit = reuss_split(n, d_eff, velocity, k, b, area, thick, comp)
+        sigma, force, hit = reuss_split(n, d_eff, velocity, lp[LP_K], lp[LP_B], lp[LP_AREA], thick, aux[0])
         if hit:
             flags |= FLAG_LAYER_BOUND
         if force <= 0.0 or sigma <= 0.0:
@@ -253,80 +415,24 @@ def step_kernel(
         n = 0
     for li in range(n_layers):
         if li < n:
-            share = comp[li] / d_eff  # layer's part of the tool velocity; round-off safe
-            rate = velocity * min(1.0, max(0.0, share))
-            lv = 0
-            if n_levels > 1:
-                lv = n_levels - 1
-                for i in range(n_levels):
-                    if abs(comp[li]) * trunc_err[i] <= mode_tol:
-                        lv = i
-                        break
-            nk = k_prefix[lv]
-            for kk in range(nk):
-                q[li, kk] = comp[li] * beta_table[lv, kk]
-                v[li, kk] = rate * beta_table[lv, kk]
-            for kk in range(nk, k_prefix[level[li]]):  # fewer modes than last tick
-                q[li, kk] = 0.0
-                v[li, kk] = 0.0
-            level[li] = lv
-            dropped[li] = 0.0
-            centre[li, 0] = tool_x
-            centre[li, 1] = tool_y
-            driven[li] = 1
-            active[li] = 1
-            amp[li] = math.inf
+            share = aux[0, li] / d_eff  # layer's part of the tool velocity (common velocity, eq 6); round-off safe
+            drive_layer(li, aux[0, li], velocity * min(1.0, max(0.0, share)), tool_x, tool_y, sp, basis, state)
         else:
             comp[li] = 0.0
-            driven[li] = 0
-            if not active[li]:
-                continue
-            nk = k_prefix[level[li]]
-            if skip_settled and (prop_dt[li] != dt or prop_k[li] < nk):
-                layer_propagator(lam, gamma, dt, li, nk, prop)
-                prop_dt[li] = dt
-                prop_k[li] = nk
-            bound = 0.0
-            for kk in range(nk):
-                q0 = q[li, kk]
-                v0 = v[li, kk]
-                q1 = prop[0, li, kk] * q0 + prop[1, li, kk] * v0
-                v1 = prop[2, li, kk] * q0 + prop[3, li, kk] * v0
-                q[li, kk] = q1
-                v[li, kk] = v1
-                if settle_tol > 0.0:
-                    r = v1 / lam[li, kk]
-                    bound += math.sqrt(q1 * q1 + r * r)
-            amp[li] = bound if settle_tol > 0.0 else math.inf
-            lv = level[li]
-            if n_levels > 1 and lv > 0:  # shed the outer shell once it is negligible
-                k0 = k_prefix[lv - 1]
-                tail = 0.0
-                for kk in range(k0, nk):
-                    r = v[li, kk] / lam[li, kk]
-                    tail += math.sqrt(q[li, kk] * q[li, kk] + r * r)
-                if dropped[li] + tail <= mode_tol:
-                    for kk in range(k0, nk):
-                        q[li, kk] = 0.0
-                        v[li, kk] = 0.0
-                    level[li] = lv - 1
-                    dropped[li] += tail
-            if skip_settled and bound < settle_tol:
-                for kk in range(nk):
-                    q[li, kk] = 0.0
-                    v[li, kk] = 0.0
-                active[li] = 0
-                amp[li] = 0.0
+            relax_layer(li, dt, sp, basis, state)
     out[OUT_FORCE_N] = force
     out[OUT_STRESS_PA] = sigma
     out[OUT_DEPTH_M] = d_eff
     out[OUT_N_AFFECTED] = n
     out[OUT_SURFACE_M] = surface
-    settled = settle_tol > 0.0
-    for li in range(n_layers):
-        if driven[li] or not amp[li] < settle_tol:
-            settled = False
-    out[OUT_SETTLED] = 1.0 if settled else 0.0
+    out[OUT_SETTLED] = settled_flag(sp, state)
+    out[OUT_FX] = 0.0
+    out[OUT_FY] = 0.0
+    out[OUT_FZ] = force
+    out[OUT_NX] = 0.0
+    out[OUT_NY] = 0.0
+    out[OUT_NZ] = 1.0
+    out[OUT_RADIUS_M] = sp[SP_TOOL_R] if touching else 0.0
     return flags
 
 
