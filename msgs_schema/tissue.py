@@ -73,14 +73,14 @@ _LAYER_DEFAULTS = {
 }
 _POISSON = 0.48
 _PATCH_M = 0.06
-STIFFENING_EXPONENT = 0.7
+STIFFENING_EXPONENT = 1.45
 """Default ``n`` of the compression law ``phi = ((1 - eps)^-n - 1) / n`` for every layer: fitted to the
 issue's layered neo-Hookean FEM over linear FEM force ratios (1.35, 2.0, 2.8 at 1, 2, 3 mm) with the
-default layers (``skin-sim bench-model --physics`` prints the fit); the reference's calibration refines it."""
+default layers (``skin-sim bench-model --physics`` prints the fit: 1.45); the reference's calibration refines it."""
 WALL_STRAIN = 0.95
 """Layer strain beyond which the compression law continues along its tangent: the bottom is a finite,
-steep wall (tangent ``(1 - 0.95)^-(n+1)`` = 190 x the small-strain stiffness at n = 0.75), not a clamp,
-and the chain's Newton solve stays well conditioned for any depth."""
+steep wall (tangent ``(1 - 0.95)^-(n+1)``, about 1500 x the small-strain stiffness at n = 1.45), not a
+clamp, and the chain's Newton solve stays well conditioned for any depth."""
 FRICTION_COEFFICIENT = 0.4
 """Dry skin against smooth metal/plastic probes: 0.2-0.6 (Derler and Gerhardt 2012, Tribol Lett 45:1, review); 0.4 mid-range."""
 SLIP_SPEED_M_S = 1e-3
