@@ -9,10 +9,9 @@ from conftest import kernel
 from scipy.integrate import quad
 from scipy.special import j0, j1
 
-from skin_sim_node.model import SkinModel, preset
+from skin_sim_node.model import SkinModel, physics, preset
 from skin_sim_node.model import kernels as kn
 from skin_sim_node.model import layered as lk
-from skin_sim_node.model import physics
 from skin_sim_node.model import reference as ref
 from skin_sim_node.model.config import WALL_STRAIN
 
@@ -180,7 +179,8 @@ def test_tangent_matches_finite_differences(cfg, shape, where, vel):
     scale = np.abs(tan.stiffness_n_per_m).max()
     np.testing.assert_allclose(tan.stiffness_n_per_m, k_fd, atol=2e-5 * scale)
     hv = 1e-7
-    d_fd = np.column_stack([(force(pos, np.add(vel, hv * e)) - force(pos, np.subtract(vel, hv * e))) / (2 * hv) for e in np.eye(3)])
+    d_fd = np.column_stack([(force(pos, np.add(vel, hv * e)) - force(pos, np.subtract(vel, hv * e))) / (2 * hv)
+                            for e in np.eye(3)])  # fmt: skip
     np.testing.assert_allclose(tan.damping_n_s_per_m, d_fd, atol=1e-5 * max(1.0, np.abs(d_fd).max()))
     assert tan.normal @ tan.stiffness_n_per_m @ tan.normal < 0  # pressing in raises the force
 
@@ -225,8 +225,12 @@ def test_chain_is_passive_for_any_dt(cfg, dt):
     nexp = m._lp[kn.LP_N]
 
     def stored(comp, thick):
-        return sum(ea[i] * thick[i] * quad(lambda e: lk.compression_law(e, nexp[i], WALL_STRAIN)[0], 0, comp[i] / thick[i])[0]
-                   for i in range(3))  # fmt: skip
+        total = 0.0
+        for i in range(3):
+            n_i = nexp[i]
+            energy = quad(lambda e, n_i=n_i: lk.compression_law(e, n_i, WALL_STRAIN)[0], 0, comp[i] / thick[i])[0]
+            total += ea[i] * thick[i] * energy
+        return total
 
     work = 0.0
     d_prev = 0.0

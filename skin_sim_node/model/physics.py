@@ -115,7 +115,11 @@ def linear_series_force(cfg: TissueConfig, depth_m: float) -> float:
     return depth_m / sum(1.0 / la.stiffness_n_per_m for la in cfg.layers)
 
 
-def fit_stiffening(cfg: TissueConfig, candidates=np.round(np.arange(0.0, 2.01, 0.05), 2)) -> tuple[float, float]:
+STIFFENING_CANDIDATES = tuple(round(0.05 * i, 2) for i in range(41))
+"""Exponents tried by :func:`fit_stiffening`: 0 to 2 in steps of 0.05."""
+
+
+def fit_stiffening(cfg: TissueConfig, candidates=STIFFENING_CANDIDATES) -> tuple[float, float]:
     """Exponent ``n`` (same for every layer) whose force over the linear series force best matches
     :data:`FEM_NONLINEAR_RATIO` (least squares in log); returns ``(n, rms log error)``."""
     best = (float("nan"), float("inf"))
@@ -170,8 +174,9 @@ def main(points: int = 40) -> int:
           f"running maximum (at x = {where[0] * 1e3:.1f} mm, y = {where[1] * 1e3:.1f} mm)", flush=True)  # fmt: skip
     for y in (0.0, wl / 4):
         r, fmin, fmax = drag_ratio(cfg, y_m=y)
-        print(f"drag: 10 mm at 1 mm depth, 10 mm/s, y = {y * 1e3:.2f} mm: max/min {r:.4f} ({fmin:.4f} .. {fmax:.4f} N)", flush=True)
-    print("wall (quasi-static force below the stack, bottom at {:.3f} mm):".format(cfg.total_thickness_m * 1e3))
+        print(f"drag: 10 mm at 1 mm depth, 10 mm/s, y = {y * 1e3:.2f} mm: max/min {r:.4f} ({fmin:.4f} .. {fmax:.4f} N)",
+              flush=True)  # fmt: skip
+    print(f"wall (quasi-static force below the stack, bottom at {cfg.total_thickness_m * 1e3:.3f} mm):")
     prev = None
     for d, f in wall_curve(cfg):
         slope = "" if prev is None else f", slope {(f - prev[1]) / (d - prev[0]) / 1e3:.2f} N/mm"
