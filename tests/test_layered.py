@@ -97,25 +97,25 @@ def test_chain_warm_start_gives_the_same_root(rng):
 def test_averaged_bounds_match_quadrature_and_derivatives(compiled, cfg):
     fn = kernel(lk.averaged_bounds, compiled)
     m = SkinModel(cfg)
-    ifc = m._ifc
+    lp = m._lp
     bounds, dbx, dby, dbd = np.zeros(4), np.zeros(3), np.zeros(3), np.zeros(3)
     for x0, y0, radius in [(0.0, 0.0, 2.5e-3), (1.7e-3, -0.4e-3, 2.5e-3), (2.5e-3, 0.0, 0.8e-3), (0.3e-3, 1.1e-3, 1.5e-3)]:
-        fn(x0, y0, radius, 0.0, ifc, 5.275e-3, bounds, dbx, dby, dbd)
+        fn(x0, y0, radius, 0.0, lp, 5.275e-3, bounds, dbx, dby, dbd)
         for j in range(2):
-            expect = ref.averaged_interface_ref(ifc[kn.IF_MEAN, j], ifc[kn.IF_AMP, j], ifc[kn.IF_KX, j], ifc[kn.IF_KY, j],
-                                                x0, y0, radius)  # fmt: skip
+            expect = ref.averaged_interface_ref(lp[kn.LP_IF_MEAN, j], lp[kn.LP_IF_AMP, j], lp[kn.LP_IF_KX, j],
+                                                lp[kn.LP_IF_KY, j], x0, y0, radius)  # fmt: skip
             assert bounds[j + 1] == pytest.approx(expect, abs=2e-10)
         h = 1e-7
         plus, minus = np.zeros(4), np.zeros(4)
         scratch = np.zeros(3)
-        fn(x0 + h, y0, radius, 0.0, ifc, 5.275e-3, plus, scratch, scratch.copy(), scratch.copy())
-        fn(x0 - h, y0, radius, 0.0, ifc, 5.275e-3, minus, scratch, scratch.copy(), scratch.copy())
+        fn(x0 + h, y0, radius, 0.0, lp, 5.275e-3, plus, scratch, scratch.copy(), scratch.copy())
+        fn(x0 - h, y0, radius, 0.0, lp, 5.275e-3, minus, scratch, scratch.copy(), scratch.copy())
         np.testing.assert_allclose(dbx[:2], (plus - minus)[1:3] / (2 * h), rtol=1e-4, atol=1e-9)
-        fn(x0, y0 + h, radius, 0.0, ifc, 5.275e-3, plus, scratch, scratch.copy(), scratch.copy())
-        fn(x0, y0 - h, radius, 0.0, ifc, 5.275e-3, minus, scratch, scratch.copy(), scratch.copy())
+        fn(x0, y0 + h, radius, 0.0, lp, 5.275e-3, plus, scratch, scratch.copy(), scratch.copy())
+        fn(x0, y0 - h, radius, 0.0, lp, 5.275e-3, minus, scratch, scratch.copy(), scratch.copy())
         np.testing.assert_allclose(dby[:2], (plus - minus)[1:3] / (2 * h), rtol=1e-4, atol=1e-9)
     # the dermis/fat interface under the 5 mm punch varies by a few percent of the fat, not by its full amplitude
-    at = [(fn(x, 0.0, 2.5e-3, 0.0, ifc, 5.275e-3, bounds, dbx, dby, dbd), bounds[2])[1] for x in np.linspace(0, 5e-3, 51)]
+    at = [(fn(x, 0.0, 2.5e-3, 0.0, lp, 5.275e-3, bounds, dbx, dby, dbd), bounds[2])[1] for x in np.linspace(0, 5e-3, 51)]
     assert (max(at) - min(at)) / cfg.layers[2].thickness_m < 0.05
 
 
@@ -137,9 +137,7 @@ def test_layered_step_kernel_compiled_matches_py_func(cfg, shape):
     for pos, vel in _path():
         f1 = fast.step(pos, vel, 1e-3)
         slow.kernel_calls += 1
-        slow.flags = lk.layered_step_kernel.py_func(
-            *map(float, pos), *map(float, vel), 1e-3, slow._props, slow._basis_args, slow._state, slow._scratch, slow._out
-        )
+        slow.flags = lk.layered_step_kernel.py_func(*map(float, pos), *map(float, vel), 1e-3, *slow._args)
         assert f1 == pytest.approx(slow.force_n, rel=1e-12, abs=1e-15) and fast.flags == slow.flags
         np.testing.assert_allclose(fast._out, slow._out, rtol=1e-10, atol=1e-13)
         np.testing.assert_allclose(fast.q, slow.q, rtol=1e-10, atol=1e-16)

@@ -30,14 +30,7 @@ from . import kernels as kn
 
 JIT = kn.JIT
 
-# Rows of the per-layer scratch array ``aux`` (shape (AUX_SIZE, L)).
-AUX_C_OLD = 0  # chain compressions at the previous tick (m)
-AUX_C = 1  # chain compressions now (m)
-AUX_G = 2  # dT/dc_i of each layer's backward-Euler residual (N/m)
-AUX_DBX = 3  # d(interface depth)/dx of the averaged interfaces (first L - 1 entries)
-AUX_DBY = 4
-AUX_DBD = 5  # d(interface depth)/d(depth) through the contact radius (sphere)
-AUX_SIZE = 6
+AUX_C_OLD, AUX_C, AUX_G, AUX_DBX, AUX_DBY, AUX_DBD = kn.AUX_C_OLD, kn.AUX_C, kn.AUX_G, kn.AUX_DBX, kn.AUX_DBY, kn.AUX_DBD
 
 RATE_CAP_M_S = 3.0
 """Largest layer rate handed to a membrane (m/s): the node's default tool speed cap (``max_tool_speed_m_s``;
@@ -166,7 +159,7 @@ def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, out_c, out_g):
 
 
 @njit(**JIT)
-def averaged_bounds(x, y, radius, dradius_dd, ifc, bottom, bounds, dbx, dby, dbd):
+def averaged_bounds(x, y, radius, dradius_dd, lp, bottom, bounds, dbx, dby, dbd):
     """Layer tops under a contact disk of ``radius`` centred at ``(x, y)``: egg-carton interfaces
     averaged over the disk (section II.C), and their derivatives.
 
@@ -174,19 +167,19 @@ def averaged_bounds(x, y, radius, dradius_dd, ifc, bottom, bounds, dbx, dby, dbd
     with ``kappa = sqrt(kx^2 + ky^2)`` (each product term is a plane wave ``cos(k . r)``, whose disk
     average is its centre value times ``jinc(|k| a)``). ``bounds[0] = 0`` (surface), ``bounds[L]``
     the bottom; ``dbx``/``dby``/``dbd`` the derivatives of interface ``j`` w.r.t. x, y and the
-    tool depth (through ``radius``, ``dradius_dd`` = da/dd).
+    tool depth (through ``radius``, ``dradius_dd`` = da/dd). ``lp``: the interface rows ``LP_IF_*``.
     """
-    nif = ifc.shape[1]
+    nif = bounds.shape[0] - 2
     bounds[0] = 0.0
     for j in range(nif):
-        kx = ifc[kn.IF_KX, j]
-        ky = ifc[kn.IF_KY, j]
-        amp = ifc[kn.IF_AMP, j]
+        kx = lp[kn.LP_IF_KX, j]
+        ky = lp[kn.LP_IF_KY, j]
+        amp = lp[kn.LP_IF_AMP, j]
         kappa = math.sqrt(kx * kx + ky * ky)
         w, dw = jinc(kappa * radius)
         cx = math.cos(kx * x)
         cy = math.cos(ky * y)
-        bounds[j + 1] = ifc[kn.IF_MEAN, j] - amp * cx * cy * w
+        bounds[j + 1] = lp[kn.LP_IF_MEAN, j] - amp * cx * cy * w
         dbx[j] = amp * kx * math.sin(kx * x) * cy * w
         dby[j] = amp * ky * cx * math.sin(ky * y) * w
         dbd[j] = -amp * cx * cy * dw * kappa * dradius_dd
@@ -211,45 +204,30 @@ def contact_geometry(depth, radius, sphere):
 
 
 @njit(**JIT)
-def _layer_at(li, x, y, sp, basis, state, sx_buf, sy_buf):
-    """Layer ``li``'s downward displacement (m) at ``(x, y)`` at its current level (eq 2)."""
-    k_prefix, m_lim, mode_m, mode_n = basis[2], basis[3], basis[4], basis[5]
-    q, centre, level = state[0], state[2], state[5]
-    nk = k_prefix[level[li]]
-    ml = m_lim[level[li]] + 1
-    return kn.layer_point_displacement(
-        q[li, :nk], centre[li, 0], centre[li, 1], mode_m[:nk], mode_n[:nk], sp[kn.SP_PATCH_A], sp[kn.SP_PATCH_B], x, y,
-        sx_buf[:ml], sy_buf[:ml],
-    )  # fmt: skip
-
-
-@njit(**JIT)
-def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, props, basis, state, scratch, out):
+def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate,
+                        istate, aux, sbuf, out):  # fmt: skip
     """One haptic tick of the layered form: series chain force, friction, tangent and modal state.
 
     Arguments as :func:`skin_sim_node.model.kernels.step_kernel` plus the tool's lateral velocity.
     Contact is unilateral and tested against the current deformed surface. At first contact the
     chain starts from each layer's current displacement under the tool and the contact normal is
-    fixed from the deformed surface's slope there; while in contact every layer is driven with its
-    own compression and rate (eq 3: ``q = c_l beta``, ``v = cdot_l beta``); out of contact (or when
-    the chain relaxing with zero force is longer than the tool depth) every layer relaxes freely.
-    Writes ``out`` (``OUT_*``, including the force vector, normal, contact radius and the gradient
-    of the normal force) and returns flags.
+    fixed from the deformed surface's slope there (central differences over 5 um); while in contact
+    every layer is driven with its own compression and rate (eq 3: ``q = c_l beta``, ``v = cdot_l
+    beta``); out of contact (or when the chain relaxing with zero force is shorter than the tool
+    depth) every layer relaxes freely. Writes ``out`` (``OUT_*``: force vector, normal, contact
+    radius, gradient of the normal force, and ``OUT_T``/normal carried to the next tick) and
+    returns flags.
     """
-    lp, ifc, sp = props
-    q, v, centre, driven, comp, level, dropped, active, amp, prop, prop_dt, prop_k, contact = state
-    bounds, thick, sx_buf, sy_buf, aux = scratch
-    beta_table, trunc_err, k_prefix, m_lim, mode_m, mode_n, lam, gamma = basis
-    nl = q.shape[0]
+    nl = istate.shape[1]
     flags = 0
     if not sp[kn.SP_SKIP_SETTLED] > 0.0:
-        kn.prepare_propagators(lam, gamma, dt, level, k_prefix, prop, prop_dt, prop_k)
+        kn.prepare_propagators(bmodes, bvec, blev, dt, mstate, lstate, istate)
     depth = -tool_z
     was_contact = False
     for li in range(nl):
-        if driven[li]:
+        if istate[kn.IS_DRIVEN, li]:
             was_contact = True
-    surface = kn.surface_at(tool_x, tool_y, sp, basis, state, sx_buf, sy_buf)
+    surface = kn.surface_at(tool_x, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
     on_sheet = abs(tool_x) <= sp[kn.SP_HALF_X] and abs(tool_y) <= sp[kn.SP_HALF_Y]
     if not on_sheet:
         flags |= kn.FLAG_OFF_SHEET
@@ -259,40 +237,41 @@ def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, p
     a = 0.0
     s = 1.0
     ds = 0.0
-    c_old = aux[AUX_C_OLD]
-    c_new = aux[AUX_C]
-    g = aux[AUX_G]
+    bounds = aux[kn.AUX_BOUNDS]
+    thick = aux[kn.AUX_THICK, :nl]
+    c_old = aux[AUX_C_OLD, :nl]
+    c_new = aux[AUX_C, :nl]
+    g = aux[AUX_G, :nl]
     if touching:
         a, s, ds, da_dd = contact_geometry(depth, sp[kn.SP_TOOL_R], sp[kn.SP_SPHERE] > 0.0)
-        bottom = sp[kn.SP_BOTTOM]
-        averaged_bounds(tool_x, tool_y, a, da_dd, ifc, bottom, bounds, aux[AUX_DBX], aux[AUX_DBY], aux[AUX_DBD])
+        averaged_bounds(tool_x, tool_y, a, da_dd, lp, sp[kn.SP_BOTTOM], bounds, aux[AUX_DBX], aux[AUX_DBY], aux[AUX_DBD])
         for li in range(nl):
             thick[li] = bounds[li + 1] - bounds[li]
         if was_contact:
             for li in range(nl):
-                c_old[li] = comp[li]
+                c_old[li] = lstate[kn.LS_COMP, li]
         else:  # first contact: start from the deformed state under the tool, normal from its slope
             gx = 0.0
             gy = 0.0
             hstep = 5e-6
             for li in range(nl):
                 c_old[li] = 0.0
-                if active[li]:
-                    c_old[li] = _layer_at(li, tool_x, tool_y, sp, basis, state, sx_buf, sy_buf)
-                    gx += _layer_at(li, tool_x + hstep, tool_y, sp, basis, state, sx_buf, sy_buf)
-                    gx -= _layer_at(li, tool_x - hstep, tool_y, sp, basis, state, sx_buf, sy_buf)
-                    gy += _layer_at(li, tool_x, tool_y + hstep, sp, basis, state, sx_buf, sy_buf)
-                    gy -= _layer_at(li, tool_x, tool_y - hstep, sp, basis, state, sx_buf, sy_buf)
+                if istate[kn.IS_ACTIVE, li]:
+                    c_old[li] = kn.layer_at(li, tool_x, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gx += kn.layer_at(li, tool_x + hstep, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gx -= kn.layer_at(li, tool_x - hstep, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gy += kn.layer_at(li, tool_x, tool_y + hstep, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gy -= kn.layer_at(li, tool_x, tool_y - hstep, sp, blev, bk, mstate, lstate, istate, sbuf)
             gx /= 2.0 * hstep
             gy /= 2.0 * hstep
             # surface height -U(x, y) (z up): outward normal ~ (dU/dx, dU/dy, 1)
             norm = math.sqrt(gx * gx + gy * gy + 1.0)
-            contact[kn.CS_NX] = gx / norm
-            contact[kn.CS_NY] = gy / norm
-            contact[kn.CS_NZ] = 1.0 / norm
-            contact[kn.CS_T] = 0.0
+            out[kn.OUT_NX] = gx / norm
+            out[kn.OUT_NY] = gy / norm
+            out[kn.OUT_NZ] = 1.0 / norm
+            out[kn.OUT_T] = 0.0
         wall = sp[kn.SP_WALL]
-        t = chain_solve(depth, contact[kn.CS_T], lp[kn.LP_EA], lp[kn.LP_N], lp[kn.LP_B], dt, c_old, thick, wall, c_new, g)
+        t = chain_solve(depth, out[kn.OUT_T], lp[kn.LP_EA], lp[kn.LP_N], lp[kn.LP_B], dt, c_old, thick, wall, c_new, g)
         if t <= 0.0:
             touching = False
             t = 0.0
@@ -333,9 +312,9 @@ def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, p
         dfx = s * sx / s_inv
         dfy = s * sy / s_inv
         dfz = -(ds * t + s * (1.0 + sd) / s_inv)
-        nx = contact[kn.CS_NX]
-        ny = contact[kn.CS_NY]
-        nz = contact[kn.CS_NZ]
+        nx = out[kn.OUT_NX]
+        ny = out[kn.OUT_NY]
+        nz = out[kn.OUT_NZ]
         vn = tool_vx * nx + tool_vy * ny + tool_vz * nz
         vtx = tool_vx - vn * nx
         vty = tool_vy - vn * ny
@@ -346,27 +325,24 @@ def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, p
         fx = force_n * (nx - mu * vtx / r)
         fy = force_n * (ny - mu * vty / r)
         fz = force_n * (nz - mu * vtz / r)
-        contact[kn.CS_T] = t
+        out[kn.OUT_T] = t
         dt_eff = max(dt, DT_FLOOR_S)
         cap = max(RATE_CAP_M_S, math.sqrt(tool_vx * tool_vx + tool_vy * tool_vy + tool_vz * tool_vz))
         for li in range(nl):
             rate = min(cap, max(-cap, (c_new[li] - c_old[li]) / dt_eff))  # each layer its own rate (series chain)
-            kn.drive_layer(li, c_new[li], rate, tool_x, tool_y, sp, basis, state)
+            kn.drive_layer(li, c_new[li], rate, tool_x, tool_y, sp, bmodes, bvec, blev, mstate, lstate, istate)
     else:
-        contact[kn.CS_NX] = 0.0
-        contact[kn.CS_NY] = 0.0
-        contact[kn.CS_NZ] = 1.0
-        contact[kn.CS_T] = 0.0
+        out[kn.OUT_T] = 0.0
         a = 0.0
         for li in range(nl):
-            comp[li] = 0.0
-            kn.relax_layer(li, dt, sp, basis, state)
+            lstate[kn.LS_COMP, li] = 0.0
+            kn.relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate)
     out[kn.OUT_FORCE_N] = force_n
     out[kn.OUT_STRESS_PA] = force_n / (math.pi * a * a) if a > 0.0 else 0.0
     out[kn.OUT_DEPTH_M] = depth if touching else 0.0
     out[kn.OUT_N_AFFECTED] = nl if touching else 0
     out[kn.OUT_SURFACE_M] = surface
-    out[kn.OUT_SETTLED] = kn.settled_flag(sp, state)
+    out[kn.OUT_SETTLED] = kn.settled_flag(sp, lstate, istate)
     out[kn.OUT_FX] = fx
     out[kn.OUT_FY] = fy
     out[kn.OUT_FZ] = fz

@@ -72,18 +72,18 @@ class SkinModel:
         self.grid_builds = 0
         sx, sy = cfg.sheet_size_m
         self.layered = cfg.form == "layered"
-        # grouped kernel arguments (see kernels.step_kernel): per-layer rows, interface rows, scalars
+        # grouped kernel arguments (see kernels, "Kernel arguments are grouped"): per-layer rows (and interfaces)
         self._lp = np.zeros((kn.LP_SIZE, n_l))
         self._lp[kn.LP_K] = [la.stiffness_n_per_m for la in layers]
         self._lp[kn.LP_B] = [la.damping_n_s_per_m for la in layers]
         self._lp[kn.LP_AREA] = [la.area_m2 for la in layers]
         self._lp[kn.LP_EA] = [la.stiffness_n_per_m * la.thickness_m for la in layers]
         self._lp[kn.LP_N] = [la.stiffening for la in layers]
-        self._ifc = np.zeros((kn.IF_SIZE, len(cfg.interfaces)))
-        self._ifc[kn.IF_MEAN] = [i.mean_depth_m for i in cfg.interfaces]
-        self._ifc[kn.IF_AMP] = [i.amplitude_m for i in cfg.interfaces]
-        self._ifc[kn.IF_KX] = [2 * math.pi / i.wavelength_x_m for i in cfg.interfaces]
-        self._ifc[kn.IF_KY] = [2 * math.pi / i.wavelength_y_m for i in cfg.interfaces]
+        n_i = len(cfg.interfaces)
+        self._lp[kn.LP_IF_MEAN, :n_i] = [i.mean_depth_m for i in cfg.interfaces]
+        self._lp[kn.LP_IF_AMP, :n_i] = [i.amplitude_m for i in cfg.interfaces]
+        self._lp[kn.LP_IF_KX, :n_i] = [2 * math.pi / i.wavelength_x_m for i in cfg.interfaces]
+        self._lp[kn.LP_IF_KY, :n_i] = [2 * math.pi / i.wavelength_y_m for i in cfg.interfaces]
         self._k, self._b, self._area = self._lp[kn.LP_K], self._lp[kn.LP_B], self._lp[kn.LP_AREA]
         self._bottom = cfg.total_thickness_m
         self._half = (0.5 * sx, 0.5 * sy)
@@ -100,36 +100,40 @@ class SkinModel:
         self._sp[kn.SP_MU] = cfg.friction_coefficient
         self._sp[kn.SP_V_SLIP] = cfg.slip_speed_m_s
         self._sp[kn.SP_WALL] = WALL_STRAIN
-        # state
-        self.q = np.zeros((n_l, k_modes))
-        self.v = np.zeros((n_l, k_modes))
-        self.centre = np.zeros((n_l, 2))
-        self.driven = np.zeros(n_l, dtype=np.int8)
-        self.compression_m = np.zeros(n_l)
-        self.level = np.zeros(n_l, dtype=np.int64)  # index into basis levels (mode count) per layer
-        self.dropped_m = np.zeros(n_l)  # displacement bound shed with outer modes since last driven
-        self.active = np.zeros(n_l, dtype=np.int8)
-        self.amplitude_bound_m = np.zeros(n_l)  # bound on a free layer's future displacement; inf when driven
-        self._prop = np.zeros((4, n_l, k_modes))
-        self._prop_dt = np.full(n_l, np.nan)
-        self._prop_k = np.zeros(n_l, dtype=np.int64)
-        self._contact = np.zeros(kn.CS_SIZE)
-        self._bounds = np.zeros(n_l + 1)
-        self._thick = np.zeros(n_l)
-        self._sx_buf = np.zeros(m_max + 1)
-        self._sy_buf = np.zeros(n_max + 1)
-        self._aux = np.zeros((lk.AUX_SIZE, n_l))
+        # state: a few arrays for the kernels, with named views
+        self._mstate = np.zeros((6, n_l, k_modes))
+        self.q, self.v, self._prop = self._mstate[0], self._mstate[1], self._mstate[2:6]
+        self._lstate = np.zeros((kn.LS_SIZE, n_l))
+        self.compression_m = self._lstate[kn.LS_COMP]
+        self.dropped_m = self._lstate[kn.LS_DROPPED]  # displacement bound shed with outer modes since last driven
+        self.amplitude_bound_m = self._lstate[kn.LS_AMP]  # bound on a free layer's future displacement; inf when driven
+        self._prop_dt = self._lstate[kn.LS_PROP_DT]
+        self._prop_dt[:] = np.nan
+        self.centre = self._lstate[kn.LS_CX : kn.LS_CY + 1].T  # (L, 2) view
+        self._istate = np.zeros((kn.IS_SIZE, n_l), dtype=np.int64)
+        self.driven = self._istate[kn.IS_DRIVEN]
+        self.level = self._istate[kn.IS_LEVEL]  # index into basis levels (mode count) per layer
+        self.active = self._istate[kn.IS_ACTIVE]
+        self._prop_k = self._istate[kn.IS_PROP_K]
+        self._aux = np.zeros((kn.AUX_SIZE, n_l + 1))
+        self._bounds = self._aux[kn.AUX_BOUNDS]
+        self._thick = self._aux[kn.AUX_THICK, :n_l]
+        self._sbuf = np.zeros((2, m_max + 1))
+        self._sx_buf, self._sy_buf = self._sbuf[0], self._sbuf[1]
         self._out = np.zeros(kn.OUT_SIZE)
         self._last_velocity = np.zeros(3)
         self.flags = 0
         b = self.basis
-        self._props = (self._lp, self._ifc, self._sp)
-        self._basis_args = (b.beta_table, b.trunc_err, b.k_prefix, b.m_lim, b.mode_m, b.mode_n, b.lam, b.gamma)
-        self._state = (
-            self.q, self.v, self.centre, self.driven, self.compression_m, self.level, self.dropped_m, self.active,
-            self.amplitude_bound_m, self._prop, self._prop_dt, self._prop_k, self._contact,
+        nv = b.level_modes.size
+        bmodes = np.ascontiguousarray(np.vstack([b.beta_table, b.lam]))
+        bvec = np.concatenate([b.trunc_err, b.gamma])
+        blev = np.ascontiguousarray(np.vstack([b.k_prefix, b.m_lim]).astype(np.int64))
+        bk = np.ascontiguousarray(np.vstack([b.mode_m, b.mode_n]).astype(np.int64))
+        assert bmodes.shape[0] == nv + n_l
+        self._args = (
+            self._lp, self._sp, bmodes, bvec, blev, bk, self._mstate, self._lstate, self._istate, self._aux, self._sbuf,
+            self._out,
         )  # fmt: skip
-        self._scratch = (self._bounds, self._thick, self._sx_buf, self._sy_buf, self._aux)
         # grid buffers
         self.xs = -0.5 * sx + (np.arange(nx) + 0.5) * sx / nx
         self.ys = -0.5 * sy + (np.arange(ny) + 0.5) * sy / ny
@@ -153,7 +157,6 @@ class SkinModel:
         """Return to rest: no contact, no deformation."""
         for a in (self.q, self.v, self.centre, self.compression_m, self._out, self.amplitude_bound_m, self.dropped_m):
             a[...] = 0.0
-        self._contact[:] = 0.0
         self._out[kn.OUT_NZ] = 1.0
         self.driven[:] = 0
         self.level[:] = 0
@@ -174,7 +177,7 @@ class SkinModel:
     def release(self) -> None:
         """End contact now: every layer relaxes freely from its current shape and velocity."""
         self.driven[:] = 0
-        self._contact[:] = 0.0
+        self._out[kn.OUT_T] = 0.0
 
     def step(self, tool_xyz, tool_velocity, dt: float) -> float:
         """Advance one tick with the tool at ``tool_xyz`` (m) moving at ``tool_velocity`` (m/s).
@@ -202,15 +205,10 @@ class SkinModel:
         self.last_tick_idle = False
         if self.layered:
             self._last_velocity[:] = (vx, vy, vz)
-            self.flags = lk.layered_step_kernel(
-                float(x), float(y), float(z), float(vx), float(vy), float(vz), float(dt),
-                self._props, self._basis_args, self._state, self._scratch, self._out,
-            )  # fmt: skip
+            vel = (float(vx), float(vy), float(vz))
+            self.flags = lk.layered_step_kernel(float(x), float(y), float(z), *vel, float(dt), *self._args)
         else:
-            self.flags = kn.step_kernel(
-                float(x), float(y), float(z), float(vz), float(dt), self._props, self._basis_args, self._state, self._scratch,
-                self._out,
-            )  # fmt: skip
+            self.flags = kn.step_kernel(float(x), float(y), float(z), float(vz), float(dt), *self._args)
         return float(self._out[kn.OUT_FORCE_N])
 
     # --- state read-outs -------------------------------------------------------------
