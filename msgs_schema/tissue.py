@@ -81,8 +81,9 @@ WALL_STRAIN = 0.95
 """Layer strain beyond which the compression law continues along its tangent: the bottom is a finite,
 steep wall (tangent ``(1 - 0.95)^-(n+1)``, about 1500 x the small-strain stiffness at n = 1.45), not a
 clamp, and the chain's Newton solve stays well conditioned for any depth."""
-FRICTION_COEFFICIENT = 0.4
-"""Dry skin against smooth metal/plastic probes: 0.2-0.6 (Derler and Gerhardt 2012, Tribol Lett 45:1, review); 0.4 mid-range."""
+FRICTION_COEFFICIENT = 0.5
+"""Dry skin: friction coefficients above 0.2 and typically around 0.5, pressure-independent (Derler and Gerhardt
+2012, Tribol Lett 45:1, review of the published measurements); moist skin is higher (> 1)."""
 SLIP_SPEED_M_S = 1e-3
 """Viscous regularisation speed of the friction: below 1 mm/s the friction is viscous (smooth through zero
 velocity, no chatter); haptic strokes (10-100 mm/s) see full Coulomb friction. Stated choice."""
@@ -192,7 +193,7 @@ TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
         ),
         _f(
             "contact.friction_coefficient", FRICTION_COEFFICIENT, "1",
-            "Coulomb friction coefficient of the tool on the skin (layered form; Derler and Gerhardt 2012: 0.2-0.6)",
+            "Coulomb friction coefficient of the tool on dry skin (layered form; Derler and Gerhardt 2012: typically 0.5)",
             0.0, 5.0, False,
         ),
         _f(
