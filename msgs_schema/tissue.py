@@ -29,6 +29,10 @@ def _b(name, default, desc):
     return ParamSpec(name, bool, default, "-", desc)
 
 
+def _s(name, default, desc, choices):
+    return ParamSpec(name, str, default, "-", desc, choices=choices)
+
+
 # Level of detail ("no more than a scene needs", issue 7); docs/performance.md measures each lever.
 LOD_TOLERANCE_M = 10e-6
 """Displacement tolerance (m). Stated choice: 1 % of the 1 mm height-map cell, invisible in the
@@ -61,13 +65,28 @@ def _lod_specs() -> list[ParamSpec]:
 _TOOL_RADIUS_M = 2.5e-3
 _TOOL_AREA_M2 = math.pi * _TOOL_RADIUS_M**2
 _LAYER_DEFAULTS = {
-    # thickness_m, youngs_modulus_pa, density_kg_per_m3, shear_wave_speed_m_per_s
+    # thickness_m, youngs_modulus_pa (quasi-static compression/indentation modulus), density_kg_per_m3,
+    # shear_wave_speed_m_per_s (elastography: the membrane's dynamics, eq 1)
     "epidermis": (75e-6, 1.5e6, 1150.0, 2.2),
     "dermis": (1.2e-3, 20e3, 1116.0, 2.2),
-    "fat": (4.0e-3, 2.5e3, 971.0, 0.9),
+    "fat": (4.0e-3, 26.1e3, 971.0, 0.9),
 }
 _POISSON = 0.48
 _PATCH_M = 0.06
+STIFFENING_EXPONENT = 1.45
+"""Default ``n`` of the compression law ``phi = ((1 - eps)^-n - 1) / n`` for every layer: fitted to the
+issue's layered neo-Hookean FEM over linear FEM force ratios (1.35, 2.0, 2.8 at 1, 2, 3 mm) with the
+default layers (``skin-sim bench-model --physics`` prints the fit: 1.45); the reference's calibration refines it."""
+WALL_STRAIN = 0.95
+"""Layer strain beyond which the compression law continues along its tangent: the bottom is a finite,
+steep wall (tangent ``(1 - 0.95)^-(n+1)``, about 1500 x the small-strain stiffness at n = 1.45), not a
+clamp, and the chain's Newton solve stays well conditioned for any depth."""
+FRICTION_COEFFICIENT = 0.5
+"""Dry skin: friction coefficients above 0.2 and typically around 0.5, pressure-independent (Derler and Gerhardt
+2012, Tribol Lett 45:1, review of the published measurements); moist skin is higher (> 1)."""
+SLIP_SPEED_M_S = 1e-3
+"""Viscous regularisation speed of the friction: below 1 mm/s the friction is viscous (smooth through zero
+velocity, no chatter); haptic strokes (10-100 mm/s) see full Coulomb friction. Stated choice."""
 
 
 def critical_damping_n_s_per_m(density_kg_per_m3: float, thickness_m: float, wave_speed_m_per_s: float) -> float:
@@ -83,24 +102,36 @@ def critical_damping_n_s_per_m(density_kg_per_m3: float, thickness_m: float, wav
 def flat_punch_stiffness_n_per_m(youngs_modulus_pa: float, radius_m: float) -> float:
     """Indentation stiffness ``k = 2 E r / (1 - nu^2)`` of a rigid flat punch on a half-space.
 
-    Sneddon (1965); used for the default per-layer ``k`` so that ``k`` depends on the
-    layer's material and the tool, not on the paper's unstated spring constants.
+    Sneddon (1965); the ``paper`` preset's per-layer ``k`` (its values before the layered form).
     """
     return 2.0 * youngs_modulus_pa * radius_m / (1.0 - _POISSON**2)
+
+
+def column_stiffness_n_per_m(youngs_modulus_pa: float, thickness_m: float, area_m2: float = _TOOL_AREA_M2) -> float:
+    """Small-strain stiffness ``k = E A / h`` of the layer column under the tool (the layered form's law
+    is the column's uniaxial compression, ``f = E A phi(c / h)``)."""
+    return youngs_modulus_pa * area_m2 / thickness_m
+
+
+PAPER_MODULI_PA = {"epidermis": 1.5e6, "dermis": 20e3, "fat": 2.5e3}
+"""Young's moduli behind the ``paper`` preset's Sneddon ``k`` (unchanged from before the layered form)."""
 
 
 def _layer_specs() -> list[ParamSpec]:
     specs = []
     for name, (h, e, rho, c) in _LAYER_DEFAULTS.items():
-        k = flat_punch_stiffness_n_per_m(e, _TOOL_RADIUS_M)
+        k = column_stiffness_n_per_m(e, h)
         damping = critical_damping_n_s_per_m(rho, h, c)
         tension = rho * h * c**2  # T = rho_areal c^2 (eq 1) with c from elastography
         p = f"layers.{name}."
         specs += [
             _f(p + "thickness_m", h, "m", f"mean {name} thickness"),
-            _f(p + "stiffness_n_per_m", k, "N/m", f"{name} Kelvin-Voigt spring k (eq 6)"),
+            _f(
+                p + "stiffness_n_per_m", k, "N/m",
+                f"{name} Kelvin-Voigt spring k (eq 6); layered form: small-strain stiffness at the mean thickness",
+            ),
             _f(p + "damping_n_s_per_m", damping, "N*s/m", f"{name} Kelvin-Voigt damper b (eq 6)", 0.0, None, False),
-            _f(p + "area_m2", _TOOL_AREA_M2, "m^2", f"{name} loaded area A (eq 6)"),
+            _f(p + "area_m2", _TOOL_AREA_M2, "m^2", f"{name} loaded area A (eq 6; paper form)"),
             _f(
                 p + "density_kg_per_m3",
                 rho,
@@ -108,7 +139,12 @@ def _layer_specs() -> list[ParamSpec]:
                 f"{name} volumetric density; areal rho = density*thickness (eq 1)",
             ),
             _f(p + "tension_n_per_m", tension, "N/m", f"{name} membrane tension T (eq 1)"),
-        ]
+            _f(
+                p + "stiffening", STIFFENING_EXPONENT, "1",
+                f"{name} exponent n of the layered form's law f = k h ((1 - c/h)^-n - 1) / n (0: -k h ln(1 - c/h))",
+                0.0, 10.0, False,
+            ),
+        ]  # fmt: skip
     return specs
 
 
@@ -128,6 +164,12 @@ def _interface_specs() -> list[ParamSpec]:
 
 TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
     [
+        _s(
+            "form", "layered",
+            "force and engagement model: 'layered' (all layers in series from first contact, strain-stiffening, "
+            "series Kelvin-Voigt chain, friction) or 'paper' (Fig 3 engagement, common velocity, eq 9)",
+            ("layered", "paper"),
+        ),
         _f("sheet.size_x_m", 0.12, "m", "tissue sheet extent along x, centred on the frame origin"),
         _f("sheet.size_y_m", 0.12, "m", "tissue sheet extent along y, centred on the frame origin"),
         _f("patch.size_x_m", 0.06, "m", "deformation patch side along x (paper: 60 mm)"),
@@ -144,6 +186,20 @@ TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
         ),
         _i("modes.n", 15, "modal terms along y (N in eq 2); <= 61, as modes.m", 1, 61),
         _f("tool.radius_m", _TOOL_RADIUS_M, "m", "tool tip radius; the disk load of the indentation shape"),
+        _s(
+            "tool.shape", "flat",
+            "tool tip: 'flat' punch of tool.radius_m, or 'sphere' of that radius (contact radius sqrt(R d); layered form)",
+            ("flat", "sphere"),
+        ),
+        _f(
+            "contact.friction_coefficient", FRICTION_COEFFICIENT, "1",
+            "Coulomb friction coefficient of the tool on dry skin (layered form; Derler and Gerhardt 2012: typically 0.5)",
+            0.0, 5.0, False,
+        ),
+        _f(
+            "contact.slip_speed_m_s", SLIP_SPEED_M_S, "m/s",
+            "viscous regularisation speed of the friction: tangential force mu F v/sqrt(v^2 + v_s^2)",
+        ),
     ]
     + _layer_specs()
     + _interface_specs()

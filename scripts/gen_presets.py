@@ -1,14 +1,24 @@
 """Regenerate config/default.yaml, config/paper.yaml and docs/parameters.md from the parameter schema.
 
-default: every schema default. paper: one mode, no damping, LOD levers off, and each layer's tension set
-so that c = 0.0032 * 0.06 / (pi sqrt 2) m/s, i.e. lambda_11 = 0.0032 rad/s as in eq 9.
+default: every schema default (the layered form). paper: the paper's form (Fig 3 engagement, common
+velocity), one mode, no damping, LOD levers off, the Sneddon flat-punch k of the moduli it always had,
+and each layer's tension set so that c = 0.0032 * 0.06 / (pi sqrt 2) m/s, i.e. lambda_11 = 0.0032 rad/s
+as in eq 9.
 """
 
 import math
 from pathlib import Path
 
 from msgs_schema.parameters import ALL_PARAMETERS, TISSUE_PREFIX
-from skin_sim_node.model.config import LAYER_NAMES, config_from_flat, dump_yaml, tissue_part
+from skin_sim_node.model.config import (
+    _TOOL_RADIUS_M,
+    LAYER_NAMES,
+    PAPER_MODULI_PA,
+    config_from_flat,
+    dump_yaml,
+    flat_punch_stiffness_n_per_m,
+    tissue_part,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "config"
@@ -43,6 +53,7 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS):
     default = {s.name: s.default for s in ALL_PARAMETERS}
     dump_yaml(default, config_dir / "default.yaml")
     paper = dict(default)
+    paper[TISSUE_PREFIX + "form"] = "paper"
     paper[TISSUE_PREFIX + "modes.m"] = 1
     paper[TISSUE_PREFIX + "modes.n"] = 1
     # eq 9 is one fixed mode, undamped, 6.11 um deep (below lod.tolerance_m): no level-of-detail shortcuts
@@ -52,6 +63,7 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS):
     for n in LAYER_NAMES:
         p = f"{TISSUE_PREFIX}layers.{n}."
         paper[p + "damping_n_s_per_m"] = 0.0
+        paper[p + "stiffness_n_per_m"] = flat_punch_stiffness_n_per_m(PAPER_MODULI_PA[n], _TOOL_RADIUS_M)
         paper[p + "tension_n_per_m"] = paper[p + "density_kg_per_m3"] * paper[p + "thickness_m"] * c**2
     config_from_flat(tissue_part(paper, TISSUE_PREFIX))
     dump_yaml(paper, config_dir / "paper.yaml")

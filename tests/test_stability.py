@@ -293,3 +293,33 @@ def test_dds_loop_naive_limit_cycles_and_passivity_settles(tmp_path, ros_domain)
     stab, stats = over_dds(1000.0, 4000.0, "passivity", tmp_path / "passivity")
     assert not naive.stable and naive.std_late_n > 0.2, naive
     assert stab.stable and stab.std_late_n < 0.02 and stab.mean_late_n > 0.3, (stab, stats)
+
+
+# --- stiffening tissue: tangent at depth vs loop limits (issue 11 item 6) ---------------------------------------------
+from skin_sim_node.model import preset  # noqa: E402
+from skin_sim_node.session import SessionParams  # noqa: E402
+from skin_sim_node.stability import stiffening  # noqa: E402
+
+
+def test_model_tangent_is_the_slope_of_the_static_force():
+    model = SkinModel(preset("default"))
+    for d in (0.5e-3, 2e-3):
+        h = 1e-6
+        f_hi, _ = stiffening.model_tangent_n_per_m(model, d + h)
+        f_lo, _ = stiffening.model_tangent_n_per_m(model, d - h)
+        _, k = stiffening.model_tangent_n_per_m(model, d)
+        assert k > 0
+        assert k == pytest.approx((f_hi - f_lo) / (2 * h), rel=1e-3)
+
+
+def test_reference_tangent_stiffens_with_depth():
+    k = stiffening.reference_tangent_n_per_m(np.array([0.5e-3, 1e-3, 2e-3, 3e-3]))
+    assert np.all(np.diff(k) > 0)
+
+
+def test_pressing_the_tissue_deep_is_stable_with_passivity_and_the_rate_limit_holds():
+    cfg = preset("default")
+    verdict, tr = stiffening.loop_point(cfg, 3e-3, "passivity")
+    assert verdict.stable
+    limit = SessionParams().max_force_rate_n_per_s
+    assert np.max(np.abs(np.diff(tr.force_n))) * stiffening.RATE_HZ <= limit * (1 + 1e-9)

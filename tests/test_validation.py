@@ -88,3 +88,53 @@ def test_metrics_and_suite():
     assert {s.name for s in SUITE} >= {"peak-1layer", "peak-2layer", "peak-3layer", "valley-3layer", "edge-3layer"}
     ramp = paper_ramp_n()
     assert ramp.size == 100 and ramp.max() == pytest.approx(5.0) and ramp[-1] == 0.0
+
+
+# --- calibrate: bad input gives one line and exit 2 (issue 15 item 2) ---------------------------------------------
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        (None, "no such file"),
+        ("", "empty file"),
+        ("x,y,force\n0,0,0.1\n", "missing column(s) depth"),
+        ("x,y,depth,force\n0,0,0.001,abc\n", "line 2: column 'force' is not a number: 'abc'"),
+        ("x,y,depth,force\n0,0,0.001,nan\n", "not finite"),
+        ("x,y,depth,force\n", "no data rows"),
+        ("x,y,depth,force\n0,0,1.0,0.1\n0,0,2.0,0.3\n", "millimetres"),
+        ("x,y,depth,force\n0,0,0.001,80\n", "outside 0..50 N"),
+        ("x,y,depth,force\n0,0,-0.001,0.1\n", "<= 0"),
+        ("x,y,depth,force\n5,0,0.001,0.1\n", "off the"),
+    ],
+)
+def test_calibrate_bad_csv_is_one_line_exit_2(tmp_path, capsys, text, needle):
+    p = tmp_path / "m.csv"
+    if text is not None:
+        p.write_text(text)
+    with pytest.raises(calibrate.CalibrationInputError) as exc:
+        calibrate.read_csv(p)
+    assert needle in str(exc.value)
+    rc = calibrate.main(["--csv", str(p), "--out", str(tmp_path / "o.yaml")])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert needle in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not (tmp_path / "o.yaml").exists()
+
+
+def test_calibrate_help_states_units(capsys):
+    with pytest.raises(SystemExit):
+        calibrate.main(["--help"])
+    out = capsys.readouterr().out
+    assert "metres (m)" in out and "newtons (N)" in out
+
+
+def test_calibration_modules_import_one_way():
+    # calibrate must not import charts (issue 13: the cycle was hidden by an import inside a function)
+    import ast
+    import inspect
+
+    tree = ast.parse(inspect.getsource(calibrate))
+    imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    assert "charts" not in imported and not any(m and m.endswith(".charts") for m in imported)
+    funcs = [f for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)]
+    inner = [n for f in funcs for n in ast.walk(f) if isinstance(n, ast.Import | ast.ImportFrom)]
+    assert inner == []

@@ -19,11 +19,15 @@ from msgs_schema.spec import ConfigError
 from msgs_schema.tissue import (  # noqa: F401  (re-exported: the model's view of the schema)
     _LAYER_DEFAULTS,
     _POISSON,
+    _TOOL_RADIUS_M,
     INTERFACE_NAMES,
     LAYER_NAMES,
     LOD_TOLERANCE_M,
+    PAPER_MODULI_PA,
     SPEC_BY_NAME,
     TISSUE_PARAMETERS,
+    WALL_STRAIN,
+    column_stiffness_n_per_m,
     critical_damping_n_s_per_m,
     flat_punch_stiffness_n_per_m,
 )
@@ -44,6 +48,7 @@ class LayerConfig:
     area_m2: float
     density_kg_per_m3: float
     tension_n_per_m: float
+    stiffening: float = 0.0  # exponent n of the layered form's compression law
 
     @property
     def areal_density_kg_per_m2(self) -> float:
@@ -90,6 +95,10 @@ class TissueConfig:
     interfaces: tuple[InterfaceConfig, ...]
     lod: LodConfig
     flat: tuple[tuple[str, Any], ...]  # the validated dotted parameters it came from
+    form: str = "layered"  # "layered" or "paper"
+    tool_shape: str = "flat"  # "flat" or "sphere"
+    friction_coefficient: float = 0.0
+    slip_speed_m_s: float = 1e-3
 
     @property
     def total_thickness_m(self) -> float:
@@ -134,6 +143,7 @@ def config_from_flat(values: dict[str, Any]) -> TissueConfig:
             area_m2=flat[f"layers.{n}.area_m2"],
             density_kg_per_m3=flat[f"layers.{n}.density_kg_per_m3"],
             tension_n_per_m=flat[f"layers.{n}.tension_n_per_m"],
+            stiffening=flat[f"layers.{n}.stiffening"],
         )
         for n in LAYER_NAMES
     )
@@ -164,6 +174,10 @@ def config_from_flat(values: dict[str, Any]) -> TissueConfig:
             idle=flat["lod.idle"],
         ),
         flat=tuple(sorted(flat.items())),
+        form=flat["form"],
+        tool_shape=flat["tool.shape"],
+        friction_coefficient=flat["contact.friction_coefficient"],
+        slip_speed_m_s=flat["contact.slip_speed_m_s"],
     )
     _check_geometry(cfg)
     return cfg
@@ -247,7 +261,7 @@ CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
 
 
 def preset(name: str) -> TissueConfig:
-    """A shipped preset: ``default`` (physiological) or ``paper`` (eq 9, one mode)."""
+    """A shipped preset: ``default`` (layered form, in-vivo parameters) or ``paper`` (the paper's form, eq 9, one mode)."""
     path = CONFIG_DIR / f"{name}.yaml"
     if not path.exists():
         from importlib import resources

@@ -28,7 +28,18 @@ OUT_DEPTH_M = 2
 OUT_N_AFFECTED = 3
 OUT_SURFACE_M = 4  # surface displacement under the tool before this tick
 OUT_SETTLED = 5  # 1.0: no layer driven and every layer's displacement bound below settle_tol
-OUT_SIZE = 8
+OUT_FX = 6  # reaction force vector on the tool (N), tissue frame
+OUT_FY = 7
+OUT_FZ = 8
+OUT_NX = 9  # unit contact normal
+OUT_NY = 10
+OUT_NZ = 11
+OUT_RADIUS_M = 12  # contact radius (m), 0 out of contact
+OUT_DFN_DX = 13  # gradient of the normal force magnitude w.r.t. the tool position (N/m): x, y, z
+OUT_DFN_DY = 14
+OUT_DFN_DZ = 15
+OUT_T = 16  # layered form: last chain force per unit load scale (N), the Newton warm start of the next tick
+OUT_SIZE = 17
 
 
 @njit(**JIT)
@@ -171,67 +182,241 @@ def layer_point_displacement(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y
     return u
 
 
+# Kernel arguments are grouped into a few arrays (the numba dispatcher pays ~0.1 us per argument):
+#   lp (LP_SIZE, L)       per-layer properties, and the interfaces in the LP_IF_* rows (column j = interface j)
+#   sp (SP_SIZE,)         scalars
+#   bmodes (V + L, K)     modal basis: rows [0, V) beta_table, rows [V, V + L) lambda   (modal.ModalBasis)
+#   bvec (V + L,)         [0, V) truncation bound per level, [V, V + L) damping rate gamma
+#   blev (2, V) int64     k_prefix, m_lim per level
+#   bk (2, K) int64       mode_m, mode_n
+#   mstate (6, L, K)      q, v, and the cached propagator P11, P12, P21, P22
+#   lstate (LS_SIZE, L)   per-layer float state (LS_*)
+#   istate (IS_SIZE, L)   per-layer int state (IS_*)
+#   aux (AUX_SIZE, L + 1) per-layer scratch (AUX_*); sbuf (2, M + 1) sine tables
+#   out (OUT_SIZE,)       results (OUT_*), also the contact state carried between ticks (layered form)
+LP_K = 0  # Kelvin-Voigt spring k (N/m), eq 6
+LP_B = 1  # Kelvin-Voigt damper b (N s/m), eq 6
+LP_AREA = 2  # loaded area A (m^2), eq 6 (paper form)
+LP_EA = 3  # k times mean thickness (N): the layer's modulus times the tool area (layered form)
+LP_N = 4  # stiffening exponent n of the compression law (layered form)
+LP_IF_MEAN = 5  # interface mean depth (m)
+LP_IF_AMP = 6  # interface egg-carton amplitude (m)
+LP_IF_KX = 7  # 2 pi / wavelength_x
+LP_IF_KY = 8
+LP_SIZE = 9
+SP_BOTTOM = 0  # tissue bottom (m)
+SP_HALF_X = 1
+SP_HALF_Y = 2
+SP_PATCH_A = 3
+SP_PATCH_B = 4
+SP_MODE_TOL = 5
+SP_SETTLE_TOL = 6
+SP_SKIP_SETTLED = 7  # 1.0: skip settled layers (lod.affected_layers)
+SP_TOOL_R = 8  # tool radius (m): flat punch radius or sphere radius
+SP_SPHERE = 9  # 1.0: spherical tip
+SP_MU = 10  # Coulomb friction coefficient
+SP_V_SLIP = 11  # viscous regularisation speed of the friction (m/s)
+SP_WALL = 12  # strain beyond which the compression law continues linearly (the wall)
+SP_SIZE = 16
+LS_COMP = 0  # compression (m)
+LS_DROPPED = 1  # displacement bound shed with outer modes since last driven (m)
+LS_AMP = 2  # bound on a free layer's future displacement (m); inf when driven
+LS_PROP_DT = 3  # dt of the cached propagator
+LS_CX = 4  # patch centre x, y (m)
+LS_CY = 5
+LS_SIZE = 6
+IS_DRIVEN = 0
+IS_LEVEL = 1  # index into the basis levels (mode count)
+IS_ACTIVE = 2
+IS_PROP_K = 3  # modes in the cached propagator
+IS_SIZE = 4
+AUX_BOUNDS = 0  # layer tops under the tool and the bottom (L + 1)
+AUX_THICK = 1
+AUX_SPLIT = 2  # Reuss compressions (paper form)
+AUX_C_OLD = 3  # chain compressions at the previous tick (layered form)
+AUX_C = 4  # chain compressions now
+AUX_G = 5  # dT/dc_i of each layer's backward-Euler residual (N/m)
+AUX_DBX = 6  # d(interface depth)/dx of the averaged interfaces
+AUX_DBY = 7
+AUX_DBD = 8  # d(interface depth)/d(depth) through the contact radius (sphere)
+AUX_SIZE = 9
+
+
 @njit(**JIT)
-def step_kernel(
-    tool_x, tool_y, tool_z, tool_vz, dt,
-    k, b, area, iface_mean, iface_amp, iface_kx, iface_ky, bottom_m, half_x, half_y,
-    beta_table, trunc_err, k_prefix, m_lim, mode_m, mode_n, patch_a, patch_b, lam, gamma,
-    mode_tol, settle_tol, skip_settled,
-    q, v, centre, driven, comp, level, dropped, active, amp, prop, prop_dt, prop_k, bounds, thick, sx_buf, sy_buf, out,
-):  # fmt: skip
-    """One haptic tick of the layered model: contact, Reuss force and modal state.
+def prepare_propagators(bmodes, bvec, blev, dt, mstate, lstate, istate):
+    """Every layer's propagator for ``dt`` at its current level (cached: ``LS_PROP_DT``, ``IS_PROP_K``)."""
+    nv = blev.shape[1]
+    for li in range(istate.shape[1]):
+        nk = blev[0, istate[IS_LEVEL, li]]
+        if lstate[LS_PROP_DT, li] != dt or istate[IS_PROP_K, li] < nk:
+            layer_propagator(bmodes[nv:], bvec[nv:], dt, li, nk, mstate[2:6])
+            lstate[LS_PROP_DT, li] = dt
+            istate[IS_PROP_K, li] = nk
 
-    Steps 1-5 of section II.D.4. Layers the tool affects are driven quasi-statically
-    (``q = dx_l * beta``, centred on the tool); the others evolve freely with the exact
-    damped modal propagator (release and return). Contact is unilateral and is tested
-    against the current deformed surface. Writes ``out`` (see ``OUT_*``) and returns flags.
 
-    Level of detail: layer ``l`` uses the first ``k_prefix[level[l]]`` modes. With several
-    levels (adaptive modes) a driven layer takes the smallest level whose truncation bound
-    ``|dx_l| trunc_err`` is within ``mode_tol`` (m). With ``settle_tol > 0`` a free layer's
-    displacement bound ``amp[l] = sum_k sqrt(q_k^2 + (v_k/lam_k)^2)`` (energy: no future
-    displacement exceeds it) is kept; with ``skip_settled`` a layer below ``settle_tol`` is set
-    to rest and, while ``active[l] == 0``, skipped. ``prop_dt``/``prop_k`` (L,) cache each
-    layer's propagator. A free layer with several levels sheds its outermost shell of modes when
-    that shell's displacement bound, added to what the layer already shed since it was last
-    driven (``dropped``, m), is within ``mode_tol``: relaxation keeps within ``2 mode_tol`` of the
-    reference and its cost falls as it decays.
+@njit(**JIT)
+def layer_at(li, x, y, sp, blev, bk, mstate, lstate, istate, sbuf):
+    """Layer ``li``'s downward displacement (m) at ``(x, y)`` at its current level (eq 2)."""
+    lv = istate[IS_LEVEL, li]
+    nk = blev[0, lv]
+    ml = blev[1, lv] + 1
+    return layer_point_displacement(
+        mstate[0, li, :nk], lstate[LS_CX, li], lstate[LS_CY, li], bk[0, :nk], bk[1, :nk], sp[SP_PATCH_A], sp[SP_PATCH_B],
+        x, y, sbuf[0, :ml], sbuf[1, :ml],
+    )  # fmt: skip
+
+
+@njit(**JIT)
+def surface_at(x, y, sp, blev, bk, mstate, lstate, istate, sbuf):
+    """Downward surface displacement (m) at ``(x, y)``: eq 2 summed over the active layers."""
+    surface = 0.0
+    for li in range(istate.shape[1]):
+        if istate[IS_ACTIVE, li]:
+            surface += layer_at(li, x, y, sp, blev, bk, mstate, lstate, istate, sbuf)
+    return surface
+
+
+@njit(**JIT)
+def drive_layer(li, comp_m, rate_m_s, x, y, sp, bmodes, bvec, blev, mstate, lstate, istate):
+    """Drive layer ``li`` quasi-statically: ``q = dx_l beta``, ``v = dxdot_l beta``, centred on the tool.
+
+    With several levels (adaptive modes) the layer takes the smallest level whose truncation
+    bound ``|dx_l| trunc_err`` is within ``sp[SP_MODE_TOL]``.
     """
-    n_layers = q.shape[0]
-    n_levels = beta_table.shape[0]
+    n_levels = blev.shape[1]
+    lv = 0
+    if n_levels > 1:
+        lv = n_levels - 1
+        for i in range(n_levels):
+            if abs(comp_m) * bvec[i] <= sp[SP_MODE_TOL]:
+                lv = i
+                break
+    nk = blev[0, lv]
+    for kk in range(nk):
+        mstate[0, li, kk] = comp_m * bmodes[lv, kk]
+        mstate[1, li, kk] = rate_m_s * bmodes[lv, kk]
+    for kk in range(nk, blev[0, istate[IS_LEVEL, li]]):  # fewer modes than last tick
+        mstate[0, li, kk] = 0.0
+        mstate[1, li, kk] = 0.0
+    lstate[LS_COMP, li] = comp_m
+    istate[IS_LEVEL, li] = lv
+    lstate[LS_DROPPED, li] = 0.0
+    lstate[LS_CX, li] = x
+    lstate[LS_CY, li] = y
+    istate[IS_DRIVEN, li] = 1
+    istate[IS_ACTIVE, li] = 1
+    lstate[LS_AMP, li] = math.inf
+
+
+@njit(**JIT)
+def relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate):
+    """Advance a free layer by the exact damped modal propagator (release and return, eq 2).
+
+    Keeps the displacement bound ``amp[l] = sum_k sqrt(q_k^2 + (v_k/lam_k)^2)`` when
+    ``settle_tol > 0``; sheds the outermost shell of modes once its bound, added to what the layer
+    already shed since it was last driven, is within the mode tolerance; with ``skip_settled`` a
+    layer below ``settle_tol`` is set to rest (``active = 0``).
+    """
+    nv = blev.shape[1]
+    lam = bmodes[nv:]
+    settle_tol = sp[SP_SETTLE_TOL]
+    skip_settled = sp[SP_SKIP_SETTLED] > 0.0
+    q = mstate[0]
+    v = mstate[1]
+    istate[IS_DRIVEN, li] = 0
+    if not istate[IS_ACTIVE, li]:
+        return
+    nk = blev[0, istate[IS_LEVEL, li]]
+    if skip_settled and (lstate[LS_PROP_DT, li] != dt or istate[IS_PROP_K, li] < nk):
+        layer_propagator(lam, bvec[nv:], dt, li, nk, mstate[2:6])
+        lstate[LS_PROP_DT, li] = dt
+        istate[IS_PROP_K, li] = nk
+    bound = 0.0
+    for kk in range(nk):
+        q0 = q[li, kk]
+        v0 = v[li, kk]
+        q1 = mstate[2, li, kk] * q0 + mstate[3, li, kk] * v0
+        v1 = mstate[4, li, kk] * q0 + mstate[5, li, kk] * v0
+        q[li, kk] = q1
+        v[li, kk] = v1
+        if settle_tol > 0.0:
+            r = v1 / lam[li, kk]
+            bound += math.sqrt(q1 * q1 + r * r)
+    lstate[LS_AMP, li] = bound if settle_tol > 0.0 else math.inf
+    lv = istate[IS_LEVEL, li]
+    if nv > 1 and lv > 0:  # shed the outer shell once it is negligible
+        k0 = blev[0, lv - 1]
+        tail = 0.0
+        for kk in range(k0, nk):
+            r = v[li, kk] / lam[li, kk]
+            tail += math.sqrt(q[li, kk] * q[li, kk] + r * r)
+        if lstate[LS_DROPPED, li] + tail <= sp[SP_MODE_TOL]:
+            for kk in range(k0, nk):
+                q[li, kk] = 0.0
+                v[li, kk] = 0.0
+            istate[IS_LEVEL, li] = lv - 1
+            lstate[LS_DROPPED, li] += tail
+    if skip_settled and bound < settle_tol:
+        for kk in range(nk):
+            q[li, kk] = 0.0
+            v[li, kk] = 0.0
+        istate[IS_ACTIVE, li] = 0
+        lstate[LS_AMP, li] = 0.0
+
+
+@njit(**JIT)
+def settled_flag(sp, lstate, istate):
+    """1.0 when no layer is driven and every layer's displacement bound is below ``settle_tol``."""
+    settle_tol = sp[SP_SETTLE_TOL]
+    if settle_tol <= 0.0:
+        return 0.0
+    for li in range(istate.shape[1]):
+        if istate[IS_DRIVEN, li] or not lstate[LS_AMP, li] < settle_tol:
+            return 0.0
+    return 1.0
+
+
+@njit(**JIT)
+def step_kernel(tool_x, tool_y, tool_z, tool_vz, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, aux, sbuf, out):
+    """One haptic tick of the paper's layered model: contact, Reuss force and modal state.
+
+    Steps 1-5 of section II.D.4. Layers the tool affects (Fig 3) are driven quasi-statically
+    (``q = dx_l * beta``, centred on the tool, :func:`drive_layer`); the others evolve freely with
+    the exact damped modal propagator (release and return, :func:`relax_layer`). Contact is
+    unilateral and is tested against the current deformed surface. Writes ``out`` (see ``OUT_*``)
+    and returns flags. Arguments: the grouped arrays described above ``LP_K``.
+
+    Level of detail: layer ``l`` uses the first ``k_prefix[level[l]]`` modes; with several levels
+    (adaptive modes) a driven layer takes the smallest level whose truncation bound is within the
+    mode tolerance. With ``settle_tol > 0`` a free layer's displacement bound is kept; with
+    ``skip_settled`` a layer below ``settle_tol`` is set to rest and skipped while inactive.
+    """
+    n_layers = istate.shape[1]
     flags = 0
-    if not skip_settled:  # every layer's propagator, driven or not, as without the lever
-        for li in range(n_layers):
-            nk = k_prefix[level[li]]
-            if prop_dt[li] != dt or prop_k[li] < nk:
-                layer_propagator(lam, gamma, dt, li, nk, prop)
-                prop_dt[li] = dt
-                prop_k[li] = nk
+    if not sp[SP_SKIP_SETTLED] > 0.0:  # every layer's propagator, driven or not, as without the lever
+        prepare_propagators(bmodes, bvec, blev, dt, mstate, lstate, istate)
     depth = -tool_z
     velocity = -tool_vz
     was_contact = False
     for li in range(n_layers):
-        if driven[li]:
+        if istate[IS_DRIVEN, li]:
             was_contact = True
-    surface = 0.0
-    for li in range(n_layers):
-        if active[li]:
-            nk = k_prefix[level[li]]
-            ml = m_lim[level[li]] + 1
-            surface += layer_point_displacement(
-                q[li, :nk], centre[li, 0], centre[li, 1], mode_m[:nk], mode_n[:nk], patch_a, patch_b, tool_x, tool_y,
-                sx_buf[:ml], sy_buf[:ml],
-            )  # fmt: skip
-    on_sheet = abs(tool_x) <= half_x and abs(tool_y) <= half_y
+    surface = surface_at(tool_x, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+    on_sheet = abs(tool_x) <= sp[SP_HALF_X] and abs(tool_y) <= sp[SP_HALF_Y]
     if not on_sheet:
         flags |= FLAG_OFF_SHEET
     n = 0
     force = 0.0
     sigma = 0.0
     d_eff = 0.0
+    bounds = aux[AUX_BOUNDS]
+    thick = aux[AUX_THICK, :n_layers]
+    split = aux[AUX_SPLIT, :n_layers]
     touching = on_sheet and depth > 0.0 and (was_contact or depth >= surface)
     if touching:
-        layer_bounds(tool_x, tool_y, iface_mean, iface_amp, iface_kx, iface_ky, bottom_m, bounds)
+        ni = n_layers - 1
+        layer_bounds(tool_x, tool_y, lp[LP_IF_MEAN, :ni], lp[LP_IF_AMP, :ni], lp[LP_IF_KX, :ni], lp[LP_IF_KY, :ni],
+                     sp[SP_BOTTOM], bounds)  # fmt: skip
         d_eff = depth
         if depth > bounds[n_layers]:
             d_eff = bounds[n_layers]
@@ -239,7 +424,7 @@ def step_kernel(
         n = count_affected(d_eff, bounds)
         for li in range(n_layers):
             thick[li] = bounds[li + 1] - bounds[li]
-        sigma, force, hit = reuss_split(n, d_eff, velocity, k, b, area, thick, comp)
+        sigma, force, hit = reuss_split(n, d_eff, velocity, lp[LP_K], lp[LP_B], lp[LP_AREA], thick, split)
         if hit:
             flags |= FLAG_LAYER_BOUND
         if force <= 0.0 or sigma <= 0.0:
@@ -253,80 +438,25 @@ def step_kernel(
         n = 0
     for li in range(n_layers):
         if li < n:
-            share = comp[li] / d_eff  # layer's part of the tool velocity; round-off safe
-            rate = velocity * min(1.0, max(0.0, share))
-            lv = 0
-            if n_levels > 1:
-                lv = n_levels - 1
-                for i in range(n_levels):
-                    if abs(comp[li]) * trunc_err[i] <= mode_tol:
-                        lv = i
-                        break
-            nk = k_prefix[lv]
-            for kk in range(nk):
-                q[li, kk] = comp[li] * beta_table[lv, kk]
-                v[li, kk] = rate * beta_table[lv, kk]
-            for kk in range(nk, k_prefix[level[li]]):  # fewer modes than last tick
-                q[li, kk] = 0.0
-                v[li, kk] = 0.0
-            level[li] = lv
-            dropped[li] = 0.0
-            centre[li, 0] = tool_x
-            centre[li, 1] = tool_y
-            driven[li] = 1
-            active[li] = 1
-            amp[li] = math.inf
+            share = split[li] / d_eff  # layer's part of the tool velocity (common velocity, eq 6); round-off safe
+            drive_layer(li, split[li], velocity * min(1.0, max(0.0, share)), tool_x, tool_y, sp, bmodes, bvec, blev,
+                        mstate, lstate, istate)  # fmt: skip
         else:
-            comp[li] = 0.0
-            driven[li] = 0
-            if not active[li]:
-                continue
-            nk = k_prefix[level[li]]
-            if skip_settled and (prop_dt[li] != dt or prop_k[li] < nk):
-                layer_propagator(lam, gamma, dt, li, nk, prop)
-                prop_dt[li] = dt
-                prop_k[li] = nk
-            bound = 0.0
-            for kk in range(nk):
-                q0 = q[li, kk]
-                v0 = v[li, kk]
-                q1 = prop[0, li, kk] * q0 + prop[1, li, kk] * v0
-                v1 = prop[2, li, kk] * q0 + prop[3, li, kk] * v0
-                q[li, kk] = q1
-                v[li, kk] = v1
-                if settle_tol > 0.0:
-                    r = v1 / lam[li, kk]
-                    bound += math.sqrt(q1 * q1 + r * r)
-            amp[li] = bound if settle_tol > 0.0 else math.inf
-            lv = level[li]
-            if n_levels > 1 and lv > 0:  # shed the outer shell once it is negligible
-                k0 = k_prefix[lv - 1]
-                tail = 0.0
-                for kk in range(k0, nk):
-                    r = v[li, kk] / lam[li, kk]
-                    tail += math.sqrt(q[li, kk] * q[li, kk] + r * r)
-                if dropped[li] + tail <= mode_tol:
-                    for kk in range(k0, nk):
-                        q[li, kk] = 0.0
-                        v[li, kk] = 0.0
-                    level[li] = lv - 1
-                    dropped[li] += tail
-            if skip_settled and bound < settle_tol:
-                for kk in range(nk):
-                    q[li, kk] = 0.0
-                    v[li, kk] = 0.0
-                active[li] = 0
-                amp[li] = 0.0
+            lstate[LS_COMP, li] = 0.0
+            relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate)
     out[OUT_FORCE_N] = force
     out[OUT_STRESS_PA] = sigma
     out[OUT_DEPTH_M] = d_eff
     out[OUT_N_AFFECTED] = n
     out[OUT_SURFACE_M] = surface
-    settled = settle_tol > 0.0
-    for li in range(n_layers):
-        if driven[li] or not amp[li] < settle_tol:
-            settled = False
-    out[OUT_SETTLED] = 1.0 if settled else 0.0
+    out[OUT_SETTLED] = settled_flag(sp, lstate, istate)
+    out[OUT_FX] = 0.0
+    out[OUT_FY] = 0.0
+    out[OUT_FZ] = force
+    out[OUT_NX] = 0.0
+    out[OUT_NY] = 0.0
+    out[OUT_NZ] = 1.0
+    out[OUT_RADIUS_M] = sp[SP_TOOL_R] if touching else 0.0
     return flags
 
 

@@ -183,3 +183,58 @@ class NumpySkinModel:
         X, Y = np.meshgrid(self.xs, self.ys)
         rest = np.concatenate([np.zeros((1, *X.shape)), interface_depths_m(self.cfg, X, Y)])
         return disp, assemble_heights_ref(disp, rest)
+
+
+# --- layered form (skin_sim_node.model.layered) ------------------------------------------------
+
+
+def compression_law_ref(eps, n, wall):
+    """``phi(eps)`` of the layered form's law, written directly (tangent continuation past ``wall``)."""
+
+    def phi(e):
+        return -np.log1p(-e) if n <= 1e-9 else ((1.0 - e) ** (-n) - 1.0) / n
+
+    if eps <= wall:
+        return phi(eps)
+    dphi = (1.0 - wall) ** (-n - 1.0)
+    return phi(wall) + dphi * (eps - wall)
+
+
+def chain_solve_ref(d, ea, n, b, dt, c_old, h, wall):
+    """Backward-Euler series chain by bracketing (``scipy.optimize.brentq``), independent of the Newton kernel.
+
+    Returns ``(T, c)``; ``T = -1`` when the chain relaxed at zero force is at least ``d`` long.
+    """
+    from scipy.optimize import brentq
+
+    dt = max(dt, 1e-6)
+
+    def comp(t, i):
+        f = lambda c: ea[i] * compression_law_ref(c / h[i], n[i], wall) + b[i] / dt * (c - c_old[i]) - t  # noqa: E731
+        lo, hi = -10.0 * h[i] - abs(c_old[i]), 10.0 * h[i] + abs(c_old[i])
+        while f(lo) > 0:
+            lo *= 2
+        while f(hi) < 0:
+            hi *= 2
+        return brentq(f, lo, hi, xtol=1e-18, rtol=1e-15)
+
+    nl = len(ea)
+    if sum(comp(0.0, i) for i in range(nl)) >= d:
+        return -1.0, np.array([comp(0.0, i) for i in range(nl)])
+    hi = 1.0
+    while sum(comp(hi, i) for i in range(nl)) < d:
+        hi *= 2
+    t = brentq(lambda t: sum(comp(t, i) for i in range(nl)) - d, 0.0, hi, xtol=1e-15, rtol=1e-14)
+    return t, np.array([comp(t, i) for i in range(nl)])
+
+
+def averaged_interface_ref(mean, amp, kx, ky, x0, y0, radius, n=400):
+    """Disk average of ``mean - amp cos(kx x) cos(ky y)`` over a disk by Gauss-Legendre quadrature in polar form."""
+    r, wr = np.polynomial.legendre.leggauss(n)
+    r = 0.5 * radius * (r + 1)
+    wr = 0.5 * radius * wr
+    th = np.linspace(0, 2 * np.pi, 2 * n, endpoint=False)
+    R, TH = np.meshgrid(r, th, indexing="ij")
+    vals = mean - amp * np.cos(kx * (x0 + R * np.cos(TH))) * np.cos(ky * (y0 + R * np.sin(TH)))
+    integral = np.sum(vals * R * wr[:, None]) * (2 * np.pi / (2 * n))
+    return integral / (np.pi * radius**2)

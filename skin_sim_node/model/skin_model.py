@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels as kn
-from .config import TissueConfig
+from . import layered as lk
+from .config import WALL_STRAIN, TissueConfig
 from .contact import ContactTangent, normal_tangent
 from .interfaces import interface_depths_m
 from .modal import ModalBasis, modal_basis
@@ -70,35 +71,69 @@ class SkinModel:
         self.version = 0  # changes whenever the state may have changed (a kernel call or a reset)
         self.grid_builds = 0
         sx, sy = cfg.sheet_size_m
-        self._k = np.array([la.stiffness_n_per_m for la in layers])
-        self._b = np.array([la.damping_n_s_per_m for la in layers])
-        self._area = np.array([la.area_m2 for la in layers])
-        self._iface_mean = np.array([i.mean_depth_m for i in cfg.interfaces])
-        self._iface_amp = np.array([i.amplitude_m for i in cfg.interfaces])
-        self._iface_kx = np.array([2 * math.pi / i.wavelength_x_m for i in cfg.interfaces])
-        self._iface_ky = np.array([2 * math.pi / i.wavelength_y_m for i in cfg.interfaces])
+        self.layered = cfg.form == "layered"
+        # grouped kernel arguments (see kernels, "Kernel arguments are grouped"): per-layer rows (and interfaces)
+        self._lp = np.zeros((kn.LP_SIZE, n_l))
+        self._lp[kn.LP_K] = [la.stiffness_n_per_m for la in layers]
+        self._lp[kn.LP_B] = [la.damping_n_s_per_m for la in layers]
+        self._lp[kn.LP_AREA] = [la.area_m2 for la in layers]
+        self._lp[kn.LP_EA] = [la.stiffness_n_per_m * la.thickness_m for la in layers]
+        self._lp[kn.LP_N] = [la.stiffening for la in layers]
+        n_i = len(cfg.interfaces)
+        self._lp[kn.LP_IF_MEAN, :n_i] = [i.mean_depth_m for i in cfg.interfaces]
+        self._lp[kn.LP_IF_AMP, :n_i] = [i.amplitude_m for i in cfg.interfaces]
+        self._lp[kn.LP_IF_KX, :n_i] = [2 * math.pi / i.wavelength_x_m for i in cfg.interfaces]
+        self._lp[kn.LP_IF_KY, :n_i] = [2 * math.pi / i.wavelength_y_m for i in cfg.interfaces]
+        self._k, self._b, self._area = self._lp[kn.LP_K], self._lp[kn.LP_B], self._lp[kn.LP_AREA]
         self._bottom = cfg.total_thickness_m
         self._half = (0.5 * sx, 0.5 * sy)
         self._patch = cfg.patch_size_m
-        # state
-        self.q = np.zeros((n_l, k_modes))
-        self.v = np.zeros((n_l, k_modes))
-        self.centre = np.zeros((n_l, 2))
-        self.driven = np.zeros(n_l, dtype=np.int8)
-        self.compression_m = np.zeros(n_l)
-        self.level = np.zeros(n_l, dtype=np.int64)  # index into basis levels (mode count) per layer
-        self.dropped_m = np.zeros(n_l)  # displacement bound shed with outer modes since last driven
-        self.active = np.zeros(n_l, dtype=np.int8)
-        self.amplitude_bound_m = np.zeros(n_l)  # bound on a free layer's future displacement; inf when driven
-        self._prop = np.zeros((4, n_l, k_modes))
-        self._prop_dt = np.full(n_l, np.nan)
-        self._prop_k = np.zeros(n_l, dtype=np.int64)
-        self._bounds = np.zeros(n_l + 1)
-        self._thick = np.zeros(n_l)
-        self._sx_buf = np.zeros(m_max + 1)
-        self._sy_buf = np.zeros(n_max + 1)
+        self._sp = np.zeros(kn.SP_SIZE)
+        self._sp[kn.SP_BOTTOM] = self._bottom
+        self._sp[kn.SP_HALF_X], self._sp[kn.SP_HALF_Y] = self._half
+        self._sp[kn.SP_PATCH_A], self._sp[kn.SP_PATCH_B] = self._patch
+        self._sp[kn.SP_MODE_TOL] = self._mode_tol
+        self._sp[kn.SP_SETTLE_TOL] = self._settle_tol
+        self._sp[kn.SP_SKIP_SETTLED] = 1.0 if self._skip_settled else 0.0
+        self._sp[kn.SP_TOOL_R] = cfg.tool_radius_m
+        self._sp[kn.SP_SPHERE] = 1.0 if cfg.tool_shape == "sphere" else 0.0
+        self._sp[kn.SP_MU] = cfg.friction_coefficient
+        self._sp[kn.SP_V_SLIP] = cfg.slip_speed_m_s
+        self._sp[kn.SP_WALL] = WALL_STRAIN
+        # state: a few arrays for the kernels, with named views
+        self._mstate = np.zeros((6, n_l, k_modes))
+        self.q, self.v, self._prop = self._mstate[0], self._mstate[1], self._mstate[2:6]
+        self._lstate = np.zeros((kn.LS_SIZE, n_l))
+        self.compression_m = self._lstate[kn.LS_COMP]
+        self.dropped_m = self._lstate[kn.LS_DROPPED]  # displacement bound shed with outer modes since last driven
+        self.amplitude_bound_m = self._lstate[kn.LS_AMP]  # bound on a free layer's future displacement; inf when driven
+        self._prop_dt = self._lstate[kn.LS_PROP_DT]
+        self._prop_dt[:] = np.nan
+        self.centre = self._lstate[kn.LS_CX : kn.LS_CY + 1].T  # (L, 2) view
+        self._istate = np.zeros((kn.IS_SIZE, n_l), dtype=np.int64)
+        self.driven = self._istate[kn.IS_DRIVEN]
+        self.level = self._istate[kn.IS_LEVEL]  # index into basis levels (mode count) per layer
+        self.active = self._istate[kn.IS_ACTIVE]
+        self._prop_k = self._istate[kn.IS_PROP_K]
+        self._aux = np.zeros((kn.AUX_SIZE, n_l + 1))
+        self._bounds = self._aux[kn.AUX_BOUNDS]
+        self._thick = self._aux[kn.AUX_THICK, :n_l]
+        self._sbuf = np.zeros((2, m_max + 1))
+        self._sx_buf, self._sy_buf = self._sbuf[0], self._sbuf[1]
         self._out = np.zeros(kn.OUT_SIZE)
+        self._last_velocity = np.zeros(3)
         self.flags = 0
+        b = self.basis
+        nv = b.level_modes.size
+        bmodes = np.ascontiguousarray(np.vstack([b.beta_table, b.lam]))
+        bvec = np.concatenate([b.trunc_err, b.gamma])
+        blev = np.ascontiguousarray(np.vstack([b.k_prefix, b.m_lim]).astype(np.int64))
+        bk = np.ascontiguousarray(np.vstack([b.mode_m, b.mode_n]).astype(np.int64))
+        assert bmodes.shape[0] == nv + n_l
+        self._args = (
+            self._lp, self._sp, bmodes, bvec, blev, bk, self._mstate, self._lstate, self._istate, self._aux, self._sbuf,
+            self._out,
+        )  # fmt: skip
         # grid buffers
         self.xs = -0.5 * sx + (np.arange(nx) + 0.5) * sx / nx
         self.ys = -0.5 * sy + (np.arange(ny) + 0.5) * sy / ny
@@ -122,6 +157,7 @@ class SkinModel:
         """Return to rest: no contact, no deformation."""
         for a in (self.q, self.v, self.centre, self.compression_m, self._out, self.amplitude_bound_m, self.dropped_m):
             a[...] = 0.0
+        self._out[kn.OUT_NZ] = 1.0
         self.driven[:] = 0
         self.level[:] = 0
         self.active[:] = 0 if self._skip_settled else 1
@@ -141,12 +177,15 @@ class SkinModel:
     def release(self) -> None:
         """End contact now: every layer relaxes freely from its current shape and velocity."""
         self.driven[:] = 0
+        self._out[kn.OUT_T] = 0.0
 
     def step(self, tool_xyz, tool_velocity, dt: float) -> float:
         """Advance one tick with the tool at ``tool_xyz`` (m) moving at ``tool_velocity`` (m/s).
 
-        Returns the reaction force in newtons along +z (>= 0). ``dt`` (s) is the time
-        since the previous tick; the release dynamics are exact for any ``dt >= 0``.
+        Returns the normal reaction force magnitude in newtons (>= 0; along +z in the paper form,
+        along :attr:`contact_normal` in the layered form, whose full vector with friction is
+        :attr:`force_vector_n`). ``dt`` (s) is the time since the previous tick; the release dynamics
+        are exact for any ``dt >= 0`` and the layered form's chain is implicit (passive for any ``dt``).
         """
         x, y, z = tool_xyz
         if self._idle_ok and z >= 0.0 and self._out[kn.OUT_SETTLED]:
@@ -155,30 +194,44 @@ class SkinModel:
             self.last_tick_idle = True
             if self.flags & ~kn.FLAG_OFF_SHEET:
                 self._out[: kn.OUT_SETTLED] = 0.0
+                self._out[kn.OUT_FX :] = 0.0
+                self._out[kn.OUT_NZ] = 1.0
                 self.compression_m[:] = 0.0
             self.flags = 0 if abs(x) <= self._half[0] and abs(y) <= self._half[1] else kn.FLAG_OFF_SHEET
             return 0.0
-        vz = tool_velocity[2]
-        b = self.basis
+        vx, vy, vz = tool_velocity
         self.kernel_calls += 1
         self.version += 1
         self.last_tick_idle = False
-        self.flags = kn.step_kernel(
-            float(x), float(y), float(z), float(vz), float(dt),
-            self._k, self._b, self._area, self._iface_mean, self._iface_amp, self._iface_kx, self._iface_ky,
-            self._bottom, self._half[0], self._half[1],
-            b.beta_table, b.trunc_err, b.k_prefix, b.m_lim, b.mode_m, b.mode_n, self._patch[0], self._patch[1],
-            b.lam, b.gamma, self._mode_tol, self._settle_tol, self._skip_settled,
-            self.q, self.v, self.centre, self.driven, self.compression_m, self.level, self.dropped_m, self.active,
-            self.amplitude_bound_m, self._prop, self._prop_dt, self._prop_k,
-            self._bounds, self._thick, self._sx_buf, self._sy_buf, self._out,
-        )  # fmt: skip
+        if self.layered:
+            self._last_velocity[:] = (vx, vy, vz)
+            vel = (float(vx), float(vy), float(vz))
+            self.flags = lk.layered_step_kernel(float(x), float(y), float(z), *vel, float(dt), *self._args)
+        else:
+            self.flags = kn.step_kernel(float(x), float(y), float(z), float(vz), float(dt), *self._args)
         return float(self._out[kn.OUT_FORCE_N])
 
     # --- state read-outs -------------------------------------------------------------
     @property
     def force_n(self) -> float:
+        """Normal force magnitude (N) of the last step (what :meth:`step` returns)."""
         return float(self._out[kn.OUT_FORCE_N])
+
+    @property
+    def force_vector_n(self) -> np.ndarray:
+        """Reaction force vector on the tool (N, tissue frame) of the last step: along the contact
+        normal plus friction in the layered form, ``(0, 0, force_n)`` in the paper form."""
+        return self._out[kn.OUT_FX : kn.OUT_FZ + 1].copy()
+
+    @property
+    def contact_normal(self) -> np.ndarray:
+        """Unit contact normal of the last step (``+z`` out of contact)."""
+        return self._out[kn.OUT_NX : kn.OUT_NZ + 1].copy()
+
+    @property
+    def contact_radius_m(self) -> float:
+        """Contact radius (m) of the last step; 0 out of contact."""
+        return float(self._out[kn.OUT_RADIUS_M])
 
     @property
     def stress_pa(self) -> float:
@@ -203,14 +256,42 @@ class SkinModel:
         Paper form: the engaged layers are springs and dampers in series under the common
         velocity of eq 6, so ``dF/dz = -A_0 / sum(A_i / k_i)`` and
         ``dF/dv_z = -A_0 sum(b_i / k_i) / sum(A_i / k_i)`` (from ``sigma`` in :func:`kernels.reuss_split`).
+
+        Layered form: ``F = F_n (n - mu g)`` with ``g = v_t / sqrt(|v_t|^2 + v_s^2)`` and ``v_t`` the
+        tool velocity in the tangent plane, so ``K = dF/dx = (n - mu g) grad(F_n)^T``, with ``grad F_n``
+        from the backward-Euler chain at this tick's ``dt`` (the series tangent ``1 / sum(1 / G_i)``,
+        ``G_i = k_i phi'(eps_i) + b_i / dt``, plus the thickness and contact-radius terms), and
+        ``D = dF/dv = -mu F_n (I / r - v_t v_t^T / r^3) (I - n n^T)``; the normal force does not depend
+        on the velocity argument (the chain's rates come from positions).
         """
-        n = self.n_affected if self.in_contact else 0
-        if n == 0:
+        if not self.layered:
+            n = self.n_affected if self.in_contact else 0
+            if n == 0:
+                return normal_tangent(0.0, 0.0, 0.0, 0.0)
+            s_a = float(np.sum(self._area[:n] / self._k[:n]))
+            s_b = float(np.sum(self._b[:n] / self._k[:n]))
+            a0 = float(self._area[0])
+            return normal_tangent(self.force_n, a0 / s_a, a0 * s_b / s_a, self.cfg.tool_radius_m)
+        if not self.in_contact:
             return normal_tangent(0.0, 0.0, 0.0, 0.0)
-        s_a = float(np.sum(self._area[:n] / self._k[:n]))
-        s_b = float(np.sum(self._b[:n] / self._k[:n]))
-        a0 = float(self._area[0])
-        return normal_tangent(self.force_n, a0 / s_a, a0 * s_b / s_a, self.cfg.tool_radius_m)
+        o = self._out
+        normal = o[kn.OUT_NX : kn.OUT_NZ + 1].copy()
+        grad = o[kn.OUT_DFN_DX : kn.OUT_DFN_DZ + 1]
+        fn = float(o[kn.OUT_FORCE_N])
+        mu = self.cfg.friction_coefficient
+        proj = np.eye(3) - np.outer(normal, normal)
+        vt = proj @ self._last_velocity
+        r = math.sqrt(float(vt @ vt) + self.cfg.slip_speed_m_s**2)
+        g = vt / r
+        stiffness = np.outer(normal - mu * g, grad)
+        damping = -mu * fn * (np.eye(3) / r - np.outer(vt, vt) / r**3) @ proj
+        return ContactTangent(
+            force_n=o[kn.OUT_FX : kn.OUT_FZ + 1].copy(),
+            stiffness_n_per_m=stiffness,
+            damping_n_s_per_m=damping,
+            normal=normal,
+            contact_radius_m=float(o[kn.OUT_RADIUS_M]),
+        )
 
     def layer_displacement_at(self, layer: int, x: float, y: float) -> float:
         """Current downward displacement (m) of one layer at ``(x, y)`` (eq 2 at a point)."""

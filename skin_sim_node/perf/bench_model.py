@@ -1,9 +1,16 @@
 """Micro-benchmark of ``SkinModel.step``: force path alone and with the full grid.
 
-Runs the same scripted press-hold-release-relax path through the numba model and the
-pure-NumPy model (:class:`~skin_sim_node.model.reference.NumpySkinModel`) at several mode
-counts in one process, and prints median, p99 and max per tick with the NumPy/numba
-ratio. Usage: ``skin-sim bench-model [--ticks N]``.
+Runs the same scripted press-hold-release-relax path at 1 kHz through both tissue forms in one
+process: the ``layered`` default (all level-of-detail levers as configured, the "1 kHz setting")
+beside the ``paper`` form, then fixed mode counts (``lod.adaptive_modes`` and the other levers off,
+so "1x1" is one mode per axis) through the numba model and the pure-NumPy paper-form model
+(:class:`~skin_sim_node.model.reference.NumpySkinModel`). Prints median, p99 and max per tick, a
+row as soon as it is measured, with ratios. Usage: ``skin-sim bench-model [--ticks N]``.
+
+``skin-sim bench-model --physics`` prints the issue-11 physics figures (:mod:`skin_sim_node.model.physics`).
+``skin-sim bench-model --against /work/main`` times the force path of the paper form on the same
+tissue in another checkout (its own ``.venv``) and in this one, alternating in one run, and prints
+the ratio: the before/after of a kernel change.
 
 ``skin-sim bench-model --lod`` instead measures each level-of-detail lever (issue 7): the four
 scene trajectories (idle hover, light touch, deep press, drag) at 1 kHz with jittered tick
@@ -55,9 +62,35 @@ def summarize(us: np.ndarray) -> tuple[float, float, float]:
     return float(np.median(us)), float(np.percentile(us, 99)), float(us.max())
 
 
-def run(ticks: int, numpy_ticks: int, modes_list=(1, 3, 20)) -> list[dict]:
+FIXED_MODES = {"lod.adaptive_modes": False, "lod.affected_layers": False, "lod.patch_only": False, "lod.idle": False}
+"""Fixed-mode rows: every level-of-detail lever off, so the row's mode count is what runs."""
+
+
+def form_rows(ticks: int, repeats: int = 3):
+    """Force path of the ``default`` preset in each form, same path, interleaved ``repeats`` times (best kept).
+
+    Yields one row per form: the layered form first, then the paper form on the same tissue.
+    """
     base = preset("default")
-    rows = []
+    cfgs = {"layered": base, "paper": base.replace(form="paper")}
+    path, dt = scripted_path(ticks)
+    best: dict[str, np.ndarray] = {}
+    for _ in range(repeats):
+        for form, cfg in cfgs.items():
+            m = SkinModel(cfg)
+            time_path(m, path[:200], dt, False)  # compile / warm caches
+            m.reset()
+            t = time_path(m, path, dt, False)
+            if form not in best or np.median(t) < np.median(best[form]):
+                best[form] = t
+    for form in cfgs:
+        med, p99, mx = summarize(best[form])
+        yield {"form": form, "median_us": med, "p99_us": p99, "max_us": mx}
+
+
+def run(ticks: int, numpy_ticks: int, modes_list=(1, 3, 20)):
+    """Fixed mode counts (levers off), numba against NumPy (paper form); yields each row as it is measured."""
+    base = preset("default").replace(form="paper", **FIXED_MODES)
     for modes in modes_list:
         cfg = base.replace(**{"modes.m": modes, "modes.n": modes})
         for with_grid in (False, True):
@@ -70,20 +103,65 @@ def run(ticks: int, numpy_ticks: int, modes_list=(1, 3, 20)) -> list[dict]:
             t_slow = time_path(NumpySkinModel(cfg), slow_path, dt, with_grid)
             f_med, f_p99, f_max = summarize(t_fast)
             s_med, s_p99, _ = summarize(t_slow)
-            rows.append(
-                {
-                    "modes": f"{modes}x{modes}",
-                    "active": fast.basis.n_modes,
-                    "path": "force+grid" if with_grid else "force",
-                    "numba_median_us": f_med,
-                    "numba_p99_us": f_p99,
-                    "numba_max_us": f_max,
-                    "numpy_median_us": s_med,
-                    "numpy_p99_us": s_p99,
-                    "speedup_median": s_med / f_med,
-                }
-            )
-    return rows
+            yield {
+                "modes": f"{modes}x{modes}",
+                "active": fast.basis.n_modes,
+                "path": "force+grid" if with_grid else "force",
+                "numba_median_us": f_med,
+                "numba_p99_us": f_p99,
+                "numba_max_us": f_max,
+                "numpy_median_us": s_med,
+                "numpy_p99_us": s_p99,
+                "speedup_median": s_med / f_med,
+            }
+
+
+AGAINST_SNIPPET = """
+import json, sys
+import numpy as np
+from skin_sim_node.model import SkinModel, preset
+from skin_sim_node.perf.bench_model import scripted_path, time_path
+cfg = preset("default")
+flat = cfg.as_flat()
+if "form" in flat:  # this checkout has the layered form: the paper form with the tissue the other one had
+    r = cfg.tool_radius_m
+    moduli = {"epidermis": 1.5e6, "dermis": 20e3, "fat": 2.5e3}
+    cfg = cfg.replace(form="paper", **{f"layers.{n}.stiffness_n_per_m": 2 * e * r / (1 - 0.48**2) for n, e in moduli.items()})
+ticks = int(sys.argv[1])
+path, dt = scripted_path(ticks)
+m = SkinModel(cfg)
+time_path(m, path[:200], dt, False)
+m.reset()
+t = time_path(m, path, dt, False)
+print(json.dumps({"median": float(np.median(t)), "p99": float(np.percentile(t, 99))}))
+"""
+
+
+def run_against(other: str, ticks: int, rounds: int = 5) -> None:
+    """Paper-form force path in ``other`` (a checkout with its own .venv) and here, alternating; prints each round."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parents[2]
+    exe = {"other": str(Path(other) / ".venv" / "bin" / "python"), "this": sys.executable}
+    cwd = {"other": str(other), "this": str(here)}
+    print(f"paper-form force path, default tissue, {ticks} ticks at 1 kHz; 'other' = {other}, 'this' = {here}", flush=True)
+    print(f"{'round':>5} | {'other med':>9} {'p99':>7} | {'this med':>8} {'p99':>7} | this/other median", flush=True)
+    ratios = []
+    for i in range(rounds):
+        res = {}
+        for who in ("other", "this"):
+            out = subprocess.run([exe[who], "-c", AGAINST_SNIPPET, str(ticks)], cwd=cwd[who], capture_output=True, text=True)
+            if out.returncode != 0:
+                print(f"{who}: failed: {out.stderr.strip().splitlines()[-1] if out.stderr.strip() else out.returncode}")
+                return
+            res[who] = json.loads(out.stdout.strip().splitlines()[-1])
+        ratios.append(res["this"]["median"] / res["other"]["median"])
+        print(f"{i:>5} | {res['other']['median']:9.2f} {res['other']['p99']:7.2f} | {res['this']['median']:8.2f} "
+              f"{res['this']['p99']:7.2f} | {ratios[-1]:.3f}", flush=True)  # fmt: skip
+    print(f"median of the per-round ratios this/other: {float(np.median(ratios)):.3f} (machine shared: ratios, not absolutes)")
 
 
 LOD_OFF = {"lod.adaptive_modes": False, "lod.affected_layers": False, "lod.patch_only": False, "lod.idle": False}
@@ -179,18 +257,22 @@ def run_lod(scenes=tuple(LOD_SCENES), cases=tuple(LOD_CASES), repeats: int = 3) 
     Other processes share the cores: a repeat that was descheduled has a larger mean, so the
     repeat with the smallest mean total per tick is kept (its median and p99 are reported with it).
     """
+    from tqdm import tqdm
+
     base = preset("default").replace(**LOD_OFF)
     rows = []
-    for scene in scenes:
-        path = scene_path(LOD_SCENES[scene])
-        best: dict[str, dict] = {}
-        for _ in range(repeats):
-            for case in cases:
-                changes, grid_mode = LOD_CASES[case]
-                r = time_lod_case(base.replace(**changes), path, grid_mode)
-                if case not in best or r["total_per_tick"] < best[case]["total_per_tick"]:
-                    best[case] = r
-        rows += [{"scene": scene, "case": case, **best[case]} for case in cases]
+    with tqdm(total=len(scenes) * repeats * len(cases), desc="lod cases", leave=False) as bar:
+        for scene in scenes:
+            path = scene_path(LOD_SCENES[scene])
+            best: dict[str, dict] = {}
+            for _ in range(repeats):
+                for case in cases:
+                    changes, grid_mode = LOD_CASES[case]
+                    r = time_lod_case(base.replace(**changes), path, grid_mode)
+                    if case not in best or r["total_per_tick"] < best[case]["total_per_tick"]:
+                        best[case] = r
+                    bar.update()
+            rows += [{"scene": scene, "case": case, **best[case]} for case in cases]
     return rows
 
 
@@ -220,22 +302,41 @@ def main(argv=None) -> int:
     ap.add_argument("--ticks", type=int, default=6000, help="numba ticks per case (default 6000)")
     ap.add_argument("--numpy-ticks", type=int, default=600, help="NumPy baseline ticks per case (default 600)")
     ap.add_argument("--lod", action="store_true", help="measure the level-of-detail levers instead (issue 7)")
+    ap.add_argument("--physics", action="store_true", help="print the physics figures of the tissue forms (issue 11)")
+    ap.add_argument("--against", metavar="CHECKOUT", help="paper-form force path here vs another checkout (its .venv)")
     args = ap.parse_args(argv)
+    if args.physics:
+        from ..model.physics import main as physics_main
+
+        return physics_main()
+    if args.against:
+        run_against(args.against, args.ticks)
+        return 0
     if args.lod:
+        print("skin-sim level-of-detail levers: measuring 4 scenes x 9 cases x 3 repeats (progress below)...", flush=True)
         print_lod(run_lod())
         return 0
     cfg = preset("default")
     ny, nx = cfg.grid_shape
-    print(f"skin-sim model micro-benchmark: sheet grid {ny}x{nx}, patch {cfg.patch_size_m[0] * 1e3:.0f} mm, 3 layers")
-    print("per tick, microseconds; ratio = NumPy median / numba median (same path, same run)")
+    print(f"skin-sim model micro-benchmark: sheet grid {ny}x{nx}, patch {cfg.patch_size_m[0] * 1e3:.0f} mm, 3 layers; "
+          f"{args.ticks} ticks per row at 1 kHz (machine shared: compare ratios within this run)", flush=True)  # fmt: skip
+    print("1. force path per tick, default preset in each form (level-of-detail levers as configured), best of 3 interleaved:")
+    rows = {}
+    for r in form_rows(args.ticks):
+        rows[r["form"]] = r
+        print(f"  {r['form']:>8}: median {r['median_us']:7.2f} us, p99 {r['p99_us']:7.2f} us, max {r['max_us']:8.1f} us",
+              flush=True)  # fmt: skip
+    print(f"  layered/paper median ratio {rows['layered']['median_us'] / rows['paper']['median_us']:.2f}", flush=True)
+    print("2. fixed mode counts (every level-of-detail lever off), paper form; ratio = NumPy median / numba median:")
     hdr = f"{'modes':>6} {'active':>6} {'path':>10} | {'median':>8} {'p99':>8} {'max':>8} | "
     hdr += f"{'numpy med':>10} {'numpy p99':>10} | ratio"
     print(hdr)
-    print("-" * len(hdr))
+    print("-" * len(hdr), flush=True)
     for r in run(args.ticks, args.numpy_ticks):
         print(
             f"{r['modes']:>6} {r['active']:>6} {r['path']:>10} | {r['numba_median_us']:8.1f} {r['numba_p99_us']:8.1f} "
-            f"{r['numba_max_us']:8.1f} | {r['numpy_median_us']:10.1f} {r['numpy_p99_us']:10.1f} | {r['speedup_median']:6.1f}x"
+            f"{r['numba_max_us']:8.1f} | {r['numpy_median_us']:10.1f} {r['numpy_p99_us']:10.1f} | {r['speedup_median']:6.1f}x",
+            flush=True,
         )
     return 0
 

@@ -20,10 +20,12 @@ import matplotlib.ticker
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from tqdm import tqdm  # noqa: E402
 
 from ..device.stylus import DeviceParams  # noqa: E402
 from . import haptic_loop as hl  # noqa: E402
 from . import numerics as nm  # noqa: E402
+from . import stiffening  # noqa: E402
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "stability"
 CHART_RATES_HZ = (100.0, 250.0, 500.0, 1000.0, 2000.0, 4000.0)
@@ -69,7 +71,8 @@ def numerics_figures(out: Path) -> list[Path]:
     rows = []
     fig, ax = plt.subplots(figsize=(6, 3.8))
     for method, mk in (("leapfrog", "o"), ("mass-spring", "s")):
-        meas = [nm.measured_dt_limit_s(method, mem, n) for n in nm.GRIDS]
+        grids = tqdm(nm.GRIDS, desc=f"{method} dt limit (bisection)", leave=False)
+        meas = [nm.measured_dt_limit_s(method, mem, n) for n in grids]
         dx = np.array([mem.size_x_m / (n + 1) for n in nm.GRIDS])
         th = np.array([nm.dt_limit_s(method, mem, n) for n in nm.GRIDS])
         ax.plot(dx * 1e3, c * np.array(meas) / dx, mk, mfc="none", label=f"{method}: measured")
@@ -187,14 +190,20 @@ def max_stable_stabilised(res, rate_hz: float, k_max: float = 200e3) -> float:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart stability", description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=DOCS, help="output folder (default docs/stability)")
-    ap.add_argument("--only", choices=("numerics", "haptic"), help="regenerate one group")
+    ap.add_argument("--only", choices=("numerics", "haptic", "stiffening"), help="regenerate one group")
     args = ap.parse_args(argv)
+    what = {"numerics": "explicit-solver maps (~30 s)", "haptic": "haptic-loop sweeps (~1-2 min)",
+            "stiffening": "tangent stiffness vs depth and loop limits (~1 min)"}  # fmt: skip
+    todo = [k for k in what if args.only in (None, k)]
+    print("chart stability: " + "; ".join(what[k] for k in todo) + f" -> {args.out}", flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
     paths = []
     if args.only in (None, "numerics"):
         paths += numerics_figures(args.out)
     if args.only in (None, "haptic"):
         paths += haptic_figures(args.out)
+    if args.only in (None, "stiffening"):
+        paths += stiffening.figures(args.out)
     for p in paths:
         print(f"wrote {p}")
     return 0

@@ -30,6 +30,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+from tqdm import tqdm
 
 from ..model import preset
 from ..solvers import (
@@ -167,15 +168,21 @@ def run_point(method: str, mem: Membrane, n: int, steps: int, u0=None, u_ref=Non
     return Point(method, n, dx, dt, mem.wave_speed_m_s * dt / dx, ratio, err)
 
 
-def sweep(methods=METHODS, grids=GRIDS, step_counts=STEP_COUNTS, mem: Membrane | None = None) -> list[Point]:
+def sweep(
+    methods=METHODS, grids=GRIDS, step_counts=STEP_COUNTS, mem: Membrane | None = None, progress: bool = True
+) -> list[Point]:
     mem = mem or dermis_membrane()
     out = []
+    total = len(grids) * len(methods) * len(step_counts)
+    bar = tqdm(total=total, desc="numerics sweep (grid x method x dt)", disable=not progress)
     for n in grids:
         u0 = initial_state(mem, n)
         refs = {"exact modal": reference(mem, n, u0), "grid": semi_discrete_reference(mem, n, u0)}
         for method in methods:
             for steps in step_counts:
                 out.append(run_point(method, mem, n, steps, u0, refs["exact modal" if method == "exact modal" else "grid"]))
+                bar.update()
+    bar.close()
     return out
 
 
@@ -202,6 +209,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim stability-numerics", description=__doc__.splitlines()[0])
     ap.add_argument("--grids", type=int, nargs="*", default=list(GRIDS))
     args = ap.parse_args(argv)
+    print(f"stability-numerics: bisecting the explicit dt limits on {len(args.grids)} grid(s) x 2 methods", flush=True)
     mem = dermis_membrane()
     c = mem.wave_speed_m_s
     print(f"dermis membrane c = {c:.3f} m/s, patch {mem.size_x_m * 1e3:.0f} mm, undamped; energy growth > {GROWTH:g}x")
@@ -210,7 +218,7 @@ def main(argv=None) -> int:
         for n in args.grids:
             dx = mem.size_x_m / (n + 1)
             meas, th = measured_dt_limit_s(method, mem, n), dt_limit_s(method, mem, n)
-            print(
+            tqdm.write(
                 f"  {method:<11} | {n:3d} | {dx * 1e3:5.2f} | {meas * 1e6:14.2f} | {th * 1e6:14.2f} | {meas / th:5.3f} | "
                 f"{c * meas / dx:16.4f} | {1 / math.sqrt(2):.4f}"
             )

@@ -16,7 +16,7 @@ only the dynamics, which static data cannot see), dampers ``b`` (no rate data in
 
 Data: the FEM reference (force-depth curves of the suite's peak and valley scenarios plus the
 surface field at each one's deepest point), or a user's CSV with columns ``x, y, depth, force``
-(metres, newtons; force only). Output: a config YAML (``tissue.*`` parameters) and the residuals.
+(metres, newtons; force only; ``CSV_UNITS``). Output: a config YAML (``tissue.*`` parameters) and the residuals.
 """
 
 from __future__ import annotations
@@ -24,16 +24,21 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import RegularGridInterpolator
 from scipy.optimize import least_squares
 
 from skin_sim_node.model import SkinModel, TissueConfig, preset
 from skin_sim_node.model.config import LAYER_NAMES, dump_yaml
+from skin_sim_node.solvers import static_indentation
 
-from .methods import static_force_n
+from .methods import skin_membrane, static_force_n
+from .references import converged_fem
+from .scenarios import BY_NAME
 
 K_NAMES = tuple(f"layers.{n}.stiffness_n_per_m" for n in LAYER_NAMES)
 PATCH_NAMES = ("patch.size_x_m", "patch.size_y_m")
@@ -116,12 +121,64 @@ def fit(datasets: list[IndentData], base: TissueConfig | None = None, fit_patch:
     return Fit(cfg, params, rms, rms0, int(sol.nfev))
 
 
-def read_csv(path: str | Path) -> list[IndentData]:
-    """A measured indentation CSV (columns x, y, depth, force; SI) grouped by contact point."""
-    rows = list(csv.DictReader(open(path)))
+CSV_COLUMNS = ("x", "y", "depth", "force")
+CSV_UNITS = "x, y, depth in metres (m), force in newtons (N)"
+# Plausibility bounds of a measured skin indentation (metres, newtons). A depth beyond the tissue's
+# thickness cannot be an indentation of it (a file in millimetres gives depths of 0.1-5, x1000 too
+# large); a force above 50 N is beyond any skin indentation rig in docs/validation.md and would
+# crush the tissue; a contact off the sheet is outside the model.
+MAX_PLAUSIBLE_FORCE_N = 50.0
+
+
+class CalibrationInputError(ValueError):
+    """Bad calibration input; its message is the one line the command prints."""
+
+
+def read_csv(path: str | Path, cfg: TissueConfig | None = None) -> list[IndentData]:
+    """A measured indentation CSV (columns x, y, depth, force; SI: m, m, m, N) grouped by contact point.
+
+    Raises
+    ------
+    CalibrationInputError
+        Missing or empty file, a missing column, a non-number, a non-finite value, or implausible
+        magnitudes for ``cfg`` (default preset): depth <= 0 or beyond the tissue thickness (a file in
+        millimetres), force < 0 or > 50 N, a contact off the sheet.
+    """
+    cfg = cfg or preset("default")
+    path = Path(path)
+    if not path.is_file():
+        raise CalibrationInputError(f"{path}: no such file")
+    with open(path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        header = [h.strip() for h in (reader.fieldnames or [])]
+        if not header:
+            raise CalibrationInputError(f"{path}: empty file (expected a header {','.join(CSV_COLUMNS)}; {CSV_UNITS})")
+        missing = [c for c in CSV_COLUMNS if c not in header]
+        if missing:
+            raise CalibrationInputError(
+                f"{path}: missing column(s) {', '.join(missing)} (header has {', '.join(header)}; need {', '.join(CSV_COLUMNS)})"
+            )
+        reader.fieldnames = header
+        rows = []
+        for r in reader:
+            vals = []
+            for c in CSV_COLUMNS:
+                raw = (r.get(c) or "").strip()
+                try:
+                    v = float(raw)
+                except ValueError:
+                    raise CalibrationInputError(f"{path} line {reader.line_num}: column '{c}' is not a number: {raw!r}") from None
+                if not np.isfinite(v):
+                    raise CalibrationInputError(f"{path} line {reader.line_num}: column '{c}' is not finite: {raw!r}")
+                vals.append(v)
+            rows.append(vals)
+    if not rows:
+        raise CalibrationInputError(f"{path}: no data rows after the header")
+    a = np.array(rows)
+    _check_magnitudes(path, a, cfg)
     groups: dict[tuple[float, float], list] = {}
-    for r in rows:
-        groups.setdefault((float(r["x"]), float(r["y"])), []).append((float(r["depth"]), float(r["force"])))
+    for x, y, d, f in a:
+        groups.setdefault((float(x), float(y)), []).append((d, f))
     out = []
     for (x, y), pts in groups.items():
         pts.sort()
@@ -129,11 +186,30 @@ def read_csv(path: str | Path) -> list[IndentData]:
     return out
 
 
+def _check_magnitudes(path: Path, a: np.ndarray, cfg: TissueConfig) -> None:
+    x, y, d, f = a.T
+    hint = f"; units are {CSV_UNITS}"
+    total = cfg.total_thickness_m
+    if d.max() > total:
+        mm = " (is the file in millimetres? /1000 it would fit)" if d.max() / 1e3 <= total else ""
+        raise CalibrationInputError(
+            f"{path}: depth up to {d.max():g} m exceeds the tissue thickness {total:g} m{mm}{hint}"
+        )
+    if d.min() <= 0:
+        raise CalibrationInputError(f"{path}: depth {d.min():g} m <= 0: depths are positive indentations below the surface{hint}")
+    if f.min() < 0 or f.max() > MAX_PLAUSIBLE_FORCE_N:
+        bad = f.min() if f.min() < 0 else f.max()
+        raise CalibrationInputError(f"{path}: force {bad:g} N outside 0..{MAX_PLAUSIBLE_FORCE_N:g} N{hint}")
+    sx, sy = cfg.sheet_size_m
+    if np.abs(x).max() > sx / 2 or np.abs(y).max() > sy / 2:
+        raise CalibrationInputError(
+            f"{path}: contact (x, y) up to ({np.abs(x).max():g}, {np.abs(y).max():g}) m is off the "
+            f"{sx:g} x {sy:g} m sheet centred on the origin{hint}"
+        )
+
+
 def fem_datasets(progress: bool = True) -> list[IndentData]:
     """Calibration data from the converged FEM: the suite's peak and valley scenarios."""
-    from .charts import converged_fem
-    from .scenarios import BY_NAME
-
     out = []
     for name in ("peak-1layer", "peak-2layer", "peak-3layer", "valley-3layer"):
         sc = BY_NAME[name]
@@ -146,15 +222,27 @@ def fem_datasets(progress: bool = True) -> list[IndentData]:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="skin-sim calibrate", description=__doc__.split("\n")[0])
-    ap.add_argument("--csv", help="measured indentation CSV (x, y, depth, force); default: the FEM reference")
+    ap = argparse.ArgumentParser(
+        prog="skin-sim calibrate",
+        description=__doc__.split("\n")[0],
+        epilog=f"CSV units: {CSV_UNITS}. One row per sample; rows with the same (x, y) form one force-depth curve. "
+        "Depth is the indentation below the undeformed surface (positive), force the normal reaction (positive). "
+        "Implausible magnitudes (a depth beyond the tissue thickness, e.g. a file in millimetres; a force above "
+        f"{MAX_PLAUSIBLE_FORCE_N:g} N) are rejected with a one-line error.",
+    )
+    ap.add_argument("--csv", help=f"measured indentation CSV with header x,y,depth,force ({CSV_UNITS}); "
+                    "default: the FEM reference")  # fmt: skip
     ap.add_argument("--out", default="calibrated.yaml", help="config YAML to write (tissue.* parameters)")
     ap.add_argument("--modes", type=int, default=None, help="modes per axis of the model being fitted")
     a = ap.parse_args(argv)
     base = preset("default")
     if a.modes:
         base = base.replace(**{"modes.m": a.modes, "modes.n": a.modes, "lod.adaptive_modes": False})  # else ignored
-    data = read_csv(a.csv) if a.csv else fem_datasets()
+    try:
+        data = read_csv(a.csv, base) if a.csv else fem_datasets()
+    except CalibrationInputError as exc:
+        print(f"skin-sim calibrate: error: {exc}", file=sys.stderr)
+        return 2
     res = fit(data, base)
     dump_yaml({f"tissue.{k}": v for k, v in res.cfg.as_flat().items()}, a.out)
     print(json.dumps({"params": res.params, "residual_rms_start": res.residual_rms_start, "residual_rms": res.residual_rms,
@@ -174,10 +262,6 @@ def fit_membrane(datasets: list[IndentData], cfg: TissueConfig, n: int = 59) -> 
     Fitted to the same force and field data as :func:`fit` (contact offsets are ignored:
     the membrane is homogeneous).
     """
-    from skin_sim_node.solvers import static_indentation
-
-    from .methods import skin_membrane
-
     def response(p):
         mem = skin_membrane(cfg, float(np.exp(p[0])), float(np.exp(p[1])))
         f1, u1 = static_indentation(mem, n, n, 1.0, (0.0, 0.0), cfg.tool_radius_m)
@@ -186,8 +270,6 @@ def fit_membrane(datasets: list[IndentData], cfg: TissueConfig, n: int = 59) -> 
         return f1, xs, u1
 
     def fun(p):
-        from scipy.interpolate import RegularGridInterpolator
-
         f1, xs, u1 = response(p)
         interp = RegularGridInterpolator((xs, xs), u1, bounds_error=False, fill_value=0.0)
         out = []

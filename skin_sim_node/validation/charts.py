@@ -34,7 +34,7 @@ from skin_sim_node.solvers import (  # noqa: E402
     static_indentation,
 )
 
-from . import calibrate, fem  # noqa: E402
+from . import calibrate, fem, large_deformation  # noqa: E402
 from .fem import FemSetup, mesh_levels, reference  # noqa: E402
 from .methods import (  # noqa: E402
     AllLayersVariant,
@@ -46,33 +46,17 @@ from .methods import (  # noqa: E402
     static_force_n,
 )
 from .metrics import field_error, field_max_error, force_depth_error, peak_error  # noqa: E402
+from .references import converged_fem, fem_for, finest_level  # noqa: E402
 from .scenarios import BY_NAME, SUITE, paper_ramp_n  # noqa: E402
 from .stats import table_ii, table_markdown  # noqa: E402
 
 OUT = Path(__file__).resolve().parents[2] / "docs" / "validation"
-FINEST_LEVEL = 1  # the converged reference (convergence study: docs/validation/convergence.md)
-# The near-edge problem is a half model (twice the DOFs); its level 1 did not fit the time on a
-# shared 2-core machine, so its reference is level 0 (its own -1 -> 0 change is in convergence.md).
-FINEST_OVERRIDE = {"edge-3layer": 0}
 CONVERGENCE_LEVELS = (-2, -1, 0, 1)
 COARSE_LEVELS = (-2, -1, 0)
 MODAL_MODES = (1, 3, 10, 20, 40)
 MODAL_GRIDS = (60, 120)  # 2 mm and 1 mm cells over the 120 mm sheet
 GRID_NODES = (29, 59, 119)  # membrane grids over the 60 mm patch: 2, 1, 0.5 mm
 HAPTIC_BUDGET_S, DISPLAY_BUDGET_S = 1e-3, 16e-3
-
-
-def fem_for(sc, level: int, progress: bool = True):
-    return reference(sc.fem_setup(mesh_levels(level, FemSetup())), progress=progress)
-
-
-def converged_fem(sc, progress: bool = True):
-    """The converged FEM reference of a scenario (the finest mesh level)."""
-    return fem_for(sc, finest_level(sc), progress)
-
-
-def finest_level(sc) -> int:
-    return FINEST_OVERRIDE.get(sc.name, FINEST_LEVEL)
 
 
 def _write_csv(path: Path, rows: list[dict]) -> None:
@@ -432,9 +416,14 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart validation", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("--prune-cache", action="store_true", help="delete cached FEM solves this run did not use")
+    ap.add_argument("--only", choices=("reference",), help="reference: only the large-deformation reference and its tables")
+    ap.add_argument("--fresh", action="store_true", help="solve the large-deformation reference again (~2 min)")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    large_deformation.run(out, a.fresh)
+    if a.only == "reference":
+        return 0
     conv = convergence(out)
     fems = {sc.name: converged_fem(sc) for sc in SUITE}
     rows = speed_accuracy(out, fems)

@@ -53,14 +53,24 @@ def fig4_cross_sections(out: Path) -> Path:
 
 
 def force_depth_and_release(out: Path) -> Path:
+    """Force-depth of both forms at the origin and the release of the default (layered) form from 3 mm.
+
+    Layered: a slow press (0.5 mm/s, 1 kHz; the dampers carry almost nothing). Paper form (the ``paper``
+    preset's springs on the default tissue, Fig 3 engagement): static, one tick from rest per depth.
+    """
     cfg = preset("default")
-    model = SkinModel(cfg)
+    paper_k = {f"layers.{la.name}.stiffness_n_per_m": la.stiffness_n_per_m for la in preset("paper").layers}
+    paper = SkinModel(cfg.replace(form="paper", **paper_k))
     depths = np.linspace(0, cfg.total_thickness_m * 1.05, 600)
     forces, layers = [], []
     for d in depths:
-        model.reset()
-        forces.append(model.step((0.0, 0.0, -d), (0, 0, 0), 1e-3))
-        layers.append(model.n_affected)
+        paper.reset()
+        forces.append(paper.step((0.0, 0.0, -d), (0, 0, 0), 1e-3))
+        layers.append(paper.n_affected)
+    model = SkinModel(cfg)
+    speed, dt = 0.5e-3, 1e-3
+    slow_d = np.arange(1, int(depths[-1] / (speed * dt)) + 1) * speed * dt
+    slow_f = [model.step((0.0, 0.0, -d), (0.0, 0.0, -speed), dt) for d in slow_d]
     press(model, 0.0, 0.0, 3e-3)
     dt = 1e-3
     t = np.arange(0, 1.5, dt)
@@ -69,15 +79,16 @@ def force_depth_and_release(out: Path) -> Path:
         model.step((0.0, 0.0, 0.02), (0, 0, 0), dt)
         surf.append(model.surface_displacement_at(0.0, 0.0))
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 3.6))
-    a0.plot(depths * 1e3, forces, "k")
+    a0.plot(slow_d * 1e3, slow_f, "k", label="layered (default), 0.5 mm/s press")
+    a0.plot(depths * 1e3, forces, color="grey", lw=0.8, label="paper form, static")
     a0.set_yscale("log")
     for n, c in zip((1, 2, 3), ("#f2c9a5", "#d9777a", "#f5e08e")):
         sel = np.array(layers) == n
         if sel.any():
-            a0.axvspan(depths[sel][0] * 1e3, depths[sel][-1] * 1e3, color=c, alpha=0.6, label=f"{n} layer(s)")
+            a0.axvspan(depths[sel][0] * 1e3, depths[sel][-1] * 1e3, color=c, alpha=0.6, label=f"paper: {n} layer(s)")
     a0.set_xlabel("tool depth at x = y = 0 (mm)")
-    a0.set_ylabel("static reaction force (N)")
-    a0.set_title("Reuss composite force-depth (static)", fontsize=9)
+    a0.set_ylabel("reaction force (N)")
+    a0.set_title("force-depth at the origin: layered vs paper form", fontsize=9)
     a0.legend(fontsize=7)
     a1.plot(t * 1e3, np.array(surf) * 1e3, "k")
     a1.axhline(0, color="grey", lw=0.5)

@@ -1,0 +1,356 @@
+"""Kernels of the ``layered`` form (issue 11): every layer in series from first contact.
+
+Still the paper's method - iso-stress (Reuss, eq 4) through Kelvin-Voigt layers (eq 6) and a modal
+membrane per layer (eqs 1-3) - with four changes (docs/model.md, "The layered form"):
+
+1. All layers under the tool act in series from first contact (no Fig 3 engagement), each with the
+   thickness that the egg-carton interfaces (section II.C) have *averaged over the contact disk*
+   (:func:`averaged_bounds`), so the heterogeneity is a smooth few-percent modulation, not jumps.
+2. A strain-stiffening compression law per layer (:func:`compression_law`),
+   ``f_i = EA_i phi(c_i / h_i)``, ``phi(eps) = ((1 - eps)^-n - 1) / n``, which grows without bound
+   as the compression ``c_i`` approaches the thickness ``h_i``; past the wall strain it continues
+   along its tangent, so the bottom is a stiff wall and never a clamp.
+3. A true series Kelvin-Voigt chain: each layer has its own rate, ``F / s = f_i(c_i) + b_i cdot_i``
+   for every layer and ``sum c_i = d``, integrated by backward Euler (:func:`chain_solve`), which
+   is passive for any ``dt``.
+4. Coulomb friction with a viscous regularisation along the tangent plane of the deformed surface,
+   and a flat or spherical tip (Hertz-like contact radius ``a = sqrt(R d)``).
+
+All functions are ``@njit(cache=True, nogil=True)``, allocate nothing and are tested compiled and
+as ``.py_func`` against the NumPy/SciPy reference in :mod:`skin_sim_node.model.reference`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from . import kernels as kn
+
+JIT = kn.JIT
+
+AUX_C_OLD, AUX_C, AUX_G, AUX_DBX, AUX_DBY, AUX_DBD = kn.AUX_C_OLD, kn.AUX_C, kn.AUX_G, kn.AUX_DBX, kn.AUX_DBY, kn.AUX_DBD
+
+RATE_CAP_M_S = 3.0
+"""Largest layer rate handed to a membrane (m/s): the node's default tool speed cap (``max_tool_speed_m_s``;
+hands rarely exceed 2 m/s). A faster chain rate comes from a pose jump, not motion, and would set a
+released membrane ringing; the force path is not capped."""
+
+DT_FLOOR_S = 1e-6
+"""Smallest tick the chain integrates (s): a zero ``dt`` would make the dampers rigid; 1 us is far
+below any haptic tick and keeps ``b / dt`` finite."""
+
+
+# Abramowitz & Stegun 9.4.4 (J1(x)/x, in (x/3)^2), 9.4.3 (J0: f0, theta0) and 9.4.6 (J1: f1, theta1), in 3/x.
+_J1X = (0.5, -0.56249985, 0.21093573, -0.03954289, 0.00443319, -0.00031761, 0.00001109)
+_F0 = (0.79788456, -0.00000077, -0.00552740, -0.00009512, 0.00137237, -0.00072805, 0.00014476)
+_T0 = (-0.78539816, -0.04166397, -0.00003954, 0.00262573, -0.00054125, -0.00029333, 0.00013558)
+_F1 = (0.79788456, 0.00000156, 0.01659667, 0.00017105, -0.00249511, 0.00113653, -0.00020033)
+_T1 = (-2.35619449, 0.12499612, 0.00005650, -0.00637879, 0.00074348, 0.00079824, -0.00029166)
+
+
+@njit(**JIT)
+def _poly(c, u):
+    """``sum_i c[i] u^i`` (Horner) and its derivative in ``u``."""
+    p = 0.0
+    dp = 0.0
+    for i in range(len(c) - 1, -1, -1):
+        dp = dp * u + p
+        p = p * u + c[i]
+    return p, dp
+
+
+@njit(**JIT)
+def jinc(x):
+    """``2 J1(x) / x`` and its derivative for ``x >= 0``.
+
+    Abramowitz & Stegun 9.4.4 (``x <= 3``, differentiated term by term) and 9.4.3, 9.4.6 (``x > 3``):
+    absolute error below about 1e-7 (tested against SciPy).
+    """
+    if x <= 3.0:
+        p, dp = _poly(_J1X, (x / 3.0) ** 2)
+        return 2.0 * p, 2.0 * dp * 2.0 * x / 9.0
+    u = 3.0 / x
+    r = 1.0 / math.sqrt(x)
+    j0 = r * _poly(_F0, u)[0] * math.cos(x + _poly(_T0, u)[0])
+    j1 = r * _poly(_F1, u)[0] * math.cos(x + _poly(_T1, u)[0])
+    return 2.0 * j1 / x, 2.0 * (x * j0 - 2.0 * j1) / (x * x)
+
+
+@njit(**JIT)
+def compression_law(eps, n, wall):
+    """``phi(eps)`` and ``phi'(eps)`` of the per-layer compression law (dimensionless).
+
+    ``phi = ((1 - eps)^-n - 1) / n`` (``n = 0``: ``-ln(1 - eps)``, the Hencky strain): ``phi'(0) = 1``
+    so a layer's small-strain stiffness is its ``k``; ``phi -> inf`` as ``eps -> 1``; convex for any
+    ``n >= 0``. Beyond ``wall`` it continues along its tangent (a finite, steep wall).
+    """
+    e = eps if eps < wall else wall
+    lam = 1.0 - e
+    if n > 1e-9:
+        p = lam ** (-n)
+        phi = (p - 1.0) / n
+        dphi = p / lam
+    else:
+        phi = -math.log(lam)
+        dphi = 1.0 / lam
+    if eps > wall:
+        phi += dphi * (eps - wall)
+    return phi, dphi
+
+
+@njit(**JIT)
+def layer_compression(target, ea, n, beta, c_old, h, wall, c0):
+    """Compression ``c`` (m) with ``ea phi(c/h) + beta (c - c_old) = target`` and its slope ``G`` (N/m).
+
+    The left side is convex and increasing in ``c``, so Newton converges from any start (monotone
+    after at most one step). Requires ``target >= 0`` or ``beta > 0`` (a solution exists).
+    """
+    c = c0
+    for _ in range(80):
+        phi, dphi = compression_law(c / h, n, wall)
+        g = ea * phi + beta * (c - c_old) - target
+        gp = ea * dphi / h + beta
+        dc = g / gp
+        c -= dc
+        if abs(dc) <= 1e-16 + 1e-14 * abs(c):
+            break
+    phi, dphi = compression_law(c / h, n, wall)
+    return c, ea * dphi / h + beta
+
+
+@njit(**JIT)
+def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, out_c, out_g):
+    """Backward-Euler step of the series Kelvin-Voigt chain under the tool.
+
+    Solves ``T = ea_i phi(c_i/h_i) + (b_i/dt) (c_i - c_old_i)`` for every layer (iso-stress, eq 4,
+    with each layer's own rate) and ``sum_i c_i = d``. ``sum_i c_i(T)`` is concave and increasing in
+    ``T`` (the inverse of convex increasing maps), so Newton on ``T`` started at or left of the root
+    converges monotonically. Returns ``T`` (N), or ``-1.0`` when the chain relaxed with ``T = 0``
+    is already at least ``d`` long (the tool is above the relaxing surface: no contact); writes the
+    compressions ``out_c`` and slopes ``out_g = dT/dc_i``.
+    """
+    nl = c_old.shape[0]
+    dt_eff = max(dt, DT_FLOOR_S)
+    free = 0.0
+    for i in range(nl):
+        c, g = layer_compression(0.0, ea[i], n[i], b[i] / dt_eff, c_old[i], h[i], wall, c_old[i])
+        out_c[i] = c
+        out_g[i] = g
+        free += c
+    if free >= d:
+        return -1.0
+    t = max(t0, 0.0)
+    for _ in range(100):
+        total = 0.0
+        s = 0.0
+        for i in range(nl):
+            c, g = layer_compression(t, ea[i], n[i], b[i] / dt_eff, c_old[i], h[i], wall, out_c[i])
+            out_c[i] = c
+            out_g[i] = g
+            total += c
+            s += 1.0 / g
+        res = total - d
+        if abs(res) <= 1e-16 + 1e-13 * d:
+            break
+        t = max(t - res / s, 0.0)
+    return t
+
+
+@njit(**JIT)
+def averaged_bounds(x, y, radius, dradius_dd, lp, bottom, bounds, dbx, dby, dbd):
+    """Layer tops under a contact disk of ``radius`` centred at ``(x, y)``: egg-carton interfaces
+    averaged over the disk (section II.C), and their derivatives.
+
+    The disk average of ``cos(kx x) cos(ky y)`` is ``cos(kx x0) cos(ky y0) 2 J1(kappa a) / (kappa a)``
+    with ``kappa = sqrt(kx^2 + ky^2)`` (each product term is a plane wave ``cos(k . r)``, whose disk
+    average is its centre value times ``jinc(|k| a)``). ``bounds[0] = 0`` (surface), ``bounds[L]``
+    the bottom; ``dbx``/``dby``/``dbd`` the derivatives of interface ``j`` w.r.t. x, y and the
+    tool depth (through ``radius``, ``dradius_dd`` = da/dd). ``lp``: the interface rows ``LP_IF_*``.
+    """
+    nif = bounds.shape[0] - 2
+    bounds[0] = 0.0
+    for j in range(nif):
+        kx = lp[kn.LP_IF_KX, j]
+        ky = lp[kn.LP_IF_KY, j]
+        amp = lp[kn.LP_IF_AMP, j]
+        kappa = math.sqrt(kx * kx + ky * ky)
+        w, dw = jinc(kappa * radius)
+        cx = math.cos(kx * x)
+        cy = math.cos(ky * y)
+        bounds[j + 1] = lp[kn.LP_IF_MEAN, j] - amp * cx * cy * w
+        dbx[j] = amp * kx * math.sin(kx * x) * cy * w
+        dby[j] = amp * ky * cx * math.sin(ky * y) * w
+        dbd[j] = -amp * cx * cy * dw * kappa * dradius_dd
+    bounds[nif + 1] = bottom
+
+
+@njit(**JIT)
+def contact_geometry(depth, radius, sphere):
+    """Contact radius ``a`` (m), load scale ``s`` and their depth derivatives for a tool ``depth`` > 0.
+
+    Flat punch: ``a = R``, ``s = 1``. Sphere of radius ``R``: ``a = sqrt(R d)`` (Hertz) up to
+    ``d = R``; on a Winkler (column) foundation the paraboloid's load is the flat punch's over the
+    contact area at half the depth, so ``s = pi a^2 / (2 pi R^2) = d / (2 R)``, and
+    ``dF/dd = k(a)``, the column stiffness of the current contact area.
+    """
+    if not sphere:
+        return radius, 1.0, 0.0, 0.0
+    if depth >= radius:
+        return radius, 0.5, 0.0, 0.0
+    a = math.sqrt(radius * depth)
+    return a, depth / (2.0 * radius), 1.0 / (2.0 * radius), 0.5 * radius / a
+
+
+@njit(**JIT)
+def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate,
+                        istate, aux, sbuf, out):  # fmt: skip
+    """One haptic tick of the layered form: series chain force, friction, tangent and modal state.
+
+    Arguments as :func:`skin_sim_node.model.kernels.step_kernel` plus the tool's lateral velocity.
+    Contact is unilateral and tested against the current deformed surface. At first contact the
+    chain starts from each layer's current displacement under the tool and the contact normal is
+    fixed from the deformed surface's slope there (central differences over 5 um); while in contact
+    every layer is driven with its own compression and rate (eq 3: ``q = c_l beta``, ``v = cdot_l
+    beta``); out of contact (or when the chain relaxing with zero force is shorter than the tool
+    depth) every layer relaxes freely. Writes ``out`` (``OUT_*``: force vector, normal, contact
+    radius, gradient of the normal force, and ``OUT_T``/normal carried to the next tick) and
+    returns flags.
+    """
+    nl = istate.shape[1]
+    flags = 0
+    if not sp[kn.SP_SKIP_SETTLED] > 0.0:
+        kn.prepare_propagators(bmodes, bvec, blev, dt, mstate, lstate, istate)
+    depth = -tool_z
+    was_contact = False
+    for li in range(nl):
+        if istate[kn.IS_DRIVEN, li]:
+            was_contact = True
+    surface = kn.surface_at(tool_x, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+    on_sheet = abs(tool_x) <= sp[kn.SP_HALF_X] and abs(tool_y) <= sp[kn.SP_HALF_Y]
+    if not on_sheet:
+        flags |= kn.FLAG_OFF_SHEET
+    touching = on_sheet and depth > 0.0 and (was_contact or depth >= surface)
+    force_n = 0.0
+    t = 0.0
+    a = 0.0
+    s = 1.0
+    ds = 0.0
+    bounds = aux[kn.AUX_BOUNDS]
+    thick = aux[kn.AUX_THICK, :nl]
+    c_old = aux[AUX_C_OLD, :nl]
+    c_new = aux[AUX_C, :nl]
+    g = aux[AUX_G, :nl]
+    if touching:
+        a, s, ds, da_dd = contact_geometry(depth, sp[kn.SP_TOOL_R], sp[kn.SP_SPHERE] > 0.0)
+        averaged_bounds(tool_x, tool_y, a, da_dd, lp, sp[kn.SP_BOTTOM], bounds, aux[AUX_DBX], aux[AUX_DBY], aux[AUX_DBD])
+        for li in range(nl):
+            thick[li] = bounds[li + 1] - bounds[li]
+        if was_contact:
+            for li in range(nl):
+                c_old[li] = lstate[kn.LS_COMP, li]
+        else:  # first contact: start from the deformed state under the tool, normal from its slope
+            gx = 0.0
+            gy = 0.0
+            hstep = 5e-6
+            for li in range(nl):
+                c_old[li] = 0.0
+                if istate[kn.IS_ACTIVE, li]:
+                    c_old[li] = kn.layer_at(li, tool_x, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gx += kn.layer_at(li, tool_x + hstep, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gx -= kn.layer_at(li, tool_x - hstep, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gy += kn.layer_at(li, tool_x, tool_y + hstep, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gy -= kn.layer_at(li, tool_x, tool_y - hstep, sp, blev, bk, mstate, lstate, istate, sbuf)
+            gx /= 2.0 * hstep
+            gy /= 2.0 * hstep
+            # surface height -U(x, y) (z up): outward normal ~ (dU/dx, dU/dy, 1)
+            norm = math.sqrt(gx * gx + gy * gy + 1.0)
+            out[kn.OUT_NX] = gx / norm
+            out[kn.OUT_NY] = gy / norm
+            out[kn.OUT_NZ] = 1.0 / norm
+            out[kn.OUT_T] = 0.0
+        wall = sp[kn.SP_WALL]
+        t = chain_solve(depth, out[kn.OUT_T], lp[kn.LP_EA], lp[kn.LP_N], lp[kn.LP_B], dt, c_old, thick, wall, c_new, g)
+        if t <= 0.0:
+            touching = False
+            t = 0.0
+            flags |= kn.FLAG_SEPARATED
+    nx = 0.0
+    ny = 0.0
+    nz = 1.0
+    fx = 0.0
+    fy = 0.0
+    fz = 0.0
+    dfx = 0.0
+    dfy = 0.0
+    dfz = 0.0
+    if touching:
+        flags |= kn.FLAG_CONTACT
+        if depth > sp[kn.SP_BOTTOM]:
+            flags |= kn.FLAG_BOTTOMED
+        force_n = s * t
+        # gradient of the normal force: dT = (dd + sum_i H_i dh_i / G_i) / S  (implicit function theorem)
+        s_inv = 0.0
+        sx = 0.0
+        sy = 0.0
+        sd = 0.0
+        for li in range(nl):
+            h = thick[li]
+            eps = c_new[li] / h
+            if eps > wall:
+                flags |= kn.FLAG_LAYER_BOUND
+            phi, dphi = compression_law(eps, lp[kn.LP_N, li], wall)
+            hh = -lp[kn.LP_EA, li] * dphi * eps / h  # d(residual)/dh at fixed c
+            dhx = (aux[AUX_DBX, li] if li < nl - 1 else 0.0) - (aux[AUX_DBX, li - 1] if li > 0 else 0.0)
+            dhy = (aux[AUX_DBY, li] if li < nl - 1 else 0.0) - (aux[AUX_DBY, li - 1] if li > 0 else 0.0)
+            dhd = (aux[AUX_DBD, li] if li < nl - 1 else 0.0) - (aux[AUX_DBD, li - 1] if li > 0 else 0.0)
+            s_inv += 1.0 / g[li]
+            sx += hh * dhx / g[li]
+            sy += hh * dhy / g[li]
+            sd += hh * dhd / g[li]
+        dfx = s * sx / s_inv
+        dfy = s * sy / s_inv
+        dfz = -(ds * t + s * (1.0 + sd) / s_inv)
+        nx = out[kn.OUT_NX]
+        ny = out[kn.OUT_NY]
+        nz = out[kn.OUT_NZ]
+        vn = tool_vx * nx + tool_vy * ny + tool_vz * nz
+        vtx = tool_vx - vn * nx
+        vty = tool_vy - vn * ny
+        vtz = tool_vz - vn * nz
+        vs = sp[kn.SP_V_SLIP]
+        r = math.sqrt(vtx * vtx + vty * vty + vtz * vtz + vs * vs)
+        mu = sp[kn.SP_MU]
+        fx = force_n * (nx - mu * vtx / r)
+        fy = force_n * (ny - mu * vty / r)
+        fz = force_n * (nz - mu * vtz / r)
+        out[kn.OUT_T] = t
+        dt_eff = max(dt, DT_FLOOR_S)
+        cap = max(RATE_CAP_M_S, math.sqrt(tool_vx * tool_vx + tool_vy * tool_vy + tool_vz * tool_vz))
+        for li in range(nl):
+            rate = min(cap, max(-cap, (c_new[li] - c_old[li]) / dt_eff))  # each layer its own rate (series chain)
+            kn.drive_layer(li, c_new[li], rate, tool_x, tool_y, sp, bmodes, bvec, blev, mstate, lstate, istate)
+    else:
+        out[kn.OUT_T] = 0.0
+        a = 0.0
+        for li in range(nl):
+            lstate[kn.LS_COMP, li] = 0.0
+            kn.relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate)
+    out[kn.OUT_FORCE_N] = force_n
+    out[kn.OUT_STRESS_PA] = force_n / (math.pi * a * a) if a > 0.0 else 0.0
+    out[kn.OUT_DEPTH_M] = depth if touching else 0.0
+    out[kn.OUT_N_AFFECTED] = nl if touching else 0
+    out[kn.OUT_SURFACE_M] = surface
+    out[kn.OUT_SETTLED] = kn.settled_flag(sp, lstate, istate)
+    out[kn.OUT_FX] = fx
+    out[kn.OUT_FY] = fy
+    out[kn.OUT_FZ] = fz
+    out[kn.OUT_NX] = nx
+    out[kn.OUT_NY] = ny
+    out[kn.OUT_NZ] = nz
+    out[kn.OUT_RADIUS_M] = a
+    out[kn.OUT_DFN_DX] = dfx
+    out[kn.OUT_DFN_DY] = dfy
+    out[kn.OUT_DFN_DZ] = dfz
+    return flags

@@ -1,0 +1,132 @@
+"""Stability with a strain-stiffening tissue: the tangent stiffness at depth against the loop's limits.
+
+The haptic loop sees the local slope of the force, ``K(d) = -dF_z/dz`` (:meth:`SkinModel.tangent`,
+the model's hand-over to the force path), not the secant ``F/d``. A stiffening law raises ``K`` with
+depth, so a loop stable at the surface can go unstable deep in. This module
+
+- tabulates ``K(d)`` of the model (any ``tissue.form``) and of the large-deformation reference
+  (the slope of the axisymmetric neo-Hookean curve, :mod:`skin_sim_node.validation.hyperelastic`);
+- compares it with the naive sampled-loop limit (exact spectral radius,
+  :func:`.haptic_loop.linear_k_max`) and the largest wall the device-side passivity controller
+  (:mod:`skin_sim_node.device.passivity`, used through the simulated device) holds, at 1 kHz;
+- closes the real loop (simulated Touch + :class:`~skin_sim_node.session.HapticSession` with its
+  force-rate limiter) pressing and holding at each depth, naive and with the passivity controller,
+  and reports the verdict and the largest force rate the session published.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+from ..device.sim_device import DeviceParams  # noqa: E402
+from ..model import SkinModel, TissueConfig, preset  # noqa: E402
+from ..session import SessionParams  # noqa: E402
+from ..validation.references import axisym  # noqa: E402
+from . import haptic_loop as hl  # noqa: E402
+
+RATE_HZ = 1000.0  # the product's haptic rate
+DEPTHS_M = tuple(np.round(np.linspace(0.25e-3, 3e-3, 12), 6))
+LOOP_DEPTHS_M = (0.5e-3, 1e-3, 2e-3, 3e-3)
+TICK_S = 1.0 / RATE_HZ
+
+
+def model_tangent_n_per_m(model: SkinModel, depth_m: float, x_m: float = 0.0, y_m: float = 0.0) -> tuple[float, float]:
+    """Static force and ``-dF_z/dz`` of the model held at ``depth_m`` (reset, one step at rest, then ``tangent()``)."""
+    model.reset()
+    f = model.step((x_m, y_m, -depth_m), (0.0, 0.0, 0.0), TICK_S)
+    t = model.tangent()
+    return float(f), float(-np.asarray(t.stiffness_n_per_m)[2, 2])
+
+
+def reference_tangent_n_per_m(depths_m) -> np.ndarray:
+    """Slope of the converged large-deformation force-depth curve (central differences on its load steps)."""
+    r = axisym(progress=False)
+    d = np.concatenate([[0.0], r.depths_m])
+    f = np.concatenate([[0.0], r.forces_n])
+    return np.interp(depths_m, d, np.gradient(f, d))
+
+
+@dataclass
+class LoopPoint:
+    depth_m: float
+    force_n: float
+    tangent_n_per_m: float
+    naive_stable: bool
+    passivity_stable: bool
+    max_force_rate_n_per_s: float  # largest |dF/dt| the session published (naive run)
+
+
+def loop_point(cfg: TissueConfig, depth_m: float, stabiliser: str, params: SessionParams | None = None):
+    """Press and hold at ``depth_m`` with the model in the loop; returns (Verdict, trace)."""
+    model = SkinModel(cfg)
+    f_static, _ = model_tangent_n_per_m(model, depth_m)
+    hand = DeviceParams().hand_stiffness_n_per_m
+    path = hl.hold_path(depth_m, hand, max(f_static, 0.05))
+    env = hl.TissueEnv(cfg, params)
+    tr = hl.run_loop(env, RATE_HZ, path, stabiliser)
+    return hl.classify(tr, max(f_static, 0.05)), tr
+
+
+def table(cfg: TissueConfig | None = None, progress: bool = True) -> tuple[list[dict], list[LoopPoint], dict]:
+    """Tangent stiffness per depth (model, reference) and the closed-loop check at :data:`LOOP_DEPTHS_M`."""
+    cfg = cfg or preset("default")
+    model = SkinModel(cfg)
+    k_ref = reference_tangent_n_per_m(np.array(DEPTHS_M))
+    rows = []
+    for d, kr in zip(DEPTHS_M, k_ref):
+        f, k = model_tangent_n_per_m(model, d)
+        rows.append({"depth_mm": d * 1e3, "force_n": f, "model_tangent_n_per_mm": k * 1e-3,
+                     "reference_tangent_n_per_mm": kr * 1e-3})  # fmt: skip
+    limits = {"naive_exact_n_per_mm": hl.linear_k_max(RATE_HZ) * 1e-3,
+              "colgate_device_b_n_per_mm": hl.colgate_k_max(DeviceParams().damping_n_s_per_m, RATE_HZ) * 1e-3}  # fmt: skip
+    pts = []
+    for d in tqdm(LOOP_DEPTHS_M, desc="closed loop at depth (naive, passivity)", disable=not progress, leave=False):
+        v0, tr = loop_point(cfg, d, "none")
+        v1, _ = loop_point(cfg, d, "passivity")
+        rate = float(np.max(np.abs(np.diff(tr.force_n))) * RATE_HZ)
+        f, k = model_tangent_n_per_m(SkinModel(cfg), d)
+        pts.append(LoopPoint(d, f, k, v0.stable, v1.stable, rate))
+    return rows, pts, limits
+
+
+def figures(out: Path, cfg: TissueConfig | None = None) -> list[Path]:
+    cfg = cfg or preset("default")
+    rows, pts, limits = table(cfg)
+    form = cfg.as_flat().get("form", cfg.as_flat().get("tissue.form", "paper"))
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    d = [r["depth_mm"] for r in rows]
+    ax.semilogy(d, [max(r["model_tangent_n_per_mm"], 1e-6) for r in rows], "o-", label=f"model dF/dx (form: {form})")
+    ax.semilogy(d, [r["reference_tangent_n_per_mm"] for r in rows], "k-", lw=2, alpha=0.6, label="large-deformation reference")
+    ax.axhline(limits["naive_exact_n_per_mm"], color="r", ls="--", lw=1, label="naive loop limit, 1 kHz (exact, 1-tick delay)")
+    ax.axhline(limits["colgate_device_b_n_per_mm"], color="r", ls=":", lw=1, label="Colgate 2b/T, device damping only")
+    for p in pts:
+        ax.plot(p.depth_m * 1e3, max(p.tangent_n_per_m * 1e-3, 1e-6), "s" if p.passivity_stable else "x", color="g" if
+                p.passivity_stable else "r", ms=9, mfc="none")  # fmt: skip
+    ax.set_xlabel("press depth (mm)")
+    ax.set_ylabel("tangent stiffness (N/mm)")
+    ax.set_title("tangent stiffness the haptic loop sees, against the loop limits (squares: loop with passivity stable)",
+                 fontsize=8)  # fmt: skip
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = out / "stiffening.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    print(f"loop limits at {RATE_HZ:.0f} Hz: naive exact {limits['naive_exact_n_per_mm']:.3f} N/mm, "
+          f"Colgate 2b/T (device b) {limits['colgate_device_b_n_per_mm']:.3f} N/mm")  # fmt: skip
+    print("  depth mm | force N | model K N/mm | reference K N/mm")
+    for r in rows:
+        print(f"  {r['depth_mm']:8.2f} | {r['force_n']:7.4f} | {r['model_tangent_n_per_mm']:12.4f} "
+              f"| {r['reference_tangent_n_per_mm']:.4f}")  # fmt: skip
+    print("  closed loop (session with force-rate limiter): depth mm | K N/mm | naive | passivity | max dF/dt N/s")
+    for p in pts:
+        print(f"  {p.depth_m * 1e3:.2f} | {p.tangent_n_per_m * 1e-3:.4f} | {'stable' if p.naive_stable else 'UNSTABLE'} | "
+              f"{'stable' if p.passivity_stable else 'UNSTABLE'} | {p.max_force_rate_n_per_s:.1f}")  # fmt: skip
+    return [path]

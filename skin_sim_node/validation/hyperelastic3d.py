@@ -1,0 +1,196 @@
+"""Large-deformation reference in 3D: the egg-carton layered block of :mod:`.fem`, compressible neo-Hookean.
+
+Same mesh, elements (20-node serendipity hexes, 3x3x3 Gauss points), material-by-quadrature-point
+egg-carton layering, symmetry and boundary conditions as the linear 3D FEM (:mod:`.fem`); the
+material law, Newton solver and load stepping of the axisymmetric reference
+(:mod:`.hyperelastic`, Bonet & Wood eq 6.27). Moduli and geometry come from the config
+(:func:`.hyperelastic.layer_moduli_pa`). The reaction is the sum of the internal z-forces on the
+punch DOFs times the symmetry factor; the surface field at the deepest point is the downward
+displacement at the current (deformed) positions of a fine grid of surface points, interpolated
+onto the linear FEM's sample grid so both are scored the same way.
+
+Cost: a Newton iteration at mesh level -2 (about 9k DOFs) is ~2 s here (assembly + PARDISO),
+~40-60 iterations to 3 mm, so a few minutes per scenario; results are cached in
+``docs/validation/hyper_cache/3d-<hash>.npz``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.interpolate import griddata
+from skfem import Basis, ElementHexS2, ElementVector
+from tqdm import tqdm
+
+from skin_sim_node.model import TissueConfig, preset
+
+from .fem import FemSetup, _geometry_key, _modulus_field, build_mesh, mesh_levels, sparse_solve
+from .hyperelastic import CACHE_DIR, HYPER_VERSION, _lame, layer_moduli_pa, march
+
+N_STEPS_3D = 10  # load steps to the scenario's depth (the predictor and step halving do the rest)
+
+
+def neo_hookean_3d(G, lam, mu):
+    """``P`` (3, 3, ...), ``A = dP/dF`` (3, 3, 3, 3, ...) and ``J`` at displacement gradient ``G`` (3, 3, ...)."""
+    F = np.moveaxis(G, (0, 1), (-2, -1)) + np.eye(3)
+    J = np.linalg.det(F)
+    ok = J > 0
+    Fi = np.linalg.inv(np.where(ok[..., None, None], F, np.eye(3)))
+    FiT = np.swapaxes(Fi, -1, -2)
+    lnJ = np.log(np.where(ok, J, 1.0))
+    P = mu[..., None, None] * (F - FiT) + (lam * lnJ)[..., None, None] * FiT
+    eye = np.eye(3)
+    A = (mu[..., None, None, None, None] * np.einsum("ik,JL->iJkL", eye, eye)
+         + (mu - lam * lnJ)[..., None, None, None, None] * np.einsum("...Li,...Jk->...iJkL", Fi, Fi)
+         + lam[..., None, None, None, None] * np.einsum("...Ji,...Lk->...iJkL", Fi, Fi))  # fmt: skip
+    return np.moveaxis(P, (-2, -1), (0, 1)), np.moveaxis(A, (-4, -3, -2, -1), (0, 1, 2, 3)), np.where(ok, J, -1.0)
+
+
+@dataclass(frozen=True)
+class Setup3D:
+    fem: FemSetup
+    max_depth_m: float
+    n_steps: int = N_STEPS_3D
+
+    def key(self) -> str:
+        blob = json.dumps({"v": HYPER_VERSION, "3d": 1, **asdict(self)}, sort_keys=True, default=str)
+        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def setup_for(sc, cfg: TissueConfig | None = None, level: int = -2) -> Setup3D:
+    """The 3D neo-Hookean problem of scenario ``sc`` for ``cfg`` (default preset) at linear-FEM mesh ``level``."""
+    cfg = cfg or preset("default")
+    base = replace(mesh_levels(level, FemSetup()), moduli_pa=layer_moduli_pa(cfg), tissue=_geometry_key(cfg))
+    return Setup3D(sc.fem_setup(base), sc.max_depth_m)
+
+
+class Problem3D:
+    """Mesh, basis, BCs and assembly (9 gradient components per Gauss point)."""
+
+    def __init__(self, s: FemSetup):
+        self.s = s
+        self.mesh = build_mesh(s)
+        b = self.basis = Basis(self.mesh, ElementVector(ElementHexS2()), intorder=3)
+        xc, yc = s.contact_xy_m
+        x = np.asarray(b.global_coordinates())
+        e = _modulus_field(s, x[0] + xc, x[1] + yc, x[2])
+        self.lam, self.mu = _lame(e, s.poisson)
+        self.wdx = np.asarray(b.dx)
+        nl = len(b.basis)
+        ne, nq = self.wdx.shape
+        self.B = np.empty((ne, nq, 9, nl))  # (element, point, component, local dof)
+        for i, phi in enumerate(b.basis):
+            self.B[:, :, :, i] = np.moveaxis(np.asarray(phi[0].grad).reshape(9, ne, nq), 0, -1)
+        self.edofs = b.element_dofs
+        self.rows = np.repeat(self.edofs[:, None, :], nl, axis=1).ravel()
+        self.cols = np.repeat(self.edofs[None, :, :], nl, axis=0).ravel()
+        r0 = s.tissue[2]
+        bottom = self.mesh.p[2].min()
+        far = s.half_width_m * (1 - 1e-9)
+        tol = 1e-12
+        fixed = [b.get_dofs(lambda p: np.abs(p[2] - bottom) < tol).all(), b.get_dofs(lambda p: np.abs(p[1]) < tol).all("u^2")]
+        if s.edge_distance_m is None:
+            fixed.append(b.get_dofs(lambda p: np.abs(p[0]) < tol).all("u^1"))
+            fixed.append(b.get_dofs(lambda p: np.abs(p[0]) > far).all("u^1"))
+        else:
+            fixed.append(b.get_dofs(lambda p: p[0] < -far).all("u^1"))
+        fixed.append(b.get_dofs(lambda p: p[1] > far).all("u^2"))
+        self.tool = b.get_dofs(lambda p: (np.abs(p[2]) < tol) & (np.hypot(p[0], p[1]) <= r0 * (1 + 1e-9))).all("u^3")
+        self.fixed = np.setdiff1d(np.unique(np.concatenate(fixed)), self.tool)
+        self.free = np.setdiff1d(np.arange(b.N), np.concatenate([self.fixed, self.tool]))
+        self.u = np.zeros(b.N)
+        self.sym = 4.0 if s.edge_distance_m is None else 2.0
+
+    def assemble(self, u, tangent: bool = True):
+        ue = u[self.edofs].T  # (ne, nl)
+        G = np.einsum("nqai,ni->anq", self.B, ue).reshape(3, 3, *self.wdx.shape)
+        P, A, J = neo_hookean_3d(G, self.lam, self.mu)
+        Pw = (P.reshape(9, *self.wdx.shape) * self.wdx).transpose(1, 2, 0)  # (ne, nq, 9)
+        fe = np.einsum("nqa,nqai->in", Pw, self.B)
+        f = np.bincount(self.edofs.ravel(), fe.ravel(), minlength=self.basis.N)
+        if not tangent:
+            return f, None, float(J.min())
+        ne, nq = self.wdx.shape
+        Aw = (A.reshape(9, 9, ne, nq) * self.wdx).transpose(2, 3, 0, 1)  # (ne, nq, 9, 9)
+        AB = np.matmul(Aw, self.B)  # (ne, nq, 9, nl)
+        nl = self.B.shape[-1]
+        ke = np.matmul(self.B.reshape(ne, nq * 9, nl).transpose(0, 2, 1), AB.reshape(ne, nq * 9, nl))  # (ne, nl, nl)
+        K = sp.coo_matrix((ke.transpose(1, 2, 0).ravel(), (self.rows, self.cols)), shape=(self.basis.N,) * 2).tocsr()
+        return f, K, float(J.min())
+
+
+@dataclass
+class Result3D:
+    setup: Setup3D
+    depths_m: np.ndarray
+    forces_n: np.ndarray
+    sample_x_m: np.ndarray  # global
+    sample_y_m: np.ndarray
+    field_down_m: np.ndarray  # (ny, nx) at max depth, Eulerian
+    n_dofs: int
+    newton_iterations: int
+    solve_s: float
+
+    def force_n(self, depth_m):
+        return np.interp(depth_m, np.concatenate([[0.0], self.depths_m]), np.concatenate([[0.0], self.forces_n]))
+
+
+def solve(s3: Setup3D, progress: bool = True, sample_step_m: float = 0.5e-3) -> Result3D:
+    t0 = time.perf_counter()
+    s = s3.fem
+    pb = Problem3D(s)
+    stops = np.linspace(0, s3.max_depth_m, s3.n_steps + 1)[1:]
+    depths, forces = [], []
+    bar = tqdm(total=len(stops), desc=f"neo-Hookean 3D {s3.key()[:8]} ({pb.basis.N} dofs)", disable=not progress, leave=False)
+
+    def on_stop(d, f_int):
+        depths.append(d)
+        forces.append(-float(f_int[pb.tool].sum()) * pb.sym)
+        bar.update()
+        bar.set_postfix(depth_mm=f"{d * 1e3:.2f}", force_n=f"{forces[-1]:.3g}")
+
+    iters = march(pb, stops, on_stop, s3.max_depth_m, solver=sparse_solve)
+    bar.close()
+    # surface field at the deepest point, at deformed positions, onto the linear FEM's sample grid (local coords)
+    xmax = s.edge_distance_m or s.half_width_m
+    xlo = 0.0 if s.edge_distance_m is None else -s.half_width_m
+    sx = np.clip(np.arange(xlo, xmax + 1e-12, sample_step_m), -s.half_width_m * (1 - 1e-9), xmax * (1 - 1e-9))
+    sy = np.clip(np.arange(0.0, s.half_width_m + 1e-12, sample_step_m), 0.0, s.half_width_m * (1 - 1e-9))
+    top = pb.basis.get_dofs(lambda p: np.abs(p[2]) < 1e-12)  # surface nodes: the serendipity DOFs are nodal values
+    dx_, dy_, dz_ = (top.all(c) for c in ("u^1", "u^2", "u^3"))
+    X0, Y0 = pb.basis.doflocs[0, dz_], pb.basis.doflocs[1, dz_]
+    ux, uy, uz = pb.u[dx_], pb.u[dy_], pb.u[dz_]
+    cur = np.stack([X0 + ux, Y0 + uy], 1)
+    if s.edge_distance_m is None:  # mirror across the symmetry planes so the interpolation sees both sides
+        cur = np.concatenate([cur, cur * [-1, 1], cur * [1, -1], cur * [-1, -1]])
+        down = np.tile(-uz, 4)
+    else:
+        cur = np.concatenate([cur, cur * [1, -1]])
+        down = np.tile(-uz, 2)
+    SX, SY = np.meshgrid(sx, sy)
+    field = griddata(cur, down, (SX, SY), method="linear", fill_value=0.0)
+    xc, yc = s.contact_xy_m
+    return Result3D(s3, np.array(depths), np.array(forces), sx + xc, sy + yc, field, pb.basis.N, iters,
+                    time.perf_counter() - t0)  # fmt: skip
+
+
+def reference(s3: Setup3D, cache_dir: Path | None = CACHE_DIR, progress: bool = True, fresh: bool = False) -> Result3D:
+    """:func:`solve` with the on-disk cache (``3d-<hash>.npz``)."""
+    path = None if cache_dir is None else Path(cache_dir) / f"3d-{s3.key()}.npz"
+    if path is not None and path.exists() and not fresh:
+        z = np.load(path)
+        return Result3D(s3, z["depths"], z["forces"], z["sx"], z["sy"], z["field"], int(z["n_dofs"]), int(z["iters"]),
+                        float(z["solve_s"]))  # fmt: skip
+    res = solve(s3, progress)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(path, depths=res.depths_m, forces=res.forces_n, sx=res.sample_x_m, sy=res.sample_y_m,
+                            field=res.field_down_m.astype(np.float32), n_dofs=res.n_dofs, iters=res.newton_iterations,
+                            solve_s=res.solve_s, setup=json.dumps(asdict(s3), default=str))  # fmt: skip
+    return res
