@@ -289,7 +289,7 @@ def test_closed_loop_press_hold_release_settles(default_cfg):
     spring = k_h * (z[hold] - hand_z[hold])
     np.testing.assert_allclose(spring, fh, rtol=0.01)
     assert z[hold].mean() > hand_z[hold].mean()  # the stylus stops above (short of) the hand
-    assert -z[hold].mean() > 2e-3  # and still well inside the tissue
+    assert -z[hold].mean() > 1e-3  # and still well inside the tissue (below the ~0.1 mm epidermis, in the dermis)
     assert force[-200:].max() == 0.0  # lifted off at the end
     assert np.all(np.isfinite(force)) and force.max() < 3.3
 
@@ -309,3 +309,32 @@ def test_device_substeps_and_stabiliser_options():
     for kw in ({"substep_s": -1.0}, {"substep_s": math.nan}, {"stabiliser": "magic"}):
         with pytest.raises(ValueError):
             DeviceParams(**kw)
+
+
+def test_closed_loop_through_the_renderer_at_250_hz_settles(default_cfg):
+    """The product's force path, pure: server (SkinModel + tangent) at 250 Hz, bridge renderer at 1 kHz with the Touch's
+    caps and the passivity controller, SimulatedDevice applying the command one tick late."""
+    from msgs_schema.contact_model import LocalModel
+    from skin_sim_node.device.render import ContactRenderer
+
+    dev = SimulatedDevice("press_hold_release")
+    model = SkinModel(default_cfg)
+    r = ContactRenderer(passivity_mass_kg=dev.params.mass_kg)
+    dt, every = 1e-3, 4
+    n = int(round(dev.hand_path.duration_s / dt))
+    force, z = np.zeros(n), np.zeros(n)
+    for k in range(n):
+        p, v = dev.pos_tissue, dev.vel_tissue
+        if k % every == 0:
+            model.step(p, v, every * dt if k else 0.0)
+            t = model.tangent()
+            r.set_model(LocalModel(k, 0, "tissue", p, v, t.force_n, t.stiffness_n_per_m, t.damping_n_s_per_m, t.normal), k * dt)
+        f = r.render(k * dt, p, v)
+        force[k], z[k] = f[2], p[2]
+        dev.step(dev.mapping.force_to_device(tuple(f)), dt)
+    hold = slice(int(1.0 / dt), int(1.5 / dt))
+    fh = force[hold]
+    assert fh.mean() > 0.01 and fh.std() < 0.02 * fh.mean()
+    assert np.all(np.abs(np.diff(force)) < 0.1 * max(force.max(), 1e-9))  # no steps at the device
+    assert np.all(np.isfinite(force)) and force.max() <= 3.3
+    assert force[-100:].max() < 1e-3  # lifted off at the end
