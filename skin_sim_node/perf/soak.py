@@ -277,6 +277,8 @@ class PhaseTracker:
             "without_fresh_model": delta("rendered_no_model_total"),
             "device_pose_gaps_over_2ms": delta("device_gaps_2ms_total"),
             "models": delta("models_total"),
+            "fades_ttl": delta("fades_ttl_total"),
+            "fades_radius": delta("fades_radius_total"),
             "model_age_ms_max": max(ages) if ages else float("nan"),
             "render_rate_hz_min": min(rates) if rates else float("nan"),
             "render_rate_hz_median": float(np.median(rates)) if rates else float("nan"),
@@ -354,6 +356,7 @@ def main(argv=None) -> int:
         print(f"  {name:17s} | {p['rendered']:8d} ({p['render_rate_hz_median']:6.1f}, {p['render_rate_hz_min']:6.1f})"
               f"                 | {p['from_fresh_model']:8d}                | {p['without_fresh_model']:7d} | "
               f"{p['model_age_ms_max']:16.2f} | {p['device_pose_gaps_over_2ms']:23d} | {p['node_rate_hz_median']:7.1f}"
+              + f"  (fades: {p['fades_ttl']} stale model, {p['fades_radius']} left radius)"
               + (f"  ({p['readers_joined']} readers joined)" if p["readers_joined"] else ""))  # fmt: skip
     print(f"aims met: {r['aims_met']} (device: {r['device_aim_met']})", flush=True)
     if args.json:
