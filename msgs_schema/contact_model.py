@@ -32,6 +32,11 @@ the layer thicknesses (dermis ~1.3 mm, docs/model.md); 2 mm is 20 periods of a b
 1 kHz and 5 at 250 Hz, so an ordinary stroke never leaves the model between updates."""
 
 
+STALE_RADIUS_M = 10.0
+"""Validity radius of the zero model a stale tick sends (m): larger than any device workspace (a Touch's is
+160 x 120 x 70 mm), so the bridge renders the zero force wherever the tool is."""
+
+
 @dataclass(frozen=True)
 class LocalModel:
     """One local contact model, tissue frame, SI units (fields as ``ContactModel.msg``).
@@ -108,7 +113,8 @@ def fill_contact_model_from_tick(
 
     ``f0`` is the published force (after the session's clamp, rate bound and watchdog); ``K``, ``D`` and the
     normal are the model's tangent (:class:`skin_sim_node.model.contact.ContactTangent`). A stale tick (no
-    valid tool input) sends a zero model: nothing to render.
+    valid tool input; the session reports the tool lifted 1 m away) sends a zero model valid anywhere
+    (:data:`STALE_RADIUS_M`): the node says "no force" and the bridge renders that, fresh, rather than fading.
     """
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
     msg.header.frame_id = frame
@@ -116,7 +122,7 @@ def fill_contact_model_from_tick(
     tg = result.tangent
     msg.x0_m[:] = result.x0_m
     msg.v0_m_s[:] = result.velocity_m_s
-    msg.f0_n[:] = result.force_n
+    msg.f0_n[:] = 0.0 if result.stale else result.force_n
     if result.stale:
         msg.stiffness_n_per_m[:] = 0.0
         msg.damping_n_s_per_m[:] = 0.0
@@ -124,6 +130,6 @@ def fill_contact_model_from_tick(
         msg.stiffness_n_per_m[:] = np.asarray(tg.stiffness_n_per_m).ravel()
         msg.damping_n_s_per_m[:] = np.asarray(tg.damping_n_s_per_m).ravel()
     msg.normal[:] = tg.normal
-    msg.validity_radius_m = float(radius_m)
+    msg.validity_radius_m = float(STALE_RADIUS_M if result.stale else radius_m)
     msg.time_to_live_s = float(ttl_s)
     return msg

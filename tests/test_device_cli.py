@@ -45,3 +45,27 @@ def test_every_parameter_is_declared_read_only_from_one_table():
 def test_bad_axes_is_a_one_line_error(capsys):
     assert BridgeNode.main(["--axes", "xxz"]) == 2
     assert "need each of x, y, z exactly once" in capsys.readouterr().out
+
+
+def test_contact_model_message_round_trip_and_stale_tick():
+    from types import SimpleNamespace
+
+    import numpy as np
+    from skin_sim_msgs.msg import ContactModel
+
+    from msgs_schema.contact_model import STALE_RADIUS_M, fill_contact_model_from_tick, read_contact_model
+    from skin_sim_node.model.contact import ContactTangent
+
+    K = np.arange(9.0).reshape(3, 3) - 4
+    tg = ContactTangent(np.array([0.1, 0.0, 1.2]), K, -0.5 * np.eye(3), np.array([0.0, 0.0, 1.0]), 2.5e-3)
+    tick = SimpleNamespace(seq=7, x0_m=(0.001, 0.0, -0.002), velocity_m_s=(0.0, 0.0, -0.01), force_n=(0.1, 0.0, 1.1),
+                           stale=False, tangent=tg)  # fmt: skip
+    m = read_contact_model(fill_contact_model_from_tick(ContactModel(), tick, 1_700_000_000_123_456_789, "tissue"))
+    assert (m.sequence, m.stamp_ns, m.frame_id) == (7, 1_700_000_000_123_456_789, "tissue")
+    np.testing.assert_array_equal(m.stiffness_n_per_m, K)
+    np.testing.assert_array_equal(m.f0_n, tick.force_n)  # the published force, not the raw tangent's
+    assert m.finite and m.validity_radius_m < 1.0
+    stale = read_contact_model(
+        fill_contact_model_from_tick(ContactModel(), SimpleNamespace(**{**vars(tick), "stale": True}), 0, "tissue")
+    )
+    assert stale.validity_radius_m == STALE_RADIUS_M and not stale.stiffness_n_per_m.any() and not stale.f0_n.any()

@@ -241,7 +241,16 @@ class BridgeNode(DeviceNode):
         # the servo tick: render at this pose and command at once (wrench source: the last force, held)
         v = self._v_tissue if self._v_tissue is not None and abs(self._v_stamp_ns - t_ns) <= TWIST_MAX_SKEW_NS else None
         cf = self._cf_tissue if self._cf_stamp_ns == t_ns else None  # applied over the tick that ended here
+        n_radius = self.renderer.counts["fades_radius"]
         f = self.renderer.render(now * 1e-9, x, v, cf)
+        if self.renderer.counts["fades_radius"] > n_radius and "radius" not in self._rejected_logged:
+            self._rejected_logged.add("radius")
+            m = self.renderer.model
+            self.get_logger().warning(
+                f"tool left the contact model's validity radius: |x - x0| = {np.linalg.norm(np.subtract(x, m.x0_m)) * 1e3:.2f} mm"
+                f" > {m.validity_radius_m * 1e3:.1f} mm (model {m.sequence}, x0 z {m.x0_m[2] * 1e3:.2f} mm, x z "
+                f"{x[2] * 1e3:.2f} mm, age {self.renderer.model_age_s(now * 1e-9) * 1e3:.1f} ms): fading (logged once)"
+            )
         self._publish_force(stamp, self.mapping.force_to_device(tuple(f)))
         self._count_render(now)
         publish_while_ok(self, self._pose_pub, fill_pose(self._pose_out, stamp, self.tissue_frame, x, q))
