@@ -20,7 +20,7 @@ import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 
-from ..ros_util import run_nodes
+from ..ros_util import PeriodicLoop, run_nodes
 from .mapping import parse_vec3
 
 HOUSEKEEPING_PERIOD_S = 0.05
@@ -157,7 +157,47 @@ class DeviceNode(Node):
         return None
 
 
-def shutdown_when(node: Node, finished: bool) -> None:
-    """Housekeeping: end the process from the executor thread once the node's script is done."""
-    if finished:
-        rclpy.try_shutdown(context=node.context)
+class ScriptedNode(DeviceNode):
+    """A device node that plays a script in its own periodic loop thread (simulated device, mock tool).
+
+    Adds ``--loop`` (``repeat`` 0) and ``--no-exit`` (``exit_when_done`` false), runs ``tick(now_ns, elapsed_ns)``
+    every ``period_ns`` in a :class:`skin_sim_node.ros_util.PeriodicLoop`, and ends the process from the executor
+    thread once :meth:`finish` was called (a housekeeping timer, see :data:`HOUSEKEEPING_PERIOD_S`).
+    """
+
+    @classmethod
+    def add_arguments(cls, ap) -> None:
+        ap.add_argument("--loop", action="store_true", help="loop the script forever (repeat 0)")
+        ap.add_argument("--no-exit", action="store_true", help="keep holding the end pose instead of exiting")
+
+    @classmethod
+    def overrides_from(cls, opts) -> dict:
+        o = super().overrides_from(opts)
+        if opts.loop:
+            o["repeat"] = 0
+        if opts.no_exit:
+            o["exit_when_done"] = False
+        return o
+
+    def start_loop(self, period_ns: int, tick, name: str) -> None:
+        self.finished = False
+        self._loop = PeriodicLoop(period_ns, tick, name=name)
+        self.create_timer(HOUSEKEEPING_PERIOD_S, self._housekeeping)
+        self._loop.start()
+
+    def housekeeping(self) -> None:
+        """Executor-thread work every :data:`HOUSEKEEPING_PERIOD_S` (override and call super)."""
+
+    def _housekeeping(self) -> None:
+        self.housekeeping()
+        if self.finished:
+            rclpy.try_shutdown(context=self.context)
+
+    def finish(self, message: str) -> None:
+        """From inside the loop thread: the script is done; stop the loop (no join) and let the process end."""
+        self.finished = True
+        self.say(message)
+        self._loop.stop()
+
+    def stop(self) -> None:
+        self._loop.stop()

@@ -12,12 +12,12 @@ from msgs_schema.convert import fill_pose, fill_twist
 from msgs_schema.qos import publisher
 from msgs_schema.topics import FRAMES
 
-from ..ros_util import PeriodicLoop, ros_now_ns
-from .base import HOUSEKEEPING_PERIOD_S, DeviceNode, Param, publish_while_ok, shutdown_when
+from ..ros_util import ros_now_ns
+from .base import Param, ScriptedNode, publish_while_ok
 from .trajectories import TRAJECTORIES, ScriptClock
 
 
-class MockToolNode(DeviceNode):
+class MockToolNode(ScriptedNode):
     """Publishes a scripted trajectory on ``tool/pose`` (and ``tool/twist``) in the tissue frame."""
 
     NODE_NAME = "mock_tool"
@@ -35,20 +35,15 @@ class MockToolNode(DeviceNode):
 
     @classmethod
     def add_arguments(cls, ap) -> None:
+        super().add_arguments(ap)
         ap.add_argument("--list", action="store_true", help="list the trajectories and exit")
         ap.add_argument("--no-twist", action="store_true", help="do not publish tool/twist")
-        ap.add_argument("--loop", action="store_true", help="loop forever (repeat 0)")
-        ap.add_argument("--no-exit", action="store_true", help="keep publishing the lifted end pose instead of exiting")
 
     @classmethod
     def overrides_from(cls, opts) -> dict:
         o = super().overrides_from(opts)
         if opts.no_twist:
             o["publish_twist"] = False
-        if opts.loop:
-            o["repeat"] = 0
-        if opts.no_exit:
-            o["exit_when_done"] = False
         return o
 
     @classmethod
@@ -69,16 +64,13 @@ class MockToolNode(DeviceNode):
         self._twist_pub = publisher(self, "tool_twist") if p.publish_twist else None
         self._pose, self._twist = PoseStamped(), TwistStamped()
         self._t0_ns: int | None = None
-        self._finished = False
         self.get_logger().info(
             f"trajectory {p.trajectory} ({self.traj.duration_s:.3f} s) x {self.clock.repeat or 'inf'} at {p.rate_hz} Hz"
         )
-        self._loop = PeriodicLoop(int(1e9 / p.rate_hz), self._tick, name="mock-tool")
-        self.create_timer(HOUSEKEEPING_PERIOD_S, lambda: shutdown_when(self, self._finished))
-        self._loop.start()
+        self.start_loop(int(1e9 / p.rate_hz), self._tick, name="mock-tool")
 
     def _tick(self, now_ns: int, elapsed_ns: int) -> None:
-        if self._finished:
+        if self.finished:
             return
         if self._t0_ns is None:
             self._t0_ns = now_ns
@@ -91,12 +83,7 @@ class MockToolNode(DeviceNode):
         if not publish_while_ok(self, self._pose_pub, fill_pose(self._pose, stamp, self.frame, pos)):
             return
         if self.p.exit_when_done and self.clock.done(t):
-            self._finished = True
-            self.say("trajectory done: shutting down")
-            self._loop.stop()  # from inside the loop thread: sets the flag, no join
-
-    def stop(self) -> None:
-        self._loop.stop()
+            self.finish("trajectory done: shutting down")
 
 
 def main(argv=None) -> int:

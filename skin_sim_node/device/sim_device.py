@@ -20,8 +20,8 @@ from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_wrench
 from msgs_schema.qos import PROFILES, publisher
 from msgs_schema.topics import TOPICS
 
-from ..ros_util import PeriodicLoop, ros_now_ns
-from .base import HOUSEKEEPING_PERIOD_S, DeviceNode, Param, publish_while_ok, shutdown_when
+from ..ros_util import ros_now_ns
+from .base import Param, ScriptedNode, publish_while_ok
 from .mapping import CONVENTIONS, MEASURED_FORCE, DeviceMapping
 from .stylus import DeviceParams, SimulatedDevice
 from .trajectories import TRAJECTORIES
@@ -41,7 +41,7 @@ HINT = (
 )
 
 
-class SimDeviceNode(DeviceNode):
+class SimDeviceNode(ScriptedNode):
     """Publishes the simulated stylus like a device driver and applies the force commands it receives."""
 
     NODE_NAME = "sim_device"
@@ -65,21 +65,6 @@ class SimDeviceNode(DeviceNode):
         Param("max_force_n", DeviceParams.max_force_n, "force saturation (N): Touch peak 3.3 N", cli=""),
         Param("substep_s", DeviceParams.substep_s, "longest stylus integration substep (s); 0: one per tick"),
     )
-
-    @classmethod
-    def add_arguments(cls, ap) -> None:
-        g = ap.add_mutually_exclusive_group()
-        g.add_argument("--loop", action="store_true", help="loop the hand path forever (repeat 0)")
-        ap.add_argument("--no-exit", action="store_true", help="keep holding the end pose instead of exiting")
-
-    @classmethod
-    def overrides_from(cls, opts) -> dict:
-        o = super().overrides_from(opts)
-        if opts.loop:
-            o["repeat"] = 0
-        if opts.no_exit:
-            o["exit_when_done"] = False
-        return o
 
     def __init__(self, overrides: dict | None = None, **kwargs):
         super().__init__(overrides, **kwargs)
@@ -105,28 +90,24 @@ class SimDeviceNode(DeviceNode):
         self._cmd = (0.0, 0.0, 0.0)
         self.commands = 0
         self._hinted = False
-        self._finished = False
         self._period_ns = int(1e9 / p.rate_hz)
         self.get_logger().info(
             f"simulated Touch ({p.convention}) on {dev(pose_key)}, hand path {p.hand_path}, {p.rate_hz} Hz, "
             f"origin at tissue {self.device.mapping.offset_m} m; applies the force commands on {dev(cmd_key)}"
         )
-        self._loop = PeriodicLoop(self._period_ns, self._tick, name="sim-device")
-        self.create_timer(HOUSEKEEPING_PERIOD_S, self._housekeeping)
-        self._loop.start()
+        self.start_loop(self._period_ns, self._tick, name="sim-device")
 
-    def _housekeeping(self) -> None:
+    def housekeeping(self) -> None:
         if not self._hinted and self.commands == 0 and self.device.t_s > self.p.start_delay_s + NO_COMMAND_HINT_S:
             self._hinted = True
             self.get_logger().warning(HINT)
-        shutdown_when(self, self._finished)
 
     def _on_command(self, msg) -> None:
         self._cmd = read_wrench(msg)[2]
         self.commands += 1
 
     def _tick(self, now_ns: int, elapsed_ns: int) -> None:
-        if self._finished:
+        if self.finished:
             return
         dt = min(max(elapsed_ns, 0), MAX_DT_PERIODS * self._period_ns) * 1e-9
         pos, vel = self.device.step(self._cmd, dt)
@@ -139,9 +120,7 @@ class SimDeviceNode(DeviceNode):
         if not publish_while_ok(self, self._pose_pub, fill_pose(self._pose, stamp, self.p.frame_id, pos)):
             return
         if self.p.exit_when_done and self.device.done:
-            self._finished = True
-            self.say(f"hand path done ({self.commands} force commands received): shutting down")
-            self._loop.stop()  # from inside the loop thread: sets the flag, no join
+            self.finish(f"hand path done ({self.commands} force commands received): shutting down")
 
     def stop(self) -> None:
         self._loop.stop()
