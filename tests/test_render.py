@@ -153,3 +153,21 @@ def test_hold_last_baseline():
     h.set_model(model(1, f0=(0, 0, 1.0)), 0.0)
     assert h.render(0.01, (0, 0, -5e-3))[2] == 1.0
     assert h.render(0.06, (0, 0, -5e-3))[2] == 0.0
+
+
+def test_passivity_damping_fades_with_the_model():
+    """After a stale model's fade the device gets exactly zero, even while the stylus moves with an energy debt."""
+    D = 2.0 * np.eye(3)  # an active model: the controller has work to do
+    m = LocalModel(1, 0, "tissue", (0, 0, 0), (0, 0, 0), (0, 0, 1.0), np.zeros((3, 3)), D, Z, 1.0, 0.1)
+    r = uncapped(passivity_mass_kg=0.045)
+    r.set_model(m, 0.0)
+    out, active = [], 0
+    for i in range(1, 400):
+        t = i * DT
+        x = np.array([0.01 * math.sin(2 * math.pi * 3 * t), 0.0, 0.0])
+        v = np.array([0.01 * 2 * math.pi * 3 * math.cos(2 * math.pi * 3 * t), 0.0, 0.0])
+        out.append(np.linalg.norm(r.render(t, x, v)))
+        active = max(active, r.passivity.active_ticks)
+    out = np.array(out)
+    assert active > 0
+    assert np.all(out[round((0.1 + FADE_S) / DT) + 1 :] == 0.0)  # TTL 100 ms + fade 50 ms: nothing after

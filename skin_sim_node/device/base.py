@@ -76,6 +76,7 @@ class DeviceNode(Node):
     PROG = "skin-sim"
     DESCRIPTION = ""
     PARAMS: tuple[Param, ...] = ()
+    ROS_ARGS: list[str] = []  # the process's --ros-args (set by main), for a node that opens a second context
 
     def __init__(self, overrides: dict | None = None, **kwargs):
         super().__init__(self.NODE_NAME, **kwargs)
@@ -149,6 +150,7 @@ class DeviceNode(Node):
         if early is not None:
             return early
         overrides = cls.overrides_from(opts)
+        cls.ROS_ARGS = ros
         return run_nodes([lambda: cls(overrides)], args=ros, executor=EXECUTOR)
 
     @classmethod

@@ -24,10 +24,11 @@ ticks without a fresh model and the model ages. See ``docs/devices.md``.
 from __future__ import annotations
 
 import math
-import os
+import threading
 import time
 
 import numpy as np
+import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 
@@ -36,7 +37,7 @@ from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_pose, r
 from msgs_schema.qos import PROFILES, publisher, subscription
 from msgs_schema.topics import FRAMES, TOPICS
 
-from ..ros_util import ros_now_ns
+from ..ros_util import make_executor, ros_now_ns, spin_context
 from .base import DeviceNode, Param, publish_while_ok
 from .mapping import (
     CONVENTIONS,
@@ -50,17 +51,76 @@ from .mapping import (
 from .render import FADE_S, ContactRenderer
 from .stylus import DeviceParams
 
-UDP_ONLY = "UDPv4"
-"""Fast DDS transports of the bridge's participant. Measured (tests/test_force_path_ros.py): with the default
-shared-memory transport, a node killed with SIGKILL stalls every sample the bridge receives through shared
-memory, the device's poses included, for 1000 ms (Fast DDS's port health-check timeout): the watchdog then steps
-the force to zero instead of the renderer fading it. Over UDP loopback the device's poses keep flowing."""
-
 SOURCES = ("model", "wrench")
 STABILISERS = ("none", "passivity")
 TWIST_MAX_SKEW_NS = 5_000_000  # a device twist this close to the pose's stamp is the pose's velocity (as the node's 5 ms)
 HOLD_RADIUS_M = 1.0  # wrench source: a held force does not depend on the pose (any pose on a Touch's workspace)
 AGE_RING = 4096  # model ages kept for the diagnostics window (4 s at 1 kHz)
+
+
+class ServerLink:
+    """The bridge's side towards the node, on its own DDS participant (an rclpy context) and threads.
+
+    Measured (tests/test_force_path_ros.py): a node killed with SIGKILL while writing into a participant's
+    shared-memory port stalls that port for 1000 ms (Fast DDS's health-check timeout). With one participant the
+    device's poses then stopped reaching the bridge: no tick to render on, the force held, then a watchdog step.
+    Here the node writes only into this participant's port, the device only into the bridge's own, and the tool
+    pose goes out from this link's thread (a latest-value hand-off), so a dead node cannot stall the servo path.
+    """
+
+    def __init__(self, bridge: BridgeNode, ros_args: list[str], on_model, twist: bool):
+        self.ctx = rclpy.Context()
+        rclpy.init(args=ros_args, context=self.ctx)
+        self.node = rclpy.create_node(f"{bridge.get_name()}_server", context=self.ctx)
+        self.frame = bridge.tissue_frame
+        self._pose_pub = publisher(self.node, "tool_pose")
+        self._twist_pub = publisher(self.node, "tool_twist") if twist else None
+        self._pose, self._twist = PoseStamped(), TwistStamped()
+        key = "contact_model" if bridge.model_source else "tool_wrench"
+        subscription(self.node, key, on_model)
+        self._latest: dict[str, tuple] = {}
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._executor = make_executor("events", self.ctx)
+        self._executor.add_node(self.node)
+        self._threads = [
+            threading.Thread(target=spin_context, args=(self._executor, self.ctx, self._stop), name="server-spin", daemon=True),
+            threading.Thread(target=self._publish_loop, name="server-publish", daemon=True),
+        ]
+        for t in self._threads:
+            t.start()
+
+    def send(self, kind: str, values: tuple) -> None:
+        """Hand the newest ``pose`` (stamp, xyz, quat) or ``twist`` (stamp, linear) to the publishing thread."""
+        with self._lock:
+            self._latest[kind] = values
+        self._wake.set()
+
+    def _publish_loop(self) -> None:
+        while not self._stop.is_set():
+            if not self._wake.wait(0.05):
+                continue
+            self._wake.clear()
+            with self._lock:
+                latest, self._latest = self._latest, {}
+            tw = latest.get("twist")
+            if tw is not None and self._twist_pub is not None:  # twist first, as the device publishes them
+                publish_while_ok(self.node, self._twist_pub, fill_twist(self._twist, tw[0], self.frame, tw[1]))
+            ps = latest.get("pose")
+            if ps is not None:
+                publish_while_ok(self.node, self._pose_pub, fill_pose(self._pose, ps[0], self.frame, ps[1], ps[2]))
+
+    def close(self) -> None:
+        self._stop.set()
+        self._wake.set()
+        for t in self._threads:
+            t.join(timeout=1.0)
+        try:
+            self.node.destroy_node()
+        except Exception:  # noqa: BLE001 - best effort at shutdown
+            pass
+        rclpy.try_shutdown(context=self.ctx)
 
 
 class BridgeNode(DeviceNode):
@@ -118,16 +178,9 @@ class BridgeNode(DeviceNode):
     def add_arguments(cls, ap) -> None:
         ap.add_argument("--restamp", dest="restamp", action="store_true", default=None,
                         help="stamp tool poses with the bridge clock instead of the driver's")  # fmt: skip
-        ap.add_argument(
-            "--shm", action="store_true",
-            help="keep Fast DDS's shared-memory transport (default: UDP only for the bridge, see docs/devices.md: a "
-            "killed node stalls every shared-memory reception of the bridge for 1 s)",
-        )  # fmt: skip
 
     @classmethod
     def before_start(cls, opts) -> int | None:
-        if not opts.shm:
-            os.environ.setdefault("FASTDDS_BUILTIN_TRANSPORTS", UDP_ONLY)
         if opts.axes is not None:
             try:
                 axes_matrix(opts.axes)
@@ -159,9 +212,8 @@ class BridgeNode(DeviceNode):
         def dev(key):
             return f"{ns}/{TOPICS[key].name}" if ns else TOPICS[key].name
 
-        self._pose_out, self._twist_out, self._force_out = PoseStamped(), TwistStamped(), WrenchStamped()
-        self._pose_pub = publisher(self, "tool_pose")
-        self._twist_pub = publisher(self, "tool_twist") if twist_key else None
+        self._force_out = WrenchStamped()
+        self._render_lock = threading.Lock()  # the renderer: models from the server link's thread, ticks from this one
         self._force_pub = self.create_publisher(WrenchStamped, dev(force_key), PROFILES["driver"])
         self._diag_pub = publisher(self, "diagnostics")
         self._diag = DiagnosticArray()
@@ -173,10 +225,7 @@ class BridgeNode(DeviceNode):
             subscription(self, cf_key, self._on_device_force, name=dev(cf_key))
         self._cf_tissue: np.ndarray | None = None
         self._cf_stamp_ns = -1
-        if self.model_source:
-            subscription(self, "contact_model", self._on_model)
-        else:
-            subscription(self, "tool_wrench", self._on_wrench)
+        self.server = ServerLink(self, self.ROS_ARGS, self._on_model if self.model_source else self._on_wrench, bool(twist_key))
         self._v_tissue: np.ndarray | None = None
         self._v_stamp_ns = 0
         self._wrench_seq = 0
@@ -213,7 +262,7 @@ class BridgeNode(DeviceNode):
             return
         vt = self.mapping.velocity_to_tissue(v)
         self._v_tissue, self._v_stamp_ns = np.array(vt), t_ns
-        publish_while_ok(self, self._twist_pub, fill_twist(self._twist_out, self._stamp(msg), self.tissue_frame, vt))
+        self.server.send("twist", (self._stamp(msg), vt))
         self.counts["twists"] += 1
 
     def _on_device_force(self, msg) -> None:
@@ -242,7 +291,8 @@ class BridgeNode(DeviceNode):
         v = self._v_tissue if self._v_tissue is not None and abs(self._v_stamp_ns - t_ns) <= TWIST_MAX_SKEW_NS else None
         cf = self._cf_tissue if self._cf_stamp_ns == t_ns else None  # applied over the tick that ended here
         n_radius = self.renderer.counts["fades_radius"]
-        f = self.renderer.render(now * 1e-9, x, v, cf)
+        with self._render_lock:
+            f = self.renderer.render(now * 1e-9, x, v, cf)
         if self.renderer.counts["fades_radius"] > n_radius and "radius" not in self._rejected_logged:
             self._rejected_logged.add("radius")
             m = self.renderer.model
@@ -253,7 +303,7 @@ class BridgeNode(DeviceNode):
             )
         self._publish_force(stamp, self.mapping.force_to_device(tuple(f)))
         self._count_render(now)
-        publish_while_ok(self, self._pose_pub, fill_pose(self._pose_out, stamp, self.tissue_frame, x, q))
+        self.server.send("pose", (stamp, x, q))
 
     def _count_render(self, now_ns: int) -> None:
         c = self.counts
@@ -275,7 +325,8 @@ class BridgeNode(DeviceNode):
         if m.frame_id != self.tissue_frame:
             why = f"frame '{m.frame_id}', expected '{self.tissue_frame}'"
         else:
-            why = self.renderer.set_model(m, time.monotonic_ns() * 1e-9)
+            with self._render_lock:
+                why = self.renderer.set_model(m, time.monotonic_ns() * 1e-9)
         if why is None:
             self.counts["models"] += 1
             self._win["models"] += 1
@@ -296,7 +347,9 @@ class BridgeNode(DeviceNode):
         self._wrench_seq += 1
         m = LocalModel(self._wrench_seq, t_ns, self.tissue_frame, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), f, np.zeros((3, 3)),
                        np.zeros((3, 3)), (0.0, 0.0, 1.0), HOLD_RADIUS_M, self.p.watchdog_s)  # fmt: skip
-        if self.renderer.set_model(m, now * 1e-9) is None:
+        with self._render_lock:
+            held = self.renderer.set_model(m, now * 1e-9) is None
+        if held:
             self.counts["forwarded"] += 1
             self._first_model = True
 
@@ -345,6 +398,7 @@ class BridgeNode(DeviceNode):
         publish_while_ok(self, self._diag_pub, self._diag)
 
     def stop(self) -> None:
+        self.server.close()
         c = self.counts
         self.say(
             f"bridge stopping: {c['poses']} device poses, {c['twists']} twists, {c['models']} contact models "

@@ -234,6 +234,7 @@ class ContactRenderer:
             if not valid and self._fade_t0 is None:
                 self.counts["fades_ttl" if not fresh else "fades_radius"] += 1
         vd = v if self.use_damping else None
+        pc_gain = 1.0  # the passivity controller acts on a rendered model only
         if valid:
             if self._fade_t0 is not None:  # back inside / model fresh again after a fade: blend from the faded force
                 self._begin_blend(now_s, self.cf_min if self._blend_T <= 0 else self._blend_T, keep_from=False)
@@ -250,6 +251,7 @@ class ContactRenderer:
                 self._fade_t0, self._fade_from = now_s, self._last_out.copy()
             g = max(0.0, 1.0 - (now_s - self._fade_t0) / self.fade_s)
             f = g * self._fade_from
+            pc_gain = 0.0  # the environment is being removed: the controller stands aside, the fade stays a ramp
             self.state = "fade" if slot is not None else "none"
         f = clamp_vec(f, self.max_force_n)
         if not np.isfinite(f).all():  # cannot happen with finite models and x; never send it
@@ -268,7 +270,10 @@ class ContactRenderer:
                 vel = v if v is not None else (dx / dt if dt > 0 else np.zeros(3))
             else:
                 vel = np.zeros(3)
-            applied = clamp_vec(np.array(self.passivity.force(tuple(f), tuple(vel), dt)), self.max_force_n)
+            damped = np.array(self.passivity.force(tuple(f), tuple(vel), dt))
+            applied = clamp_vec(f + pc_gain * (damped - f), self.max_force_n)
+            if pc_gain == 0.0:  # fading or nothing rendered: the energy account of that environment is closed
+                self.passivity.reset()
         if finite_x:
             self._sent.append((applied, f))
         if finite_x:
