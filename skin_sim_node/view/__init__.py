@@ -19,6 +19,7 @@ from pathlib import Path
 DISPLAY_RATE_HZ = 30.0
 """Frames per second to the page: half a 60 Hz screen refresh; enough for a hand-speed press
 (the node's grid comes at up to 60 Hz) and half the view's cost of 60. Measured in docs/view.md."""
+_BROWSERS: list = []  # headless browsers this process opened (screenshots), closed on exit
 PORT = 8642  # arbitrary unprivileged port; --port 0 picks a free one
 
 
@@ -45,6 +46,8 @@ def serve(source, host: str, port: int, duration_s: float | None = None, screens
     try:
         runner.join()
     finally:
+        for b in list(_BROWSERS):  # a screenshot still being taken: never leave a browser behind
+            b.close()
         server.close()
         source.close()
     return 0
@@ -66,6 +69,8 @@ def main(argv=None) -> int:
     ap.add_argument("--duration-s", type=float, help="stop after this long (default: until Ctrl-C)")
     ap.add_argument("--screenshot", type=Path, help="open the page in headless Chromium and save a PNG after --shot-after-s")
     ap.add_argument("--shot-after-s", type=float, default=3.0, help="delay before the screenshot")
+    ap.add_argument("--shot-when-force-n", type=float, default=0.0,
+                    help="take the screenshot once the shown force exceeds this (N; waits up to 60 s), then --shot-after-s")  # fmt: skip
     ap.add_argument("--bench", action="store_true", help="latency benchmark: node p99 with the view open vs closed")
     ap.add_argument("--compare-libs", action="store_true", help="library comparison (mesh rate, CPU, install size)")
     args = ap.parse_args(argv)
@@ -88,19 +93,22 @@ def main(argv=None) -> int:
     if args.screenshot:
 
         def on_ready(server):
-            threading.Thread(target=_screenshot, args=(server, source, args.screenshot, args.shot_after_s), daemon=True).start()
+            threading.Thread(target=_screenshot, args=(server, args.screenshot, args.shot_after_s, args.shot_when_force_n), daemon=True).start()
 
     return serve(source, args.host, args.port, args.duration_s, on_ready=on_ready)
 
 
-def _screenshot(server, source, path: Path, after_s: float) -> None:
+def _screenshot(server, path: Path, after_s: float, when_force_n: float = 0.0) -> None:
     import time
 
     from .browser import Browser
 
     try:
         with Browser(server.url) as b:
+            _BROWSERS.append(b)
             b.wait_for("window.skinView && window.skinView.gridFrames > 0", 30, "a tissue grid on the page")
+            if when_force_n > 0:
+                b.wait_for(f"window.skinView.force > {when_force_n}", 60, f"a force above {when_force_n} N")
             time.sleep(after_s)
             print(f"skin-sim view: screenshot {b.screenshot(path)}", flush=True)
     except (OSError, RuntimeError, TimeoutError) as exc:

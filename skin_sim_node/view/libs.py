@@ -127,7 +127,8 @@ def _worker(lib: str, port: int, rate_hz: float, duration_s: float) -> None:  # 
             ents = []
             for k in range(3):
                 pts = [Point3(x=float(a), y=float(b), z=float(c) - k) for a, b, c in v.tolist()]
-                ents.append(SceneEntity(id=f"layer{k}", frame_id="tissue", triangles=[TriangleListPrimitive(points=pts, indices=idx)]))
+                tri = TriangleListPrimitive(points=pts, indices=idx)
+                ents.append(SceneEntity(id=f"layer{k}", frame_id="tissue", triangles=[tri]))
             chan.log(SceneUpdate(entities=ents))
 
         def ready():
@@ -264,6 +265,20 @@ def own_size_mb() -> float:
     return sum(f.stat().st_size for f in here.rglob("*") if f.is_file() and "__pycache__" not in f.parts) / 1e6
 
 
+def format_row(row: dict) -> str:
+    a, m = row["at30"], row["max"]
+
+    def g(d, k):
+        return d.get(k, float("nan"))
+
+    text = (f"{row['lib']:13s} install +{row['install_mb']:7.1f} MB | at 30 Hz: server CPU {g(a, 'cpu_pct'):5.1f} %, "
+            f"client CPU {g(a, 'client_cpu_pct'):5.1f} %, {row['bytes_per_update'] / 1e3:5.0f} kB/update, "
+            f"{g(a, 'delivered_per_s'):5.1f} updates/s delivered | flat out: {g(m, 'delivered_per_s'):5.1f} updates/s "
+            f"delivered (pushed {g(m, 'frames_per_s'):5.0f}/s) at server CPU {g(m, 'cpu_pct'):5.1f} %")  # fmt: skip
+    err = a.get("error") or m.get("error")
+    return text + (f" | error: {err}" if err else "")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim view --compare-libs", description=__doc__.splitlines()[0])
     ap.add_argument("--lib-dir", type=Path, default=Path("out/view_libs"),
@@ -291,11 +306,7 @@ def main(argv=None) -> int:
         flat["delivered_per_s"] = flat.get("client_bytes_per_s", float("nan")) / per_update if per_update else float("nan")
         row = {"lib": lib, "install_mb": size, "at30": at30, "max": flat, "bytes_per_update": per_update}
         rows.append(row)
-        print(f"  {lib:13s} install +{size:7.1f} MB | at 30 Hz: {at30.get('frames_per_s', float('nan')):5.1f} frames/s, "
-              f"server CPU {at30.get('cpu_pct', float('nan')):5.1f} %, client CPU {at30.get('client_cpu_pct', float('nan')):5.1f} % "
-              f"| {per_update / 1e3:6.0f} kB/update, {at30.get('delivered_per_s', float('nan')):5.1f} delivered/s | flat out: {flat.get('delivered_per_s', float('nan')):5.1f} updates/s delivered "
-              f"(pushed {flat.get('frames_per_s', float('nan')):6.0f}/s) at server CPU {flat.get('cpu_pct', float('nan')):5.1f} %"
-              + (f" | error: {at30.get('error') or flat.get('error')}" if "error" in at30 or "error" in flat else ""), flush=True)
+        print("  " + format_row(row), flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(rows, indent=1))
     print(f"written {args.out}")
