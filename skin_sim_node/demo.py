@@ -41,11 +41,12 @@ def summarize(monitor, wall_s: float) -> dict:
 
 def _start_view(scene: Scene, out: Path):
     """``skin-sim view`` beside the scene; prints its URL. Without a display, it saves a screenshot of the page."""
-    extra = [] if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") else ["--screenshot", str(out / "view.png"), "--shot-when-force-n", "0.02", "--shot-after-s", "0.5"]
+    shot = ["--screenshot", str(out / "view.png"), "--shot-when-force-n", "0.02", "--shot-after-s", "0.5"]  # while pressing
+    extra = [] if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") else shot
     view = scene.start("view", "view", "--port", "0", *extra)
     scene.wait_for_log(view, "skin-sim view: http", timeout_s=60)
-    print(f"  view: {view.log().split('skin-sim view: ', 1)[1].split()[0]}" + (f" (screenshot: {out / 'view.png'})" if extra else ""),
-          flush=True)  # fmt: skip
+    url = view.log().split("skin-sim view: ", 1)[1].split()[0]
+    print(f"  view: {url}" + (f" (screenshot: {out / 'view.png'})" if extra else ""), flush=True)
     return view if extra else None
 
 

@@ -69,8 +69,10 @@ def main(argv=None) -> int:
     ap.add_argument("--duration-s", type=float, help="stop after this long (default: until Ctrl-C)")
     ap.add_argument("--screenshot", type=Path, help="open the page in headless Chromium and save a PNG after --shot-after-s")
     ap.add_argument("--shot-after-s", type=float, default=3.0, help="delay before the screenshot")
-    ap.add_argument("--shot-when-force-n", type=float, default=0.0,
-                    help="take the screenshot once the shown force exceeds this (N; waits up to 60 s), then --shot-after-s")  # fmt: skip
+    ap.add_argument(
+        "--shot-when-force-n", type=float, default=0.0,
+        help="take the screenshot once the shown force exceeds this (N; waits up to 60 s), then --shot-after-s",
+    )  # fmt: skip
     ap.add_argument("--bench", action="store_true", help="latency benchmark: node p99 with the view open vs closed")
     ap.add_argument("--compare-libs", action="store_true", help="library comparison (mesh rate, CPU, install size)")
     args = ap.parse_args(argv)
@@ -93,7 +95,8 @@ def main(argv=None) -> int:
     if args.screenshot:
 
         def on_ready(server):
-            threading.Thread(target=_screenshot, args=(server, args.screenshot, args.shot_after_s, args.shot_when_force_n), daemon=True).start()
+            shot = (server, args.screenshot, args.shot_after_s, args.shot_when_force_n)
+            threading.Thread(target=_screenshot, args=shot, daemon=True).start()
 
     return serve(source, args.host, args.port, args.duration_s, on_ready=on_ready)
 
