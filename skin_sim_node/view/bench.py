@@ -1,8 +1,8 @@
 """``skin-sim view --bench``: what the view costs the haptic loop, measured in one run.
 
 One node and one mock tool (looping ``press_all_layers``) run throughout. Phases alternate:
-view closed, then view open (the ``skin-sim view`` process plus a headless Chromium showing the
-page), ``--cycles`` times. An observer (``perf.bench_node.StreamObserver``, newest sample only, as
+view closed; the ``skin-sim view`` process alone (subscribed, no page); view open (the process plus
+a headless Chromium showing the page), ``--cycles`` times. An observer (``perf.bench_node.StreamObserver``, newest sample only, as
 a device sees it) takes pose-to-force latency from each wrench: its stamp is the stamp of the pose
 it answers (input loop mode), so ``arrival - stamp`` is the pose-to-force latency at a device.
 Printed: per phase and pooled, median and p99 latency, the node's missed slots and rate (its
@@ -59,26 +59,29 @@ def run(duration_s: float, cycles: int, out: Path, rate_hz: float) -> dict:
         mon.wait_for(lambda: len(mon.wrench) > 100, 60, "wrenches from the node")
         time.sleep(2.0)  # past the first press's start
         node_pid = node.popen.pid
-        bar = tqdm(total=2 * cycles, desc="phases", unit="phase")
+        bar = tqdm(total=3 * cycles, desc="phases", unit="phase")
         for k in range(cycles):
-            for open_ in (False, True):
+            for kind in ("closed", "view", "open"):
                 view = browser = None
                 extra = {}
-                if open_:
+                if kind != "closed":
                     view = scene.start(f"view_{k}", "view", "--port", "0", "--rate-hz", str(rate_hz))
                     scene.wait_for_log(view, "skin-sim view: http", timeout_s=60)
                     url = view.log().split("skin-sim view: ", 1)[1].split()[0]
-                    browser = Browser(url)
-                    browser.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "a grid on the page")
+                    if kind == "open":
+                        browser = Browser(url)
+                        browser.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "a grid on the page")
                     time.sleep(1.0)
-                    f0 = browser.evaluate("[window.skinView.frames, window.skinView.gridFrames]")
-                pids = ([view.popen.pid] if view else []) + (browser.pids if browser else [])
-                c0, n0, t0 = _cpu_s(pids), _cpu_s([node_pid]), time.monotonic()
+                    if kind == "open":
+                        f0 = browser.evaluate("[window.skinView.frames, window.skinView.gridFrames]")
+                vpid = [view.popen.pid] if view else []
+                pids = vpid + (browser.pids if browser else [])
+                c0, v0, n0, t0 = _cpu_s(pids), _cpu_s(vpid), _cpu_s([node_pid]), time.monotonic()
                 t_from = mon.now_ns()
                 mon.diagnostics.clear()
                 time.sleep(duration_s)
                 wall = time.monotonic() - t0
-                cpu, node_cpu = _cpu_s(pids) - c0, _cpu_s([node_pid]) - n0
+                cpu, view_cpu, node_cpu = _cpu_s(pids) - c0, _cpu_s(vpid) - v0, _cpu_s([node_pid]) - n0
                 lat = _latency(list(mon.wrench), t_from)
                 diags = [d for _, d, _, _ in mon.diagnostics]
                 if browser is not None:
@@ -88,7 +91,7 @@ def run(duration_s: float, cycles: int, out: Path, rate_hz: float) -> dict:
                 if view is not None:
                     scene.stop(view)
                 phases.append({
-                    "view": "open" if open_ else "closed", "cycle": k, "n": int(lat.size),
+                    "view": kind, "view_cpu_pct": 100 * view_cpu / wall, "cycle": k, "n": int(lat.size),
                     "latency_ms": lat.tolist(),
                     "p50_ms": float(np.percentile(lat, 50)) if lat.size else float("nan"),
                     "p99_ms": float(np.percentile(lat, 99)) if lat.size else float("nan"),
@@ -104,7 +107,7 @@ def run(duration_s: float, cycles: int, out: Path, rate_hz: float) -> dict:
 
 def summarize(res: dict) -> dict:
     out = {}
-    for kind in ("closed", "open"):
+    for kind in ("closed", "view", "open"):
         ph = [p for p in res["phases"] if p["view"] == kind]
         lat = np.concatenate([np.array(p["latency_ms"]) for p in ph]) if ph else np.zeros(0)
         out[kind] = {
@@ -114,13 +117,15 @@ def summarize(res: dict) -> dict:
             "missed_slots_per_s": sum(p["missed_slots"] for p in ph) / (len(ph) * res["duration_s"]) if ph else float("nan"),
             "node_cpu_pct": float(np.mean([p["node_cpu_pct"] for p in ph])) if ph else float("nan"),
             "view_browser_cpu_pct": float(np.mean([p["view_browser_cpu_pct"] for p in ph])) if ph else float("nan"),
+            "view_cpu_pct": float(np.mean([p["view_cpu_pct"] for p in ph])) if ph else float("nan"),
         }
     opened = [p for p in res["phases"] if p["view"] == "open"]
     out["page_frames_hz"] = float(np.mean([p["page_frames_hz"] for p in opened])) if opened else float("nan")
     out["page_grids_hz"] = float(np.mean([p["page_grids_hz"] for p in opened])) if opened else float("nan")
-    c, o = out["closed"], out["open"]
+    c, v, o = out["closed"], out["view"], out["open"]
     out["ratio_p50"] = o["p50_ms"] / c["p50_ms"]
     out["ratio_p99"] = o["p99_ms"] / c["p99_ms"]
+    out["ratio_p99_view_only"] = v["p99_ms"] / c["p99_ms"]
     return out
 
 
@@ -130,13 +135,14 @@ def print_summary(res: dict, s: dict) -> None:
     for p in res["phases"]:
         print(f"  cycle {p['cycle']} view {p['view']:6s}: latency p50 {p['p50_ms']:.3f} ms p99 {p['p99_ms']:.3f} ms "
               f"(n {p['n']}), node rate {p['rate_hz']:.0f} Hz, missed slots {p['missed_slots']}, "
-              f"node CPU {p['node_cpu_pct']:.0f} %, view+browser CPU {p['view_browser_cpu_pct']:.0f} %"
+              f"node CPU {p['node_cpu_pct']:.0f} %, view CPU {p['view_cpu_pct']:.0f} %, view+browser CPU {p['view_browser_cpu_pct']:.0f} %"
               + (f", page {p['page_frames_hz']:.1f} frames/s, {p['page_grids_hz']:.1f} grids/s" if "page_frames_hz" in p else ""))
-    c, o = s["closed"], s["open"]
-    print(f"pooled closed: p50 {c['p50_ms']:.3f} ms, p99 {c['p99_ms']:.3f} ms, missed slots {c['missed_slots_per_s']:.1f}/s")
-    print(f"pooled open:   p50 {o['p50_ms']:.3f} ms, p99 {o['p99_ms']:.3f} ms, missed slots {o['missed_slots_per_s']:.1f}/s")
-    print(f"ratio open/closed: p50 {s['ratio_p50']:.2f}, p99 {s['ratio_p99']:.2f}; page {s['page_frames_hz']:.1f} frames/s, "
-          f"{s['page_grids_hz']:.1f} grid updates/s; view+browser CPU {o['view_browser_cpu_pct']:.0f} % of one core")
+    for kind in ("closed", "view", "open"):
+        c = s[kind]
+        print(f"pooled {kind:6s}: p50 {c['p50_ms']:.3f} ms, p99 {c['p99_ms']:.3f} ms, missed slots {c['missed_slots_per_s']:.1f}/s, "
+              f"view CPU {c['view_cpu_pct']:.0f} %, view+browser CPU {c['view_browser_cpu_pct']:.0f} % of one core")
+    print(f"ratio to closed: view process alone p99 {s['ratio_p99_view_only']:.2f}; view + page p50 {s['ratio_p50']:.2f}, "
+          f"p99 {s['ratio_p99']:.2f}; page {s['page_frames_hz']:.1f} frames/s, {s['page_grids_hz']:.1f} grid updates/s")
 
 
 def main(argv=None) -> int:

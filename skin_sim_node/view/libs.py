@@ -24,7 +24,8 @@ import numpy as np
 
 N = 120  # grid.nx = grid.ny default (msgs_schema/tissue.py)
 SHEET_MM = 120.0
-LIBS = ("own", "viser", "rerun-sdk", "foxglove-sdk")
+LIBS = ("own", "own-py", "viser", "rerun-sdk", "foxglove-sdk")
+"""``own-py``: the own server with a Python WebSocket client instead of the page (transport capacity, no rendering)."""
 
 
 def grid_mesh(n: int = N):
@@ -156,6 +157,28 @@ def _worker(lib: str, port: int, rate_hz: float, duration_s: float) -> None:  # 
     os._exit(0)  # some servers keep non-daemon threads
 
 
+def _count_client(url: str):
+    """Read the own server's stream with :mod:`.ws` and count bytes (no rendering)."""
+    import threading
+
+    from .ws import connect
+
+    c = connect(url.replace("http://", "ws://") + "ws")
+    stats = {"bytes": 0, "msgs": 0}
+
+    def run():
+        try:
+            while True:
+                m = c.recv()
+                stats["bytes"] += len(m)
+                stats["msgs"] += 1
+        except Exception:  # noqa: BLE001 - measurement client: any end is the end
+            pass
+
+    threading.Thread(target=run, daemon=True).start()
+    return c, stats
+
+
 def _foxglove_client(url: str):
     """Subscribe every advertised channel (Foxglove WebSocket protocol), as a viewer would."""
     import base64
@@ -203,9 +226,10 @@ def measure(lib: str, lib_dir: Path, rate_hz: float, duration_s: float, port: in
     from .browser import Browser
 
     env = dict(os.environ)
-    if lib != "own":
+    worker = "own" if lib == "own-py" else lib
+    if worker != "own":
         env["PYTHONPATH"] = str(lib_dir / lib) + os.pathsep + env.get("PYTHONPATH", "")
-    code = f"from skin_sim_node.view.libs import _worker; _worker({lib!r}, {port}, {rate_hz}, {duration_s})"
+    code = f"from skin_sim_node.view.libs import _worker; _worker({worker!r}, {port}, {rate_hz}, {duration_s})"
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
     client = None
     out = {"lib": lib, "target_hz": rate_hz}
@@ -215,7 +239,12 @@ def measure(lib: str, lib_dir: Path, rate_hz: float, duration_s: float, port: in
             lines.append(line)
             if line.startswith("URL "):
                 url = line.split()[1]
-                client = _foxglove_client(url) if lib == "foxglove-sdk" else Browser(url)
+                if lib == "foxglove-sdk":
+                    client = _foxglove_client(url)
+                elif lib == "own-py":
+                    client = _count_client(url)
+                else:
+                    client = Browser(url)
             elif line.startswith("CLIENT"):
                 time.sleep(2.0)
                 pids = client.pids if isinstance(client, Browser) else []
@@ -291,16 +320,16 @@ def main(argv=None) -> int:
           flush=True)  # fmt: skip
     rows = []
     for k, lib in enumerate(args.libs):
-        if lib != "own" and not (args.lib_dir / lib).is_dir():
+        if not lib.startswith("own") and not (args.lib_dir / lib).is_dir():
             print(f"  {lib}: not installed in {args.lib_dir / lib} (pip install --target {args.lib_dir / lib} {lib}); skipped")
             continue
-        size = own_size_mb() if lib == "own" else install_size_mb(args.lib_dir, lib)
+        size = own_size_mb() if lib.startswith("own") else install_size_mb(args.lib_dir, lib)
         at30 = measure(lib, args.lib_dir, 30.0, args.duration_s, 18700 + 10 * k)
         flat = measure(lib, args.lib_dir, 0.0, args.duration_s, 18705 + 10 * k)
         # delivered updates/s = bytes into the client per second / bytes of one update (measured at 30 Hz, where the
         # server pushes every frame; the own server's newest-only slot may drop some, so its known size is used)
         per_update = at30.get("client_bytes_per_s", float("nan")) / at30.get("frames_per_s", float("nan"))
-        if lib == "own":
+        if lib.startswith("own"):
             per_update = N * N * 3 * 4 + 100  # float32 layer heights + header (frames.py)
         at30["delivered_per_s"] = at30.get("client_bytes_per_s", float("nan")) / per_update if per_update else float("nan")
         flat["delivered_per_s"] = flat.get("client_bytes_per_s", float("nan")) / per_update if per_update else float("nan")
