@@ -50,7 +50,7 @@ def run(duration_s: float, cycles: int, out: Path, rate_hz: float) -> dict:
     with Scene(out / "logs") as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
-        print(f"skin-sim view --bench: ROS_DOMAIN_ID={scene.env['ROS_DOMAIN_ID']}, {cycles} x (closed, open) "
+        print(f"skin-sim view --bench: ROS_DOMAIN_ID={scene.env['ROS_DOMAIN_ID']}, {cycles} x (closed, view alone, view + page) "
               f"of {duration_s:.0f} s", flush=True)  # fmt: skip
         node = scene.node()
         scene.wait_for_log(node, "live:", timeout_s=180)
