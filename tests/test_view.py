@@ -240,3 +240,14 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
             r = b.evaluate("window.skinViewSetParam('tissue.lod.tolerance_m', '2e-5')")
             assert r["ok"] is True, r
         assert "parameter change rejected" in node.log()
+
+
+def test_bad_bag_is_one_line_error(tmp_path, capsys):
+    from skin_sim_node.view import main
+
+    assert main([str(tmp_path / "missing")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no such bag" in err[0]
+    (tmp_path / "empty").mkdir()
+    assert main([str(tmp_path / "empty")]) == 2
+    assert "not a rosbag2 folder" in capsys.readouterr().err

@@ -43,6 +43,7 @@ resize();
 
 renderer.localClippingEnabled = true;
 const cut = new THREE.Plane(new THREE.Vector3(0, 1, 0), 1e4); // cut-away: hides the sheet in front of the tool (y < tool y)
+let toolY = 0; // mm
 let meshes = null, nx = 0, ny = 0, rest = null, lastGrid = null;
 function buildMeshes(gx, gy) {
   if (meshes) meshes.forEach((m) => { scene.remove(m); m.geometry.dispose(); });
@@ -105,7 +106,11 @@ function updateMeshes(grid) { // grid: Float32Array (ny, nx, 3) in m
 }
 for (const [id, i] of [["show-surface", 0], ["show-i1", 1], ["show-i2", 2]])
   $(id).addEventListener("change", () => { if (meshes) { meshes[i].visible = $(id).checked; coloured = ""; if (lastGrid) updateMeshes(lastGrid); } dirty = true; });
-for (const id of ["colour", "zscale", "cutaway"]) $(id).addEventListener("change", () => { coloured = ""; if (lastGrid) updateMeshes(lastGrid); dirty = true; });
+for (const id of ["colour", "zscale", "cutaway"])
+  $(id).addEventListener("change", () => {
+    cut.constant = $("cutaway").checked && tool.visible ? -toolY : 1e4;
+    coloured = ""; if (lastGrid) updateMeshes(lastGrid); dirty = true;
+  });
 
 // tool: tip sphere and shaft, force arrow, contact patch
 const toolMat = new THREE.MeshStandardMaterial({ color: 0x9aa4b1, metalness: 0.6, roughness: 0.3 });
@@ -140,6 +145,7 @@ function updateTool(h) {
     tip.scale.setScalar(rmm);
     shaft.scale.set(rmm * 0.6, 1, rmm * 0.6);
     tool.position.set(x, y, z * zs + rmm);
+    toolY = y;
     cut.constant = $("cutaway").checked ? -y : 1e4;
     shaft.position.set(0, 0, 20 + rmm * 0.5);
   }
