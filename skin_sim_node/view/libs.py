@@ -157,36 +157,43 @@ def _worker(lib: str, port: int, rate_hz: float, duration_s: float) -> None:  # 
     os._exit(0)  # some servers keep non-daemon threads
 
 
-def _count_client(url: str):
-    """Read the own server's stream with :mod:`.ws` and count bytes (no rendering)."""
+def _reader(ws, on_text=None) -> dict:
+    """Count the bytes of binary messages on ``ws`` in a thread; text messages go to ``on_text``."""
     import threading
 
-    from .ws import connect
-
-    c = connect(url.replace("http://", "ws://") + "ws")
     stats = {"bytes": 0, "msgs": 0}
 
     def run():
         try:
             while True:
-                m = c.recv()
-                stats["bytes"] += len(m)
-                stats["msgs"] += 1
+                m = ws.recv()
+                if isinstance(m, str) and on_text is not None:
+                    on_text(m)
+                else:
+                    stats["bytes"] += len(m)
+                    stats["msgs"] += 1
         except Exception:  # noqa: BLE001 - measurement client: any end is the end
             pass
 
     threading.Thread(target=run, daemon=True).start()
-    return c, stats
+    return stats
+
+
+def _count_client(url: str):
+    """Read the own server's stream with :mod:`.ws` and count bytes (no rendering)."""
+    from .ws import connect
+
+    c = connect(url.replace("http://", "ws://") + "ws")
+    return c, _reader(c)
 
 
 def _foxglove_client(url: str):
     """Subscribe every advertised channel (Foxglove WebSocket protocol), as a viewer would."""
     import base64
     import socket
-    import threading
     from urllib.parse import urlparse
 
-    from .ws import WebSocket, accept_key  # noqa: F401 - handshake below needs the subprotocol header
+    from .ws import WebSocket
 
     u = urlparse(url)
     sock = socket.create_connection((u.hostname, u.port), timeout=10)
@@ -197,28 +204,17 @@ def _foxglove_client(url: str):
     buf = b""
     while b"\r\n\r\n" not in buf:
         buf += sock.recv(4096)
-    head, _, rest = buf.partition(b"\r\n\r\n")
+    _, _, rest = buf.partition(b"\r\n\r\n")
     sock.settimeout(None)
     ws = WebSocket(sock, client=True, leftover=rest)
-    stats = {"bytes": 0, "msgs": 0}
 
-    def run():
-        try:
-            while True:
-                m = ws.recv()
-                if isinstance(m, str):
-                    obj = json.loads(m)
-                    if obj.get("op") == "advertise":
-                        subs = [{"id": c["id"], "channelId": c["id"]} for c in obj["channels"]]
-                        ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
-                else:
-                    stats["bytes"] += len(m)
-                    stats["msgs"] += 1
-        except Exception:  # noqa: BLE001 - measurement client: any end is the end
-            pass
+    def on_text(m: str) -> None:
+        obj = json.loads(m)
+        if obj.get("op") == "advertise":
+            subs = [{"id": c["id"], "channelId": c["id"]} for c in obj["channels"]]
+            ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
 
-    threading.Thread(target=run, daemon=True).start()
-    return ws, stats
+    return ws, _reader(ws, on_text)
 
 
 def measure(lib: str, lib_dir: Path, rate_hz: float, duration_s: float, port: int) -> dict:
