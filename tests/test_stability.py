@@ -338,17 +338,32 @@ def test_dds_loop_naive_limit_cycles_and_passivity_settles(tmp_path, ros_domain)
 # --- stiffening tissue: tangent at depth vs loop limits (issue 11 item 6) ---------------------------------------------
 from skin_sim_node.session import SessionParams  # noqa: E402
 from skin_sim_node.stability import stiffening  # noqa: E402
+from skin_sim_node.validation.methods import static_force_n  # noqa: E402
 
 
-def test_model_tangent_is_the_slope_of_the_static_force():
-    model = SkinModel(preset("default"))
+@pytest.mark.parametrize("form", ["default", "paper"])
+def test_model_tangent_is_the_slope_of_the_tick_force(form, paper_form_cfg):
+    """The tangent a 1 kHz tick sees at a settled depth is the derivative of that tick's force (both forms)."""
+    model = SkinModel(preset("default") if form == "default" else paper_form_cfg)
     for d in (0.5e-3, 2e-3):
-        h = 1e-6
-        f_hi, _ = stiffening.model_tangent_n_per_m(model, d + h)
-        f_lo, _ = stiffening.model_tangent_n_per_m(model, d - h)
+        h = 1e-7
+        f_hi = stiffening.tick_force_n(model, d, h)
+        f_lo = stiffening.tick_force_n(model, d, -h)
         _, k = stiffening.model_tangent_n_per_m(model, d)
         assert k > 0
         assert k == pytest.approx((f_hi - f_lo) / (2 * h), rel=1e-3)
+
+
+def test_layered_tick_tangent_stiffens_with_depth_and_exceeds_the_static_slope():
+    """Layered form: the static slope grows with depth (stiffening law) and a tick adds the dampers' b/dt in series."""
+    cfg = preset("default")
+    model = SkinModel(cfg)
+    ds = np.array([0.5e-3, 1e-3, 2e-3, 3e-3])
+    k_tick = np.array([stiffening.model_tangent_n_per_m(model, d)[1] for d in ds])
+    h = 1e-6
+    k_static = np.array([(static_force_n(model, 0, 0, d + h) - static_force_n(model, 0, 0, d - h)) / (2 * h) for d in ds])
+    assert np.all(np.diff(k_static) > 0) and np.all(np.diff(k_tick) > 0)
+    assert np.all(k_tick > k_static)
 
 
 def test_reference_tangent_stiffens_with_depth():
