@@ -3,6 +3,15 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
+# headless Chromium for the browser tests of `skin-sim view` (tests/test_view.py skip without one)
+if ! command -v chromium >/dev/null 2>&1; then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } \
+      || echo "chromium install failed: the view's browser tests will skip"
+  else
+    echo "no chromium and not root (cannot apt-get install it): the view's browser tests will skip"
+  fi
+fi
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export ROS_LOG_DIR="${ROS_LOG_DIR:-$PWD/out/ros_log}"
 .venv/bin/ruff check skin_sim_node msgs_schema tests scripts launch_scripts

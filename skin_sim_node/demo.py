@@ -119,6 +119,17 @@ def deepest_figure(cfg, poses: list, layer_heights: list, path: Path, title: str
     return path, -tz
 
 
+def _start_view(scene: Scene, out: Path):
+    """``skin-sim view`` beside the scene; prints its URL. Without a display, it saves a screenshot of the page."""
+    shot = ["--screenshot", str(out / "view.png"), "--shot-when-force-n", "0.02", "--shot-after-s", "0.5"]  # while pressing
+    extra = [] if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") else shot
+    view = scene.start("view", "view", "--port", "0", *extra)
+    scene.wait_for_log(view, "skin-sim view: http", timeout_s=60)
+    url = view.log().split("skin-sim view: ", 1)[1].split()[0]
+    print(f"  view: {url}" + (f" (screenshot: {out / 'view.png'})" if extra else ""), flush=True)
+    return view if extra else None
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim demo", description=__doc__.splitlines()[0])
     ap.add_argument("--source", choices=("device", "mock"), default="device", help="simulated Touch via the bridge, or mock tool")
@@ -129,6 +140,7 @@ def main(argv=None) -> int:
         "--start-delay-s", type=float, default=2.5,
         help="tool source waits this long for DDS discovery before its path starts (up to 1.6 s measured)",
     )  # fmt: skip
+    ap.add_argument("--view", action="store_true", help="also open the browser view (skin-sim view); headless: a screenshot")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     scene = Scene(args.out / "logs")
@@ -149,6 +161,7 @@ def main(argv=None) -> int:
     try:
         node = scene.node()
         scene.wait_for_log(node, "live:", timeout_s=120)
+        view = _start_view(scene, args.out) if args.view else None
         t0 = time.monotonic()
         if args.source == "device":
             procs["bridge"] = scene.start("bridge", "bridge")
@@ -163,6 +176,11 @@ def main(argv=None) -> int:
             ok = False
         wall = time.monotonic() - t0
         time.sleep(1.2)  # one more diagnostics period
+        if view is not None:  # headless view: let it finish its screenshot
+            try:
+                scene.wait_for_log(view, "screenshot", timeout_s=30)
+            except (TimeoutError, RuntimeError) as exc:
+                print(f"  view: no screenshot ({str(exc).splitlines()[0]})", flush=True)
     finally:
         codes = scene.stop_all()
         monitor.close()

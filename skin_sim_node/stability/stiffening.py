@@ -29,6 +29,7 @@ from tqdm import tqdm  # noqa: E402
 from ..device.sim_device import DeviceParams  # noqa: E402
 from ..model import SkinModel, TissueConfig, preset  # noqa: E402
 from ..session import SessionParams  # noqa: E402
+from ..validation.methods import static_dt_s  # noqa: E402
 from ..validation.references import axisym  # noqa: E402
 from . import haptic_loop as hl  # noqa: E402
 
@@ -38,12 +39,23 @@ LOOP_DEPTHS_M = (0.5e-3, 1e-3, 2e-3, 3e-3)
 TICK_S = 1.0 / RATE_HZ
 
 
-def model_tangent_n_per_m(model: SkinModel, depth_m: float, x_m: float = 0.0, y_m: float = 0.0) -> tuple[float, float]:
-    """Static force and ``-dF_z/dz`` of the model held at ``depth_m`` (reset, one step at rest, then ``tangent()``)."""
+def tick_force_n(model: SkinModel, depth_m: float, offset_m: float = 0.0, x_m: float = 0.0, y_m: float = 0.0) -> float:
+    """Force of one 1 kHz tick at ``depth_m + offset_m`` after the tissue has settled at ``depth_m`` (dampers relaxed:
+    one backward-Euler step of :data:`~skin_sim_node.validation.methods.STATIC_DT_S` in the layered form)."""
     model.reset()
-    f = model.step((x_m, y_m, -depth_m), (0.0, 0.0, 0.0), TICK_S)
+    model.step((x_m, y_m, -depth_m), (0.0, 0.0, 0.0), static_dt_s(model.cfg))
+    if offset_m == 0.0:
+        return float(model.step((x_m, y_m, -depth_m), (0.0, 0.0, 0.0), TICK_S))
+    return float(model.step((x_m, y_m, -depth_m - offset_m), (0.0, 0.0, 0.0), TICK_S))
+
+
+def model_tangent_n_per_m(model: SkinModel, depth_m: float, x_m: float = 0.0, y_m: float = 0.0) -> tuple[float, float]:
+    """Static force at ``depth_m`` and the ``-dF_z/dz`` a 1 kHz tick sees there (``tangent()`` after one tick held at
+    the settled depth): in the layered form each layer's slope is ``k_i phi'(eps_i) + b_i / dt`` in series, so the
+    loop sees the spring stiffening plus the dampers' backward-Euler stiffness."""
+    f = tick_force_n(model, depth_m, 0.0, x_m, y_m)
     t = model.tangent()
-    return float(f), float(-np.asarray(t.stiffness_n_per_m)[2, 2])
+    return f, float(-np.asarray(t.stiffness_n_per_m)[2, 2])
 
 
 def reference_tangent_n_per_m(depths_m) -> np.ndarray:

@@ -3,9 +3,15 @@
 Fitted (log-parameters, ``scipy.optimize.least_squares``):
 
 - ``layers.{epidermis,dermis,fat}.stiffness_n_per_m``: the Kelvin-Voigt springs ``k`` of
-  eq 6. The paper gives none; the default (Sneddon's flat punch on a half-space of each
-  layer's material) ignores each layer's thickness, the load spreading of the layers above
-  and the fixed bottom, so it cannot be right for a thin stiff epidermis on soft dermis.
+  eq 6. The paper gives none; neither default rule is right for a punch on layers: Sneddon's
+  flat punch on a half-space (the paper form) ignores each layer's thickness and the bottom; the
+  column ``k = E A / h`` (the layered form) ignores the load spreading sideways under the punch.
+  Layered form: the epidermis spring is not fitted: all layers are in series from first contact and
+  its compliance is 0.03 % of the chain's (392 700 vs 128 N/m for the fat), so force data cannot see
+  it (a fit from the default start wanders along the dermis/epidermis trade-off); its modulus is the
+  measured 1.5 MPa (Geerligs et al. 2011).
+- ``layers.*.stiffening`` (layered form only; one exponent ``n`` shared by the layers): the
+  compression law ``f = k h ((1 - c/h)^-n - 1) / n`` (docs/model.md section 6).
 - ``patch.size_x_m = patch.size_y_m`` (only when surface fields are given): the membrane's
   static shape does not depend on ``T`` (it cancels when the shape is normalised to the
   depth, ``docs/model.md`` section 3), so the patch side is the one parameter that sets how
@@ -14,9 +20,11 @@ Fitted (log-parameters, ``scipy.optimize.least_squares``):
 Not fitted: thicknesses and interfaces (measured geometry), densities and tensions (they set
 only the dynamics, which static data cannot see), dampers ``b`` (no rate data in a static FEM).
 
-Data: the FEM reference (force-depth curves of the suite's peak and valley scenarios plus the
-surface field at each one's deepest point), or a user's CSV with columns ``x, y, depth, force``
-(metres, newtons; force only; ``CSV_UNITS``). Output: a config YAML (``tissue.*`` parameters) and the residuals.
+Data: the large-deformation reference (default; the 3D egg-carton neo-Hookean force-depth curves of
+the peak, valley and edge scenarios to 3 mm plus the surface field at 3 mm, ``--reference nonlinear``),
+the linear FEM (``--reference linear``: the suite's peak and valley scenarios), or a user's CSV with
+columns ``x, y, depth, force`` (metres, newtons; force only; ``CSV_UNITS``). Output: a config YAML
+(``tissue.*`` parameters) and the residuals.
 """
 
 from __future__ import annotations
@@ -37,10 +45,13 @@ from skin_sim_node.model.config import LAYER_NAMES, dump_yaml
 from skin_sim_node.solvers import static_indentation
 
 from .methods import skin_membrane, static_force_n
-from .references import converged_fem
+from .references import converged_fem, nonlinear_references
 from .scenarios import BY_NAME
 
 K_NAMES = tuple(f"layers.{n}.stiffness_n_per_m" for n in LAYER_NAMES)
+N_NAMES = tuple(f"layers.{n}.stiffening" for n in LAYER_NAMES)
+STIFFENING_NAME = "layers.*.stiffening"  # the one fitted exponent, reported under this name
+N_BOUNDS = (0.0, 10.0)  # the schema's bounds of layers.*.stiffening
 PATCH_NAMES = ("patch.size_x_m", "patch.size_y_m")
 
 
@@ -78,10 +89,25 @@ def residuals(cfg: TissueConfig, datasets: list[IndentData]) -> np.ndarray:
     return np.concatenate(out)
 
 
-def _apply(base: TissueConfig, log_p: np.ndarray, fit_patch: bool) -> TissueConfig:
-    changes = dict(zip(K_NAMES, np.exp(log_p[:3]).tolist()))
+def _fits_stiffening(base: TissueConfig) -> bool:
+    return base.form == "layered"
+
+
+def fitted_springs(base: TissueConfig) -> tuple[str, ...]:
+    """The spring parameters fitted for ``base``'s form (layered: dermis and fat; paper: all three)."""
+    return K_NAMES[1:] if base.form == "layered" else K_NAMES
+
+
+def _apply(base: TissueConfig, p: np.ndarray, fit_patch: bool) -> TissueConfig:
+    """``p``: log k (:func:`fitted_springs`), then the stiffening exponent (layered form), then log patch side (with fields)."""
+    ks = fitted_springs(base)
+    changes = dict(zip(ks, np.exp(p[: len(ks)]).tolist()))
+    i = len(ks)
+    if _fits_stiffening(base):
+        changes.update(dict.fromkeys(N_NAMES, float(p[i])))
+        i += 1
     if fit_patch:
-        side = float(np.exp(log_p[3]))
+        side = float(np.exp(p[i]))
         changes.update({PATCH_NAMES[0]: side, PATCH_NAMES[1]: side})
     return base.replace(**changes)
 
@@ -96,16 +122,25 @@ class Fit:
 
 
 def fit(datasets: list[IndentData], base: TissueConfig | None = None, fit_patch: bool | None = None) -> Fit:
-    """Least-squares fit of the layer springs (and the patch side when fields are given)."""
+    """Least-squares fit of the layer springs, the stiffening exponent (layered form) and the patch side (when fields
+    are given)."""
     base = base or preset("default")
     if fit_patch is None:
         fit_patch = any(d.field_xy_m is not None for d in datasets)
-    p0 = [np.log(base.as_flat()[n]) for n in K_NAMES]
-    lo, hi = [np.log(1e-3)] * 3, [np.log(1e7)] * 3
+    flat = base.as_flat()
+    names = list(fitted_springs(base))
+    p0 = [np.log(flat[n]) for n in names]
+    lo, hi = [np.log(1e-3)] * len(names), [np.log(1e7)] * len(names)
+    if _fits_stiffening(base):
+        p0.append(float(np.mean([flat[n] for n in N_NAMES])))
+        lo.append(N_BOUNDS[0])
+        hi.append(N_BOUNDS[1])
+        names.append(STIFFENING_NAME)
     if fit_patch:
         p0.append(np.log(base.patch_size_m[0]))
         lo.append(np.log(2.05 * base.tool_radius_m))
         hi.append(np.log(min(base.sheet_size_m)))
+        names.append(PATCH_NAMES[0])
     p0 = np.clip(np.array(p0), np.array(lo) + 1e-9, np.array(hi) - 1e-9)
 
     def fun(p):
@@ -114,8 +149,7 @@ def fit(datasets: list[IndentData], base: TissueConfig | None = None, fit_patch:
     r0 = fun(p0)
     sol = least_squares(fun, p0, bounds=(lo, hi), x_scale=1.0, diff_step=1e-4, xtol=1e-12, ftol=1e-12, gtol=1e-12)
     cfg = _apply(base, sol.x, fit_patch)
-    names = list(K_NAMES) + ([PATCH_NAMES[0]] if fit_patch else [])
-    params = {n: float(np.exp(v)) for n, v in zip(names, sol.x)}
+    params = {n: float(v if n == STIFFENING_NAME else np.exp(v)) for n, v in zip(names, sol.x)}
     rms = float(np.sqrt(np.mean(sol.fun**2) * sol.fun.size / len(datasets)))
     rms0 = float(np.sqrt(np.mean(r0**2) * r0.size / len(datasets)))
     return Fit(cfg, params, rms, rms0, int(sol.nfev))
@@ -219,6 +253,18 @@ def fem_datasets(progress: bool = True) -> list[IndentData]:
     return out
 
 
+def nonlinear_datasets(progress: bool = True, field_stride: int = 3) -> list[IndentData]:
+    """Calibration data from the large-deformation reference: the 3D neo-Hookean peak, valley and edge solves of
+    the default preset (force at every load step to 3 mm, surface field at 3 mm on every ``field_stride``-th sample)."""
+    out = []
+    for name, ref in nonlinear_references(progress).items():
+        X, Y = np.meshgrid(ref.sample_x_m[::field_stride], ref.sample_y_m[::field_stride])
+        xy = np.stack([X.ravel(), Y.ravel()], 1)
+        field = ref.field_down_m[::field_stride, ::field_stride].ravel()
+        out.append(IndentData(*BY_NAME[name].contact_xy_m, ref.depths_m, ref.forces_n, xy, field))
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(
         prog="skin-sim calibrate",
@@ -232,12 +278,19 @@ def main(argv=None) -> int:
                     "default: the FEM reference")  # fmt: skip
     ap.add_argument("--out", default="calibrated.yaml", help="config YAML to write (tissue.* parameters)")
     ap.add_argument("--modes", type=int, default=None, help="modes per axis of the model being fitted")
+    ap.add_argument("--reference", choices=("nonlinear", "linear"), default="nonlinear",
+                    help="without --csv: fit to the large-deformation reference (default) or the linear FEM")  # fmt: skip
+    ap.add_argument("--form", choices=("layered", "paper"), default="layered", help="tissue form being fitted")
     a = ap.parse_args(argv)
-    base = preset("default")
+    base = preset("default").replace(form=a.form)
     if a.modes:
         base = base.replace(**{"modes.m": a.modes, "modes.n": a.modes, "lod.adaptive_modes": False})  # else ignored
     try:
-        data = read_csv(a.csv, base) if a.csv else fem_datasets()
+        if a.csv:
+            data = read_csv(a.csv, base)
+        else:
+            print(f"skin-sim calibrate: fitting the {a.form} form to the {a.reference} reference", flush=True)
+            data = nonlinear_datasets() if a.reference == "nonlinear" else fem_datasets()
     except CalibrationInputError as exc:
         print(f"skin-sim calibrate: error: {exc}", file=sys.stderr)
         return 2

@@ -34,7 +34,7 @@ from skin_sim_node.solvers import (  # noqa: E402
     static_indentation,
 )
 
-from . import calibrate, fem, large_deformation  # noqa: E402
+from . import accuracy, calibrate, fem, large_deformation  # noqa: E402
 from .fem import FemSetup, mesh_levels, reference  # noqa: E402
 from .methods import (  # noqa: E402
     AllLayersVariant,
@@ -416,11 +416,16 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart validation", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("--prune-cache", action="store_true", help="delete cached FEM solves this run did not use")
-    ap.add_argument("--only", choices=("reference",), help="reference: only the large-deformation reference and its tables")
+    ap.add_argument("--only", choices=("reference", "accuracy"),
+                    help="reference: only the large-deformation reference and its tables; accuracy: only the model's "
+                    "force and field errors against it (issue 11 aims)")  # fmt: skip
     ap.add_argument("--fresh", action="store_true", help="solve the large-deformation reference again (~2 min)")
+    ap.add_argument("--config", action="append", default=[], help="with --only accuracy: also score this config YAML")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    if a.only == "accuracy":
+        return accuracy.main([x for p in a.config for x in ("--config", p)])
     large_deformation.run(out, a.fresh)
     if a.only == "reference":
         return 0

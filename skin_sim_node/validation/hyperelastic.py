@@ -47,7 +47,7 @@ import scipy.sparse.linalg as spla
 from skfem import Basis, ElementQuad2, ElementVector, MeshQuad
 from tqdm import tqdm
 
-from skin_sim_node.model.config import _POISSON, LAYER_NAMES, TissueConfig, preset
+from skin_sim_node.model.config import _POISSON, TissueConfig, preset
 
 from .fem import axis_nodes
 
@@ -57,19 +57,27 @@ SAVE_DEPTHS_M = (0.1e-3, 0.5e-3, 1e-3, 2e-3, 3e-3)  # depths whose surface profi
 
 
 def layer_moduli_pa(cfg: TissueConfig, poisson: float = _POISSON) -> tuple[float, float, float]:
-    """Young's modulus per layer, read from the config.
+    """Young's modulus per layer, read from the config (both forms).
 
-    ``layers.<name>.youngs_modulus_pa`` when the schema has it; otherwise inverted from the
-    layer spring, whose default is Sneddon's flat punch on a half-space of the layer's material,
-    ``k = 2 E r0 / (1 - nu^2)`` (:func:`msgs_schema.tissue.flat_punch_stiffness_n_per_m`), so
-    ``E = k (1 - nu^2) / (2 r0)`` gives back the preset's modulus.
+    ``layers.<name>.youngs_modulus_pa`` when the schema has it; otherwise inverted from the layer
+    spring, by the rule the form's springs are built with (``msgs_schema.tissue``):
+
+    - ``layered``: the column, ``k = E A / h`` (:func:`msgs_schema.tissue.column_stiffness_n_per_m`),
+      so ``E = k h / A`` with the layer's ``thickness_m`` and ``area_m2``;
+    - ``paper``: Sneddon's flat punch on a half-space, ``k = 2 E r0 / (1 - nu^2)``
+      (:func:`msgs_schema.tissue.flat_punch_stiffness_n_per_m`), so ``E = k (1 - nu^2) / (2 r0)``.
+
+    Either way the preset's moduli come back, and a changed spring changes the reference's modulus.
     """
     flat = cfg.as_flat()
     out = []
-    for n in LAYER_NAMES:
+    for la in cfg.layers:
+        n = la.name
         e = flat.get(f"layers.{n}.youngs_modulus_pa")
-        if e is None:
-            e = flat[f"layers.{n}.stiffness_n_per_m"] * (1 - poisson**2) / (2 * cfg.tool_radius_m)
+        if e is None and cfg.form == "layered":
+            e = la.stiffness_n_per_m * la.thickness_m / la.area_m2
+        elif e is None:
+            e = la.stiffness_n_per_m * (1 - poisson**2) / (2 * cfg.tool_radius_m)
         out.append(float(f"{e:.12g}"))  # round-off free, so cache keys are stable
     return tuple(out)
 

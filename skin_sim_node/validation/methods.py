@@ -56,10 +56,24 @@ def model_config(modes: int, grid_n: int, base: TissueConfig | None = None, adap
     )
 
 
+STATIC_DT_S = 1e3
+"""Step of the layered form's static solve: its series chain is backward Euler in each layer's own rate, so one
+step of ``dt`` from rest leaves a damper force ``b_i c_i / dt``; at 1000 s that is under 1e-6 of the spring force
+for every default layer (``b / k`` <= 4 ms), i.e. the dampers have relaxed (checked against a 1 mm/s press and 2 s
+hold, :func:`skin_sim_node.model.physics.quasi_static_force`, to 1e-6). The membranes' modal step is exact for any
+``dt`` and is then at its static shape."""
+
+
+def static_dt_s(cfg: TissueConfig) -> float:
+    """The step that gives the static answer of ``cfg``'s form: :data:`STATIC_DT_S` (layered), one tick (paper: its
+    springs take the tool's velocity, 0 here, so the tick does not matter for the force)."""
+    return STATIC_DT_S if cfg.form == "layered" else TICK_S
+
+
 def static_force_n(model: SkinModel, x: float, y: float, depth_m: float) -> float:
-    """The model's static reaction at one depth (a press held still: xdot = 0)."""
+    """The model's static reaction at one depth (a press held still: xdot = 0, dampers relaxed)."""
     model.reset()
-    return model.step((x, y, -depth_m), (0.0, 0.0, 0.0), TICK_S)
+    return model.step((x, y, -depth_m), (0.0, 0.0, 0.0), static_dt_s(model.cfg))
 
 
 class ModalMethod:

@@ -12,6 +12,7 @@ from skin_sim_node.model import TissueConfig
 
 from . import hyperelastic, hyperelastic3d
 from .fem import FemSetup, mesh_levels, reference
+from .scenarios import BY_NAME
 
 FINEST_LEVEL = 1  # the converged linear 3D reference (convergence study: docs/validation/convergence.md)
 # The near-edge problem is a half model (twice the DOFs); its level 1 did not fit the time on a
@@ -61,3 +62,9 @@ def nonlinear_3d(sc, cfg: TissueConfig | None = None, progress: bool = True, fre
 def linear_3d(sc, cfg: TissueConfig | None = None, progress: bool = True):
     """The linear 3D FEM on the same mesh as :func:`nonlinear_3d` (cached)."""
     return reference(hyperelastic3d.setup_for(sc, cfg, THREE_D_LEVEL).fem, progress=progress)
+
+
+def nonlinear_references(progress: bool = True) -> dict:
+    """The converged 3D neo-Hookean solves of the default preset (cached), by scenario name: the reference of the
+    issue-11 accuracy aims (:mod:`.accuracy`) and of ``skin-sim calibrate``."""
+    return {n: nonlinear_3d(BY_NAME[n], None, progress=progress) for n in THREE_D_SCENARIOS}

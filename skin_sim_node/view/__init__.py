@@ -1,0 +1,118 @@
+"""``skin-sim view``: a live 3D view of the layered tissue in the browser, from the node's topics or a bag.
+
+    skin-sim view                       # follow the live node (any namespace: --namespace /bed1)
+    skin-sim view BAG [BAG ...]         # play recorded bags with a scrubbable timeline
+    skin-sim view --bench               # node p99 latency with the view (and a headless page) open vs closed
+    skin-sim view --compare-libs        # the library comparison of docs/view.md
+
+Its own process: it never runs in the haptic node. See docs/view.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from pathlib import Path
+
+DISPLAY_RATE_HZ = 30.0
+"""Frames per second to the page: half a 60 Hz screen refresh; enough for a hand-speed press
+(the node's grid comes at up to 60 Hz) and half the view's cost of 60. Measured in docs/view.md."""
+_BROWSERS: list = []  # headless browsers this process opened (screenshots), closed on exit
+PORT = 8642  # arbitrary unprivileged port; --port 0 picks a free one
+
+
+def serve(source, host: str, port: int, duration_s: float | None = None, screenshot: Path | None = None,
+          on_ready=None) -> int:  # fmt: skip
+    """Run ``source`` behind a :class:`ViewServer` until interrupted (or ``duration_s``)."""
+    from .server import ViewServer
+
+    server = ViewServer(source, host, port).start()
+    print(f"skin-sim view: {server.url}", flush=True)
+    stop = threading.Event()
+
+    def on_signal(*_):
+        stop.set()
+        source.stop()
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, on_signal)
+        signal.signal(signal.SIGINT, on_signal)
+    runner = threading.Thread(target=source.run, args=(server, duration_s), name="view-source", daemon=True)
+    runner.start()
+    if on_ready is not None:
+        on_ready(server)
+    try:
+        runner.join()
+    finally:
+        for b in list(_BROWSERS):  # a screenshot still being taken: never leave a browser behind
+            b.close()
+        server.close()
+        source.close()
+    return 0
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    for flag, module in (("--bench", "bench"), ("--compare-libs", "libs")):
+        if flag in argv:  # own argument sets: dispatch before this parser takes their options
+            import importlib
+
+            return int(importlib.import_module(f"{__name__}.{module}").main([a for a in argv if a != flag]) or 0)
+    ap = argparse.ArgumentParser(prog="skin-sim view", description=__doc__.splitlines()[0])
+    ap.add_argument("bags", nargs="*", type=Path, help="rosbag2 folders to play (none: follow the live node)")
+    ap.add_argument("--namespace", default="", help="namespace of the node to follow (e.g. /bed1)")
+    ap.add_argument("--host", default="127.0.0.1", help="address to serve on (127.0.0.1: this machine only)")
+    ap.add_argument("--port", type=int, default=PORT, help="HTTP port (0: any free port)")
+    ap.add_argument("--rate-hz", type=float, default=DISPLAY_RATE_HZ, help="frames per second sent to the page")
+    ap.add_argument("--duration-s", type=float, help="stop after this long (default: until Ctrl-C)")
+    ap.add_argument("--screenshot", type=Path, help="open the page in headless Chromium and save a PNG after --shot-after-s")
+    ap.add_argument("--shot-after-s", type=float, default=3.0, help="delay before the screenshot")
+    ap.add_argument(
+        "--shot-when-force-n", type=float, default=0.0,
+        help="take the screenshot once the shown force exceeds this (N; waits up to 60 s), then --shot-after-s",
+    )  # fmt: skip
+    ap.add_argument("--bench", action="store_true", help="latency benchmark: node p99 with the view open vs closed")
+    ap.add_argument("--compare-libs", action="store_true", help="library comparison (mesh rate, CPU, install size)")
+    args = ap.parse_args(argv)
+    if args.bags:
+        from ..bags.io import BagError
+        from .bag import BagSource
+
+        try:
+            source = BagSource(args.bags, rate_hz=args.rate_hz)
+        except BagError as exc:
+            print(f"skin-sim view: error: {exc}", file=sys.stderr)
+            return 2
+        print(f"skin-sim view: {len(source.data.grids)} grid frames, {source.data.duration_s:.2f} s of bag", flush=True)
+    else:
+        from .live import LiveSource
+
+        source = LiveSource(args.namespace, rate_hz=args.rate_hz)
+        source.refresh_geometry()
+    on_ready = None
+    if args.screenshot:
+
+        def on_ready(server):
+            shot = (server, args.screenshot, args.shot_after_s, args.shot_when_force_n)
+            threading.Thread(target=_screenshot, args=shot, daemon=True).start()
+
+    return serve(source, args.host, args.port, args.duration_s, on_ready=on_ready)
+
+
+def _screenshot(server, path: Path, after_s: float, when_force_n: float = 0.0) -> None:
+    import time
+
+    from .browser import Browser
+
+    try:
+        with Browser(server.url) as b:
+            _BROWSERS.append(b)
+            b.wait_for("window.skinView && window.skinView.gridFrames > 0", 30, "a tissue grid on the page")
+            if when_force_n > 0:
+                b.wait_for(f"window.skinView.force > {when_force_n}", 60, f"a force above {when_force_n} N")
+            time.sleep(after_s)
+            print(f"skin-sim view: screenshot {b.screenshot(path)}", flush=True)
+    except (OSError, RuntimeError, TimeoutError) as exc:
+        print(f"skin-sim view: no screenshot: {exc}", flush=True)

@@ -1,0 +1,241 @@
+"""Live source: follows a running skin_sim_node through its own topics and parameter service.
+
+Its own process and rclpy context. Readers use the contract's QoS (``msgs_schema.qos``: haptic
+topics best-effort keep-last 1, display topics reliable keep-last 1), and the executor is spun
+only once per display frame, so whatever the node publishes at 1 kHz, this process takes at
+most one sample per topic per frame: the newest. Parameters go through the node's
+``rcl_interfaces`` services (``AsyncParameterClient``), so the node's own checks decide and its
+rejection reason reaches the page.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import threading
+import time
+
+from msgs_schema import convert as cv
+from msgs_schema.parameters import SPEC_BY_NAME
+
+from .frames import diag_message, encode_frame, tool_depth_m
+
+NODE_NAME = "skin_sim_node"
+TUNABLE = re.compile(r"stiffness|damping|friction|tolerance")
+"""Parameters the page lists first (issue 14: stiffness, damping, friction, mode tolerance); the rest are
+one click away. Matched against the names the node reports at run time, so new ones appear by themselves."""
+SERVICE_TIMEOUT_S = 3.0  # a parameter call that takes longer than this is reported as unanswered
+
+
+def parse_value(text: str, ptype: int):
+    """The page's text as the parameter's ROS type; unparsable text goes as a string, so the node answers.
+
+    ``ptype`` is an ``rcl_interfaces/ParameterType`` code (1 bool, 2 integer, 3 double, 4 string).
+    """
+    t = text.strip()
+    try:
+        if ptype == 1 and t.lower() in ("true", "false"):
+            return t.lower() == "true"
+        if ptype == 2:
+            return int(t)
+        if ptype == 3:
+            return float(t)
+    except ValueError:
+        pass
+    return text
+
+
+class LiveSource:
+    """rclpy node ``skin_sim_view`` in ``namespace``; :meth:`run` publishes frames to a ViewServer."""
+
+    def __init__(self, namespace: str = "", rate_hz: float = 30.0, node_name: str = NODE_NAME):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.parameter_client import AsyncParameterClient
+
+        from msgs_schema.qos import subscription
+
+        self.rate_hz = rate_hz
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node("skin_sim_view", namespace=namespace or "", context=self.context)
+        self.namespace = self.node.get_namespace()
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._spin_lock = threading.Lock()
+        self.client = AsyncParameterClient(self.node, node_name)
+        self.pose = self.wrench = self.contact = None
+        self.grid = None
+        self.grid_new = False
+        self.grid_count = 0
+        self.diag = None
+        self._diag_new = False
+        subscription(self.node, "tool_pose", lambda m: setattr(self, "pose", m))
+        subscription(self.node, "tool_wrench", lambda m: setattr(self, "wrench", m))
+        subscription(self.node, "contact", lambda m: setattr(self, "contact", m))
+        subscription(self.node, "layer_heights", self._on_grid)
+        subscription(self.node, "diagnostics", self._on_diag)
+        self.sheet_m = (SPEC_BY_NAME["tissue.sheet.size_x_m"].default, SPEC_BY_NAME["tissue.sheet.size_y_m"].default)
+        self.tool_radius_m = SPEC_BY_NAME["tissue.tool.radius_m"].default
+        self._stop = threading.Event()
+        self.frames = 0
+
+    # --- callbacks (run inside spin_once, in the source thread) -----------------------
+    def _on_grid(self, msg) -> None:
+        self.grid = cv.read_image(msg)
+        self.grid_new = True
+        self.grid_count += 1
+
+    def _on_diag(self, msg) -> None:
+        for st in msg.status:
+            values = {kv.key: kv.value for kv in st.values}
+            if "achieved_rate_hz" in values:
+                self.diag = diag_message(int.from_bytes(st.level, "little") if isinstance(st.level, bytes) else st.level,
+                                         st.message, values)  # fmt: skip
+                self._diag_new = True
+
+    # --- ROS calls --------------------------------------------------------------------
+    def _spin(self, n: int = 8) -> None:
+        with self._spin_lock:
+            for _ in range(n):  # one pass per ready entity; keep-last 1 readers hold one sample each
+                self.executor.spin_once(timeout_sec=0)
+
+    def _wait(self, future, what: str):
+        end = time.monotonic() + SERVICE_TIMEOUT_S
+        while not future.done():
+            if time.monotonic() > end:
+                raise TimeoutError(f"{what}: no answer from {self.namespace.rstrip('/')}/{NODE_NAME} "
+                                   f"within {SERVICE_TIMEOUT_S} s")  # fmt: skip
+            if self._stop.is_set() or not self._running:
+                self._spin(4)
+            time.sleep(0.005)
+        return future.result()
+
+    _running = False
+
+    def _get(self, names: list[str]) -> dict:
+        res = self._wait(self.client.get_parameters(names), "get_parameters")
+        from rclpy.parameter import parameter_value_to_python
+
+        return {n: (v.type, parameter_value_to_python(v)) for n, v in zip(names, res.values)}
+
+    def refresh_geometry(self) -> None:
+        """Sheet size and tool radius from the node (its grid and patch), defaults if it does not answer."""
+        try:
+            got = self._get(["tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m"])
+        except TimeoutError:
+            return
+        self.sheet_m = (float(got["tissue.sheet.size_x_m"][1]), float(got["tissue.sheet.size_y_m"][1]))
+        self.tool_radius_m = float(got["tissue.tool.radius_m"][1])
+
+    def params(self) -> dict:
+        """The node's parameters as it reports them now, tunable ones flagged (none hard-coded)."""
+        try:
+            names = sorted(self._wait(self.client.list_parameters([], 0), "list_parameters").result.names)
+            got = self._get(names)
+            descs = self._wait(self.client.describe_parameters(names), "describe_parameters").descriptors
+        except TimeoutError as exc:
+            return {"ok": False, "reason": str(exc), "params": []}
+        out = []
+        for d in descs:
+            ptype, value = got[d.name]
+            if ptype not in (1, 2, 3, 4) or d.read_only:
+                continue
+            out.append({"name": d.name, "type": ptype, "value": value, "description": d.description,
+                        "tunable": bool(TUNABLE.search(d.name))})  # fmt: skip
+        return {"ok": True, "node": f"{self.namespace.rstrip('/')}/{NODE_NAME}", "params": out}
+
+    def set_param(self, name: str, text: str) -> dict:
+        """Set one parameter through the node's SetParameters service; returns its verdict and reason."""
+        from rclpy.parameter import Parameter
+
+        try:
+            got = self._get([name])
+        except TimeoutError as exc:
+            return {"ok": False, "name": name, "reason": str(exc)}
+        ptype = got[name][0]
+        if ptype == 0:
+            return {"ok": False, "name": name, "reason": f"the node has no parameter {name!r}"}
+        value = parse_value(text, ptype)
+        try:
+            res = self._wait(self.client.set_parameters([Parameter(name, value=value)]), "set_parameters")
+        except TimeoutError as exc:
+            return {"ok": False, "name": name, "reason": str(exc)}
+        r = res.results[0]
+        if r.successful and name in ("tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m"):
+            threading.Thread(target=self._after_geometry_change, daemon=True).start()
+        return {"ok": bool(r.successful), "name": name, "value": value if r.successful else got[name][1],
+                "reason": r.reason or ("applied" if r.successful else "rejected (no reason given)")}  # fmt: skip
+
+    def _after_geometry_change(self) -> None:
+        self.refresh_geometry()
+        self.server.broadcast_text(self.info())
+
+    # --- page ---------------------------------------------------------------------------
+    def info(self) -> dict:
+        return {"type": "info", "mode": "live", "namespace": self.namespace, "sheet_m": list(self.sheet_m),
+                "tool_radius_m": self.tool_radius_m, "rate_hz": self.rate_hz}  # fmt: skip
+
+    def resend(self) -> None:
+        self.grid_new = self.grid is not None  # a new page needs the grid once
+
+    def hello(self) -> list[str]:
+        msgs = [json.dumps(self.info())]
+        if self.diag:
+            msgs.append(json.dumps(self.diag))
+        return msgs
+
+    def header(self) -> dict:
+        h = {"t": time.time(), "seq": self.frames}
+        if self.pose is not None:
+            _, _, xyz = cv.read_pose(self.pose)
+            h["tool"] = list(xyz)
+            h["depth_m"] = tool_depth_m(xyz[2])
+        if self.wrench is not None:
+            stamp, _, f = cv.read_wrench(self.wrench)
+            h["force"] = list(f)
+            h["stamp_s"] = stamp * 1e-9
+        if self.contact is not None:
+            _, comp, _, stress = cv.read_contact(self.contact)
+            h["compression_m"], h["stress_pa"] = comp.tolist(), stress.tolist()
+        return h
+
+    def run(self, server, duration_s: float | None = None) -> None:
+        """Display loop: spin once per frame, broadcast the newest state; until :meth:`stop` or ``duration_s``."""
+        self.server = server
+        self._running = True
+        period = 1.0 / self.rate_hz
+        end = time.monotonic() + duration_s if duration_s else None
+        nxt = time.monotonic()
+        try:
+            while not self._stop.is_set() and (end is None or time.monotonic() < end):
+                self._spin()
+                if self._diag_new:
+                    self._diag_new = False
+                    server.broadcast_text(self.diag)
+                h = self.header()
+                grid = None
+                if self.grid_new and self.grid is not None:
+                    grid, self.grid_new = self.grid, False
+                data = encode_frame(h, grid)
+                server.broadcast_frame(h, data)
+                self.frames += 1
+                nxt += period
+                time.sleep(max(0.0, nxt - time.monotonic()))
+                if nxt < time.monotonic() - period:
+                    nxt = time.monotonic()  # fell behind (descheduled): do not burst to catch up
+        finally:
+            self._running = False
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def close(self) -> None:
+        import rclpy
+
+        self._stop.set()
+        try:
+            self.node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=self.context)
+

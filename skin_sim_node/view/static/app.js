@@ -1,0 +1,312 @@
+// skin-sim view page: three.js scene of the layered tissue, plots, diagnostics, parameters, bag timeline.
+// Wire format: skin_sim_node/view/frames.py. Units on the wire are SI; the scene is in mm.
+import * as THREE from "three";
+import { OrbitControls } from "/static/vendor/OrbitControls.js";
+
+const $ = (id) => document.getElementById(id);
+// LAYER_RGBA of msgs_schema/convert.py: epidermis, dermis, fat
+const LAYER_RGB = [[0.95, 0.79, 0.65], [0.85, 0.47, 0.48], [0.96, 0.88, 0.56]];
+const state = { frames: 0, gridFrames: 0, force: null, depth: null, info: null, mode: "", diag: null, lastParam: null };
+window.skinView = state; // read by the browser test and the benchmark
+let dirty = true; // the scene changed since the last render
+
+// --- scene --------------------------------------------------------------------------------
+const host = $("scene");
+const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
+// WebGL on the CPU (SwiftShader: no GPU, e.g. headless CI) pays per pixel: half resolution there, full elsewhere
+const gl = renderer.getContext(), dbg = gl.getExtension("WEBGL_debug_renderer_info");
+state.glRenderer = dbg ? gl.getParameter(dbg.UNMASKED_RENDERER_WEBGL) : "unknown";
+const software = /swiftshader|llvmpipe|software/i.test(state.glRenderer);
+renderer.setPixelRatio(parseFloat(new URLSearchParams(location.search).get("pixel_ratio") || (software ? 0.5 : window.devicePixelRatio)));
+host.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x1d2127);
+const camera = new THREE.PerspectiveCamera(40, 1, 1, 2000);
+camera.up.set(0, 0, 1);
+camera.position.set(-80, -125, 85);
+const controls = new OrbitControls(camera, renderer.domElement);
+controls.target.set(0, 0, -5);
+controls.update();
+scene.add(new THREE.HemisphereLight(0xffffff, 0x404050, 1.6));
+const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+sun.position.set(-60, -80, 120);
+scene.add(sun);
+
+function resize() {
+  const w = host.clientWidth, h = host.clientHeight;
+  renderer.setSize(w, h);
+  camera.aspect = w / h;
+  camera.updateProjectionMatrix();
+}
+window.addEventListener("resize", resize);
+resize();
+
+renderer.localClippingEnabled = true;
+const cut = new THREE.Plane(new THREE.Vector3(0, 1, 0), 1e4); // cut-away: hides the sheet in front of the tool (y < tool y)
+let toolY = 0; // mm
+let meshes = null, nx = 0, ny = 0, rest = null, lastGrid = null;
+function buildMeshes(gx, gy) {
+  if (meshes) meshes.forEach((m) => { scene.remove(m); m.geometry.dispose(); });
+  nx = gx; ny = gy; rest = null;
+  const idx = [];
+  for (let r = 0; r < ny - 1; r++)
+    for (let c = 0; c < nx - 1; c++) {
+      const a = r * nx + c;
+      idx.push(a, a + 1, a + nx + 1, a, a + nx + 1, a + nx);
+    }
+  coloured = "";
+  meshes = [0, 1, 2].map((layer) => {
+    const g = new THREE.BufferGeometry();
+    g.setAttribute("position", new THREE.BufferAttribute(new Float32Array(nx * ny * 3), 3));
+    g.setAttribute("color", new THREE.BufferAttribute(new Float32Array(nx * ny * 3), 3));
+    g.setIndex(idx);
+    const mat = new THREE.MeshStandardMaterial({ vertexColors: true, side: THREE.DoubleSide, roughness: 0.8,
+      transparent: layer === 0, opacity: layer === 0 ? 0.6 : 1.0, clippingPlanes: [cut] });
+    const m = new THREE.Mesh(g, mat);
+    scene.add(m);
+    return m;
+  });
+}
+
+function colourmap(v) { // 0..1 -> dark blue .. yellow (viridis-like, 3 stops)
+  const s = Math.min(1, Math.max(0, v));
+  if (s < 0.5) { const u = s / 0.5; return [0.27 * (1 - u) + 0.13 * u, 0.0 * (1 - u) + 0.57 * u, 0.33 * (1 - u) + 0.55 * u]; }
+  const u = (s - 0.5) / 0.5; return [0.13 * (1 - u) + 0.99 * u, 0.57 * (1 - u) + 0.91 * u, 0.55 * (1 - u) + 0.14 * u];
+}
+
+let coloured = ""; // colour mode the vertex colours were last written for
+function updateMeshes(grid) { // grid: Float32Array (ny, nx, 3) in m
+  lastGrid = grid;
+  if (!rest) rest = Float32Array.from(grid);
+  for (let i = 0; i < grid.length; i++) if (grid[i] > rest[i]) rest[i] = grid[i]; // rest = highest seen: the tool only pushes in
+  const info = state.info, sx = info.sheet_m[0] * 1e3, sy = info.sheet_m[1] * 1e3;
+  const zs = parseFloat($("zscale").value) || 1, byDisp = $("colour").value === "disp";
+  const recolour = byDisp || coloured !== "layer";
+  let maxd = 1e-9;
+  if (byDisp) for (let i = 0; i < grid.length; i++) maxd = Math.max(maxd, rest[i] - grid[i]);
+  for (let layer = 0; layer < 3; layer++) {
+    const geom = meshes[layer].geometry, pos = geom.attributes.position.array, col = geom.attributes.color.array;
+    if (!meshes[layer].visible) continue;
+    for (let r = 0; r < ny; r++)
+      for (let c = 0; c < nx; c++) {
+        const v = r * nx + c, g = v * 3 + layer;
+        pos[v * 3] = -sx / 2 + (c + 0.5) * sx / nx;
+        pos[v * 3 + 1] = -sy / 2 + (r + 0.5) * sy / ny;
+        pos[v * 3 + 2] = grid[g] * 1e3 * zs;
+        if (recolour) {
+          const rgb = byDisp ? colourmap((rest[g] - grid[g]) / maxd) : LAYER_RGB[layer];
+          col[v * 3] = rgb[0]; col[v * 3 + 1] = rgb[1]; col[v * 3 + 2] = rgb[2];
+        }
+      }
+    geom.attributes.position.needsUpdate = true;
+    geom.attributes.color.needsUpdate = recolour;
+    geom.computeVertexNormals();
+  }
+  coloured = byDisp ? "disp" : "layer";
+}
+for (const [id, i] of [["show-surface", 0], ["show-i1", 1], ["show-i2", 2]])
+  $(id).addEventListener("change", () => { if (meshes) { meshes[i].visible = $(id).checked; coloured = ""; if (lastGrid) updateMeshes(lastGrid); } dirty = true; });
+for (const id of ["colour", "zscale", "cutaway"])
+  $(id).addEventListener("change", () => {
+    cut.constant = $("cutaway").checked && tool.visible ? -toolY : 1e4;
+    coloured = ""; if (lastGrid) updateMeshes(lastGrid); dirty = true;
+  });
+
+// tool: tip sphere and shaft, force arrow, contact patch
+const toolMat = new THREE.MeshStandardMaterial({ color: 0x9aa4b1, metalness: 0.6, roughness: 0.3 });
+const tip = new THREE.Mesh(new THREE.SphereGeometry(1, 24, 16), toolMat);
+const shaft = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 40, 16), toolMat);
+shaft.rotation.x = Math.PI / 2;
+const tool = new THREE.Group();
+tool.add(tip, shaft);
+tool.visible = false;
+scene.add(tool);
+const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 10, 0x4fc3f7, 4, 2.5);
+arrow.visible = false;
+scene.add(arrow);
+const patch = new THREE.Mesh(new THREE.RingGeometry(0.8, 1.0, 48), new THREE.MeshBasicMaterial({ color: 0xff5252, side: THREE.DoubleSide }));
+patch.visible = false;
+scene.add(patch);
+const MM_PER_N = 20; // force arrow length per newton (display scale)
+
+function surfaceAt(x, y) { // surface height (m) under (x, y) m, from the last grid
+  if (!lastGrid || !state.info) return 0;
+  const [sx, sy] = state.info.sheet_m;
+  const c = Math.min(nx - 1, Math.max(0, Math.floor((x + sx / 2) / sx * nx)));
+  const r = Math.min(ny - 1, Math.max(0, Math.floor((y + sy / 2) / sy * ny)));
+  return lastGrid[(r * nx + c) * 3];
+}
+
+function updateTool(h) {
+  const zs = parseFloat($("zscale").value) || 1, rmm = state.info.tool_radius_m * 1e3;
+  if (h.tool) {
+    const [x, y, z] = h.tool.map((v) => v * 1e3);
+    tool.visible = true;
+    tip.scale.setScalar(rmm);
+    shaft.scale.set(rmm * 0.6, 1, rmm * 0.6);
+    tool.position.set(x, y, z * zs + rmm);
+    toolY = y;
+    cut.constant = $("cutaway").checked ? -y : 1e4;
+    shaft.position.set(0, 0, 20 + rmm * 0.5);
+  }
+  const f = h.force ? h.force[2] : 0;
+  const at = h.tool ? h.tool : [0, 0, 0];
+  const zsurf = surfaceAt(at[0], at[1]) * 1e3 * zs;
+  arrow.visible = f > 1e-4;
+  if (arrow.visible) {
+    arrow.position.set(at[0] * 1e3, at[1] * 1e3, zsurf + 2 * rmm + 2);
+    arrow.setLength(Math.max(3, f * MM_PER_N), 4, 2.5);
+  }
+  patch.visible = f > 1e-4;
+  if (patch.visible) { patch.position.set(at[0] * 1e3, at[1] * 1e3, zsurf + 0.05); patch.scale.setScalar(rmm); }
+}
+
+// --- plots --------------------------------------------------------------------------------
+const hist = { t: [], f: [], d: [] }; // live: rolling, last HIST_S seconds
+const HIST_S = 10;
+let timeline = null;
+function drawPlot(canvas, xs, ys, xlabel, cursor) {
+  const ctx = canvas.getContext("2d"), W = canvas.width, H = canvas.height;
+  ctx.clearRect(0, 0, W, H);
+  ctx.fillStyle = "#889"; ctx.font = "10px sans-serif";
+  if (!xs.length) return;
+  let x0 = Math.min(...xs), x1 = Math.max(...xs), y1 = Math.max(0.01, ...ys);
+  if (x1 - x0 < 1e-9) x1 = x0 + 1;
+  const X = (x) => 30 + (x - x0) / (x1 - x0) * (W - 36), Y = (y) => H - 14 - y / y1 * (H - 22);
+  ctx.fillText(`${y1.toFixed(3)} N`, 2, 10); ctx.fillText(xlabel, W - 60, H - 2);
+  ctx.fillText(x0.toFixed(2), 30, H - 2);
+  ctx.strokeStyle = "#4fc3f7"; ctx.beginPath();
+  xs.forEach((x, i) => (i ? ctx.lineTo(X(x), Y(ys[i])) : ctx.moveTo(X(x), Y(ys[i]))));
+  ctx.stroke();
+  if (cursor !== undefined) { ctx.strokeStyle = "#ff5252"; ctx.beginPath(); ctx.moveTo(X(cursor), 0); ctx.lineTo(X(cursor), H); ctx.stroke(); }
+}
+function plots(h) {
+  if (timeline) {
+    drawPlot($("plot-t"), timeline.t_s, timeline.force_n, "t (s)", h.t_s);
+    drawPlot($("plot-d"), timeline.depth_m.map((d) => d * 1e3), timeline.force_n, "depth (mm)", h.depth_m !== undefined ? h.depth_m * 1e3 : undefined);
+    return;
+  }
+  const t = performance.now() / 1e3;
+  hist.t.push(t); hist.f.push(h.force ? h.force[2] : 0); hist.d.push((h.depth_m || 0) * 1e3);
+  while (hist.t.length && hist.t[0] < t - HIST_S) { hist.t.shift(); hist.f.shift(); hist.d.shift(); }
+  drawPlot($("plot-t"), hist.t.map((x) => x - t), hist.f, "t (s)");
+  drawPlot($("plot-d"), hist.d, hist.f, "depth (mm)");
+}
+
+// --- diagnostics --------------------------------------------------------------------------
+function showDiag(d) {
+  state.diag = d;
+  $("diag-level").textContent = ["OK", "WARN", "ERROR", "STALE"][d.level] + ": " + d.message;
+  const rows = Object.entries(d.values).concat(Object.entries(d.regime).map(([k, v]) => ["regime " + k, v]))
+    .concat(Object.entries(d.counts).map(([k, v]) => ["count " + k, v]));
+  $("diag").innerHTML = rows.map(([k, v]) => `<tr><td class="k">${k}</td><td>${v}</td></tr>`).join("");
+}
+
+// --- parameters ---------------------------------------------------------------------------
+let paramList = [];
+async function loadParams() {
+  const r = await (await fetch("/api/params")).json();
+  if (!r.ok) { $("param-node").textContent = ""; $("params").innerHTML = `<tr><td>${r.reason}</td></tr>`; return; }
+  $("param-node").textContent = r.node;
+  paramList = r.params;
+  renderParams();
+}
+function renderParams() {
+  const all = $("param-all").checked;
+  $("params").innerHTML = paramList.filter((p) => all || p.tunable).map((p) =>
+    `<tr title="${p.description.replace(/"/g, "&quot;")}"><td class="pname">${p.name}</td>` +
+    `<td><input type="text" data-name="${p.name}" value="${p.value}"></td>` +
+    `<td><button data-set="${p.name}">set</button></td></tr>`).join("");
+}
+$("param-all").addEventListener("change", renderParams);
+$("params").addEventListener("click", (e) => { const n = e.target.dataset.set; if (n) setParam(n); });
+$("params").addEventListener("keydown", (e) => { if (e.key === "Enter" && e.target.dataset.name) setParam(e.target.dataset.name); });
+async function setParam(name) {
+  const input = document.querySelector(`input[data-name="${name}"]`);
+  const r = await (await fetch("/api/param", { method: "POST", body: JSON.stringify({ name, value: input.value }) })).json();
+  state.lastParam = r;
+  const el = $("param-result");
+  el.className = r.ok ? "good" : "bad";
+  el.textContent = r.ok ? `${name} = ${r.value}: ${r.reason}` : `${name} rejected: ${r.reason}`;
+  if (!r.ok) input.value = r.value !== undefined ? r.value : input.value;
+}
+window.skinViewSetParam = async (name, value) => { // for tests: type into the page's field and press set
+  document.querySelector(`input[data-name="${name}"]`).value = value;
+  await setParam(name);
+  return state.lastParam;
+};
+
+// --- timeline (bag) -----------------------------------------------------------------------
+let scrubbing = false;
+$("scrub").addEventListener("input", () => {
+  scrubbing = true;
+  fetch("/api/seek", { method: "POST", body: JSON.stringify({ t_s: parseFloat($("scrub").value) }) }).finally(() => { scrubbing = false; });
+});
+$("play").addEventListener("click", () => fetch("/api/play", { method: "POST", body: JSON.stringify({ on: $("play").textContent === "play" }) }));
+function step(dir) {
+  if (!timeline || !timeline.grid_t_s.length) return;
+  const t = parseFloat($("scrub").value), g = timeline.grid_t_s;
+  const next = dir > 0 ? g.find((x) => x > t + 1e-6) : [...g].reverse().find((x) => x < t - 1e-6);
+  if (next !== undefined) fetch("/api/seek", { method: "POST", body: JSON.stringify({ t_s: next }) });
+}
+$("step-back").addEventListener("click", () => step(-1));
+$("step-fwd").addEventListener("click", () => step(1));
+
+// --- stream -------------------------------------------------------------------------------
+let fpsCount = 0;
+setInterval(() => { $("fps").textContent = fpsCount; state.fps = fpsCount; fpsCount = 0; }, 1000);
+function onFrame(buf) {
+  const dv = new DataView(buf), n = dv.getUint32(4, true);
+  const h = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 8, n)));
+  if (h.grid) {
+    if (!meshes || h.grid.nx !== nx || h.grid.ny !== ny) buildMeshes(h.grid.nx, h.grid.ny);
+    updateMeshes(new Float32Array(buf, 8 + n, h.grid.nx * h.grid.ny * 3));
+    state.gridFrames++;
+    $("grids").textContent = state.gridFrames;
+  }
+  state.frames++; fpsCount++;
+  state.force = h.force ? h.force[2] : null;
+  state.depth = h.depth_m;
+  $("force").textContent = h.force ? h.force[2].toFixed(4) : "-";
+  $("depth").textContent = h.depth_m !== undefined ? (h.depth_m * 1e3).toFixed(2) : "-";
+  $("layers").textContent = h.stress_pa ? h.stress_pa.filter((s) => s > 0).length : "-";
+  updateTool(h);
+  plots(h);
+  dirty = true;
+  if (h.t_s !== undefined) {
+    $("play").textContent = h.playing ? "pause" : "play";
+    if (!scrubbing) $("scrub").value = h.t_s;
+    $("tlabel").textContent = `${h.t_s.toFixed(3)} / ${h.duration_s.toFixed(3)} s`;
+  }
+}
+function connect() {
+  const ws = new WebSocket(`ws://${location.host}/ws`);
+  ws.binaryType = "arraybuffer";
+  ws.onmessage = (e) => {
+    if (typeof e.data !== "string") return onFrame(e.data);
+    const m = JSON.parse(e.data);
+    if (m.type === "info") {
+      state.info = m; state.mode = m.mode;
+      $("mode").textContent = m.mode === "bag" ? `bag ${m.bags.join(", ")}` : `live ${m.namespace}`;
+      if (m.mode === "bag") { $("timeline").style.display = "block"; $("scrub").max = m.duration_s; }
+      loadParams();
+    } else if (m.type === "timeline") timeline = m;
+    else if (m.type === "diag") showDiag(m);
+  };
+  ws.onclose = () => { $("mode").textContent = "disconnected: retrying"; setTimeout(connect, 1000); };
+}
+connect();
+// render on demand only: a page that redraws an unchanged scene 60 times a second costs a CPU core under SwiftShader
+controls.addEventListener("change", () => { dirty = true; });
+window.addEventListener("resize", () => { dirty = true; });
+// at most RENDER_HZ redraws: leaves the main thread time to take frames when WebGL runs on the CPU (no GPU)
+const RENDER_HZ = parseFloat(new URLSearchParams(location.search).get("render_hz") || "30");
+let lastRender = 0;
+(function loop(now) {
+  requestAnimationFrame(loop);
+  if (dirty && now - lastRender >= 1000 / RENDER_HZ - 2) {
+    dirty = false; lastRender = now;
+    renderer.render(scene, camera);
+    state.renders = (state.renders || 0) + 1;
+  }
+})(0);
