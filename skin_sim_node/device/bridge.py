@@ -230,7 +230,6 @@ class BridgeNode(DeviceNode):
         self._v_stamp_ns = 0
         self._wrench_seq = 0
         self.last_pose_rx_ns: int | None = None
-        self.last_wrench_rx_ns: int | None = None
         self.stale = False  # the first watchdog check sends one zero force
         self.counts = {"poses": 0, "twists": 0, "models": 0, "models_rejected": 0, "wrenches": 0, "forwarded": 0,
                        "zeros": 0, "non_finite_pose": 0, "rendered": 0, "rendered_fresh": 0, "rendered_no_model": 0,
@@ -240,7 +239,6 @@ class BridgeNode(DeviceNode):
         self._win = {"rendered": 0, "models": 0, "t_ns": time.monotonic_ns(), "age_from": 0, "period_max_ns": 0}
         self._first_model = False
         self.max_model_age_ms = 0.0
-        self.max_device_period_ms = 0.0
         self._rejected_logged: set[str] = set()
         self.create_timer(1.0 / p.watchdog_rate_hz, self._watchdog)
         self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)
@@ -341,7 +339,6 @@ class BridgeNode(DeviceNode):
     def _on_wrench(self, msg) -> None:
         """Wrench source: the node's force as a model with no stiffness (held until the next, faded after watchdog_s)."""
         now = time.monotonic_ns()
-        self.last_wrench_rx_ns = now
         self.counts["wrenches"] += 1
         t_ns, _, f = read_wrench(msg)
         self._wrench_seq += 1
