@@ -48,7 +48,8 @@ def summarize(monitor, wall_s: float, poses: list) -> dict:
     out["render_rate_hz_median"] = _median(rates)
     out["render_rate_hz_min"] = min(rates) if rates else float("nan")
     last = bridge_d[-1] if bridge_d else {}
-    keys = ("rendered_total", "rendered_fresh_total", "rendered_no_model_total", "device_gaps_2ms_total", "models_total")
+    keys = ("rendered_total", "rendered_fresh_total", "rendered_no_model_total", "rendered_stale_model_total",
+            "rendered_outside_radius_total", "device_gaps_2ms_total", "models_total")  # fmt: skip
     for key in keys:
         out[key] = int(last.get(key, 0))
     ages = [float(d["model_age_ms_max"]) for d in bridge_d if d.get("model_age_ms_max") not in (None, "nan")]
@@ -204,7 +205,8 @@ def main(argv=None) -> int:
         )
         print(
             f"  device ticks: {s['rendered_total']} rendered by the bridge, {s['rendered_fresh_total']} from a contact model "
-            f"younger than its TTL, {s['rendered_no_model_total']} without one (TTL or radius fade) after the first model, "
+            f"valid at that pose, {s['rendered_stale_model_total']} with the model older than its TTL and "
+            f"{s['rendered_outside_radius_total']} outside its radius (fading) after the first model, "
             f"{s['rendered_total'] - s['rendered_fresh_total'] - s['rendered_no_model_total']} before it (lifted, discovery); "
             f"oldest model used {s['model_age_ms_max']:.1f} ms; {s['device_gaps_2ms_total']} device pose gaps > 2 ms at the "
             f"bridge; {s['models_total']} contact models received"

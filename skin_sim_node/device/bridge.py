@@ -233,6 +233,7 @@ class BridgeNode(DeviceNode):
         self.stale = False  # the first watchdog check sends one zero force
         self.counts = {"poses": 0, "twists": 0, "models": 0, "models_rejected": 0, "wrenches": 0, "forwarded": 0,
                        "zeros": 0, "non_finite_pose": 0, "rendered": 0, "rendered_fresh": 0, "rendered_no_model": 0,
+                       "rendered_stale_model": 0, "rendered_outside_radius": 0,
                        "device_gaps_2ms": 0}  # fmt: skip
         self._ages_ms = np.zeros(AGE_RING)
         self._n_age = 0
@@ -315,7 +316,8 @@ class BridgeNode(DeviceNode):
             self._n_age += 1
             self.max_model_age_ms = max(self.max_model_age_ms, age)
         elif self._first_model:
-            c["rendered_no_model"] += 1  # a tick without a fresh model (TTL or radius fade) once models flowed
+            c["rendered_no_model"] += 1  # a tick without a valid model (TTL or radius fade) once models flowed
+            c["rendered_stale_model" if r.outside_reason == "ttl" else "rendered_outside_radius"] += 1
 
     # --- node side ----------------------------------------------------------------------
     def _on_model(self, msg) -> None:
@@ -400,7 +402,8 @@ class BridgeNode(DeviceNode):
         self.say(
             f"bridge stopping: {c['poses']} device poses, {c['twists']} twists, {c['models']} contact models "
             f"({c['models_rejected']} dropped), {c['rendered']} device ticks rendered ({c['rendered_fresh']} from a fresh "
-            f"model, {c['rendered_no_model']} without one after the first model), max model age {self.max_model_age_ms:.2f} ms, "
+            f"model, {c['rendered_no_model']} without one after the first model: {c['rendered_stale_model']} with it older than "
+            f"its TTL, {c['rendered_outside_radius']} outside its radius), max model age {self.max_model_age_ms:.2f} ms, "
             f"{c['device_gaps_2ms']} device pose gaps > 2 ms, {c['wrenches']} wrenches ({c['forwarded']} forwarded), "
             f"{c['zeros']} watchdog zero commands, {c['non_finite_pose']} non-finite poses"
         )

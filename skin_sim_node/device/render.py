@@ -162,6 +162,7 @@ class ContactRenderer:
             [(np.zeros(3), np.zeros(3))] * max(int(passivity_delay_ticks), 1), maxlen=max(int(passivity_delay_ticks), 1)
         )
         self.state = "none"
+        self.outside_reason: str | None = None  # why the last tick had no valid model: "ttl", "radius" or None
 
     # --- models -------------------------------------------------------------------------
     def model_age_s(self, now_s: float) -> float:
@@ -227,10 +228,12 @@ class ContactRenderer:
         finite_x = bool(np.isfinite(x).all()) and (v is None or bool(np.isfinite(v).all()))
         slot = self._model
         valid = False
+        self.outside_reason = None
         if slot is not None and finite_x:
             fresh = now_s - slot.rx_s <= slot.m.time_to_live_s
             inside = float(np.linalg.norm(x - slot.m.x0_m)) <= slot.m.validity_radius_m
             valid = fresh and inside
+            self.outside_reason = None if valid else ("ttl" if not fresh else "radius")
             if not valid and self._fade_t0 is None:
                 self.counts["fades_ttl" if not fresh else "fades_radius"] += 1
         vd = v if self.use_damping else None

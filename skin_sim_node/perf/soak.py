@@ -183,7 +183,7 @@ def run_soak(
         "device_ticks": device_ticks,
         "bridge_rendered": bridge_rendered,
     }
-    device_ok = all(p["without_fresh_model"] == 0 and p["rendered"] > 0 for p in out["device_phases"].values())
+    device_ok = all(p["stale_model"] == 0 and p["rendered"] > 0 for p in out["device_phases"].values())
     out["device_aim_met"] = device_ok
     out["aims_met"] = bool(
         out["node_rss_growth_pct"] <= RSS_GROWTH_LIMIT_PCT and out["stamp_gaps"]["gaps_over_limit"] == 0 and device_ok
@@ -275,6 +275,8 @@ class PhaseTracker:
             "rendered": delta("rendered_total"),
             "from_fresh_model": delta("rendered_fresh_total"),
             "without_fresh_model": delta("rendered_no_model_total"),
+            "stale_model": delta("rendered_stale_model_total"),
+            "outside_radius": delta("rendered_outside_radius_total"),
             "device_pose_gaps_over_2ms": delta("device_gaps_2ms_total"),
             "models": delta("models_total"),
             "fades_ttl": delta("fades_ttl_total"),
@@ -350,11 +352,11 @@ def main(argv=None) -> int:
         flush=True,
     )
     print(f"device side (bridge counters; device ticks {r['device_ticks']}, bridge rendered {r['bridge_rendered']}):")
-    print("  phase             | ticks rendered (bridge renders/s: median, min) | from a model <= TTL old | without | "
-          "max model age ms | device pose gaps > 2 ms | node ticks/s median")  # fmt: skip
+    print("  phase             | ticks rendered (bridge renders/s: median, min) | from a valid model | model older than "
+          "TTL | outside radius | max model age ms | device pose gaps > 2 ms | node ticks/s median")  # fmt: skip
     for name, p in r["device_phases"].items():
         print(f"  {name:17s} | {p['rendered']:8d} ({p['render_rate_hz_median']:6.1f}, {p['render_rate_hz_min']:6.1f})"
-              f"                 | {p['from_fresh_model']:8d}                | {p['without_fresh_model']:7d} | "
+              f"                 | {p['from_fresh_model']:8d}           | {p['stale_model']:20d} | {p['outside_radius']:14d} | "
               f"{p['model_age_ms_max']:16.2f} | {p['device_pose_gaps_over_2ms']:23d} | {p['node_rate_hz_median']:7.1f}"
               + f"  (fades: {p['fades_ttl']} stale model, {p['fades_radius']} left radius)"
               + (f"  ({p['readers_joined']} readers joined)" if p["readers_joined"] else ""))  # fmt: skip
