@@ -57,6 +57,50 @@ when a reader of ``tool/wrench`` joins, the writer's ``publish()`` blocked once 
 2-3 s later in 8 of 23 trials, with the GIL held, so the whole node stalls; it did not recur in
 steady state. The figures are steady state; docs/performance_rate.md reports the join stall."""
 BENCH_ONLY = ("pose_rate_hz:=", "switch_interval_s:=")  # lever entries that are not node parameters
+CASE_OVERHEAD_S = 8.0
+"""Wall time of a case beyond its measured seconds and :data:`SETTLE_S`, for the estimates printed at
+start: node start-up with a warm numba cache (2-4 s here), discovery, shutdown."""
+
+
+class Progress:
+    """Stage-by-stage progress of a long benchmark: a tqdm bar in estimated seconds and one line per stage.
+
+    ``stage(name, est_s)`` opens a stage (a line with the elapsed and the estimated remaining time);
+    the bar advances by each finished stage's estimate, so it reaches its total at the end.
+    """
+
+    def __init__(self, stages_est_s: list[float], desc: str):
+        from tqdm import tqdm
+
+        self.total = float(sum(stages_est_s))
+        self.n = len(stages_est_s)
+        self.i = 0
+        self.t0 = time.monotonic()
+        self._open = 0.0
+        self.bar = tqdm(total=round(self.total), unit="s", desc=desc, mininterval=1.0, leave=False,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar:20}| {n:.0f}/{total:.0f} s est. [{elapsed}]")  # fmt: skip
+
+    def stage(self, name: str, est_s: float) -> None:
+        self._close()
+        self.i += 1
+        self._open = est_s
+        left = max(self.total - self.bar.n, 0.0)
+        el = time.monotonic() - self.t0
+        self.bar.write(f"[{self.i}/{self.n}, {el / 60:.1f} min elapsed, ~{left / 60:.1f} min left] {name} (~{est_s:.0f} s)")
+
+    def _close(self) -> None:
+        if self._open:
+            self.bar.update(round(self._open))
+            self._open = 0.0
+
+    def close(self) -> None:
+        self._close()
+        self.bar.close()
+
+
+def case_estimate_s(duration_s: float) -> float:
+    """Estimated wall time of one :func:`run_case`."""
+    return duration_s + SETTLE_S + CASE_OVERHEAD_S
 
 
 def _pcts(a) -> tuple[float, float, float]:
@@ -435,7 +479,12 @@ def print_periods(title: str, pairs: list[tuple[dict, dict]]) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="skin-sim bench", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="skin-sim bench", description=__doc__.splitlines()[0],
+        epilog="Duration: about 14 min with the defaults (all sections; ~1.5 min per latency case pair with "
+        "--latency-s 30); the estimate for the chosen sections is printed at start, then one line per case. "
+        "Short: --sections tickcost,latency --latency-s 15 (~1.5 min).",
+    )  # fmt: skip
     ap.add_argument("--sections", default=",".join(SECTIONS), help=f"comma list of {', '.join(SECTIONS)}")
     ap.add_argument("--duration-s", type=float, default=60.0, help="seconds of the first-rate jitter case (missed ticks)")
     ap.add_argument("--jitter-s", type=float, default=20.0, help="seconds of the other rates' jitter cases")
@@ -470,20 +519,46 @@ def main(argv=None) -> int:
     rates = [float(r) for r in args.rates.split(",")]
     node_args = tuple(a for p in args.node_param for a in ("-p", p))
     log_dir = Path(tempfile.mkdtemp(prefix="skin_sim_bench_"))
+    levers = args.lever or list(LEVER_PRESETS)
+    variants = args.latency_variant or ["node="]
+    est = {
+        "tickcost": [10.0],
+        "floor": [args.floor_s] * 2,
+        "latency": [case_estimate_s(args.latency_s)] * (1 + len(variants)),
+        "jitter": [case_estimate_s(args.duration_s if i == 0 else args.jitter_s) for i in range(len(rates)) for _ in (0, 1)],
+        "levers": [case_estimate_s(args.lever_s)] * (1 + len(levers)),
+        "startup": [10.0, 60.0, 15.0],  # bare timer; node with a cold numba cache (compiles), then warm
+    }
+    plan = [e for sec in sections for e in est.get(sec, [])]
     print(
-        f"skin-sim bench: sections {','.join(sections)}; {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; "
-        f"node params {list(args.node_param)}; logs {log_dir}",
+        f"skin-sim bench: sections {','.join(sections)}; {len(plan)} stages, about {sum(plan) / 60:.1f} min; "
+        f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; node params {list(args.node_param)}; logs {log_dir}",
         flush=True,
     )
+    progress = Progress(plan, "skin-sim bench")
+    try:
+        results = _run_sections(args, sections, rates, node_args, log_dir, levers, variants, est, progress)
+    finally:
+        progress.close()
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1))
+    return 0
+
+
+def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, est, progress: Progress) -> dict:
     results: dict = {}
     if "tickcost" in sections:
+        progress.stage("tick cost in one thread", est["tickcost"][0])
         cost = tick_cost()
         results["tickcost"] = cost
         print("\nper-tick cost of the pose-to-force path in one thread, us (p50 p99 max); all but the model step hold the GIL")
         for k, v in cost.items():
             print(f"  {k:>24}: {v[0]:7.1f} {v[1]:7.1f} {v[2]:8.1f}")
     if "floor" in sections:
-        rows = {prio: wake_floor(prio, args.floor_s) for prio in (0, 80)}
+        rows = {}
+        for prio in (0, 80):
+            progress.stage(f"platform floor, {'SCHED_FIFO 80' if prio else 'normal'}", args.floor_s)
+            rows[prio] = wake_floor(prio, args.floor_s)
         results["floor"] = rows
         print(f"\nplatform floor: a bare Python thread sleeping to 1 kHz deadlines, {args.floor_s:.0f} s; wake latency, us")
         for prio, r in rows.items():
@@ -493,10 +568,12 @@ def main(argv=None) -> int:
             late = r["over_half_period_pct"]
             print(f"  {name:>14}: p50 {w[0]:6.0f} p99 {w[1]:6.0f} max {w[2]:7.0f} | later than T/2: {late:.3f} %{note}")
     if "latency" in sections:
+        progress.stage("latency: bare rclpy echo", est["latency"][0])
         echo = run_case("echo", args.latency_s, 1000.0, log_dir / "latency_echo")
         nodes = []
-        for spec in args.latency_variant or ["node="]:
+        for spec in variants:
             name, _, params = spec.partition("=")
+            progress.stage(f"latency: {name}", est["latency"][0])
             extra = node_args + tuple(a for p in params.split(",") if p for a in ("-p", p))
             nodes.append(run_case("node", args.latency_s, 1000.0, log_dir / f"latency_{name}", extra))
             nodes[-1]["label"] = name
@@ -506,18 +583,21 @@ def main(argv=None) -> int:
         pairs = []
         for i, rate in enumerate(rates):
             dur = args.duration_s if i == 0 else args.jitter_s
+            progress.stage(f"jitter {rate:.0f} Hz: bare rclpy timer", case_estimate_s(dur))
             base = run_case("timer", dur, rate, log_dir / f"jitter_timer_{rate:.0f}")
+            progress.stage(f"jitter {rate:.0f} Hz: node in timer mode", case_estimate_s(dur))
             node = run_case("node-timer", dur, rate, log_dir / f"jitter_node_{rate:.0f}", node_args, args.pose_rate_hz)
             pairs.append((base, node))
         results["jitter"] = pairs
         print_periods("force period jitter (bare rclpy timer vs node in timer mode)", pairs)
     if "levers" in sections:
         rate = args.lever_rate_hz or rates[0]
-        levers = args.lever or list(LEVER_PRESETS)
+        progress.stage("levers: bare rclpy timer", est["levers"][0])
         base = run_case("timer", args.lever_s, rate, log_dir / "levers_timer")
         pairs = []
         for spec in levers:
             name, _, params = spec.partition("=")
+            progress.stage(f"levers: {name}", est["levers"][0])
             plist = tuple(p for p in params.split(",") if p) if params else LEVER_PRESETS[name]
             pose_rate = next((float(p.split(":=")[1]) for p in plist if p.startswith("pose_rate_hz:=")), args.pose_rate_hz)
             extra = node_args + tuple(a for p in plist if not p.startswith(BENCH_ONLY) for a in ("-p", p))
@@ -529,20 +609,18 @@ def main(argv=None) -> int:
         print_periods("levers (node in timer mode; same-run bare rclpy timer)", pairs)
     if "startup" in sections:
         cache = Path(tempfile.mkdtemp(prefix="skin_sim_numba_cache_"))
-        rows = [
-            run_startup("timer", log_dir / "start_timer", None),
-            run_startup("node-timer", log_dir / "start_cold", cache),
-            run_startup("node-timer", log_dir / "start_warm", cache),
-        ]
+        rows = []
+        for (kind, name, c), e in zip((("timer", "timer", None), ("node-timer", "cold", cache), ("node-timer", "warm", cache)),
+                                      est["startup"]):  # fmt: skip
+            progress.stage(f"start-up: {'bare rclpy timer' if kind == 'timer' else f'node, {name} numba cache'}", e)
+            rows.append(run_startup(kind, log_dir / f"start_{name}", c))
         rows[1]["label"], rows[2]["label"] = "node cold cache", "node warm cache"
         results["startup"] = rows
         print("\nstart to first force at the observer, s (fresh NUMBA_CACHE_DIR, then the same again)")
         for r in rows:
             warm = f" (numba warm-up in the node {r['numba_warmup_s']:.2f} s)" if "numba_warmup_s" in r else ""
             print(f"  {r.get('label', 'bare rclpy timer'):>16}: {r['first_force_s']:6.2f}{warm}")
-    if args.json:
-        args.json.write_text(json.dumps(results, indent=1))
-    return 0
+    return results
 
 
 if __name__ == "__main__":
