@@ -183,7 +183,9 @@ def main(argv=None) -> int:
     ap.add_argument("bag_a", type=Path, help="reference output bag")
     ap.add_argument("bag_b", type=Path, help="output bag to check")
     ap.add_argument(
-        "--exact", action="store_true", help=f"two offline replays: {describe(EXACT)} (default: live, {describe(LIVE)})"
+        "--exact",
+        action="store_true",
+        help=f"two offline replays: {describe(EXACT)} (default: live, {describe(LIVE)})".replace("%", "%%"),
     )
     ap.add_argument(
         "--force-abs-n", type=float, help=f"absolute force tolerance (N; live {LIVE.force_abs_n:g}, exact {EXACT.force_abs_n:g})"

@@ -52,7 +52,7 @@ def _run_source(rec, inputs: Inputs, speed: float, out: Path, timeout_s: float =
     """Start the publisher process, wait for the node to answer a handshake pose, stream; returns its stats."""
     first = next(e[0] for e in inputs.events if e[1] == POSE)
     base = first - HANDSHAKE_LEAD_NS
-    events = out / "live_inputs.npz"
+    events = (out / "live_inputs.npz").resolve()  # the publisher process runs in the repository folder
     _events_file(inputs, events)
     argv = [sys.executable, "-m", "skin_sim_node.bags.live_source", str(events), "--speed", f"{speed}",
             "--handshake-base-ns", str(base)]  # fmt: skip
