@@ -26,6 +26,9 @@ import argparse
 import json
 import math
 import os
+import signal
+import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -35,7 +38,8 @@ import numpy as np
 
 from ..scenes import Scene
 
-SECTIONS = ("floor", "tickcost", "latency", "jitter", "levers", "startup")
+SECTIONS = ("floor", "tickcost", "latency", "jitter", "levers", "startup", "joinstall")
+DEFAULT_SECTIONS = SECTIONS[:-1]  # joinstall is opt-in: its trials measure a rare event
 LEVER_PRESETS = {
     # name: node parameters (NAME:=VALUE) on top of timer mode; "off" is the loop before issue 7
     "off": ("precise_sleep:=false",),
@@ -403,6 +407,105 @@ def tick_cost(n: int = 5000) -> dict:
     return {k: _pcts(v[warm:]) for k, v in t.items()}
 
 
+PUBLICATION_MODES = ("SYNCHRONOUS", "ASYNCHRONOUS")
+JOINER = """
+import rclpy
+from msgs_schema.qos import subscription
+rclpy.init()
+node = rclpy.create_node("bench_join_b")
+n = [0]
+subscription(node, "tool_wrench", lambda m: n.__setitem__(0, n[0] + 1))
+try:
+    rclpy.spin(node)
+except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+    pass
+print(n[0], flush=True)
+"""
+JOIN_TRIAL_EST_S = 25.0
+JOIN_WATCH_S = 6.0
+"""Seconds watched after a reader joins: the stall came 2-3 s after the join (see :data:`SETTLE_S`)."""
+
+
+def join_stall(mode: str, log_dir: Path, node_args: tuple[str, ...] = (), before_s: float = 4.0) -> dict:
+    """The joining-reader stall with ``RMW_FASTRTPS_PUBLICATION_MODE=mode`` in the node's environment.
+
+    The node answers 1 kHz poses (input mode, defaults, display on) to observer A; after ``before_s`` a
+    second reader of ``tool/wrench`` joins (its own rclpy context). Figures: the longest gap between
+    wrench arrivals at A in the ``before_s`` before the join and in the :data:`JOIN_WATCH_S` after it,
+    and the poses answered in each window.
+    """
+    from geometry_msgs.msg import PoseStamped, TwistStamped
+
+    from msgs_schema import convert as cv
+
+    from ..ros_util import PeriodicLoop
+
+    with Scene(log_dir) as scene:
+        os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+        scene.env["RMW_FASTRTPS_PUBLICATION_MODE"] = mode
+        proc = scene.node(*node_args)
+        scene.wait_for_log(proc, "live:", timeout_s=180)
+        mon = StreamObserver("bench_join_a", record_depth=1)
+        pose_pub, twist_pub = mon.publisher("tool_pose"), mon.publisher("tool_twist")
+        pose, twist = PoseStamped(), TwistStamped()
+        sent: list[int] = []
+
+        def tick(_now_ns, _elapsed):
+            stamp = mon.now_ns()
+            twist_pub.publish(cv.fill_twist(twist, stamp, "tissue", (0.0, 0.0, 0.0)))
+            pose_pub.publish(cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, -1.0e-3)))
+            sent.append(stamp)
+
+        end = time.monotonic() + 15
+        while pose_pub.get_subscription_count() == 0 and time.monotonic() < end:
+            time.sleep(0.05)
+        loop = PeriodicLoop(1_000_000, tick, name="bench-source")
+        loop.start()
+        mon.wait_for(lambda: len(mon.wrench) > 10, 30, "wrenches")
+        time.sleep(SETTLE_S)  # A's own join stall, if any, passes first
+        t_before = mon.now_ns()
+        time.sleep(before_s)
+        t_join = mon.now_ns()
+        # the joining reader is a process of its own, so its start-up takes no GIL from observer A
+        joiner = subprocess.Popen([sys.executable, "-c", JOINER], env=scene.env, stdout=subprocess.PIPE, text=True)
+        time.sleep(JOIN_WATCH_S)
+        t_end = mon.now_ns()
+        loop.stop()
+        joiner.send_signal(signal.SIGINT)
+        out, _ = joiner.communicate(timeout=10)
+        joined_got = int(out.split()[-1]) if out.split() else 0
+        records = list(mon.wrench)
+        mon.close()
+
+    def window(t0, t1):
+        rx = np.array([r for r, _, _ in records if t0 <= r < t1], dtype=np.int64)
+        got = {s for r, s, _ in records if t0 <= r < t1}
+        n_sent = sum(1 for s in sent if t0 <= s < t1 - 20_000_000)
+        gap = float(np.diff(np.r_[t0, rx, t1]).max() * 1e-6) if rx.size else (t1 - t0) * 1e-6
+        return gap, 100.0 * len(got & set(sent)) / max(n_sent, 1)
+
+    gap_b, ans_b = window(t_before, t_join)
+    gap_a, ans_a = window(t_join, t_end)
+    return {"mode": mode, "max_gap_before_ms": gap_b, "max_gap_after_ms": gap_a, "answered_before_pct": ans_b,
+            "answered_after_pct": ans_a, "joiner_wrenches": joined_got}  # fmt: skip
+
+
+def print_join_stall(rows: list[dict]) -> None:
+    print(f"\njoining-reader stall: a second tool/wrench reader joins; longest gap between wrench arrivals at the first "
+          f"reader, ms, {JOIN_WATCH_S:.0f} s after the join vs the seconds before it (answered %)")  # fmt: skip
+    for r in rows:
+        print(f"  {r['mode']:>12}: before {r['max_gap_before_ms']:7.1f} ({r['answered_before_pct']:5.1f} %) | after join "
+              f"{r['max_gap_after_ms']:7.1f} ({r['answered_after_pct']:5.1f} %) | joiner got {r['joiner_wrenches']}")  # fmt: skip
+    for mode in PUBLICATION_MODES:
+        g = [r["max_gap_after_ms"] for r in rows if r["mode"] == mode]
+        if g:
+            print(
+                f"  {mode:>12}: after-join max gap median {np.median(g):.1f} ms, worst {max(g):.1f} ms, "
+                f"trials over 100 ms {sum(x > 100 for x in g)}/{len(g)}"
+            )
+
+
 def wake_floor(rt_priority: int, duration_s: float, rate_hz: float = 1000.0) -> dict:
     """The platform's floor: a bare Python thread (no ROS, no other thread) sleeping to each
     deadline with :func:`ros_util.sleep_until_ns`; wake latency = wake - deadline (us), and the
@@ -485,7 +588,12 @@ def main(argv=None) -> int:
         "--latency-s 30); the estimate for the chosen sections is printed at start, then one line per case. "
         "Short: --sections tickcost,latency --latency-s 15 (~1.5 min).",
     )  # fmt: skip
-    ap.add_argument("--sections", default=",".join(SECTIONS), help=f"comma list of {', '.join(SECTIONS)}")
+    ap.add_argument(
+        "--sections",
+        default=",".join(DEFAULT_SECTIONS),
+        help=f"comma list of {', '.join(SECTIONS)} (default all but joinstall)",
+    )
+    ap.add_argument("--join-trials", type=int, default=4, help="joinstall: trials per publication mode (~25 s each)")
     ap.add_argument("--duration-s", type=float, default=60.0, help="seconds of the first-rate jitter case (missed ticks)")
     ap.add_argument("--jitter-s", type=float, default=20.0, help="seconds of the other rates' jitter cases")
     ap.add_argument("--latency-s", type=float, default=30.0, help="seconds of each latency case")
@@ -528,6 +636,7 @@ def main(argv=None) -> int:
         "jitter": [case_estimate_s(args.duration_s if i == 0 else args.jitter_s) for i in range(len(rates)) for _ in (0, 1)],
         "levers": [case_estimate_s(args.lever_s)] * (1 + len(levers)),
         "startup": [10.0, 60.0, 15.0],  # bare timer; node with a cold numba cache (compiles), then warm
+        "joinstall": [JOIN_TRIAL_EST_S] * (2 * args.join_trials),
     }
     plan = [e for sec in sections for e in est.get(sec, [])]
     print(
@@ -620,6 +729,14 @@ def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, e
         for r in rows:
             warm = f" (numba warm-up in the node {r['numba_warmup_s']:.2f} s)" if "numba_warmup_s" in r else ""
             print(f"  {r.get('label', 'bare rclpy timer'):>16}: {r['first_force_s']:6.2f}{warm}")
+    if "joinstall" in sections:
+        rows = []
+        for trial in range(args.join_trials):
+            for mode in PUBLICATION_MODES:  # interleaved: the same machine load for both
+                progress.stage(f"join stall: trial {trial + 1}/{args.join_trials}, Fast DDS publication {mode}", JOIN_TRIAL_EST_S)
+                rows.append(join_stall(mode, log_dir / f"join_{mode}_{trial}", node_args))
+        results["joinstall"] = rows
+        print_join_stall(rows)
     return results
 
 
