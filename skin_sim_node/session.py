@@ -382,6 +382,11 @@ class HapticSession:
         return self.model.kernel_calls
 
     @property
+    def modes_per_axis(self) -> tuple[int, ...]:
+        """Modes per axis each layer uses now (adaptive: its current level; else the fixed count)."""
+        return tuple(int(k) for k in self.model.modes_per_axis())
+
+    @property
     def idle_ticks(self) -> int:
         return self.model.idle_ticks
 

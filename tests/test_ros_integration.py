@@ -207,7 +207,7 @@ def test_bad_input_rejected_logged_once_node_survives(scene, monitor):
         assert log.count(f"[{kind}]") == 1, f"{kind} logged {log.count(f'[{kind}]')} times:\n{log}"
     d = monitor.diagnostics[-1][1]
     assert int(d["count_non_finite_input"]) >= 2 and int(d["count_unknown_frame"]) >= 2
-    assert int(d["count_stamp_backwards"]) >= 2
+    assert int(d["count_stamp_backwards"]) >= 2 and len(d["modes_per_axis"].split(",")) == 3
     assert int(d["regime_tool_below_tissue"]) >= 1 and log.count("[tool_below_tissue]") == 1
     f = monitor.forces()
     assert np.all(np.isfinite(f[:, 2]))

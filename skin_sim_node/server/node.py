@@ -275,7 +275,7 @@ class SkinSimNode(Node):
             last = self._last
             stale, force = s.stale, s.force_n
             flags, n_aff = (last.flags, last.n_affected) if last is not None else (0, 0)
-            kernel_calls, idle_ticks = s.kernel_calls, s.idle_ticks
+            kernel_calls, idle_ticks, modes = s.kernel_calls, s.idle_ticks, s.modes_per_axis
             pose_ticks = self._n_pose_ticks
             overruns = self._loop.overruns
         now = time.perf_counter_ns()
@@ -310,6 +310,7 @@ class SkinSimNode(Node):
             "warmup_s": f"{self._warmup_s:.3f}",
             "kernel_calls_total": str(kernel_calls),
             "idle_ticks_total": str(idle_ticks),
+            "modes_per_axis": ",".join(map(str, modes)),  # per layer, now (adaptive modes: each layer's level)
             "idle_unpublished_total": str(self._n_idle_skipped),
         }
         values.update({f"count_{k}": str(v) for k, v in sorted(counts.items())})
