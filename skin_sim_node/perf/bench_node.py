@@ -248,6 +248,7 @@ def run_case(
     node_args: tuple[str, ...] = (),
     pose_rate_hz: float = 1000.0,
     settle_s: float | None = None,
+    env: dict[str, str] | None = None,
 ) -> dict:
     """Run one case for ``duration_s`` measured seconds, from ``settle_s`` (default :data:`SETTLE_S`)
     after the observer joined; returns its figures (see the module doc)."""
@@ -262,6 +263,7 @@ def run_case(
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+        scene.env.update(env or {})  # the case's processes only (e.g. RMW_FASTRTPS_PUBLICATION_MODE)
         proc = start_case(scene, kind, rate_hz, node_args)
         scene.wait_for_log(proc, "live:", timeout_s=180)
         # latency: depth 1 (arrival as a device sees it); periods: deep, so observer stalls lose no stamp
@@ -609,7 +611,8 @@ def main(argv=None) -> int:
     )  # fmt: skip
     ap.add_argument(
         "--latency-variant", action="append", default=[],
-        help="latency node case NAME=P:=V,P:=V (repeatable; default one case 'node' with --node-param only)",
+        help="latency node case NAME=P:=V,P:=V (repeatable; default one case 'node' with --node-param only); "
+        "an item env.VAR:=VALUE sets the node's environment, e.g. env.RMW_FASTRTPS_PUBLICATION_MODE:=ASYNCHRONOUS",
     )  # fmt: skip
     ap.add_argument(
         "--observer-rt", type=int, default=0,
@@ -683,8 +686,10 @@ def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, e
         for spec in variants:
             name, _, params = spec.partition("=")
             progress.stage(f"latency: {name}", est["latency"][0])
-            extra = node_args + tuple(a for p in params.split(",") if p for a in ("-p", p))
-            nodes.append(run_case("node", args.latency_s, 1000.0, log_dir / f"latency_{name}", extra))
+            items = [p for p in params.split(",") if p]
+            env = dict(p[4:].split(":=", 1) for p in items if p.startswith("env."))  # env.NAME:=VALUE: the node's environment
+            extra = node_args + tuple(a for p in items if not p.startswith("env.") for a in ("-p", p))
+            nodes.append(run_case("node", args.latency_s, 1000.0, log_dir / f"latency_{name}", extra, env=env))
             nodes[-1]["label"] = name
         results["latency"] = [echo, *nodes]
         print_latency(echo, nodes)
