@@ -319,6 +319,85 @@ def run_case(
     return out
 
 
+def run_interleaved(cases: list[tuple[str, tuple[str, ...], dict]], total_s: float, slot_s: float, log_dir: Path) -> list[dict]:
+    """Latency of several cases under the same machine load: all run at once, each in its own DDS domain,
+    and one 1 kHz pose source feeds them in turn, ``slot_s`` each, for ``total_s`` each in all.
+
+    ``cases``: ``(label, node args, node environment)``; label ``echo`` is the bare rclpy echo. The first
+    100 ms of each slot are not counted (the process resumes after a pause; the node's watchdog has
+    released the tissue). Figures as :func:`run_case`'s latency case, plus ``slots``.
+    """
+    from contextlib import ExitStack
+
+    from geometry_msgs.msg import PoseStamped, TwistStamped
+
+    from msgs_schema import convert as cv
+
+    from ..ros_util import PeriodicLoop
+
+    skip_ns = 100_000_000
+    with ExitStack() as stack:
+        targets = []
+        for label, args, env in cases:
+            scene = stack.enter_context(Scene(log_dir / label))
+            scene.env.update(env)
+            proc = scene.start("echo", "echo") if label == "echo" else scene.node(*args)
+            targets.append((label, scene, proc))
+        for _, scene, proc in targets:
+            scene.wait_for_log(proc, "live:", timeout_s=180)
+        state = []
+        for label, scene, _ in targets:
+            os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]  # the observer's context joins this domain
+            os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+            mon = StreamObserver(f"bench_ab_{len(state)}", record_depth=1)
+            stack.callback(mon.close)
+            state.append({"label": label, "mon": mon, "pose": mon.publisher("tool_pose"), "twist": mon.publisher("tool_twist"),
+                          "sent": [], "counted": set()})  # fmt: skip
+        for st in state:
+            end = time.monotonic() + 15
+            while st["pose"].get_subscription_count() == 0 and time.monotonic() < end:
+                time.sleep(0.05)
+        pose, twist = PoseStamped(), TwistStamped()
+        active = [0]
+        slot_start = [0]
+        t0 = time.perf_counter_ns()
+
+        def tick(now_ns, _elapsed):
+            t = (now_ns - t0) * 1e-9
+            z = -1.5e-3 * (1 - math.cos(2 * math.pi * t))
+            vz = -1.5e-3 * 2 * math.pi * math.sin(2 * math.pi * t)
+            st = state[active[0]]
+            stamp = st["mon"].now_ns()
+            st["twist"].publish(cv.fill_twist(twist, stamp, "tissue", (0.0, 0.0, vz)))
+            st["pose"].publish(cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, z)))
+            if now_ns - slot_start[0] >= skip_ns:
+                st["counted"].add(stamp)
+
+        loop = PeriodicLoop(1_000_000, tick, name="bench-source")
+        loop.start()
+        time.sleep(SETTLE_S)  # every observer's join stall passes (see SETTLE_S); nothing counted yet
+        for st in state:
+            st["counted"].clear()
+            st["mon"].wrench.clear()
+        steal0 = cpu_steal_ms()
+        n_slots = max(1, round(total_s / slot_s))
+        for _ in range(n_slots):
+            for i in range(len(state)):
+                active[0], slot_start[0] = i, time.perf_counter_ns()
+                time.sleep(slot_s)
+        loop.stop()
+        time.sleep(0.2)
+        steal_ms = cpu_steal_ms() - steal0
+        out = []
+        for st in state:
+            counted = st["counted"]
+            lat = np.array([r - s for r, s, _ in list(st["mon"].wrench) if s in counted], dtype=np.int64)
+            out.append({"case": "echo" if st["label"] == "echo" else "node", "label": st["label"], "slots": n_slots,
+                        "answered_pct": 100.0 * lat.size / max(len(counted), 1), "latency_ms": _pcts(lat * 1e-6),
+                        "steal_ms": steal_ms, "duration_s": n_slots * slot_s})  # fmt: skip
+    return out
+
+
 def run_startup(kind: str, log_dir: Path, cache_dir: Path | None, rate_hz: float = 1000.0) -> dict:
     """Seconds from starting the process to the first wrench at the observer (and the node's numba warm-up)."""
     from .monitor import Monitor
@@ -546,6 +625,14 @@ def _ratio(a, b) -> str:
     return f"{a[0] / b[0]:.2f}x / {a[1] / b[1]:.2f}x / {a[2] / b[2]:.2f}x"
 
 
+def latency_variant(spec: str, node_args: tuple[str, ...]) -> tuple[str, tuple[str, ...], dict[str, str]]:
+    """``NAME=P:=V,env.VAR:=VALUE,...`` -> (name, node arguments, node environment)."""
+    name, _, params = spec.partition("=")
+    items = [p for p in params.split(",") if p]
+    env = dict(p[4:].split(":=", 1) for p in items if p.startswith("env."))
+    return name, node_args + tuple(a for p in items if not p.startswith("env.") for a in ("-p", p)), env
+
+
 def print_latency(echo: dict, nodes: list[dict]) -> None:
     print("\npose-to-force latency across processes, ms (p50 p99 max); answered = wrenches / poses sent")
     for r in (echo, *nodes):
@@ -595,6 +682,13 @@ def main(argv=None) -> int:
         default=",".join(DEFAULT_SECTIONS),
         help=f"comma list of {', '.join(SECTIONS)} (default all but joinstall)",
     )
+    ap.add_argument(
+        "--interleave-s",
+        type=float,
+        default=0.0,
+        help="latency: run echo and node cases at once and switch the pose stream between them every this many "
+        "seconds (the same machine load for all; 0: one case after the other)",
+    )
     ap.add_argument("--join-trials", type=int, default=4, help="joinstall: trials per publication mode (~25 s each)")
     ap.add_argument("--duration-s", type=float, default=60.0, help="seconds of the first-rate jitter case (missed ticks)")
     ap.add_argument("--jitter-s", type=float, default=20.0, help="seconds of the other rates' jitter cases")
@@ -635,7 +729,9 @@ def main(argv=None) -> int:
     est = {
         "tickcost": [10.0],
         "floor": [args.floor_s] * 2,
-        "latency": [case_estimate_s(args.latency_s)] * (1 + len(variants)),
+        "latency": [case_estimate_s((1 + len(variants)) * args.latency_s)]
+        if args.interleave_s > 0
+        else [case_estimate_s(args.latency_s)] * (1 + len(variants)),
         "jitter": [case_estimate_s(args.duration_s if i == 0 else args.jitter_s) for i in range(len(rates)) for _ in (0, 1)],
         "levers": [case_estimate_s(args.lever_s)] * (1 + len(levers)),
         "startup": [10.0, 60.0, 15.0],  # bare timer; node with a cold numba cache (compiles), then warm
@@ -679,16 +775,23 @@ def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, e
             note = f" ({r['problem']})" if r.get("problem") else ""
             late = r["over_half_period_pct"]
             print(f"  {name:>14}: p50 {w[0]:6.0f} p99 {w[1]:6.0f} max {w[2]:7.0f} | later than T/2: {late:.3f} %{note}")
-    if "latency" in sections:
+    if "latency" in sections and args.interleave_s > 0:
+        progress.stage(f"latency, interleaved {args.interleave_s:g} s slots: echo and {len(variants)} node case(s)",
+                       est["latency"][0])  # fmt: skip
+        cases = [("echo", (), {}), *(latency_variant(spec, node_args) for spec in variants)]
+        rows = run_interleaved(cases, args.latency_s, args.interleave_s, log_dir / "latency_interleaved")
+        results["latency"] = rows
+        print(f"\n(interleaved: all cases running, one pose stream switched between them every {args.interleave_s:g} s, "
+              f"{args.latency_s:g} s each in all)")  # fmt: skip
+        print_latency(rows[0], rows[1:])
+    elif "latency" in sections:
         progress.stage("latency: bare rclpy echo", est["latency"][0])
         echo = run_case("echo", args.latency_s, 1000.0, log_dir / "latency_echo")
         nodes = []
         for spec in variants:
             name, _, params = spec.partition("=")
             progress.stage(f"latency: {name}", est["latency"][0])
-            items = [p for p in params.split(",") if p]
-            env = dict(p[4:].split(":=", 1) for p in items if p.startswith("env."))  # env.NAME:=VALUE: the node's environment
-            extra = node_args + tuple(a for p in items if not p.startswith("env.") for a in ("-p", p))
+            _, extra, env = latency_variant(spec, node_args)
             nodes.append(run_case("node", args.latency_s, 1000.0, log_dir / f"latency_{name}", extra, env=env))
             nodes[-1]["label"] = name
         results["latency"] = [echo, *nodes]
