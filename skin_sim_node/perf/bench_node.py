@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scenes import Scene
+from ..scenes import Scene, pick_domain_id
 
 SECTIONS = ("floor", "tickcost", "latency", "jitter", "levers", "startup", "joinstall")
 DEFAULT_SECTIONS = SECTIONS[:-1]  # joinstall is opt-in: its trials measure a rare event
@@ -338,8 +338,12 @@ def run_interleaved(cases: list[tuple[str, tuple[str, ...], dict]], total_s: flo
     skip_ns = 100_000_000
     with ExitStack() as stack:
         targets = []
+        domains: set[int] = set()
         for label, args, env in cases:
-            scene = stack.enter_context(Scene(log_dir / label))
+            while (domain := pick_domain_id()) in domains:  # one domain each: a shared one would cross-answer poses
+                pass
+            domains.add(domain)
+            scene = stack.enter_context(Scene(log_dir / label, domain_id=domain))
             scene.env.update(env)
             proc = scene.start("echo", "echo") if label == "echo" else scene.node(*args)
             targets.append((label, scene, proc))
