@@ -238,3 +238,16 @@ def test_params_are_views_of_the_one_schema():
     assert sp.watchdog_s == 0.2 and sp.max_stamp_age_s == 0.0 and set(SESSION_KEYS) < {f.name for f in fields(sp)}
     assert sp == SessionParams(watchdog_s=0.2, max_stamp_age_s=0.0)  # the defaults are the schema's, written once
     assert set(READ_ONLY) == {"input_queue_depth", "rt_priority", "rt_scope", "haptic_cpu", "spin_tail_us", "precise_sleep"}
+
+
+def test_mode_counts_are_described_as_the_model_runs_them(default_cfg):
+    """The node logs what the model runs: adaptive levels (not the unused modes.m x n) or the fixed count."""
+    s = HapticSession(SkinModel(default_cfg), SessionParams())
+    assert s.modes_per_axis == (1, 1, 1)  # at rest every layer sits at its lowest level
+    text = s.describe_modes()
+    m, n = default_cfg.modes
+    assert text.startswith("adaptive modes on") and f"{m}x{n} applies only with it off" in text
+    feed(s, [(T0 + i * MS, -3e-3 * i / 200) for i in range(1, 201)])
+    assert max(s.modes_per_axis) > 1  # a deep press raises the levels
+    fixed = HapticSession(SkinModel(default_cfg.replace(**{"lod.adaptive_modes": False})), SessionParams())
+    assert fixed.describe_modes().startswith(f"fixed modes: {m}x{n} per axis") and fixed.modes_per_axis == (max(m, n),) * 3
