@@ -305,3 +305,18 @@ def test_every_layer_deforms_in_the_grid(cfg):
 
 def test_paper_preset_still_reproduces_eq9():
     assert physics.eq9_error(preset("paper")) < 1e-9
+
+
+def test_contact_jacobians_kernel_matches_numpy_reference(compiled, rng):
+    """K and D of the friction cone, compiled and as py_func, against the NumPy expression."""
+    fn = kernel(lk.contact_jacobians, compiled)
+    for _ in range(20):
+        normal = rng.normal(size=3)
+        normal /= np.linalg.norm(normal)
+        grad, velocity = rng.normal(size=3) * 100.0, rng.normal(size=3) * 0.01
+        mu, slip, force = rng.uniform(0, 1), rng.uniform(1e-4, 1e-2), rng.uniform(0, 3)
+        k, d = np.empty((3, 3)), np.empty((3, 3))
+        fn(normal, grad, velocity, mu, slip, force, k, d)
+        k_ref, d_ref = ref.contact_jacobians_ref(normal, grad, velocity, mu, slip, force)
+        np.testing.assert_allclose(k, k_ref, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(d, d_ref, rtol=1e-12, atol=1e-12)
