@@ -152,14 +152,14 @@ def test_force_rate_bound_holds_on_the_caller_clock_in_a_burst(default_cfg):
     """Poses stamped 1 ms apart but processed 20 us apart (DDS catching up) share one allowance."""
     rate = 100.0
     s = HapticSession(SkinModel(default_cfg), SessionParams(max_force_rate_n_per_s=rate, max_stamp_age_s=0.0))
-    st = _held_press(s, depth_m=30e-6)  # epidermis only: 0.29 N
+    st = _held_press(s, depth_m=2e-3)  # the whole stack compressed: a few tenths of a newton
     f0 = s.force_n
     assert f0 > 0.2
     s.counts.clear()
     forces = []
-    for k in range(5):  # a fast lift: each pose alone would allow rate * 1 ms
+    for k in range(5):  # a fast lift to the surface: each pose alone would allow rate * 1 ms
         stamp = st + k * MS
-        s.on_pose(stamp, "tissue", (0.0, 0.0, -30e-6 + 5e-6 * (k + 1)), now_ns=stamp, rx_ns=stamp)
+        s.on_pose(stamp, "tissue", (0.0, 0.0, -2e-3 + 0.4e-3 * (k + 1)), now_ns=stamp, rx_ns=stamp)
         forces.append(s.tick(stamp, 20_000).force_z_n)
     assert abs(forces[-1] - f0) <= rate * (5 * 20e-6 + RATE_ALLOWANCE_S) + 1e-12
     assert s.counts["force_rate_limited"] >= 1
@@ -167,10 +167,10 @@ def test_force_rate_bound_holds_on_the_caller_clock_in_a_burst(default_cfg):
 
 def test_live_lowering_of_max_force_applies_at_once(default_cfg):
     s = HapticSession(SkinModel(default_cfg), SessionParams(max_force_rate_n_per_s=10.0, max_stamp_age_s=0.0))
-    st = _held_press(s, depth_m=30e-6, n=1000)
+    st = _held_press(s, depth_m=2e-3, n=1000)
     assert s.force_n > 0.2
     s.params = SessionParams(max_force_rate_n_per_s=10.0, max_stamp_age_s=0.0, max_force_n=0.05)
-    s.on_pose(st, "tissue", (0.0, 0.0, -30e-6), now_ns=st, rx_ns=st)
+    s.on_pose(st, "tissue", (0.0, 0.0, -2e-3), now_ns=st, rx_ns=st)
     assert s.tick(st, MS).force_z_n <= 0.05
 
 
