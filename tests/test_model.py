@@ -11,7 +11,7 @@ from scipy.sparse.linalg import spsolve
 
 from msgs_schema.tissue import _TOOL_RADIUS_M, PAPER_MODULI_PA, flat_punch_stiffness_n_per_m
 from skin_sim_node.model import SkinModel, classify, config_from_flat
-from skin_sim_node.model.config import ConfigError, default_flat
+from skin_sim_node.model.config import WALL_STRAIN, ConfigError, default_flat
 from skin_sim_node.model.layered import DT_FLOOR_S, compression_law
 from skin_sim_node.model.modal import disk_load_coefficients, shape_coefficients
 
@@ -318,7 +318,7 @@ def test_property_force_and_grid_finite_and_bounded(layers, amp_frac, modes, for
             d = max(-z, 0.0)
             bound = 0.0
             for i in range(3):
-                ph, _ = compression_law(d / total, n_exp[i], 0.95)
+                ph, _ = compression_law(d / total, n_exp[i], WALL_STRAIN)
                 bound = max(bound, k[i] * h[i] * ph + b[i] / max(dt, DT_FLOOR_S) * (d + c_old))
             bound = bound * (1 + 1e-9) + 1e-12
         assert math.isfinite(f) and 0.0 <= f <= bound

@@ -7,7 +7,7 @@ Fitted (log-parameters, ``scipy.optimize.least_squares``):
   flat punch on a half-space (the paper form) ignores each layer's thickness and the bottom; the
   column ``k = E A / h`` (the layered form) ignores the load spreading sideways under the punch.
   Layered form: the epidermis spring is not fitted: all layers are in series from first contact and
-  its compliance is 0.03 % of the chain's (392 700 vs 128 N/m for the fat), so force data cannot see
+  its compliance is 0.1 % of the chain's (392 700 vs 752 N/m for the fat), so force data cannot see
   it (a fit from the default start wanders along the dermis/epidermis trade-off); its modulus is the
   measured 1.5 MPa (Geerligs et al. 2011).
 - ``layers.*.stiffening`` (layered form only; one exponent ``n`` shared by the layers): the
