@@ -324,7 +324,11 @@ def test_property_force_and_grid_finite_and_bounded(layers, amp_frac, modes, for
         assert math.isfinite(f) and 0.0 <= f <= bound
     g = m.build_grid()
     assert np.all(np.isfinite(g.heights_m))
-    assert np.abs(g.displacement_m).max() <= 20 * cfg.total_thickness_m
+    # paper form: the depth is clamped at the bottom; layered form: the bottom is a finite wall, so a tool far below
+    # a thin stack compresses the layers past their thickness (a 15.6 mm press into 0.18 mm: 5.2 mm per layer), and
+    # what bounds the grid is the tool's depth (the compressions sum to it)
+    deepest = max(max(-z for _, _, z, _, _ in path), 0.0)
+    assert np.abs(g.displacement_m).max() <= 20 * max(cfg.total_thickness_m, deepest)
 
 
 @pytest.mark.parametrize(
