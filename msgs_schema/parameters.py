@@ -104,9 +104,9 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         "rt_scope", str, "process", "-",
-        "threads that get SCHED_FIFO: haptic (the tick clock and the executor that runs pose callbacks at "
-        "rt_priority, the display-loop thread that shares their lock at one less) or process (also every other "
-        "thread at one less: the DDS receive threads that deliver the poses are on the input-mode path)",
+        "threads that get SCHED_FIFO: haptic (the tick clock and the executor that runs pose callbacks, at "
+        "rt_priority) or process (also every other thread at one less: the DDS receive threads that deliver the "
+        "poses are on the input-mode path)",
         choices=("haptic", "process"), read_only=True,
     ),
     ParamSpec(

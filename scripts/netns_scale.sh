@@ -3,7 +3,8 @@
 # in one, device bridge + simulated Touch + latency observer in the other; the same scene with
 # everything in one namespace for comparison. Needs root and iproute2 (exit 77 = skipped).
 #
-#   sudo bash scripts/netns_scale.sh [DURATION_S]      (default 20 s per case)
+#   bash scripts/netns_scale.sh [DURATION_S]           as root (default 20 s per case; about 4 x that in all)
+#   sudo bash scripts/netns_scale.sh [DURATION_S]      the same from a user account that has sudo
 #   CASES="cross_udp" ...                               (subset of: same_udp cross_udp same_shm cross_default)
 #
 # Discovery across the veth: ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (Fast DDS multicast SPDP on
@@ -12,9 +13,16 @@
 # memory, which network namespaces on one host still share. Namespaces are removed on exit.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+if [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
+  sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0
+fi
 DURATION="${1:-20}"
 PY="${PY:-$PWD/.venv/bin/python}"
-if [ "$(id -u)" != 0 ]; then echo "netns_scale: skipped: needs root (ip netns)"; exit 77; fi
+if [ "$(id -u)" != 0 ]; then
+  if command -v sudo >/dev/null; then how="sudo bash scripts/netns_scale.sh $DURATION"; else how="as root: bash scripts/netns_scale.sh $DURATION"; fi
+  echo "netns_scale: skipped: needs root (ip netns); run it $how"; exit 77
+fi
+echo "netns_scale: as root (uid 0); cases ${CASES:-same_udp cross_udp same_shm cross_default}, ${DURATION} s each"
 if ! command -v ip >/dev/null; then echo "netns_scale: skipped: needs iproute2 (ip)"; exit 77; fi
 
 TAG="$$"

@@ -34,11 +34,31 @@ COMMANDS = {
 
 # ``skin-sim chart TARGET``: each target's module regenerates its own docs figures.
 CHART_TARGETS = {
-    "model": "skin_sim_node.viz.figures",
-    "validation": "skin_sim_node.validation.charts",
-    "stability": "skin_sim_node.stability.charts",
-    "performance": "skin_sim_node.perf.charts",
+    "model": ("skin_sim_node.viz.figures", "model figures: deformation, layers, modes (docs/figures)"),
+    "validation": ("skin_sim_node.validation.charts", "FEM reference, speed-accuracy chart, calibration, Table II"),
+    "stability": ("skin_sim_node.stability.charts", "numerical and haptic-loop stability maps (~6 min)"),
+    "performance": ("skin_sim_node.perf.charts", "cost growth against modes and grid size"),
 }
+
+
+def chart_usage() -> str:
+    width = max(map(len, CHART_TARGETS))
+    lines = ["usage: skin-sim chart TARGET [args]   (skin-sim chart TARGET --help: its options)", "",
+             "Regenerates the figures of one target in docs/figures. targets:"]  # fmt: skip
+    lines += [f"  {name:<{width}}  {desc}" for name, (_, desc) in CHART_TARGETS.items()]
+    return "\n".join(lines)
+
+
+def chart(rest: list[str]) -> int:
+    """``skin-sim chart``: dispatch to a target; without one, list the targets and regenerate nothing."""
+    if not rest or rest[0] in ("-h", "--help"):
+        print(chart_usage())
+        return 0 if rest else 2
+    if rest[0] not in CHART_TARGETS:
+        print(f"skin-sim chart: unknown target {rest[0]!r}\n\n{chart_usage()}", file=sys.stderr)
+        return 2
+    module = importlib.import_module(CHART_TARGETS[rest[0]][0])
+    return int(module.main(rest[1:]) or 0)
 
 
 def usage() -> str:
@@ -54,9 +74,8 @@ def main(argv=None) -> int:
         print(usage())
         return 0
     cmd, rest = argv[0], argv[1:]
-    if cmd == "chart" and rest[:1] and rest[0] in CHART_TARGETS:
-        module = importlib.import_module(CHART_TARGETS[rest[0]])
-        return int(module.main(rest[1:]) or 0)
+    if cmd == "chart":
+        return chart(rest)
     if cmd not in COMMANDS:
         print(f"skin-sim: unknown command {cmd!r}\n\n{usage()}", file=sys.stderr)
         return 2

@@ -18,7 +18,7 @@ from msgs_schema.parameters import SessionParams
 
 from .model import SkinModel
 from .model import kernels as kn
-from .model.contact import ContactTangent
+from .model.contact import ContactTangent, normal_tangent
 
 __all__ = ["HapticSession", "SessionParams", "TickResult"]
 
@@ -43,6 +43,10 @@ CONTACT_SEPARATED = "contact_separated"
 TOOL_OFF_SHEET = "tool_off_sheet"
 PATCH_CLIPPED = "patch_clipped"
 DEGENERATE_WAVE_SPEED = "degenerate_wave_speed"
+
+NO_CONTACT = normal_tangent(0.0, 0.0, 0.0, 0.0)
+"""The tangent out of contact (no force, no stiffness), shared: :meth:`SkinModel.tangent` builds its arrays
+anew on each call (8 us of a 1 ms tick), so it is called only while the tool is in contact."""
 
 REGIME_EVENTS = frozenset(
     (TOOL_BELOW_TISSUE, REUSS_BOUND, CONTACT_SEPARATED, TOOL_OFF_SHEET, PATCH_CLIPPED, DEGENERATE_WAVE_SPEED)
@@ -354,17 +358,20 @@ class HapticSession:
         m = self.model
         n = m.n_affected
         depth = m.depth_m
-        comp = m.compression_m.tolist()
-        vn = -v[2]
+        comp = tuple(m.compression_m.tolist())
+        nl = len(comp)
+        k = -v[2] / depth if depth > 0 else 0.0  # the normal speed, shared in proportion to each layer's compression
+        rate = tuple([k * c for c in comp])
+        stress = (m.stress_pa,) * n + (0.0,) * (nl - n)
         self._seq += 1
-        events, self._tick_events = tuple(self._tick_events), []
-        stress = m.stress_pa
+        events = tuple(self._tick_events) if self._tick_events else ()
+        self._tick_events.clear()
+        flags = m.flags
         self.last = TickResult(
             seq=self._seq, stamp_ns=self.answered_stamp_ns, answered=answered, x0_m=tuple(pos), velocity_m_s=tuple(v),
-            force_n=(0.0, 0.0, force), depth_m=depth, n_affected=n, compression_m=tuple(comp),
-            compression_rate_m_s=tuple(vn * c / depth if depth > 0 else 0.0 for c in comp),
-            stress_pa=tuple(stress if li < n else 0.0 for li in range(len(comp))),
-            flags=m.flags, events=events, stale=stale, idle=m.last_tick_idle, tangent=m.tangent(),
+            force_n=(0.0, 0.0, force), depth_m=depth, n_affected=n, compression_m=comp, compression_rate_m_s=rate,
+            stress_pa=stress, flags=flags, events=events, stale=stale, idle=m.last_tick_idle,
+            tangent=m.tangent() if flags & kn.FLAG_CONTACT else NO_CONTACT,
         )  # fmt: skip
         return self.last
 
@@ -373,6 +380,11 @@ class HapticSession:
     def kernel_calls(self) -> int:
         """Model kernel invocations so far (idle ticks make none)."""
         return self.model.kernel_calls
+
+    @property
+    def modes_per_axis(self) -> tuple[int, ...]:
+        """Modes per axis each layer uses now (adaptive: its current level; else the fixed count)."""
+        return tuple(int(k) for k in self.model.modes_per_axis())
 
     @property
     def idle_ticks(self) -> int:

@@ -109,7 +109,7 @@ def test_golden_regression(tmp_path, scene):
     out = tmp_path / "out"
     res = replay_to_bag(read_inputs(DATA / scene / "input", InputOptions()), out, grid_rate_hz=GRID_RATE_HZ)
     d = compare.diff_outputs(compare.read_outputs(DATA / scene / "expected"), compare.read_outputs(out))
-    assert compare.verdict(d) == []
+    assert compare.verdict(d, compare.EXACT) == []
     assert d.matched == res.stamps_ns.size > 2000 and d.grids_matched >= 4
     assert res.layers_reached == ["epidermis", "dermis", "fat"]
 
@@ -120,8 +120,25 @@ def test_replay_cli_writes_bag_report_summary(tmp_path, capsys):
     s = json.loads((out / "summary.json").read_text())
     assert (out / "report.png").stat().st_size > 10_000 and (out / "outputs" / "metadata.yaml").exists()
     assert s["answered"] == s["poses"] == 2301 and s["peak_force_n"] > 0.1 and s["rejected"] == {}
-    assert "layers reached: epidermis, dermis, fat" in capsys.readouterr().out
-    assert compare.main([str(DATA / "press_hold_release" / "expected"), str(out / "outputs")]) == 0
+    printed = capsys.readouterr().out
+    assert "layers reached: epidermis, dermis, fat" in printed and f"report: {out / 'report.png'}" in printed
+    assert compare.main([str(DATA / "press_hold_release" / "expected"), str(out / "outputs"), "--exact"]) == 0
+
+
+def test_compare_defaults_are_the_live_replay_contract():
+    """``replay --live`` PASS and ``compare``'s defaults are one contract: a live run that answered 97 % of the
+    poses within 0.5 % of peak, with extra fallback-clock wrenches, passes both; ``--exact`` is for offline pairs."""
+    a = {s: 1.0 + 1e-3 * s for s in range(1000)}
+    b = {s: f * 1.005 for s, f in a.items() if s % 33}  # 97 % of A, 0.5 % of peak off
+    b.update({10_000 + k: 0.0 for k in range(80)})  # wrenches that answer no pose of A
+    d = compare.diff_outputs((a, {}), (b, {}))
+    assert compare.verdict(d) == [] and d.matched_fraction == pytest.approx(0.969)
+    fails = compare.verdict(d, compare.EXACT)
+    assert len(fails) == 3 and "of B's wrench stamps are not in A" in fails[2]
+    ap = replay.build_parser().parse_args(["x", "--live"])
+    assert (ap.force_tol_frac, ap.min_answered) == (compare.LIVE.force_rel, compare.LIVE.min_matched)
+    b2 = {s: f for s, f in b.items() if s % 10}  # 87 % answered: both fail
+    assert compare.verdict(compare.diff_outputs((a, {}), (b2, {})))[0].startswith("matched 0.8")
 
 
 def test_compare_exits_nonzero_on_difference_and_two_on_bad_bag(tmp_path, capsys):

@@ -44,7 +44,7 @@ def test_adaptive_mode_count_meets_tolerance_against_60x60(default_cfg, toleranc
         assert err <= tolerance_m, f"layer {li}: {modes[li]} modes, error {err:.3g} m > {tolerance_m} m"
         assert modes[li] < REFERENCE_MODES  # it did truncate
     # the mode count follows the compression: the thin epidermis needs far fewer than the deep layers
-    if model.n_affected == 3:
+    if model.n_affected == 3 and model.compression_m[2] > tolerance_m:  # (below it one mode is enough)
         assert modes[0] < modes[2]
 
 
@@ -133,8 +133,10 @@ def test_lever_on_matches_off(default_cfg, paths, reference_runs, lever, scene):
 def test_display_change_detection(default_cfg):
     model = SkinModel(default_cfg)
     model.step((0.0, 0.0, -1e-3), (0, 0, 0), 1e-3)
-    last = (model.q.copy(), model.centre.copy(), model.active.copy())
     assert _moved(model, None, None, None)
+    for _ in range(3000):  # hold until the layers' dampers have relaxed (the layered chain creeps first)
+        model.step((0.0, 0.0, -1e-3), (0, 0, 0), 1e-3)
+    last = (model.q.copy(), model.centre.copy(), model.active.copy())
     model.step((0.0, 0.0, -1e-3), (0, 0, 0), 1e-3)  # a static hold
     assert not _moved(model, *last)
     model.step((0.0, 0.0, -1.01e-3), (0, 0, 0), 1e-3)  # 10 um deeper

@@ -11,7 +11,7 @@ from scipy.sparse.linalg import spsolve
 
 from msgs_schema.tissue import _TOOL_RADIUS_M, PAPER_MODULI_PA, flat_punch_stiffness_n_per_m
 from skin_sim_node.model import SkinModel, classify, config_from_flat
-from skin_sim_node.model.config import ConfigError, default_flat
+from skin_sim_node.model.config import WALL_STRAIN, ConfigError, default_flat
 from skin_sim_node.model.layered import DT_FLOOR_S, compression_law
 from skin_sim_node.model.modal import disk_load_coefficients, shape_coefficients
 
@@ -318,13 +318,17 @@ def test_property_force_and_grid_finite_and_bounded(layers, amp_frac, modes, for
             d = max(-z, 0.0)
             bound = 0.0
             for i in range(3):
-                ph, _ = compression_law(d / total, n_exp[i], 0.95)
+                ph, _ = compression_law(d / total, n_exp[i], WALL_STRAIN)
                 bound = max(bound, k[i] * h[i] * ph + b[i] / max(dt, DT_FLOOR_S) * (d + c_old))
             bound = bound * (1 + 1e-9) + 1e-12
         assert math.isfinite(f) and 0.0 <= f <= bound
     g = m.build_grid()
     assert np.all(np.isfinite(g.heights_m))
-    assert np.abs(g.displacement_m).max() <= 20 * cfg.total_thickness_m
+    # paper form: the depth is clamped at the bottom; layered form: the bottom is a finite wall, so a tool far below
+    # a thin stack compresses the layers past their thickness (a 15.6 mm press into 0.18 mm: 5.2 mm per layer), and
+    # what bounds the grid is the tool's depth (the compressions sum to it)
+    deepest = max(max(-z for _, _, z, _, _ in path), 0.0)
+    assert np.abs(g.displacement_m).max() <= 20 * max(cfg.total_thickness_m, deepest)
 
 
 @pytest.mark.parametrize(

@@ -183,3 +183,16 @@ def test_scale_one_session_in_its_namespace(tmp_path):
     s = rows[0]["per_session"][0]
     assert s["node_windows"] >= 1 and s["node_ticks"] > 100
     assert 0.0 <= s["node_missed_pct"] <= 100.0
+
+
+def test_progress_prints_a_line_per_stage_with_the_remaining_estimate(capsys):
+    from skin_sim_node.perf.bench_node import Progress
+
+    p = Progress([30.0, 60.0, 30.0], "test")
+    for name, est in (("a", 30.0), ("b", 60.0), ("c", 30.0)):
+        p.stage(name, est)
+    p.close()
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("[")]
+    assert [ln.split("] ")[1] for ln in lines] == ["a (~30 s)", "b (~60 s)", "c (~30 s)"]
+    assert "~2.0 min left" in lines[0] and "~1.5 min left" in lines[1] and "~0.5 min left" in lines[2]
+    assert lines[0].startswith("[1/3, 0.0 min elapsed")

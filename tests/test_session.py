@@ -152,14 +152,14 @@ def test_force_rate_bound_holds_on_the_caller_clock_in_a_burst(default_cfg):
     """Poses stamped 1 ms apart but processed 20 us apart (DDS catching up) share one allowance."""
     rate = 100.0
     s = HapticSession(SkinModel(default_cfg), SessionParams(max_force_rate_n_per_s=rate, max_stamp_age_s=0.0))
-    st = _held_press(s, depth_m=30e-6)  # epidermis only: 0.29 N
+    st = _held_press(s, depth_m=2e-3)  # the whole stack compressed: a few tenths of a newton
     f0 = s.force_n
     assert f0 > 0.2
     s.counts.clear()
     forces = []
-    for k in range(5):  # a fast lift: each pose alone would allow rate * 1 ms
+    for k in range(5):  # a fast lift to the surface: each pose alone would allow rate * 1 ms
         stamp = st + k * MS
-        s.on_pose(stamp, "tissue", (0.0, 0.0, -30e-6 + 5e-6 * (k + 1)), now_ns=stamp, rx_ns=stamp)
+        s.on_pose(stamp, "tissue", (0.0, 0.0, -2e-3 + 0.4e-3 * (k + 1)), now_ns=stamp, rx_ns=stamp)
         forces.append(s.tick(stamp, 20_000).force_z_n)
     assert abs(forces[-1] - f0) <= rate * (5 * 20e-6 + RATE_ALLOWANCE_S) + 1e-12
     assert s.counts["force_rate_limited"] >= 1
@@ -167,10 +167,10 @@ def test_force_rate_bound_holds_on_the_caller_clock_in_a_burst(default_cfg):
 
 def test_live_lowering_of_max_force_applies_at_once(default_cfg):
     s = HapticSession(SkinModel(default_cfg), SessionParams(max_force_rate_n_per_s=10.0, max_stamp_age_s=0.0))
-    st = _held_press(s, depth_m=30e-6, n=1000)
+    st = _held_press(s, depth_m=2e-3, n=1000)
     assert s.force_n > 0.2
     s.params = SessionParams(max_force_rate_n_per_s=10.0, max_stamp_age_s=0.0, max_force_n=0.05)
-    s.on_pose(st, "tissue", (0.0, 0.0, -30e-6), now_ns=st, rx_ns=st)
+    s.on_pose(st, "tissue", (0.0, 0.0, -2e-3), now_ns=st, rx_ns=st)
     assert s.tick(st, MS).force_z_n <= 0.05
 
 
@@ -238,3 +238,16 @@ def test_params_are_views_of_the_one_schema():
     assert sp.watchdog_s == 0.2 and sp.max_stamp_age_s == 0.0 and set(SESSION_KEYS) < {f.name for f in fields(sp)}
     assert sp == SessionParams(watchdog_s=0.2, max_stamp_age_s=0.0)  # the defaults are the schema's, written once
     assert set(READ_ONLY) == {"input_queue_depth", "rt_priority", "rt_scope", "haptic_cpu", "spin_tail_us", "precise_sleep"}
+
+
+def test_mode_counts_are_described_as_the_model_runs_them(default_cfg):
+    """The node logs what the model runs: adaptive levels (not the unused modes.m x n) or the fixed count."""
+    s = HapticSession(SkinModel(default_cfg), SessionParams())
+    assert s.modes_per_axis == (1, 1, 1)  # at rest every layer sits at its lowest level
+    text = s.describe_modes()
+    m, n = default_cfg.modes
+    assert text.startswith("adaptive modes on") and f"{m}x{n} applies only with it off" in text
+    feed(s, [(T0 + i * MS, -3e-3 * i / 200) for i in range(1, 201)])
+    assert max(s.modes_per_axis) > 1  # a deep press raises the levels
+    fixed = HapticSession(SkinModel(default_cfg.replace(**{"lod.adaptive_modes": False})), SessionParams())
+    assert fixed.describe_modes().startswith(f"fixed modes: {m}x{n} per axis") and fixed.modes_per_axis == (max(m, n),) * 3

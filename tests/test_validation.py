@@ -45,7 +45,7 @@ def test_axis_nodes_hit_tool_radius_and_extent():
 def test_calibration_recovers_known_parameters(form):
     """Synthetic data from known springs, stiffening exponent (layered form only) and patch side: the fit recovers them.
 
-    Layered form: the epidermis spring is not fitted (its compliance is 0.03 % of the chain's); it keeps its value."""
+    Layered form: the epidermis spring is not fitted (its compliance is 0.1 % of the chain's); it keeps its value."""
     base = preset("default").replace(form=form, **{"modes.m": 5, "modes.n": 5, "lod.adaptive_modes": False})
     names = calibrate.fitted_springs(base)
     truth_k = (200.0, 60.0) if form == "layered" else (6000.0, 200.0, 25.0)

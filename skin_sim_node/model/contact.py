@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 Z_UP = np.array([0.0, 0.0, 1.0])
+_ZZ = np.outer(Z_UP, Z_UP)
 
 
 @dataclass(frozen=True)
@@ -47,11 +48,10 @@ class ContactTangent:
 
 def normal_tangent(force_z_n: float, k_normal_n_per_m: float, b_normal_n_s_per_m: float, radius_m: float) -> ContactTangent:
     """A tangent with force and stiffness along ``+z`` only (no tangential terms)."""
-    nn = np.outer(Z_UP, Z_UP)
     return ContactTangent(
         force_n=force_z_n * Z_UP,
-        stiffness_n_per_m=-k_normal_n_per_m * nn,
-        damping_n_s_per_m=-b_normal_n_s_per_m * nn,
+        stiffness_n_per_m=-k_normal_n_per_m * _ZZ,
+        damping_n_s_per_m=-b_normal_n_s_per_m * _ZZ,
         normal=Z_UP.copy(),
         contact_radius_m=radius_m,
     )

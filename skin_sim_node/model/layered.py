@@ -204,6 +204,35 @@ def contact_geometry(depth, radius, sphere):
 
 
 @njit(**JIT)
+def contact_jacobians(normal, grad, velocity, mu, slip_speed_m_s, force_n, out_k, out_d):
+    """``K = dF/dx`` and ``D = dF/dv`` of ``F = F_n (n - mu g)`` into ``out_k``, ``out_d`` (3 x 3 each).
+
+    ``g = v_t / r``, ``r = sqrt(|v_t|^2 + v_s^2)``, ``v_t = P v``, ``P = I - n n^T``:
+    ``K = (n - mu g) grad(F_n)^T`` and ``D = -mu F_n (I / r - v_t v_t^T / r^3) P``
+    (see :meth:`skin_sim_node.model.skin_model.SkinModel.tangent`).
+    """
+    vn = normal[0] * velocity[0] + normal[1] * velocity[1] + normal[2] * velocity[2]
+    vt0 = velocity[0] - vn * normal[0]
+    vt1 = velocity[1] - vn * normal[1]
+    vt2 = velocity[2] - vn * normal[2]
+    r = math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2 + slip_speed_m_s * slip_speed_m_s)
+    vt = (vt0, vt1, vt2)
+    r3 = r * r * r
+    for i in range(3):
+        a = normal[i] - mu * vt[i] / r
+        for j in range(3):
+            out_k[i, j] = a * grad[j]
+    for i in range(3):
+        for j in range(3):
+            s = 0.0
+            for k in range(3):
+                m_ik = (1.0 / r if i == k else 0.0) - vt[i] * vt[k] / r3
+                p_kj = (1.0 if k == j else 0.0) - normal[k] * normal[j]
+                s += m_ik * p_kj
+            out_d[i, j] = -mu * force_n * s
+
+
+@njit(**JIT)
 def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate,
                         istate, aux, sbuf, out):  # fmt: skip
     """One haptic tick of the layered form: series chain force, friction, tangent and modal state.

@@ -238,3 +238,14 @@ def averaged_interface_ref(mean, amp, kx, ky, x0, y0, radius, n=400):
     vals = mean - amp * np.cos(kx * (x0 + R * np.cos(TH))) * np.cos(ky * (y0 + R * np.sin(TH)))
     integral = np.sum(vals * R * wr[:, None]) * (2 * np.pi / (2 * n))
     return integral / (np.pi * radius**2)
+
+
+def contact_jacobians_ref(normal, grad, velocity, mu, slip_speed_m_s, force_n):
+    """NumPy reference of :func:`skin_sim_node.model.layered.contact_jacobians`: returns ``(K, D)``."""
+    normal, grad, velocity = (np.asarray(a, dtype=float) for a in (normal, grad, velocity))
+    proj = np.eye(3) - np.outer(normal, normal)
+    vt = proj @ velocity
+    r = np.sqrt(vt @ vt + slip_speed_m_s**2)
+    stiffness = np.outer(normal - mu * vt / r, grad)
+    damping = -mu * force_n * (np.eye(3) / r - np.outer(vt, vt) / r**3) @ proj
+    return stiffness, damping

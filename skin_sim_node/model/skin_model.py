@@ -275,16 +275,13 @@ class SkinModel:
         if not self.in_contact:
             return normal_tangent(0.0, 0.0, 0.0, 0.0)
         o = self._out
+        stiffness = np.empty((3, 3))
+        damping = np.empty((3, 3))
         normal = o[kn.OUT_NX : kn.OUT_NZ + 1].copy()
-        grad = o[kn.OUT_DFN_DX : kn.OUT_DFN_DZ + 1]
-        fn = float(o[kn.OUT_FORCE_N])
-        mu = self.cfg.friction_coefficient
-        proj = np.eye(3) - np.outer(normal, normal)
-        vt = proj @ self._last_velocity
-        r = math.sqrt(float(vt @ vt) + self.cfg.slip_speed_m_s**2)
-        g = vt / r
-        stiffness = np.outer(normal - mu * g, grad)
-        damping = -mu * fn * (np.eye(3) / r - np.outer(vt, vt) / r**3) @ proj
+        lk.contact_jacobians(
+            normal, o[kn.OUT_DFN_DX : kn.OUT_DFN_DZ + 1], self._last_velocity, self.cfg.friction_coefficient,
+            self.cfg.slip_speed_m_s, float(o[kn.OUT_FORCE_N]), stiffness, damping,
+        )  # fmt: skip
         return ContactTangent(
             force_n=o[kn.OUT_FX : kn.OUT_FZ + 1].copy(),
             stiffness_n_per_m=stiffness,

@@ -26,6 +26,9 @@ import argparse
 import json
 import math
 import os
+import signal
+import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -33,9 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scenes import Scene
+from ..scenes import Scene, pick_domain_id
 
-SECTIONS = ("floor", "tickcost", "latency", "jitter", "levers", "startup")
+SECTIONS = ("floor", "tickcost", "latency", "jitter", "levers", "startup", "joinstall")
+DEFAULT_SECTIONS = SECTIONS[:-1]  # joinstall is opt-in: its trials measure a rare event
 LEVER_PRESETS = {
     # name: node parameters (NAME:=VALUE) on top of timer mode; "off" is the loop before issue 7
     "off": ("precise_sleep:=false",),
@@ -57,6 +61,50 @@ when a reader of ``tool/wrench`` joins, the writer's ``publish()`` blocked once 
 2-3 s later in 8 of 23 trials, with the GIL held, so the whole node stalls; it did not recur in
 steady state. The figures are steady state; docs/performance_rate.md reports the join stall."""
 BENCH_ONLY = ("pose_rate_hz:=", "switch_interval_s:=")  # lever entries that are not node parameters
+CASE_OVERHEAD_S = 8.0
+"""Wall time of a case beyond its measured seconds and :data:`SETTLE_S`, for the estimates printed at
+start: node start-up with a warm numba cache (2-4 s here), discovery, shutdown."""
+
+
+class Progress:
+    """Stage-by-stage progress of a long benchmark: a tqdm bar in estimated seconds and one line per stage.
+
+    ``stage(name, est_s)`` opens a stage (a line with the elapsed and the estimated remaining time);
+    the bar advances by each finished stage's estimate, so it reaches its total at the end.
+    """
+
+    def __init__(self, stages_est_s: list[float], desc: str):
+        from tqdm import tqdm
+
+        self.total = float(sum(stages_est_s))
+        self.n = len(stages_est_s)
+        self.i = 0
+        self.t0 = time.monotonic()
+        self._open = 0.0
+        self.bar = tqdm(total=round(self.total), unit="s", desc=desc, mininterval=1.0, leave=False,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar:20}| {n:.0f}/{total:.0f} s est. [{elapsed}]")  # fmt: skip
+
+    def stage(self, name: str, est_s: float) -> None:
+        self._close()
+        self.i += 1
+        self._open = est_s
+        left = max(self.total - self.bar.n, 0.0)
+        el = time.monotonic() - self.t0
+        self.bar.write(f"[{self.i}/{self.n}, {el / 60:.1f} min elapsed, ~{left / 60:.1f} min left] {name} (~{est_s:.0f} s)")
+
+    def _close(self) -> None:
+        if self._open:
+            self.bar.update(round(self._open))
+            self._open = 0.0
+
+    def close(self) -> None:
+        self._close()
+        self.bar.close()
+
+
+def case_estimate_s(duration_s: float) -> float:
+    """Estimated wall time of one :func:`run_case`."""
+    return duration_s + SETTLE_S + CASE_OVERHEAD_S
 
 
 def _pcts(a) -> tuple[float, float, float]:
@@ -200,6 +248,7 @@ def run_case(
     node_args: tuple[str, ...] = (),
     pose_rate_hz: float = 1000.0,
     settle_s: float | None = None,
+    env: dict[str, str] | None = None,
 ) -> dict:
     """Run one case for ``duration_s`` measured seconds, from ``settle_s`` (default :data:`SETTLE_S`)
     after the observer joined; returns its figures (see the module doc)."""
@@ -214,6 +263,7 @@ def run_case(
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+        scene.env.update(env or {})  # the case's processes only (e.g. RMW_FASTRTPS_PUBLICATION_MODE)
         proc = start_case(scene, kind, rate_hz, node_args)
         scene.wait_for_log(proc, "live:", timeout_s=180)
         # latency: depth 1 (arrival as a device sees it); periods: deep, so observer stalls lose no stamp
@@ -266,6 +316,89 @@ def run_case(
     else:
         out.update(period_stats([s for _, s, _ in records], rate_hz))
     out.update(diag_counts(diags))
+    return out
+
+
+def run_interleaved(cases: list[tuple[str, tuple[str, ...], dict]], total_s: float, slot_s: float, log_dir: Path) -> list[dict]:
+    """Latency of several cases under the same machine load: all run at once, each in its own DDS domain,
+    and one 1 kHz pose source feeds them in turn, ``slot_s`` each, for ``total_s`` each in all.
+
+    ``cases``: ``(label, node args, node environment)``; label ``echo`` is the bare rclpy echo. The first
+    100 ms of each slot are not counted (the process resumes after a pause; the node's watchdog has
+    released the tissue). Figures as :func:`run_case`'s latency case, plus ``slots``.
+    """
+    from contextlib import ExitStack
+
+    from geometry_msgs.msg import PoseStamped, TwistStamped
+
+    from msgs_schema import convert as cv
+
+    from ..ros_util import PeriodicLoop
+
+    skip_ns = 100_000_000
+    with ExitStack() as stack:
+        targets = []
+        domains: set[int] = set()
+        for label, args, env in cases:
+            while (domain := pick_domain_id()) in domains:  # one domain each: a shared one would cross-answer poses
+                pass
+            domains.add(domain)
+            scene = stack.enter_context(Scene(log_dir / label, domain_id=domain))
+            scene.env.update(env)
+            proc = scene.start("echo", "echo") if label == "echo" else scene.node(*args)
+            targets.append((label, scene, proc))
+        for _, scene, proc in targets:
+            scene.wait_for_log(proc, "live:", timeout_s=180)
+        state = []
+        for label, scene, _ in targets:
+            os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]  # the observer's context joins this domain
+            os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+            mon = StreamObserver(f"bench_ab_{len(state)}", record_depth=1)
+            stack.callback(mon.close)
+            state.append({"label": label, "mon": mon, "pose": mon.publisher("tool_pose"), "twist": mon.publisher("tool_twist"),
+                          "sent": [], "counted": set()})  # fmt: skip
+        for st in state:
+            end = time.monotonic() + 15
+            while st["pose"].get_subscription_count() == 0 and time.monotonic() < end:
+                time.sleep(0.05)
+        pose, twist = PoseStamped(), TwistStamped()
+        active = [0]
+        slot_start = [0]
+        t0 = time.perf_counter_ns()
+
+        def tick(now_ns, _elapsed):
+            t = (now_ns - t0) * 1e-9
+            z = -1.5e-3 * (1 - math.cos(2 * math.pi * t))
+            vz = -1.5e-3 * 2 * math.pi * math.sin(2 * math.pi * t)
+            st = state[active[0]]
+            stamp = st["mon"].now_ns()
+            st["twist"].publish(cv.fill_twist(twist, stamp, "tissue", (0.0, 0.0, vz)))
+            st["pose"].publish(cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, z)))
+            if now_ns - slot_start[0] >= skip_ns:
+                st["counted"].add(stamp)
+
+        loop = PeriodicLoop(1_000_000, tick, name="bench-source")
+        loop.start()
+        time.sleep(SETTLE_S)  # every observer's join stall passes (see SETTLE_S); nothing counted yet
+        for st in state:
+            st["counted"].clear()
+            st["mon"].wrench.clear()
+        steal0 = cpu_steal_ms()
+        n_slots = max(1, round(total_s / slot_s))
+        for _ in range(n_slots):
+            for i in range(len(state)):
+                active[0], slot_start[0] = i, time.perf_counter_ns()
+                time.sleep(slot_s)
+        loop.stop()
+        time.sleep(0.2)
+        steal_ms = cpu_steal_ms() - steal0
+        out = []
+        for st in state:
+            counted = st["counted"]
+            lat = np.array([r - s for r, s, _ in list(st["mon"].wrench) if s in counted], dtype=np.int64)
+            out.append({"case": "echo" if st["label"] == "echo" else "node", "label": st["label"], "slots": n_slots,
+                        "answered_pct": 100.0 * lat.size / max(len(counted), 1), "latency_ms": _pcts(lat * 1e-6),
+                        "steal_ms": steal_ms, "duration_s": n_slots * slot_s})  # fmt: skip
     return out
 
 
@@ -359,6 +492,105 @@ def tick_cost(n: int = 5000) -> dict:
     return {k: _pcts(v[warm:]) for k, v in t.items()}
 
 
+PUBLICATION_MODES = ("SYNCHRONOUS", "ASYNCHRONOUS")
+JOINER = """
+import rclpy
+from msgs_schema.qos import subscription
+rclpy.init()
+node = rclpy.create_node("bench_join_b")
+n = [0]
+subscription(node, "tool_wrench", lambda m: n.__setitem__(0, n[0] + 1))
+try:
+    rclpy.spin(node)
+except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+    pass
+print(n[0], flush=True)
+"""
+JOIN_TRIAL_EST_S = 25.0
+JOIN_WATCH_S = 6.0
+"""Seconds watched after a reader joins: the stall came 2-3 s after the join (see :data:`SETTLE_S`)."""
+
+
+def join_stall(mode: str, log_dir: Path, node_args: tuple[str, ...] = (), before_s: float = 4.0) -> dict:
+    """The joining-reader stall with ``RMW_FASTRTPS_PUBLICATION_MODE=mode`` in the node's environment.
+
+    The node answers 1 kHz poses (input mode, defaults, display on) to observer A; after ``before_s`` a
+    second reader of ``tool/wrench`` joins (its own rclpy context). Figures: the longest gap between
+    wrench arrivals at A in the ``before_s`` before the join and in the :data:`JOIN_WATCH_S` after it,
+    and the poses answered in each window.
+    """
+    from geometry_msgs.msg import PoseStamped, TwistStamped
+
+    from msgs_schema import convert as cv
+
+    from ..ros_util import PeriodicLoop
+
+    with Scene(log_dir) as scene:
+        os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+        scene.env["RMW_FASTRTPS_PUBLICATION_MODE"] = mode
+        proc = scene.node(*node_args)
+        scene.wait_for_log(proc, "live:", timeout_s=180)
+        mon = StreamObserver("bench_join_a", record_depth=1)
+        pose_pub, twist_pub = mon.publisher("tool_pose"), mon.publisher("tool_twist")
+        pose, twist = PoseStamped(), TwistStamped()
+        sent: list[int] = []
+
+        def tick(_now_ns, _elapsed):
+            stamp = mon.now_ns()
+            twist_pub.publish(cv.fill_twist(twist, stamp, "tissue", (0.0, 0.0, 0.0)))
+            pose_pub.publish(cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, -1.0e-3)))
+            sent.append(stamp)
+
+        end = time.monotonic() + 15
+        while pose_pub.get_subscription_count() == 0 and time.monotonic() < end:
+            time.sleep(0.05)
+        loop = PeriodicLoop(1_000_000, tick, name="bench-source")
+        loop.start()
+        mon.wait_for(lambda: len(mon.wrench) > 10, 30, "wrenches")
+        time.sleep(SETTLE_S)  # A's own join stall, if any, passes first
+        t_before = mon.now_ns()
+        time.sleep(before_s)
+        t_join = mon.now_ns()
+        # the joining reader is a process of its own, so its start-up takes no GIL from observer A
+        joiner = subprocess.Popen([sys.executable, "-c", JOINER], env=scene.env, stdout=subprocess.PIPE, text=True)
+        time.sleep(JOIN_WATCH_S)
+        t_end = mon.now_ns()
+        loop.stop()
+        joiner.send_signal(signal.SIGINT)
+        out, _ = joiner.communicate(timeout=10)
+        joined_got = int(out.split()[-1]) if out.split() else 0
+        records = list(mon.wrench)
+        mon.close()
+
+    def window(t0, t1):
+        rx = np.array([r for r, _, _ in records if t0 <= r < t1], dtype=np.int64)
+        got = {s for r, s, _ in records if t0 <= r < t1}
+        n_sent = sum(1 for s in sent if t0 <= s < t1 - 20_000_000)
+        gap = float(np.diff(np.r_[t0, rx, t1]).max() * 1e-6) if rx.size else (t1 - t0) * 1e-6
+        return gap, 100.0 * len(got & set(sent)) / max(n_sent, 1)
+
+    gap_b, ans_b = window(t_before, t_join)
+    gap_a, ans_a = window(t_join, t_end)
+    return {"mode": mode, "max_gap_before_ms": gap_b, "max_gap_after_ms": gap_a, "answered_before_pct": ans_b,
+            "answered_after_pct": ans_a, "joiner_wrenches": joined_got}  # fmt: skip
+
+
+def print_join_stall(rows: list[dict]) -> None:
+    print(f"\njoining-reader stall: a second tool/wrench reader joins; longest gap between wrench arrivals at the first "
+          f"reader, ms, {JOIN_WATCH_S:.0f} s after the join vs the seconds before it (answered %)")  # fmt: skip
+    for r in rows:
+        print(f"  {r['mode']:>12}: before {r['max_gap_before_ms']:7.1f} ({r['answered_before_pct']:5.1f} %) | after join "
+              f"{r['max_gap_after_ms']:7.1f} ({r['answered_after_pct']:5.1f} %) | joiner got {r['joiner_wrenches']}")  # fmt: skip
+    for mode in PUBLICATION_MODES:
+        g = [r["max_gap_after_ms"] for r in rows if r["mode"] == mode]
+        if g:
+            print(
+                f"  {mode:>12}: after-join max gap median {np.median(g):.1f} ms, worst {max(g):.1f} ms, "
+                f"trials over 100 ms {sum(x > 100 for x in g)}/{len(g)}"
+            )
+
+
 def wake_floor(rt_priority: int, duration_s: float, rate_hz: float = 1000.0) -> dict:
     """The platform's floor: a bare Python thread (no ROS, no other thread) sleeping to each
     deadline with :func:`ros_util.sleep_until_ns`; wake latency = wake - deadline (us), and the
@@ -395,6 +627,14 @@ def _fmt3(p) -> str:
 
 def _ratio(a, b) -> str:
     return f"{a[0] / b[0]:.2f}x / {a[1] / b[1]:.2f}x / {a[2] / b[2]:.2f}x"
+
+
+def latency_variant(spec: str, node_args: tuple[str, ...]) -> tuple[str, tuple[str, ...], dict[str, str]]:
+    """``NAME=P:=V,env.VAR:=VALUE,...`` -> (name, node arguments, node environment)."""
+    name, _, params = spec.partition("=")
+    items = [p for p in params.split(",") if p]
+    env = dict(p[4:].split(":=", 1) for p in items if p.startswith("env."))
+    return name, node_args + tuple(a for p in items if not p.startswith("env.") for a in ("-p", p)), env
 
 
 def print_latency(echo: dict, nodes: list[dict]) -> None:
@@ -435,8 +675,25 @@ def print_periods(title: str, pairs: list[tuple[dict, dict]]) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="skin-sim bench", description=__doc__.splitlines()[0])
-    ap.add_argument("--sections", default=",".join(SECTIONS), help=f"comma list of {', '.join(SECTIONS)}")
+    ap = argparse.ArgumentParser(
+        prog="skin-sim bench", description=__doc__.splitlines()[0],
+        epilog="Duration: about 14 min with the defaults (all sections; ~1.5 min per latency case pair with "
+        "--latency-s 30); the estimate for the chosen sections is printed at start, then one line per case. "
+        "Short: --sections tickcost,latency --latency-s 15 (~1.5 min).",
+    )  # fmt: skip
+    ap.add_argument(
+        "--sections",
+        default=",".join(DEFAULT_SECTIONS),
+        help=f"comma list of {', '.join(SECTIONS)} (default all but joinstall)",
+    )
+    ap.add_argument(
+        "--interleave-s",
+        type=float,
+        default=0.0,
+        help="latency: run echo and node cases at once and switch the pose stream between them every this many "
+        "seconds (the same machine load for all; 0: one case after the other)",
+    )
+    ap.add_argument("--join-trials", type=int, default=4, help="joinstall: trials per publication mode (~25 s each)")
     ap.add_argument("--duration-s", type=float, default=60.0, help="seconds of the first-rate jitter case (missed ticks)")
     ap.add_argument("--jitter-s", type=float, default=20.0, help="seconds of the other rates' jitter cases")
     ap.add_argument("--latency-s", type=float, default=30.0, help="seconds of each latency case")
@@ -452,7 +709,8 @@ def main(argv=None) -> int:
     )  # fmt: skip
     ap.add_argument(
         "--latency-variant", action="append", default=[],
-        help="latency node case NAME=P:=V,P:=V (repeatable; default one case 'node' with --node-param only)",
+        help="latency node case NAME=P:=V,P:=V (repeatable; default one case 'node' with --node-param only); "
+        "an item env.VAR:=VALUE sets the node's environment, e.g. env.RMW_FASTRTPS_PUBLICATION_MODE:=ASYNCHRONOUS",
     )  # fmt: skip
     ap.add_argument(
         "--observer-rt", type=int, default=0,
@@ -470,20 +728,49 @@ def main(argv=None) -> int:
     rates = [float(r) for r in args.rates.split(",")]
     node_args = tuple(a for p in args.node_param for a in ("-p", p))
     log_dir = Path(tempfile.mkdtemp(prefix="skin_sim_bench_"))
+    levers = args.lever or list(LEVER_PRESETS)
+    variants = args.latency_variant or ["node="]
+    est = {
+        "tickcost": [10.0],
+        "floor": [args.floor_s] * 2,
+        "latency": [case_estimate_s((1 + len(variants)) * args.latency_s)]
+        if args.interleave_s > 0
+        else [case_estimate_s(args.latency_s)] * (1 + len(variants)),
+        "jitter": [case_estimate_s(args.duration_s if i == 0 else args.jitter_s) for i in range(len(rates)) for _ in (0, 1)],
+        "levers": [case_estimate_s(args.lever_s)] * (1 + len(levers)),
+        "startup": [10.0, 60.0, 15.0],  # bare timer; node with a cold numba cache (compiles), then warm
+        "joinstall": [JOIN_TRIAL_EST_S] * (2 * args.join_trials),
+    }
+    plan = [e for sec in sections for e in est.get(sec, [])]
     print(
-        f"skin-sim bench: sections {','.join(sections)}; {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; "
-        f"node params {list(args.node_param)}; logs {log_dir}",
+        f"skin-sim bench: sections {','.join(sections)}; {len(plan)} stages, about {sum(plan) / 60:.1f} min; "
+        f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; node params {list(args.node_param)}; logs {log_dir}",
         flush=True,
     )
+    progress = Progress(plan, "skin-sim bench")
+    try:
+        results = _run_sections(args, sections, rates, node_args, log_dir, levers, variants, est, progress)
+    finally:
+        progress.close()
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1))
+    return 0
+
+
+def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, est, progress: Progress) -> dict:
     results: dict = {}
     if "tickcost" in sections:
+        progress.stage("tick cost in one thread", est["tickcost"][0])
         cost = tick_cost()
         results["tickcost"] = cost
         print("\nper-tick cost of the pose-to-force path in one thread, us (p50 p99 max); all but the model step hold the GIL")
         for k, v in cost.items():
             print(f"  {k:>24}: {v[0]:7.1f} {v[1]:7.1f} {v[2]:8.1f}")
     if "floor" in sections:
-        rows = {prio: wake_floor(prio, args.floor_s) for prio in (0, 80)}
+        rows = {}
+        for prio in (0, 80):
+            progress.stage(f"platform floor, {'SCHED_FIFO 80' if prio else 'normal'}", args.floor_s)
+            rows[prio] = wake_floor(prio, args.floor_s)
         results["floor"] = rows
         print(f"\nplatform floor: a bare Python thread sleeping to 1 kHz deadlines, {args.floor_s:.0f} s; wake latency, us")
         for prio, r in rows.items():
@@ -492,13 +779,24 @@ def main(argv=None) -> int:
             note = f" ({r['problem']})" if r.get("problem") else ""
             late = r["over_half_period_pct"]
             print(f"  {name:>14}: p50 {w[0]:6.0f} p99 {w[1]:6.0f} max {w[2]:7.0f} | later than T/2: {late:.3f} %{note}")
-    if "latency" in sections:
+    if "latency" in sections and args.interleave_s > 0:
+        progress.stage(f"latency, interleaved {args.interleave_s:g} s slots: echo and {len(variants)} node case(s)",
+                       est["latency"][0])  # fmt: skip
+        cases = [("echo", (), {}), *(latency_variant(spec, node_args) for spec in variants)]
+        rows = run_interleaved(cases, args.latency_s, args.interleave_s, log_dir / "latency_interleaved")
+        results["latency"] = rows
+        print(f"\n(interleaved: all cases running, one pose stream switched between them every {args.interleave_s:g} s, "
+              f"{args.latency_s:g} s each in all)")  # fmt: skip
+        print_latency(rows[0], rows[1:])
+    elif "latency" in sections:
+        progress.stage("latency: bare rclpy echo", est["latency"][0])
         echo = run_case("echo", args.latency_s, 1000.0, log_dir / "latency_echo")
         nodes = []
-        for spec in args.latency_variant or ["node="]:
+        for spec in variants:
             name, _, params = spec.partition("=")
-            extra = node_args + tuple(a for p in params.split(",") if p for a in ("-p", p))
-            nodes.append(run_case("node", args.latency_s, 1000.0, log_dir / f"latency_{name}", extra))
+            progress.stage(f"latency: {name}", est["latency"][0])
+            _, extra, env = latency_variant(spec, node_args)
+            nodes.append(run_case("node", args.latency_s, 1000.0, log_dir / f"latency_{name}", extra, env=env))
             nodes[-1]["label"] = name
         results["latency"] = [echo, *nodes]
         print_latency(echo, nodes)
@@ -506,18 +804,21 @@ def main(argv=None) -> int:
         pairs = []
         for i, rate in enumerate(rates):
             dur = args.duration_s if i == 0 else args.jitter_s
+            progress.stage(f"jitter {rate:.0f} Hz: bare rclpy timer", case_estimate_s(dur))
             base = run_case("timer", dur, rate, log_dir / f"jitter_timer_{rate:.0f}")
+            progress.stage(f"jitter {rate:.0f} Hz: node in timer mode", case_estimate_s(dur))
             node = run_case("node-timer", dur, rate, log_dir / f"jitter_node_{rate:.0f}", node_args, args.pose_rate_hz)
             pairs.append((base, node))
         results["jitter"] = pairs
         print_periods("force period jitter (bare rclpy timer vs node in timer mode)", pairs)
     if "levers" in sections:
         rate = args.lever_rate_hz or rates[0]
-        levers = args.lever or list(LEVER_PRESETS)
+        progress.stage("levers: bare rclpy timer", est["levers"][0])
         base = run_case("timer", args.lever_s, rate, log_dir / "levers_timer")
         pairs = []
         for spec in levers:
             name, _, params = spec.partition("=")
+            progress.stage(f"levers: {name}", est["levers"][0])
             plist = tuple(p for p in params.split(",") if p) if params else LEVER_PRESETS[name]
             pose_rate = next((float(p.split(":=")[1]) for p in plist if p.startswith("pose_rate_hz:=")), args.pose_rate_hz)
             extra = node_args + tuple(a for p in plist if not p.startswith(BENCH_ONLY) for a in ("-p", p))
@@ -529,20 +830,26 @@ def main(argv=None) -> int:
         print_periods("levers (node in timer mode; same-run bare rclpy timer)", pairs)
     if "startup" in sections:
         cache = Path(tempfile.mkdtemp(prefix="skin_sim_numba_cache_"))
-        rows = [
-            run_startup("timer", log_dir / "start_timer", None),
-            run_startup("node-timer", log_dir / "start_cold", cache),
-            run_startup("node-timer", log_dir / "start_warm", cache),
-        ]
+        rows = []
+        for (kind, name, c), e in zip((("timer", "timer", None), ("node-timer", "cold", cache), ("node-timer", "warm", cache)),
+                                      est["startup"]):  # fmt: skip
+            progress.stage(f"start-up: {'bare rclpy timer' if kind == 'timer' else f'node, {name} numba cache'}", e)
+            rows.append(run_startup(kind, log_dir / f"start_{name}", c))
         rows[1]["label"], rows[2]["label"] = "node cold cache", "node warm cache"
         results["startup"] = rows
         print("\nstart to first force at the observer, s (fresh NUMBA_CACHE_DIR, then the same again)")
         for r in rows:
             warm = f" (numba warm-up in the node {r['numba_warmup_s']:.2f} s)" if "numba_warmup_s" in r else ""
             print(f"  {r.get('label', 'bare rclpy timer'):>16}: {r['first_force_s']:6.2f}{warm}")
-    if args.json:
-        args.json.write_text(json.dumps(results, indent=1))
-    return 0
+    if "joinstall" in sections:
+        rows = []
+        for trial in range(args.join_trials):
+            for mode in PUBLICATION_MODES:  # interleaved: the same machine load for both
+                progress.stage(f"join stall: trial {trial + 1}/{args.join_trials}, Fast DDS publication {mode}", JOIN_TRIAL_EST_S)
+                rows.append(join_stall(mode, log_dir / f"join_{mode}_{trial}", node_args))
+        results["joinstall"] = rows
+        print_join_stall(rows)
+    return results
 
 
 if __name__ == "__main__":

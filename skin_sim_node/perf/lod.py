@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..scenes import Scene, pick_domain_id
+from .bench_node import CASE_OVERHEAD_S, Progress
 
 SCENE_TOOLS = {
     # scene: mock-tool arguments
@@ -99,15 +100,19 @@ def run_case(scene_name: str, levers_on: bool, duration_s: float, warmup_s: floa
     }
 
 
+def case_estimate_s(duration_s: float, warmup_s: float) -> float:
+    return duration_s + warmup_s + CASE_OVERHEAD_S
+
+
 def run(scenes, duration_s: float, warmup_s: float, log_dir: Path, modes: int, repeats: int = 1) -> list[dict]:
     """Every scene off then on, the whole list ``repeats`` times; per case the median CPU over the repeats."""
     runs: dict[tuple[str, bool], list[dict]] = {}
-    for rep in range(repeats):
-        for name in scenes:
-            for on in (False, True):
-                r = run_case(name, on, duration_s, warmup_s, log_dir / f"rep{rep}", modes)
-                runs.setdefault((name, on), []).append(r)
-                print(f"  pass {rep + 1}/{repeats} {name:>5} levers {r['levers']:>3}: {r['cpu_pct']:5.1f} % CPU", flush=True)
+    est = case_estimate_s(duration_s, warmup_s)
+    progress = Progress([est] * (repeats * len(scenes) * 2), "skin-sim perf-lod")
+    try:
+        _passes(scenes, duration_s, warmup_s, log_dir, modes, repeats, runs, progress, est)
+    finally:
+        progress.close()
     rows = []
     for (name, _on), rs in runs.items():
         keys = ("cpu_s", "wall_s", "cpu_pct", "node_pct", "children_pct")
@@ -115,6 +120,16 @@ def run(scenes, duration_s: float, warmup_s: float, log_dir: Path, modes: int, r
         pair = [r_on["cpu_s"] / r_off["cpu_s"] for r_off, r_on in zip(runs[(name, False)], runs[(name, True)])]
         rows.append({**rs[0], **med, "pair_ratio": float(np.median(pair)), "repeats": len(rs)})
     return rows
+
+
+def _passes(scenes, duration_s, warmup_s, log_dir, modes, repeats, runs, progress: Progress, est: float) -> None:
+    for rep in range(repeats):
+        for name in scenes:
+            for on in (False, True):
+                progress.stage(f"pass {rep + 1}/{repeats}: {name}, levers {'on' if on else 'off'}", est)
+                r = run_case(name, on, duration_s, warmup_s, log_dir / f"rep{rep}", modes)
+                runs.setdefault((name, on), []).append(r)
+                print(f"  pass {rep + 1}/{repeats} {name:>5} levers {r['levers']:>3}: {r['cpu_pct']:5.1f} % CPU", flush=True)
 
 
 def report(rows: list[dict]) -> str:
@@ -138,7 +153,12 @@ def report(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="skin-sim perf-lod", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="skin-sim perf-lod", description=__doc__.splitlines()[0],
+        epilog=f"Duration: scenes x 2 x repeats cases of (duration + warm-up + ~{CASE_OVERHEAD_S:.0f} s start-up): "
+        "about 11 min with the defaults (24 cases of ~22 s); --repeats 1 --duration-s 5 takes ~2.5 min. "
+        "The estimate is printed at start, then one line per case.",
+    )  # fmt: skip
     ap.add_argument("--duration-s", type=float, default=10.0, help="measured wall time per case (default 10)")
     ap.add_argument("--warmup-s", type=float, default=4.0, help="time after the tool starts before measuring (default 4)")
     ap.add_argument("--scenes", default="idle,light,deep,drag", help="comma-separated: " + ", ".join(SCENE_TOOLS))
@@ -152,8 +172,10 @@ def main(argv=None) -> int:
         ap.error(f"unknown scene(s) {sorted(unknown)}")
     log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="skin_sim_lod_"))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    n_cases = len(scenes) * 2 * args.repeats
     print(
-        f"skin-sim perf-lod: {args.duration_s:.0f} s per case after {args.warmup_s:.0f} s warm-up, levers off "
+        f"skin-sim perf-lod: {n_cases} cases, about {n_cases * case_estimate_s(args.duration_s, args.warmup_s) / 60:.1f} min; "
+        f"{args.duration_s:.0f} s per case after {args.warmup_s:.0f} s warm-up, levers off "
         f"(fixed {args.modes}x{args.modes} modes) vs on, {os.cpu_count()} cores; logs {log_dir}",
         flush=True,
     )

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from ..scenes import DEFAULT_PARAMS, Scene
-from .bench_node import SETTLE_S, cpu_steal_ms, diag_counts
+from .bench_node import CASE_OVERHEAD_S, SETTLE_S, Progress, cpu_steal_ms, diag_counts
 
 MISSED_LIMIT_PCT = 0.1  # issue 7
 nan = float("nan")
@@ -100,8 +100,11 @@ def run_scale(
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
         obs = DiagObserver()
+        est = step_estimate_s(step_s)
+        progress = Progress([est] * max_sessions, "skin-sim scale")
         try:
             for n in range(1, max_sessions + 1):
+                progress.stage(f"session {n}: start node + bridge + device, settle {SETTLE_S:.0f} s, measure {step_s:.0f} s", est)
                 obs.watch(start_session(scene, n, rate_hz, mode, node_params))
                 time.sleep(SETTLE_S)  # discovery, the device's start delay, a joining reader's stall (see SETTLE_S)
                 obs.clear()
@@ -129,12 +132,22 @@ def run_scale(
                 if worst > MISSED_LIMIT_PCT and not keep_going:
                     break
         finally:
+            progress.close()
             obs.close()
     return rows
 
 
+def step_estimate_s(step_s: float) -> float:
+    """Wall time of one added session: its three processes' start-up, the settle time, the measured step."""
+    return step_s + SETTLE_S + CASE_OVERHEAD_S
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="skin-sim scale", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="skin-sim scale", description=__doc__.splitlines()[0],
+        epilog=f"Duration: per added session (--step-s + {SETTLE_S:.0f} s settle + ~{CASE_OVERHEAD_S:.0f} s start-up), "
+        "about 45 s each: ~3 min with the defaults (4 sessions). The estimate is printed at start, then one line per step.",
+    )  # fmt: skip
     ap.add_argument("--max-sessions", type=int, default=4)
     ap.add_argument("--step-s", type=float, default=30.0, help="measured seconds after each added session")
     ap.add_argument("--rate-hz", type=float, default=1000.0)
@@ -147,7 +160,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     log_dir = Path(tempfile.mkdtemp(prefix="skin_sim_scale_"))
     print(
-        f"skin-sim scale: up to {args.max_sessions} sessions at {args.rate_hz:.0f} Hz ({args.mode} mode), "
+        f"skin-sim scale: up to {args.max_sessions} sessions at {args.rate_hz:.0f} Hz ({args.mode} mode), about "
+        f"{args.max_sessions * step_estimate_s(args.step_s) / 60:.1f} min; "
         f"{args.step_s:.0f} s each, "
         f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; node params {args.node_param}; logs {log_dir}",
         flush=True,

@@ -123,8 +123,7 @@ class SkinSimNode(Node):
         # display work runs in its own process; this thread only copies the modal state to it
         args = [a for a in (ros_args or []) if "__node:=" not in a]
         self._display = DisplayProcess(tissue_part(self._flat, "tissue."), self._display_settings(), args, self.get_namespace())
-        self._display_loop = PeriodicLoop(self._display_period_ns(), self._on_display_clock, name="display-loop")
-        self._display_loop.start()
+        self._next_display_ns = 0  # the haptic tick copies the state for the display at display_rate_hz (no thread of its own)
         self._loop = PeriodicLoop(self._clock_period_ns(), self._on_clock, timing=self._haptic_timing(), on_warning=self._warn)
         self._apply_rt_scope()
         self._loop.start()
@@ -136,7 +135,6 @@ class SkinSimNode(Node):
     # --- lifecycle --------------------------------------------------------------------
     def stop(self) -> None:
         self._loop.stop()
-        self._display_loop.stop()
         self._display.close()
 
     def _warn(self, message: str) -> None:
@@ -156,8 +154,9 @@ class SkinSimNode(Node):
 
         The executor thread (this one; it runs the pose callbacks) gets ``rt_priority``; the threads
         that take the haptic lock or the GIL beside it get one less, so a normal-priority holder
-        preempted by another process cannot stall a tick (priority inversion): the display-loop
-        thread in ``haptic`` scope, every other thread (DDS included) in ``process`` scope.
+        preempted by another process cannot stall a tick (priority inversion): every other thread
+        (DDS included) in ``process`` scope; none in ``haptic`` scope (the display snapshot is taken by the
+        tick itself).
         """
         p = self.params
         if p.rt_priority <= 0:
@@ -165,10 +164,7 @@ class SkinSimNode(Node):
         lower = max(p.rt_priority - 1, 1)
         # no SCHED_RESET_ON_FORK in process scope: threads started later (the executor's) inherit it;
         # the display worker process already runs, and the node starts no other process
-        if p.rt_scope == "process":
-            problems = [set_process_realtime(lower, reset_on_fork=False)]
-        else:
-            problems = [set_realtime(lower, self._display_loop.native_id or 0)]
+        problems = [set_process_realtime(lower, reset_on_fork=False)] if p.rt_scope == "process" else []
         problems.append(set_realtime(p.rt_priority, reset_on_fork=p.rt_scope != "process"))
         problem = next((m for m in problems if m), None)
         if problem:
@@ -186,10 +182,6 @@ class SkinSimNode(Node):
 
     def _display_period_ns(self) -> int:
         return int(1e9 / self.params.display_rate_hz) if self.params.display_rate_hz > 0 else 1_000_000_000
-
-    def _on_display_clock(self, _now_ns: int, _elapsed_ns: int) -> None:
-        if self.params.display_rate_hz > 0:
-            self._snapshot_display()
 
     def _ros_now_ns(self) -> int:
         """ROS time; the system clock directly unless use_sim_time (6 us less per pose)."""
@@ -237,13 +229,16 @@ class SkinSimNode(Node):
         quiet = force == 0.0 and self._last_pub_force == 0.0  # never hold back a force still ramping down
         if hb > 0 and quiet and r.idle and not r.stale and now_ns - self._last_pub_ns < 1e9 / hb:
             self._n_idle_skipped += 1  # lod idle: the tissue is at rest and untouched; heartbeat publishes only
-            return
-        self._last_pub_ns = now_ns
-        self._last_pub_force = force
-        stamp = r.stamp_ns if pose_driven else self._ros_now_ns()
-        self._pub_wrench.publish(cv.fill_wrench_from_tick(self._wrench, r, stamp, self._frame))
-        self._pub_contact.publish(cv.fill_contact_from_tick(self._contact, r, stamp, self._frame))
-        self._pub_model.publish(cv.fill_contact_model_from_tick(self._model_msg, r, stamp, self._frame))  # rendered by the bridge
+        else:
+            self._last_pub_ns = now_ns
+            self._last_pub_force = force
+            stamp = r.stamp_ns if pose_driven else self._ros_now_ns()
+            self._pub_wrench.publish(cv.fill_wrench_from_tick(self._wrench, r, stamp, self._frame))
+            self._pub_contact.publish(cv.fill_contact_from_tick(self._contact, r, stamp, self._frame))
+            self._pub_model.publish(cv.fill_contact_model_from_tick(self._model_msg, r, stamp, self._frame))  # bridge renders it
+        if now_ns >= self._next_display_ns and self.params.display_rate_hz > 0:
+            self._next_display_ns = now_ns + self._display_period_ns()
+            self._snapshot_display()  # after the publishes: the wrench never waits for it
 
     # --- display (built and published by the display worker process) -------------------
     def _display_settings(self) -> dict:
@@ -257,12 +252,16 @@ class SkinSimNode(Node):
         }
 
     def _snapshot_display(self) -> None:
-        with self._lock:
-            key = self.session.state_key
-            if self.params.display_on_change and key == self._display_key:
-                return  # lod: the model did not change since the last snapshot (idle)
-            self._display_key = key
-            self._display.write(self.session.display_state())
+        """Copy the modal state (a few kB) for the display worker; called by the tick, under the lock.
+
+        Taken in the haptic thread rather than by a display clock thread of its own: such a thread
+        woke 60 times a second to contend for the GIL and the lock with the pose callbacks.
+        """
+        key = self.session.state_key
+        if self.params.display_on_change and key == self._display_key:
+            return  # lod: the model did not change since the last snapshot (idle)
+        self._display_key = key
+        self._display.write(self.session.display_state())
 
     # --- diagnostics ------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
@@ -279,7 +278,7 @@ class SkinSimNode(Node):
             last = self._last
             stale, force = s.stale, s.force_n
             flags, n_aff = (last.flags, last.n_affected) if last is not None else (0, 0)
-            kernel_calls, idle_ticks = s.kernel_calls, s.idle_ticks
+            kernel_calls, idle_ticks, modes = s.kernel_calls, s.idle_ticks, s.modes_per_axis
             pose_ticks = self._n_pose_ticks
             overruns = self._loop.overruns
         now = time.perf_counter_ns()
@@ -314,6 +313,7 @@ class SkinSimNode(Node):
             "warmup_s": f"{self._warmup_s:.3f}",
             "kernel_calls_total": str(kernel_calls),
             "idle_ticks_total": str(idle_ticks),
+            "modes_per_axis": ",".join(map(str, modes)),  # per layer, now (adaptive modes: each layer's level)
             "idle_unpublished_total": str(self._n_idle_skipped),
         }
         values.update({f"count_{k}": str(v) for k, v in sorted(counts.items())})
@@ -365,7 +365,7 @@ class SkinSimNode(Node):
             self.params = node_params
             self._flat = flat
             self._loop.period_ns = self._clock_period_ns()
-        self._display_loop.period_ns = self._display_period_ns()
+        self._next_display_ns = 0  # a new display rate applies at the next tick
         self._display.set_display(self._display_settings())
         self.get_logger().info(
             "parameters applied: " + ", ".join(f"{p.name}={p.value}" for p in ours)

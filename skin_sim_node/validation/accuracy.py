@@ -23,10 +23,11 @@ from tqdm import tqdm
 from skin_sim_node.model import SkinModel, TissueConfig, preset
 from skin_sim_node.model.config import load_tissue_config
 
-from .methods import static_dt_s, static_force_n
-from .metrics import field_error, force_depth_error
+from .methods import GridMethod, ModalMethod, skin_membrane, static_dt_s, static_force_n
+from .metrics import field_error, field_max_error, force_depth_error, peak_error
 from .references import nonlinear_references
-from .scenarios import BY_NAME
+from .scenarios import BY_NAME, paper_ramp_n
+from .stats import table_ii, table_markdown
 
 FORCE_AIM, FIELD_AIM = 0.05, 0.10  # issue 11: force <= 5 %, field <= 10 %
 OUT = Path(__file__).resolve().parents[2] / "docs" / "validation"
@@ -124,6 +125,143 @@ def run(configs: dict[str, TissueConfig] | None = None, out: Path | None = OUT, 
             [{"label": r.label, "force_err": r.force_err, "field_err": r.field_err, "force_mean": r.force_mean,
               "field_mean": r.field_mean} for r in rows], indent=1) + "\n")  # fmt: skip
     return rows
+
+
+@dataclass(frozen=True)
+class _RefScenario:
+    """A reference solve seen as a scenario: its contact and *its* depths (the 3D march may stop short of 3 mm)."""
+
+    name: str
+    contact_xy_m: tuple[float, float]
+    depths_m: np.ndarray
+
+    @property
+    def max_depth_m(self) -> float:
+        return float(self.depths_m[-1])
+
+
+SPEED_MODES = (1, 3, 10, 15, 20, 40)  # 15: the default's mode count (the 1 kHz setting)
+SPEED_GRID = 120  # the default output grid
+SPEED_NODES = (29, 59)  # membrane baselines over the patch: 2 mm and 1 mm
+
+
+def speed_methods(cfg: TissueConfig | None = None, membrane_fit: dict | None = None) -> list:
+    """Both forms at :data:`SPEED_MODES` (fixed counts) and the one-membrane baselines (mass-spring, explicit FD),
+    as shipped and with ``T, k_A`` fitted to the nonlinear reference (``membrane_fit``)."""
+    cfg = cfg or preset("default")
+    paper = paper_form_default()
+    ms = [ModalMethod(m, SPEED_GRID, cfg, f"layered (default) {m}x{m}") for m in SPEED_MODES]
+    ms += [ModalMethod(m, SPEED_GRID, paper, f"paper form {m}x{m}") for m in SPEED_MODES]
+    for kind in ("mass-spring", "explicit FD"):
+        ms += [GridMethod(kind, n, skin_membrane(cfg), cfg, f"{kind} {n}x{n}") for n in SPEED_NODES]
+        if membrane_fit:
+            mem = skin_membrane(cfg, membrane_fit["tension_n_per_m"], membrane_fit["foundation_n_per_m3"])
+            ms += [GridMethod(kind, n, mem, cfg, f"{kind} {n}x{n}, T and k_A fitted") for n in SPEED_NODES]
+    return ms
+
+
+def speed_accuracy(out: Path | None = OUT, progress: bool = True) -> list[dict]:
+    """The speed-accuracy chart against the 3D neo-Hookean reference: time per update (``step`` + ``build_grid`` at
+    1 kHz for the model; one 1 ms tick of sub-steps at 0.9 x the stability limit for the membranes) against the force
+    and field errors (mean over the peak, valley and edge solves). Writes ``speed_accuracy_nonlinear.{csv,png}``."""
+    from . import calibrate
+
+    refs = nonlinear_references(progress)
+    mem_fit = calibrate.fit_membrane(calibrate.nonlinear_datasets(progress), preset("default"))
+    rows = []
+    for m in tqdm(speed_methods(membrane_fit=mem_fit), desc="speed-accuracy (nonlinear reference)", disable=not progress):
+        row = {"method": m.label, "s_per_update": m.seconds_per_update()}
+        for name, ref in refs.items():
+            sc = _RefScenario(name, BY_NAME[name].contact_xy_m, ref.depths_m)
+            o = m.run(sc, ref)
+            row[f"force_{name}"] = force_depth_error(o.forces_n, ref.forces_n)
+            row[f"field_{name}"] = field_error(o.field_m, ref.field_down_m, sc.max_depth_m)
+        row["force_err_mean"] = float(np.mean([row[f"force_{n}"] for n in refs]))
+        row["field_err_mean"] = float(np.mean([row[f"field_{n}"] for n in refs]))
+        rows.append(row)
+    lines = ["| method | time per update (ms) | force error (mean) | field error (mean) |", "|---|---|---|---|"]
+    lines += [f"| {r['method']} | {r['s_per_update'] * 1e3:.4g} | {100 * r['force_err_mean']:.1f} % | "
+              f"{100 * r['field_err_mean']:.1f} % |" for r in rows]  # fmt: skip
+    text = "\n".join(lines)
+    print(text)
+    print("membrane baseline fitted to the nonlinear reference:", json.dumps(mem_fit))
+    if out is not None:
+        import csv
+
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        with open(out / "speed_accuracy_nonlinear.csv", "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+        (out / "speed_accuracy_nonlinear.md").write_text(
+            "# Speed vs accuracy against the 3D neo-Hookean reference\n\nWritten by "
+            "`skin-sim chart validation --only speed` (one run on a shared 2-core machine).\n\n" + text + "\n\n"
+            f"Membrane baseline fitted to the nonlinear reference: `{json.dumps(mem_fit)}`\n")  # fmt: skip
+        fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
+        families: dict[str, list] = {}
+        for r in rows:
+            fam = r["method"].rsplit(" ", 1)[0] if r["method"][0] in "lp" else r["method"].split(" ")[0] + (
+                ", fitted" if "fitted" in r["method"] else "")  # fmt: skip
+            families.setdefault(fam, []).append(r)
+        for ax, key, title in ((axes[0], "force_err_mean", "force-depth error (relative RMS)"),
+                               (axes[1], "field_err_mean", "surface-field error (RMS / depth)")):  # fmt: skip
+            for fam, members in families.items():
+                ax.loglog([r["s_per_update"] for r in members], [r[key] for r in members], "o-", lw=0.8, ms=5, label=fam)
+                for r in members:
+                    tag = r["method"].split(" ")[-1] if r["method"][0] in "lp" else ""
+                    ax.annotate(tag, (r["s_per_update"], r[key]), fontsize=6, xytext=(3, 3), textcoords="offset points")
+            ax.axvline(1e-3, color="r", ls="--", lw=1)
+            ax.axhline(FORCE_AIM if key == "force_err_mean" else FIELD_AIM, color="g", ls=":", lw=1)
+            ax.set_xlabel("compute time per update on this machine (s)")
+            ax.set_ylabel(title + ", mean over peak, valley, edge")
+            ax.grid(True, which="both", alpha=0.2)
+        axes[1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="numbers: modes", title_fontsize=6)
+        fig.suptitle("Speed vs accuracy against the 3D compressible neo-Hookean reference (dashed: 1 ms; dotted: aim)",
+                     fontsize=10)  # fmt: skip
+        fig.tight_layout()
+        fig.savefig(out / "speed_accuracy_nonlinear.png", dpi=120)
+        plt.close(fig)
+    return rows
+
+
+def table_ii_nonlinear(out: Path | None = OUT, progress: bool = True) -> dict:
+    """Table II redone against the nonlinear reference: the paper's triangular force ramp (100 samples) at the peak
+    contact, up to the largest force the 3D peak solve reached; the reference's depth per force by inverting its
+    force-depth curve (monotone), the model's by inverting its static force; t-test on the maximum deformations."""
+    ref = nonlinear_references(progress)["peak-3layer"]
+    ramp = paper_ramp_n(float(ref.forces_n[-1]))
+    ref_depth = np.interp(ramp, np.concatenate([[0.0], ref.forces_n]), np.concatenate([[0.0], ref.depths_m]))
+    md = ["# Table II, redone against the 3D neo-Hookean reference", "",
+          f"Ramp 0 -> {ramp.max():.3f} N -> 0 (100 samples; the deepest converged load step of the peak solve, "
+          f"{ref.depths_m[-1] * 1e3:.2f} mm). Written by `skin-sim chart validation --only speed`.", ""]  # fmt: skip
+    results = {}
+    for label, cfg in {"default (layered)": preset("default"), "paper form, Sneddon springs": paper_form_default()}.items():
+        model = SkinModel(cfg)
+        table = np.linspace(0.0, cfg.total_thickness_m, 3000)
+        f = np.array([static_force_n(model, 0.0, 0.0, d) for d in table])
+        idx = [np.nonzero(f >= t)[0] for t in ramp]
+        d = np.array([table[i[0]] if i.size else table[int(np.argmax(f))] for i in idx])
+        tab = table_ii(-ref_depth, -d)
+        i_pk = int(np.argmax(ramp))
+        model.reset()
+        model.step((0.0, 0.0, -d[i_pk]), (0.0, 0.0, 0.0), static_dt_s(cfg))
+        u_mod = model_field_m(model, ref)
+        extra = {"samples_reached": int(sum(i.size > 0 for i in idx)), "model_max_force_n": float(f.max()),
+                 "peak_disp_error": peak_error(d[i_pk], ref_depth[i_pk]),
+                 "field_rms_error_rel_peak": field_error(u_mod, ref.field_down_m, ref.depths_m[-1]),
+                 "field_max_error_rel_peak": field_max_error(u_mod, ref.field_down_m, ref.depths_m[-1])}  # fmt: skip
+        results[label] = {"table": tab, **extra}
+        md += [f"## FEM (neo-Hookean) vs model ({label})", "", table_markdown(tab, ("FEA", f"model, {label}")), ""]
+        md += [f"- {k}: {v:.4g}" if isinstance(v, float) else f"- {k}: {v}" for k, v in extra.items()] + [""]
+    text = "\n".join(md)
+    print(text)
+    if out is not None:
+        (out / "table_ii_nonlinear.md").write_text(text + "\n")
+    return results
 
 
 def main(argv=None) -> int:

@@ -416,9 +416,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart validation", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("--prune-cache", action="store_true", help="delete cached FEM solves this run did not use")
-    ap.add_argument("--only", choices=("reference", "accuracy"),
+    ap.add_argument("--only", choices=("reference", "accuracy", "speed"),
                     help="reference: only the large-deformation reference and its tables; accuracy: only the model's "
-                    "force and field errors against it (issue 11 aims)")  # fmt: skip
+                    "force and field errors against it (issue 11 aims); speed: the speed-accuracy chart and Table II "
+                    "against it")  # fmt: skip
     ap.add_argument("--fresh", action="store_true", help="solve the large-deformation reference again (~2 min)")
     ap.add_argument("--config", action="append", default=[], help="with --only accuracy: also score this config YAML")
     a = ap.parse_args(argv)
@@ -426,6 +427,10 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if a.only == "accuracy":
         return accuracy.main([x for p in a.config for x in ("--config", p)])
+    if a.only == "speed":
+        accuracy.speed_accuracy(out)
+        accuracy.table_ii_nonlinear(out)
+        return 0
     large_deformation.run(out, a.fresh)
     if a.only == "reference":
         return 0

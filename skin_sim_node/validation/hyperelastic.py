@@ -47,6 +47,7 @@ import scipy.sparse.linalg as spla
 from skfem import Basis, ElementQuad2, ElementVector, MeshQuad
 from tqdm import tqdm
 
+from msgs_schema.tissue import LOAD_SPREADING
 from skin_sim_node.model.config import _POISSON, TissueConfig, preset
 
 from .fem import axis_nodes
@@ -62,8 +63,9 @@ def layer_moduli_pa(cfg: TissueConfig, poisson: float = _POISSON) -> tuple[float
     ``layers.<name>.youngs_modulus_pa`` when the schema has it; otherwise inverted from the layer
     spring, by the rule the form's springs are built with (``msgs_schema.tissue``):
 
-    - ``layered``: the column, ``k = E A / h`` (:func:`msgs_schema.tissue.column_stiffness_n_per_m`),
-      so ``E = k h / A`` with the layer's ``thickness_m`` and ``area_m2``;
+    - ``layered``: the spread column, ``k = s E A / h`` (:func:`msgs_schema.tissue.layered_stiffness_n_per_m`,
+      ``s`` = :data:`msgs_schema.tissue.LOAD_SPREADING`), so ``E = k h / (s A)`` with the layer's ``thickness_m``
+      and ``area_m2``;
     - ``paper``: Sneddon's flat punch on a half-space, ``k = 2 E r0 / (1 - nu^2)``
       (:func:`msgs_schema.tissue.flat_punch_stiffness_n_per_m`), so ``E = k (1 - nu^2) / (2 r0)``.
 
@@ -75,7 +77,7 @@ def layer_moduli_pa(cfg: TissueConfig, poisson: float = _POISSON) -> tuple[float
         n = la.name
         e = flat.get(f"layers.{n}.youngs_modulus_pa")
         if e is None and cfg.form == "layered":
-            e = la.stiffness_n_per_m * la.thickness_m / la.area_m2
+            e = la.stiffness_n_per_m * la.thickness_m / (la.area_m2 * LOAD_SPREADING.get(n, 1.0))
         elif e is None:
             e = la.stiffness_n_per_m * (1 - poisson**2) / (2 * cfg.tool_radius_m)
         out.append(float(f"{e:.12g}"))  # round-off free, so cache keys are stable
@@ -304,11 +306,13 @@ def solve(s: AxiSetup, progress: bool = True) -> AxiResult:
     return _result(s, pb, depths, forces, prof_d, prof_ur, prof_dn, slips, iters, time.perf_counter() - t0)
 
 
-def march(pb, stops, on_stop, depth_range_m: float, solver=None) -> int:
+def march(pb, stops, on_stop, depth_range_m: float, solver=None, min_step_m: float | None = None) -> int:
     """Load steps through ``stops`` (depths, m) with step halving; ``on_stop(depth, internal_force)`` at each.
 
     ``pb`` has ``assemble(u, tangent)``, ``tool`` (punch z DOFs), ``free``, ``n_dofs`` and a mutable
-    ``u``. Returns the total Newton iterations.
+    ``u``. Returns the total Newton iterations. Without ``min_step_m`` a step halved below 1e-5 of the
+    range raises; with it, the march stops at the deepest converged stop once the step would fall below
+    ``min_step_m`` (``pb.u`` stays the converged state; the caller reads how deep it got from ``on_stop``).
     """
     d_done, du_prev, iters = 0.0, None, 0
     for d_target in stops:
@@ -331,6 +335,8 @@ def march(pb, stops, on_stop, depth_range_m: float, solver=None) -> int:
                 if ok:
                     break
                 step *= 0.5
+                if min_step_m is not None and step < min_step_m:
+                    return iters  # deepest converged stop already reported
                 if step < depth_range_m * 1e-5:
                     raise RuntimeError(f"Newton failed at depth {d_done * 1e3:.4f} mm (step < 1e-5 of the range)")
             du_prev = (u_try - pb.u, step)

@@ -104,10 +104,13 @@ def three_d_markdown(cfg: TissueConfig | None = None, fresh: bool = False) -> st
         r = nonlinear_3d(sc, cfg, fresh=fresh)
         k = linear_3d(sc, cfg, progress=False).stiffness_n_per_m
         d = np.array([1e-3, 2e-3, 3e-3])
+        deepest = float(r.depths_m[-1])
+        reached = d <= deepest + 1e-12  # past the deepest converged load step there is no reference (no clamping)
         f = r.force_n(d)
-        ratio_lin = "; ".join(f"{r.force_n(x) / (k * x):.4f}" for x in (r.depths_m[0], *d))
-        ratio_ax = "; ".join(f"{a / b:.3f}" for a, b in zip(f, ax.force_n(d)))
-        lines.append(f"| {name} | {r.n_dofs} | {f[0]:.4f} | {f[1]:.4f} | {f[2]:.4f} | {ratio_lin} | {ratio_ax} "
+        fcol = [f"{fi:.4f}" if ok else f"- (stopped at {deepest * 1e3:.2f} mm)" for fi, ok in zip(f, reached)]
+        ratio_lin = "; ".join(f"{r.force_n(x) / (k * x):.4f}" if x <= deepest + 1e-12 else "-" for x in (r.depths_m[0], *d))
+        ratio_ax = "; ".join(f"{a / b:.3f}" if ok else "-" for a, b, ok in zip(f, ax.force_n(d), reached))
+        lines.append(f"| {name} | {r.n_dofs} | {' | '.join(fcol)} | {ratio_lin} | {ratio_ax} "
                      f"| {r.newton_iterations} | {r.solve_s:.0f} |")  # fmt: skip
     return "\n".join(lines) + "\n"
 
