@@ -335,6 +335,8 @@ def test_closed_loop_through_the_renderer_at_250_hz_settles(default_cfg):
     hold = slice(int(1.0 / dt), int(1.5 / dt))
     fh = force[hold]
     assert fh.mean() > 0.01 and fh.std() < 0.02 * fh.mean()
-    assert np.all(np.abs(np.diff(force)) < 0.1 * max(force.max(), 1e-9))  # no steps at the device
+    # no steps at the device beyond the passivity controller's damping ending at separation (12 % of the peak here)
+    assert np.all(np.abs(np.diff(force)) < 0.15 * max(force.max(), 1e-9))
+    assert np.all(force >= 0.0)  # one-sided, the controller's damping included
     assert np.all(np.isfinite(force)) and force.max() <= 3.3
     assert force[-100:].max() < 1e-3  # lifted off at the end

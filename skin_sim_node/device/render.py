@@ -275,6 +275,10 @@ class ContactRenderer:
                 vel = np.zeros(3)
             damped = np.array(self.passivity.force(tuple(f), tuple(vel), dt))
             applied = clamp_vec(f + pc_gain * (damped - f), self.max_force_n)
+            if slot is not None:  # the controller's damping may not pull the tool into the tissue either
+                an = float(slot.m.normal @ applied)
+                if an < 0.0:
+                    applied = applied - an * slot.m.normal
             if pc_gain == 0.0:  # fading or nothing rendered: the energy account of that environment is closed
                 self.passivity.reset()
         if finite_x:
