@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .contact_model import fill_contact_model_from_tick  # noqa: F401 - the local contact model (issue 12)
 from .topics import LAYER_LABELS
 
 NS = 1_000_000_000

@@ -63,6 +63,12 @@ TOPICS = {
         "Contact state, one entry per layer (epidermis, dermis, fat): position = compression (m), "
         "velocity = compression rate (m/s), effort = layer stress (Pa, 0 when not affected).",
     ),
+    "contact_model": TopicSpec(
+        "tool/contact_model", "skin_sim_msgs/msg/ContactModel", "haptic", "m, N, N/m, N*s/m, s", FRAMES["tissue"],
+        "with each force (haptic rate)",
+        "Local contact model for the device bridge (msgs_schema/contact_model.py, docs/devices.md): the answered pose "
+        "x0, force f0, K = dF/dx, D = dF/dv, normal, validity radius, time-to-live, sequence number.",
+    ),
     "height_map": TopicSpec(
         "tissue/height_map", "sensor_msgs/msg/Image", "display", "m", FRAMES["tissue"], "display rate (60 Hz)",
         "32FC1 surface height (m, z up) over the sheet; row 0 at y = -size_y/2, column 0 at x = -size_x/2.",
@@ -87,6 +93,11 @@ TOPICS = {
     "crtk_measured_cv": TopicSpec(
         "measured_cv", "geometry_msgs/msg/TwistStamped", "haptic", "m/s", "device base", "device rate",
         "CRTK measured Cartesian velocity.",
+    ),
+    "crtk_measured_cf": TopicSpec(
+        "measured_cf", "geometry_msgs/msg/WrenchStamped", "haptic", "N", "device base", "device rate",
+        "CRTK measured Cartesian force: what the device applied over the servo tick that ended at the pose of the "
+        "same stamp (the bridge's passivity observer books it).",
     ),
     "crtk_servo_cf": TopicSpec(
         "servo_cf", "geometry_msgs/msg/WrenchStamped", "haptic", "N", "device base", "device rate",

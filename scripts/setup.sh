@@ -18,4 +18,5 @@ else
   extras="ros,test"
 fi
 .venv/bin/python -m pip install --quiet -e ".[${extras}]"
-.venv/bin/python -c "import rclpy, numba, rosbags; print('skin-sim environment ready: rclpy', rclpy.__file__)"
+bash scripts/build_msgs.sh .venv   # the skin_sim_msgs interface package (idempotent: ~0.1 s when up to date)
+.venv/bin/python -c "import rclpy, numba, rosbags, skin_sim_msgs.msg; print('skin-sim environment ready: rclpy', rclpy.__file__)"

@@ -15,6 +15,7 @@ COMMANDS = {
     "bench": ("skin_sim_node.perf.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
     "bench-model": ("skin_sim_node.perf.bench_model", "model step micro-benchmark (numba vs NumPy)"),
     "perf-lod": ("skin_sim_node.perf.lod", "node CPU in four scenes with the level-of-detail levers off and on"),
+    "force-path": ("skin_sim_node.perf.force_path", "offline: device force error vs server rate, model vs hold-last (~1 min)"),
     "soak": ("skin_sim_node.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),
     "scale": ("skin_sim_node.perf.scale", "how many 1 kHz sessions (node + bridge + device, own namespaces) one machine holds"),
     "netns-role": ("skin_sim_node.perf.netns", "netns_scale.sh helper: device side (bridge, device, observer); comparison"),

@@ -29,7 +29,7 @@ from skin_sim_node.bags.io import (
 )
 from skin_sim_node.bags.offline import bag_topic, replay_to_bag
 from skin_sim_node.bags.offline import replay as replay_offline
-from skin_sim_node.device.bridge import DeviceMapping
+from skin_sim_node.device.mapping import DeviceMapping
 
 DATA = Path(__file__).parent / "data"
 PRESS = DATA / "press_hold_release" / "input"

@@ -64,6 +64,7 @@ def test_confined_layered_column_matches_the_closed_form():
         return brentq(lambda lo: mu * (lo - 1 / lo) + lam * np.log(lo) / lo - p, 1e-3, 1.0)
 
     for d, f in zip(res.depths_m, res.forces_n):
+
         def mismatch(p, d=d):
             return sum(hi * (1 - stretch(-p, la, mu)) for hi, (la, mu) in zip(s.thickness_m, lam_mu)) - d
 

@@ -1,6 +1,6 @@
 """Golden scenes: small input bags made from the mock tool's trajectories, and their replay outputs.
 
-The mock tool's :data:`~skin_sim_node.device.mock_tool.TRAJECTORIES` give the exact pose and velocity
+The mock tool's :data:`~skin_sim_node.device.trajectories.TRAJECTORIES` give the exact pose and velocity
 at any time, so the input bags are written directly (no DDS, no timing noise): one
 ``tool/pose`` and one ``tool/twist`` per millisecond, stamps ``T0 + k ms``, bag time = stamp.
 The expected-output bags are the offline replay of those inputs with the default parameters.
@@ -20,7 +20,7 @@ from pathlib import Path
 from msgs_schema import convert as cv
 from msgs_schema.topics import FRAMES, TOPICS
 
-from ..device.mock_tool import TRAJECTORIES
+from ..device.trajectories import TRAJECTORIES
 from ..scenes import DEFAULT_PARAMS
 from .inputs import InputOptions, read_inputs
 from .io import BagWriter, new_message, qos_profiles

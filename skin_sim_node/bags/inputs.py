@@ -1,7 +1,7 @@
 """Tool inputs of a bag: pose and twist topics, foreign names, frames and device conventions.
 
 Reads a bag's pose (and optional twist) messages, maps them into the tissue frame the way
-the live chain does (a device convention goes through :class:`skin_sim_node.device.bridge.DeviceMapping`,
+the live chain does (a device convention goes through :class:`skin_sim_node.device.mapping.DeviceMapping`,
 as the bridge does), and returns them merged in header-stamp order.
 """
 
@@ -15,7 +15,8 @@ from pathlib import Path
 from msgs_schema import convert as cv
 from msgs_schema.topics import FRAMES, TOPICS
 
-from ..device.bridge import CONVENTIONS, DEFAULTS, DeviceMapping, _vec3
+from ..device.mapping import CONVENTIONS, DEFAULTS, DeviceMapping
+from ..device.mapping import parse_vec3 as _vec3
 from .io import EmptyTopicError, NoPoseTopicError, UnknownMessageTypeError, describe_topics, iter_messages, open_bag, topic_types
 
 POSE_TYPE = TOPICS["tool_pose"].type

@@ -1,451 +1,417 @@
-"""Device bridge: a Geomagic Touch (Phantom Omni) ROS 2 driver <-> skin_sim_node.
+"""``skin-sim bridge``: a Geomagic Touch (Phantom Omni) ROS 2 driver <-> skin_sim_node.
 
-Device side, under the ``device_ns`` parameter (relative, default ``device``):
+Device side, under ``device_ns`` (relative, default ``device``):
 
-- ``convention:=crtk`` (jhu-saw sawSensablePhantom): reads ``measured_cp`` (PoseStamped) and
-  ``measured_cv`` (TwistStamped), writes ``servo_cf`` (WrenchStamped).
-- ``convention:=omni`` (omni_common family, e.g. AleBarte Geomagic_Touch_ROS2_Drivers): reads
-  ``phantom/pose`` (PoseStamped), writes ``phantom/force_feedback`` (WrenchStamped). No twist:
-  the node differentiates the poses. Remap the names to match a given driver.
+- ``convention:=crtk`` (jhu-saw sawSensablePhantom): reads ``measured_cp`` (PoseStamped),
+  ``measured_cv`` (TwistStamped) and, if the driver publishes it, ``measured_cf`` (the force applied over
+  the tick: the passivity observer books it exactly), writes ``servo_cf`` (WrenchStamped): a force every
+  servo tick.
+- ``convention:=omni`` (omni_common family): reads ``phantom/pose``, writes ``phantom/force_feedback``.
 
-Node side: publishes ``tool/pose`` and ``tool/twist`` in the tissue frame, subscribes
-``tool/wrench``. Every message is republished inside the callback that receives it (no
-timer in the data path). A watchdog timer sends one zero force when the device pose or
-the node's wrench is older than ``watchdog_s``; wrenches are not forwarded while the
-device pose is stale.
+Node side: publishes ``tool/pose`` and ``tool/twist`` in the tissue frame. With ``force_source:=model``
+(default) it subscribes ``tool/contact_model`` and, for every device pose, renders the force from the
+newest model at that pose (:class:`skin_sim_node.device.render.ContactRenderer`: crossfade, TTL and
+radius fade, one-sided normal, force and stiffness caps, optional passivity controller) and sends it
+at once: the device gets a force every tick, never a stale one. ``force_source:=wrench`` holds the last
+``tool/wrench`` instead (the hold-last bridge, for servers without a contact model), through the same
+renderer (a model with no stiffness: held, faded once older than ``watchdog_s``) and passivity controller.
 
-The pure part (:class:`DeviceMapping`) imports no ROS code; :class:`BridgeNode` is
-built on first access.
+A watchdog sends one zero force when the device pose is older than ``watchdog_s`` (the device has
+stopped reporting; no tick to render on). Diagnostics (``diagnostics``, 1 Hz) report the render rate,
+ticks without a fresh model and the model ages. See ``docs/devices.md``.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-from dataclasses import dataclass
+import threading
+import time
 
-Vec3 = tuple[float, float, float]
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 
-TOUCH_PEAK_FORCE_N = 3.3
-"""Peak force of a Geomagic Touch (3D Systems spec sheet: max exertable force 3.3 N at nominal position)."""
+from msgs_schema.contact_model import LocalModel, read_contact_model
+from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_pose, read_twist, read_wrench, set_stamp, stamp_ns
+from msgs_schema.qos import PROFILES, publisher, subscription
+from msgs_schema.topics import FRAMES, TOPICS
 
-DEFAULT_OFFSET_M: Vec3 = (0.0, 0.0, 0.05)
-"""Tissue-frame position of the device origin (m). Matches :mod:`skin_sim_node.device.sim_device`,
-whose origin sits 50 mm above the rest surface: about a Touch's usable workspace half-height
-(workspace 160 x 120 x 70 mm), so the stylus reaches the tissue from mid-workspace."""
+from ..ros_util import make_executor, ros_now_ns, spin_context
+from .base import DeviceNode, Param, publish_while_ok
+from .mapping import (
+    CONVENTIONS,
+    DEFAULTS,
+    MEASURED_FORCE,
+    TOUCH_MAX_STIFFNESS_N_PER_M,
+    DeviceMapping,
+    axes_matrix,
+    force_to_tissue,
+)
+from .render import FADE_S, ContactRenderer
+from .stylus import DeviceParams
+
+SOURCES = ("model", "wrench")
+STABILISERS = ("none", "passivity")
+TWIST_MAX_SKEW_NS = 5_000_000  # a device twist this close to the pose's stamp is the pose's velocity (as the node's 5 ms)
+HOLD_RADIUS_M = 1.0  # wrench source: a held force does not depend on the pose (any pose on a Touch's workspace)
+AGE_RING = 4096  # model ages kept for the diagnostics window (4 s at 1 kHz)
 
 
-def axes_matrix(axes: str) -> tuple[Vec3, Vec3, Vec3]:
-    """Signed permutation matrix ``R`` (rows = tissue x, y, z) from a string like ``"x-zy"``.
+class ServerLink:
+    """The bridge's side towards the node, on its own DDS participant (an rclpy context) and threads.
 
-    Each of the three tokens, an optional ``-`` and a device axis letter, says which device
-    axis (with sign) the tissue axis is: ``"x-zy"`` means tissue x = device x, tissue y =
-    -device z, tissue z = device y (a Touch's frame has y up and z towards the user).
-
-    Raises
-    ------
-    ValueError
-        If the string is not three signed, distinct axes.
+    Measured (tests/test_force_path_ros.py): a node killed with SIGKILL while writing into a participant's
+    shared-memory port stalls that port for 1000 ms (Fast DDS's health-check timeout). With one participant the
+    device's poses then stopped reaching the bridge: no tick to render on, the force held, then a watchdog step.
+    Here the node writes only into this participant's port, the device only into the bridge's own, and the tool
+    pose goes out from this link's thread (a latest-value hand-off), so a dead node cannot stall the servo path.
     """
-    tokens, sign = [], 1.0
-    for ch in axes.replace(" ", "").lower():
-        if ch in "+-":
-            sign = -1.0 if ch == "-" else 1.0
-            continue
-        if ch not in "xyz":
-            raise ValueError(f"axes {axes!r}: unexpected character {ch!r}")
-        tokens.append((sign, "xyz".index(ch)))
-        sign = 1.0
-    if len(tokens) != 3 or sorted(j for _, j in tokens) != [0, 1, 2]:
-        raise ValueError(f"axes {axes!r}: need each of x, y, z exactly once, e.g. 'xyz' or 'x-zy'")
-    rows = []
-    for s, j in tokens:
-        row = [0.0, 0.0, 0.0]
-        row[j] = s
-        rows.append(tuple(row))
-    return tuple(rows)
+
+    def __init__(self, bridge: BridgeNode, ros_args: list[str], on_model, twist: bool):
+        self.ctx = rclpy.Context()
+        rclpy.init(args=ros_args, context=self.ctx)
+        self.node = rclpy.create_node(f"{bridge.get_name()}_server", context=self.ctx)
+        self.frame = bridge.tissue_frame
+        self._pose_pub = publisher(self.node, "tool_pose")
+        self._twist_pub = publisher(self.node, "tool_twist") if twist else None
+        self._pose, self._twist = PoseStamped(), TwistStamped()
+        key = "contact_model" if bridge.model_source else "tool_wrench"
+        subscription(self.node, key, on_model)
+        self._latest: dict[str, tuple] = {}
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._executor = make_executor("events", self.ctx)
+        self._executor.add_node(self.node)
+        self._threads = [
+            threading.Thread(target=spin_context, args=(self._executor, self.ctx, self._stop), name="server-spin", daemon=True),
+            threading.Thread(target=self._publish_loop, name="server-publish", daemon=True),
+        ]
+        for t in self._threads:
+            t.start()
+
+    def send(self, kind: str, values: tuple) -> None:
+        """Hand the newest ``pose`` (stamp, xyz, quat) or ``twist`` (stamp, linear) to the publishing thread."""
+        with self._lock:
+            self._latest[kind] = values
+        self._wake.set()
+
+    def _publish_loop(self) -> None:
+        while not self._stop.is_set():
+            if not self._wake.wait(0.05):
+                continue
+            self._wake.clear()
+            with self._lock:
+                latest, self._latest = self._latest, {}
+            tw = latest.get("twist")
+            if tw is not None and self._twist_pub is not None:  # twist first, as the device publishes them
+                publish_while_ok(self.node, self._twist_pub, fill_twist(self._twist, tw[0], self.frame, tw[1]))
+            ps = latest.get("pose")
+            if ps is not None:
+                publish_while_ok(self.node, self._pose_pub, fill_pose(self._pose, ps[0], self.frame, ps[1], ps[2]))
+
+    def close(self) -> None:
+        self._stop.set()
+        self._wake.set()
+        for t in self._threads:
+            t.join(timeout=1.0)
+        try:
+            self.node.destroy_node()
+        except Exception:  # noqa: BLE001 - best effort at shutdown
+            pass
+        rclpy.try_shutdown(context=self.ctx)
 
 
-def _mat_vec(R, v) -> Vec3:
-    return tuple(R[i][0] * v[0] + R[i][1] * v[1] + R[i][2] * v[2] for i in range(3))
+class BridgeNode(DeviceNode):
+    """Device driver topics <-> node topics; renders the local contact model every device tick."""
 
-
-def _mat_t_vec(R, v) -> Vec3:
-    return tuple(R[0][j] * v[0] + R[1][j] * v[1] + R[2][j] * v[2] for j in range(3))
-
-
-def _det(R) -> float:
-    return (
-        R[0][0] * (R[1][1] * R[2][2] - R[1][2] * R[2][1])
-        - R[0][1] * (R[1][0] * R[2][2] - R[1][2] * R[2][0])
-        + R[0][2] * (R[1][0] * R[2][1] - R[1][1] * R[2][0])
+    NODE_NAME = "skin_sim_bridge"
+    PROG = "skin-sim bridge"
+    DESCRIPTION = (
+        "Device bridge: device pose -> tool/pose; tool/contact_model rendered at the device's rate -> force "
+        "command (CRTK servo_cf or omni force_feedback). Start it after skin-sim node, before the device."
+    )
+    PARAMS = (
+        Param("convention", DEFAULTS["convention"], "device driver topic convention", choices=tuple(CONVENTIONS)),
+        Param("device_ns", DEFAULTS["device_ns"], "namespace of the device topics (relative; '' for none)"),
+        Param("offset_m", DEFAULTS["offset_m"], "tissue-frame position of the device origin (m)"),
+        Param("scale", DEFAULTS["scale"], "motion scale: tissue m per device m", 1e-3, 1e3),
+        Param("axes", DEFAULTS["axes"], "tissue x, y, z as signed device axes, e.g. xyz, or x-zy for a Touch base frame"),
+        Param("force_scale", DEFAULTS["force_scale"], "force scale: F_device = force_scale * R^T F_tissue", 0.0, 100.0),
+        Param("max_force_n", DEFAULTS["max_force_n"], "device force clamp (N); Touch peak 3.3 N", 0.0, 100.0),
+        Param(
+            "max_stiffness_n_per_m",
+            TOUCH_MAX_STIFFNESS_N_PER_M,
+            "cap of the rendered stiffness at the device (N/m); Touch spec >= 1.02 N/mm on its weakest axis",
+            0.0,
+            1e6,
+        ),  # fmt: skip
+        Param(
+            "force_source",
+            "model",
+            "model: render tool/contact_model per device tick; wrench: forward tool/wrench",
+            choices=SOURCES,
+        ),  # fmt: skip
+        Param("fade_s", FADE_S, "fade to zero when the model goes stale or the tool leaves it (s)", 1e-3, 1.0),
+        Param(
+            "stabiliser",
+            "passivity",
+            "passivity: time-domain passivity controller on the rendered force; none",
+            choices=STABILISERS,
+        ),  # fmt: skip
+        Param("device_mass_kg", DeviceParams.mass_kg, "apparent stylus mass for the passivity controller (kg)", 1e-3, 10.0),
+        Param(
+            "watchdog_s",
+            DEFAULTS["watchdog_s"],
+            "device pose age (s) after which one zero force is sent (wrench source: also the node's wrench age)",
+            1e-3,
+            10.0,
+        ),  # fmt: skip
+        Param("watchdog_rate_hz", DEFAULTS["watchdog_rate_hz"], "watchdog check rate (Hz)", 1.0, 1e4),
+        Param("device_frame", DEFAULTS["device_frame"], "frame_id of force commands; empty: the device pose's frame_id"),
+        Param("restamp", DEFAULTS["restamp"], "stamp tool poses with the bridge clock instead of the driver's", cli=""),
+        Param("diagnostics_period_s", 1.0, "period of the bridge's diagnostics (s)", 0.05, 60.0),
     )
 
+    @classmethod
+    def add_arguments(cls, ap) -> None:
+        ap.add_argument("--restamp", dest="restamp", action="store_true", default=None,
+                        help="stamp tool poses with the bridge clock instead of the driver's")  # fmt: skip
 
-def _quat_from_rot(R) -> tuple[float, float, float, float]:
-    """(x, y, z, w) of a proper rotation matrix (Shepperd's method)."""
-    tr = R[0][0] + R[1][1] + R[2][2]
-    if tr > 0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        return ((R[2][1] - R[1][2]) / s, (R[0][2] - R[2][0]) / s, (R[1][0] - R[0][1]) / s, 0.25 * s)
-    i = max(range(3), key=lambda k: R[k][k])
-    j, k = (i + 1) % 3, (i + 2) % 3
-    s = 2.0 * math.sqrt(max(1.0 + R[i][i] - R[j][j] - R[k][k], 0.0))
-    q = [0.0, 0.0, 0.0, 0.0]
-    q[i] = 0.25 * s
-    q[j] = (R[j][i] + R[i][j]) / s
-    q[k] = (R[k][i] + R[i][k]) / s
-    q[3] = (R[k][j] - R[j][k]) / s
-    return tuple(q)
+    @classmethod
+    def before_start(cls, opts) -> int | None:
+        if opts.axes is not None:
+            try:
+                axes_matrix(opts.axes)
+            except ValueError as exc:
+                print(f"skin-sim bridge: {exc}")
+                return 2
+        return None
 
+    def __init__(self, overrides: dict | None = None, **kwargs):
+        super().__init__(overrides, **kwargs)
+        p = self.p
+        self.mapping = DeviceMapping(tuple(p.offset_m), p.scale, p.axes, p.force_scale, p.max_force_n)
+        if not self.mapping.proper:
+            self.get_logger().warn(f"axes {self.mapping.axes!r} is a reflection: tool orientation is published as identity")
+        gain = p.force_scale * p.scale  # device N/m per tissue N/m
+        self.renderer = ContactRenderer(
+            max_force_n=p.max_force_n / p.force_scale if p.force_scale > 0 else math.inf,
+            max_stiffness_n_per_m=p.max_stiffness_n_per_m / gain if gain > 0 else math.inf,
+            fade_s=p.fade_s,
+            passivity_mass_kg=p.device_mass_kg / gain if p.stabiliser == "passivity" and gain > 0 else None,
+        )
+        self.model_source = p.force_source == "model"
+        self.watchdog_ns = int(p.watchdog_s * 1e9)
+        self.device_frame = p.device_frame
+        self.tissue_frame = FRAMES["tissue"]
+        ns = p.device_ns.strip("/")
+        pose_key, twist_key, force_key = CONVENTIONS[p.convention]
 
-def _quat_mul(a, b):
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return (
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    )
+        def dev(key):
+            return f"{ns}/{TOPICS[key].name}" if ns else TOPICS[key].name
 
+        self._force_out = WrenchStamped()
+        self._render_lock = threading.Lock()  # the renderer: models from the server link's thread, ticks from this one
+        self._force_pub = self.create_publisher(WrenchStamped, dev(force_key), PROFILES["driver"])
+        self._diag_pub = publisher(self, "diagnostics")
+        self._diag = DiagnosticArray()
+        subscription(self, pose_key, self._on_device_pose, name=dev(pose_key))
+        if twist_key:
+            subscription(self, twist_key, self._on_device_twist, name=dev(twist_key))
+        cf_key = MEASURED_FORCE[p.convention]
+        if cf_key:
+            subscription(self, cf_key, self._on_device_force, name=dev(cf_key))
+        self._cf_tissue: np.ndarray | None = None
+        self._cf_stamp_ns = -1
+        self.server = ServerLink(self, self.ROS_ARGS, self._on_model if self.model_source else self._on_wrench, bool(twist_key))
+        self._v_tissue: np.ndarray | None = None
+        self._v_stamp_ns = 0
+        self._wrench_seq = 0
+        self.last_pose_rx_ns: int | None = None
+        self.stale = False  # the first watchdog check sends one zero force
+        self.counts = {"poses": 0, "twists": 0, "models": 0, "models_rejected": 0, "wrenches": 0, "forwarded": 0,
+                       "zeros": 0, "non_finite_pose": 0, "rendered": 0, "rendered_fresh": 0, "rendered_no_model": 0,
+                       "rendered_stale_model": 0, "rendered_outside_radius": 0,
+                       "device_gaps_2ms": 0}  # fmt: skip
+        self._ages_ms = np.zeros(AGE_RING)
+        self._n_age = 0
+        self._win = {"rendered": 0, "models": 0, "t_ns": time.monotonic_ns(), "age_from": 0, "period_max_ns": 0}
+        self._first_model = False
+        self.max_model_age_ms = 0.0
+        self._rejected_logged: set[str] = set()
+        self.create_timer(1.0 / p.watchdog_rate_hz, self._watchdog)
+        self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)
+        src = f"{TOPICS['contact_model'].name} rendered per device tick" if self.model_source else TOPICS["tool_wrench"].name
+        self.get_logger().info(
+            f"bridge {p.convention}: {dev(pose_key)} -> {TOPICS['tool_pose'].name}; {src} -> {dev(force_key)}; "
+            f"offset {self.mapping.offset_m} m, scale {self.mapping.scale}, axes {self.mapping.axes}, clamp {p.max_force_n} N, "
+            f"stiffness cap {p.max_stiffness_n_per_m:g} N/m, stabiliser {p.stabiliser}"
+        )
 
-def _finite(v) -> bool:
-    return all(math.isfinite(c) for c in v)
+    # --- device side --------------------------------------------------------------------
+    def _stamp(self, msg) -> int:
+        s = stamp_ns(msg.header)
+        return ros_now_ns(self) if self.p.restamp or s == 0 else s
 
+    def _on_device_twist(self, msg) -> None:
+        t_ns, _, v = read_twist(msg)
+        if not all(math.isfinite(c) for c in v):
+            return
+        vt = self.mapping.velocity_to_tissue(v)
+        self._v_tissue, self._v_stamp_ns = np.array(vt), t_ns
+        self.server.send("twist", (self._stamp(msg), vt))
+        self.counts["twists"] += 1
 
-@dataclass(frozen=True)
-class DeviceMapping:
-    """Device frame <-> tissue frame: ``p_tissue = scale * R p_device + offset_m``.
+    def _on_device_force(self, msg) -> None:
+        t_ns, _, f = read_wrench(msg)
+        self._cf_tissue, self._cf_stamp_ns = np.array(force_to_tissue(self.mapping, f)), t_ns
 
-    Parameters
-    ----------
-    offset_m : tuple of float
-        Tissue-frame position of the device origin (m). Default: :data:`DEFAULT_OFFSET_M`.
-    scale : float
-        Motion scale (tissue metres per device metre), > 0.
-    axes : str
-        Axis convention, see :func:`axes_matrix`.
-    force_scale : float
-        ``F_device = force_scale * R^T F_tissue`` before the clamp, >= 0.
-    max_force_n : float
-        Clamp of the device force magnitude (direction kept). Default: a Touch's peak force.
-    """
-
-    offset_m: Vec3 = DEFAULT_OFFSET_M
-    scale: float = 1.0
-    axes: str = "xyz"
-    force_scale: float = 1.0
-    max_force_n: float = TOUCH_PEAK_FORCE_N
-
-    def __post_init__(self):
-        object.__setattr__(self, "offset_m", tuple(float(c) for c in self.offset_m))
-        if len(self.offset_m) != 3 or not _finite(self.offset_m):
-            raise ValueError(f"offset_m must be 3 finite numbers, got {self.offset_m}")
-        if not (math.isfinite(self.scale) and self.scale > 0):
-            raise ValueError(f"scale must be finite and > 0, got {self.scale}")
-        if not (math.isfinite(self.force_scale) and self.force_scale >= 0):
-            raise ValueError(f"force_scale must be finite and >= 0, got {self.force_scale}")
-        if not (math.isfinite(self.max_force_n) and self.max_force_n >= 0):
-            raise ValueError(f"max_force_n must be finite and >= 0, got {self.max_force_n}")
-        R = axes_matrix(self.axes)
-        object.__setattr__(self, "R", R)
-        object.__setattr__(self, "_q", _quat_from_rot(R) if _det(R) > 0 else None)
-
-    @property
-    def proper(self) -> bool:
-        """True if ``R`` is a rotation (det +1); an improper convention cannot map orientations."""
-        return self._q is not None
-
-    def to_tissue(self, p_device) -> Vec3:
-        """Device position (m) -> tissue position (m)."""
-        r = _mat_vec(self.R, p_device)
-        return tuple(self.scale * r[i] + self.offset_m[i] for i in range(3))
-
-    def to_device(self, p_tissue) -> Vec3:
-        """Tissue position (m) -> device position (m); inverse of :meth:`to_tissue`."""
-        d = tuple((p_tissue[i] - self.offset_m[i]) / self.scale for i in range(3))
-        return _mat_t_vec(self.R, d)
-
-    def velocity_to_tissue(self, v_device) -> Vec3:
-        r = _mat_vec(self.R, v_device)
-        return tuple(self.scale * c for c in r)
-
-    def velocity_to_device(self, v_tissue) -> Vec3:
-        return tuple(c / self.scale for c in _mat_t_vec(self.R, v_tissue))
-
-    def orientation_to_tissue(self, q_device) -> tuple[float, float, float, float]:
-        """Device orientation quaternion (x, y, z, w) -> tissue; identity for an improper ``R``."""
-        if self._q is None or not _finite(q_device):
-            return (0.0, 0.0, 0.0, 1.0)
-        return _quat_mul(self._q, q_device)
-
-    def force_to_device(self, f_tissue) -> Vec3:
-        """Tissue force (N) -> device force command (N): ``force_scale * R^T f``, magnitude clamped.
-
-        A non-finite input gives zero force.
-        """
-        if not _finite(f_tissue):
-            return (0.0, 0.0, 0.0)
-        f = tuple(self.force_scale * c for c in _mat_t_vec(self.R, f_tissue))
-        return clamp_magnitude(f, self.max_force_n)
-
-
-def clamp_magnitude(f, max_n: float) -> Vec3:
-    """``f`` scaled down to magnitude ``max_n`` if longer (direction kept); non-finite -> zero."""
-    if not _finite(f):
-        return (0.0, 0.0, 0.0)
-    mag = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
-    if mag > max_n:
-        k = max_n / mag
-        return (f[0] * k, f[1] * k, f[2] * k)
-    return (float(f[0]), float(f[1]), float(f[2]))
-
-
-# --- ROS node ---------------------------------------------------------------------------
-def publish_while_ok(node, pub, msg) -> bool:
-    """Publish ``msg``; if rclpy was shut down meanwhile (SIGTERM mid-callback), drop it quietly.
-
-    Returns True if published. Errors while the context is still valid propagate.
-    """
-    try:
-        pub.publish(msg)
-        return True
-    except Exception:
-        if node.context.ok():
-            raise
-        return False
-
-
-HOUSEKEEPING_PERIOD_S = 0.05
-"""Period of a timer in the loop-thread nodes (mock tool, simulated device). It wakes the executor so
-that ``run_nodes``' Python-level SIGTERM handler runs within 50 ms even when no message arrives (the
-main thread otherwise sleeps in the wait set and never runs it), and it ends the process from the
-executor thread when the script is done."""
-
-EXECUTOR = "events"  # run_nodes drives it with spin_once(timeout): far less CPU per callback
-"""rclpy executor for :func:`run_nodes`. Not ``events``: with the rclpy 7.1.6 wheels its ``spin()``
-ignores context shutdown (SIGINT/SIGTERM never return) and, in a local test, fired no timers."""
-
-DEFAULTS = {
-    "convention": "crtk",
-    "device_ns": "device",
-    "offset_m": list(DEFAULT_OFFSET_M),
-    "scale": 1.0,
-    "axes": "xyz",  # the simulated device's axes; a real Touch in its base frame: "x-zy"
-    "force_scale": 1.0,
-    "max_force_n": TOUCH_PEAK_FORCE_N,
-    "watchdog_s": 0.05,  # as the node's watchdog: 50 ticks at 1 kHz, past DDS jitter, under hand reaction time
-    "watchdog_rate_hz": 200.0,  # checks every 5 ms: a stale input is caught within 0.1 * watchdog_s
-    "device_frame": "",  # frame_id of force commands; empty: the device pose's frame_id
-    "restamp": False,  # stamp tool/pose with the bridge's clock instead of the driver's
-}
-CONVENTIONS = {
-    # convention: (pose key, twist key or None, force key)
-    "crtk": ("crtk_measured_cp", "crtk_measured_cv", "crtk_servo_cf"),
-    "omni": ("omni_pose", None, "omni_force"),
-}
-
-
-def _build_node_class():
-    import time
-
-    from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
-    from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-    from rclpy.node import Node
-
-    from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_pose, read_twist, read_wrench, stamp_ns
-    from msgs_schema.qos import PROFILES, publisher, subscription
-    from msgs_schema.topics import FRAMES, TOPICS
-
-    from ..ros_util import ros_now_ns
-
-    def frange(lo, hi):
-        return [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
-
-    class BridgeNode(Node):
-        """Republishes device poses as tool poses and node wrenches as device force commands.
-
-        Parameters
-        ----------
-        overrides : dict, optional
-            Parameter defaults (e.g. from argparse); ``--ros-args -p`` still wins.
-        """
-
-        def __init__(self, overrides: dict | None = None, **kwargs):
-            super().__init__("skin_sim_bridge", **kwargs)
-            d = {**DEFAULTS, **(overrides or {})}
-
-            def desc(**kw):  # all read once at start: read-only, so a live change cannot silently do nothing
-                return ParameterDescriptor(read_only=True, **kw)
-
-            self.declare_parameter("convention", d["convention"], desc(description="crtk | omni"))
-            self.declare_parameter("device_ns", d["device_ns"], desc(description="namespace of the device topics (relative)"))
-            self.declare_parameter(
-                "offset_m", [float(c) for c in d["offset_m"]], desc(description="tissue position of the device origin (m)")
+    def _on_device_pose(self, msg) -> None:
+        t_ns, frame, pos = read_pose(msg)
+        if not all(math.isfinite(c) for c in pos):
+            self.counts["non_finite_pose"] += 1
+            return
+        now = time.monotonic_ns()
+        if self.last_pose_rx_ns is not None:
+            period = now - self.last_pose_rx_ns
+            self._win["period_max_ns"] = max(self._win["period_max_ns"], period)
+            self.counts["device_gaps_2ms"] += period > 2_000_000
+        self.last_pose_rx_ns = now
+        if not self.device_frame and frame:
+            self.device_frame = frame
+        o = msg.pose.orientation
+        q = self.mapping.orientation_to_tissue((o.x, o.y, o.z, o.w))
+        x = self.mapping.to_tissue(pos)
+        stamp = self._stamp(msg)
+        self.counts["poses"] += 1
+        # the servo tick: render at this pose and command at once (wrench source: the last force, held)
+        v = self._v_tissue if self._v_tissue is not None and abs(self._v_stamp_ns - t_ns) <= TWIST_MAX_SKEW_NS else None
+        cf = self._cf_tissue if self._cf_stamp_ns == t_ns else None  # applied over the tick that ended here
+        n_radius = self.renderer.counts["fades_radius"]
+        with self._render_lock:
+            f = self.renderer.render(now * 1e-9, x, v, cf)
+        if self.renderer.counts["fades_radius"] > n_radius and "radius" not in self._rejected_logged:
+            self._rejected_logged.add("radius")
+            m = self.renderer.model
+            self.get_logger().warning(
+                f"tool left the contact model's validity radius: |x - x0| = {np.linalg.norm(np.subtract(x, m.x0_m)) * 1e3:.2f} mm"
+                f" > {m.validity_radius_m * 1e3:.1f} mm (model {m.sequence}, x0 z {m.x0_m[2] * 1e3:.2f} mm, x z "
+                f"{x[2] * 1e3:.2f} mm, age {self.renderer.model_age_s(now * 1e-9) * 1e3:.1f} ms): fading (logged once)"
             )
-            self.declare_parameter(
-                "scale", float(d["scale"]), desc(description="tissue m per device m", floating_point_range=frange(1e-3, 1e3))
-            )
-            self.declare_parameter("axes", d["axes"], desc(description="tissue x,y,z as signed device axes, e.g. xyz, x-zy"))
-            self.declare_parameter(
-                "force_scale",
-                float(d["force_scale"]),
-                desc(description="F_device = force_scale R^T F_tissue", floating_point_range=frange(0, 100)),
-            )
-            self.declare_parameter(
-                "max_force_n",
-                float(d["max_force_n"]),
-                desc(description="device force clamp (N); Touch peak 3.3 N", floating_point_range=frange(0, 100)),
-            )
-            self.declare_parameter(
-                "watchdog_s",
-                float(d["watchdog_s"]),
-                desc(description="input age that zeroes the force (s)", floating_point_range=frange(1e-3, 10)),
-            )
-            self.declare_parameter(
-                "watchdog_rate_hz",
-                float(d["watchdog_rate_hz"]),
-                desc(description="watchdog check rate (Hz)", floating_point_range=frange(1, 10000)),
-            )
-            self.declare_parameter(
-                "device_frame", d["device_frame"], desc(description="frame_id of force commands; empty: the device pose's")
-            )
-            self.declare_parameter("restamp", bool(d["restamp"]), desc(description="stamp tool poses with the bridge clock"))
-            gp = self.get_parameter
-            conv = gp("convention").value
-            if conv not in CONVENTIONS:
-                raise ValueError(f"convention {conv!r}: choose one of {', '.join(CONVENTIONS)}")
-            self.mapping = DeviceMapping(
-                tuple(gp("offset_m").value), gp("scale").value, gp("axes").value, gp("force_scale").value, gp("max_force_n").value
-            )
-            if not self.mapping.proper:
-                self.get_logger().warn(f"axes {self.mapping.axes!r} is a reflection: tool orientation is published as identity")
-            self.watchdog_ns = int(gp("watchdog_s").value * 1e9)
-            self.restamp = gp("restamp").value
-            self.device_frame = gp("device_frame").value
-            self.tissue_frame = FRAMES["tissue"]
-            ns = gp("device_ns").value.strip("/")
-            pose_key, twist_key, force_key = CONVENTIONS[conv]
+        self._publish_force(stamp, self.mapping.force_to_device(tuple(f)))
+        self._count_render(now)
+        self.server.send("pose", (stamp, x, q))
 
-            def dev(key):
-                return f"{ns}/{TOPICS[key].name}" if ns else TOPICS[key].name
+    def _count_render(self, now_ns: int) -> None:
+        c = self.counts
+        c["rendered"] += 1
+        self._win["rendered"] += 1
+        r = self.renderer
+        if r.state in ("model", "crossfade"):
+            c["rendered_fresh"] += 1
+            age = r.model_age_s(now_ns * 1e-9) * 1e3
+            self._ages_ms[self._n_age % AGE_RING] = age
+            self._n_age += 1
+            self.max_model_age_ms = max(self.max_model_age_ms, age)
+        elif self._first_model:
+            c["rendered_no_model"] += 1  # a tick without a valid model (TTL or radius fade) once models flowed
+            c["rendered_stale_model" if r.outside_reason == "ttl" else "rendered_outside_radius"] += 1
 
-            self._pose_out, self._twist_out, self._force_out = PoseStamped(), TwistStamped(), WrenchStamped()
-            self._pose_pub = publisher(self, "tool_pose")
-            self._twist_pub = publisher(self, "tool_twist") if twist_key else None
-            self._force_pub = self.create_publisher(WrenchStamped, dev(force_key), PROFILES["driver"])
-            subscription(self, pose_key, self._on_device_pose, name=dev(pose_key))
-            if twist_key:
-                subscription(self, twist_key, self._on_device_twist, name=dev(twist_key))
-            subscription(self, "tool_wrench", self._on_wrench)
-            self.last_pose_rx_ns: int | None = None
-            self.last_wrench_rx_ns: int | None = None
-            self.stale = False  # the first watchdog check sends one zero force
-            self.counts = {"poses": 0, "twists": 0, "wrenches": 0, "forwarded": 0, "zeros": 0, "non_finite_pose": 0}
-            self.create_timer(1.0 / gp("watchdog_rate_hz").value, self._watchdog)
-            self.get_logger().info(
-                f"bridge {conv}: {dev(pose_key)} -> {TOPICS['tool_pose'].name}; {TOPICS['tool_wrench'].name} -> "
-                f"{dev(force_key)}; offset {self.mapping.offset_m} m, scale {self.mapping.scale}, axes {self.mapping.axes}, "
-                f"clamp {self.mapping.max_force_n} N"
-            )
+    # --- node side ----------------------------------------------------------------------
+    def _on_model(self, msg) -> None:
+        m = read_contact_model(msg)
+        if m.frame_id != self.tissue_frame:
+            why = f"frame '{m.frame_id}', expected '{self.tissue_frame}'"
+        else:
+            with self._render_lock:
+                why = self.renderer.set_model(m, time.monotonic_ns() * 1e-9)
+        if why is None:
+            self.counts["models"] += 1
+            self._win["models"] += 1
+            self._first_model = True
+            return
+        self.counts["models_rejected"] += 1
+        kind = why.split(" ")[0]
+        if kind not in self._rejected_logged:
+            self._rejected_logged.add(kind)
+            self.get_logger().warning(f"contact model dropped: {why} (logged once per kind)")
 
-        def _stamp(self, msg) -> int:
-            s = stamp_ns(msg.header)
-            return ros_now_ns(self) if self.restamp or s == 0 else s
-
-        def _on_device_pose(self, msg) -> None:
-            _, frame, p = read_pose(msg)
-            if not _finite(p):
-                self.counts["non_finite_pose"] += 1
-                return
-            self.last_pose_rx_ns = time.monotonic_ns()
-            if not self.device_frame and frame:
-                self.device_frame = frame
-            o = msg.pose.orientation
-            q = self.mapping.orientation_to_tissue((o.x, o.y, o.z, o.w))
-            out = fill_pose(self._pose_out, self._stamp(msg), self.tissue_frame, self.mapping.to_tissue(p), q)
-            publish_while_ok(self, self._pose_pub, out)
-            self.counts["poses"] += 1
-
-        def _on_device_twist(self, msg) -> None:
-            _, _, v = read_twist(msg)
-            if not _finite(v):
-                return
-            out = fill_twist(self._twist_out, self._stamp(msg), self.tissue_frame, self.mapping.velocity_to_tissue(v))
-            publish_while_ok(self, self._twist_pub, out)
-            self.counts["twists"] += 1
-
-        def _on_wrench(self, msg) -> None:
-            now = time.monotonic_ns()
-            self.last_wrench_rx_ns = now
-            self.counts["wrenches"] += 1
-            if self.last_pose_rx_ns is None or now - self.last_pose_rx_ns > self.watchdog_ns:
-                return  # device pose stale: the watchdog has commanded zero
-            t_ns, _, f = read_wrench(msg)
-            self._publish_force(t_ns or ros_now_ns(self), self.mapping.force_to_device(f))
+    def _on_wrench(self, msg) -> None:
+        """Wrench source: the node's force as a model with no stiffness (held until the next, faded after watchdog_s)."""
+        now = time.monotonic_ns()
+        self.counts["wrenches"] += 1
+        t_ns, _, f = read_wrench(msg)
+        self._wrench_seq += 1
+        m = LocalModel(self._wrench_seq, t_ns, self.tissue_frame, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), f, np.zeros((3, 3)),
+                       np.zeros((3, 3)), (0.0, 0.0, 1.0), HOLD_RADIUS_M, self.p.watchdog_s)  # fmt: skip
+        with self._render_lock:
+            held = self.renderer.set_model(m, now * 1e-9) is None
+        if held:
             self.counts["forwarded"] += 1
+            self._first_model = True
 
-        def _publish_force(self, t_ns: int, f) -> None:
-            publish_while_ok(self, self._force_pub, fill_wrench(self._force_out, t_ns, self.device_frame or "device_base", f))
+    def _publish_force(self, t_ns: int, f) -> None:
+        publish_while_ok(self, self._force_pub, fill_wrench(self._force_out, t_ns, self.device_frame or "device_base", f))
 
-        def _watchdog(self) -> None:
-            now = time.monotonic_ns()
-            pose_stale = self.last_pose_rx_ns is None or now - self.last_pose_rx_ns > self.watchdog_ns
-            wrench_stale = self.last_wrench_rx_ns is None or now - self.last_wrench_rx_ns > self.watchdog_ns
-            stale = pose_stale or wrench_stale
-            if stale and not self.stale:
-                self._publish_force(ros_now_ns(self), (0.0, 0.0, 0.0))
-                self.counts["zeros"] += 1
-                if self.counts["poses"] or self.counts["wrenches"]:
-                    what = "device pose" if pose_stale else "node wrench"
-                    self.get_logger().warn(f"no {what} for {self.watchdog_ns * 1e-6:.0f} ms: device force set to zero")
-            self.stale = stale
+    def _watchdog(self) -> None:
+        now = time.monotonic_ns()
+        # a stale node is the renderer's business (it fades); a silent device has no tick to render on
+        stale = self.last_pose_rx_ns is None or now - self.last_pose_rx_ns > self.watchdog_ns
+        if stale and not self.stale:
+            self._publish_force(ros_now_ns(self), (0.0, 0.0, 0.0))
+            self.counts["zeros"] += 1
+            if self.counts["poses"]:
+                self.get_logger().warn(f"no device pose for {self.watchdog_ns * 1e-6:.0f} ms: device force set to zero")
+        self.stale = stale
 
-        def stop(self) -> None:
-            c = self.counts
-            self.get_logger().info(
-                f"bridge stopping: {c['poses']} device poses, {c['twists']} twists, {c['wrenches']} wrenches "
-                f"({c['forwarded']} forwarded), {c['zeros']} watchdog zero commands, {c['non_finite_pose']} non-finite poses"
-            )
+    # --- diagnostics --------------------------------------------------------------------
+    def _publish_diagnostics(self) -> None:
+        now = time.monotonic_ns()
+        w = self._win
+        wall = (now - w["t_ns"]) * 1e-9
+        n_new = min(self._n_age - w["age_from"], AGE_RING)
+        ages = self._ages_ms[(np.arange(self._n_age - n_new, self._n_age)) % AGE_RING] if n_new > 0 else np.zeros(0)
+        c = self.counts
+        values = {
+            "render_rate_hz": f"{w['rendered'] / wall:.1f}" if wall > 0 else "nan",
+            "model_rate_hz": f"{w['models'] / wall:.1f}" if wall > 0 else "nan",
+            "device_period_ms_max": f"{w['period_max_ns'] * 1e-6:.2f}",
+            "model_age_ms_p50": f"{np.percentile(ages, 50):.2f}" if ages.size else "nan",
+            "model_age_ms_p99": f"{np.percentile(ages, 99):.2f}" if ages.size else "nan",
+            "model_age_ms_max": f"{ages.max():.2f}" if ages.size else "nan",
+            "render_state": self.renderer.state,
+            "force_source": self.p.force_source,
+        }
+        values.update({f"{k}_total": str(v) for k, v in c.items()})
+        values.update({f"{k}_total": str(v) for k, v in self.renderer.counts.items() if k.startswith("fades_")})
+        self._win = {"rendered": 0, "models": 0, "t_ns": now, "age_from": self._n_age, "period_max_ns": 0}
+        st = DiagnosticStatus()
+        st.name = f"{self.get_fully_qualified_name()}: device render"
+        st.hardware_id = "skin_sim_bridge"
+        st.level, st.message = DiagnosticStatus.OK, f"rendering ({self.renderer.state})"
+        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        set_stamp(self._diag.header, ros_now_ns(self))
+        self._diag.status = [st]
+        publish_while_ok(self, self._diag_pub, self._diag)
 
-    return BridgeNode
-
-
-def __getattr__(name: str):
-    if name == "BridgeNode":
-        cls = _build_node_class()
-        globals()["BridgeNode"] = cls
-        return cls
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def _vec3(text: str) -> list[float]:
-    v = [float(c) for c in text.replace(",", " ").split()]
-    if len(v) != 3:
-        raise argparse.ArgumentTypeError(f"expected 3 numbers, got {text!r}")
-    return v
+    def stop(self) -> None:
+        self.server.close()
+        c = self.counts
+        self.say(
+            f"bridge stopping: {c['poses']} device poses, {c['twists']} twists, {c['models']} contact models "
+            f"({c['models_rejected']} dropped), {c['rendered']} device ticks rendered ({c['rendered_fresh']} from a fresh "
+            f"model, {c['rendered_no_model']} without one after the first model: {c['rendered_stale_model']} with it older than "
+            f"its TTL, {c['rendered_outside_radius']} outside its radius), max model age {self.max_model_age_ms:.2f} ms, "
+            f"{c['device_gaps_2ms']} device pose gaps > 2 ms, {c['wrenches']} wrenches ({c['forwarded']} forwarded), "
+            f"{c['zeros']} watchdog zero commands, {c['non_finite_pose']} non-finite poses"
+        )
 
 
 def main(argv=None) -> int:
-    """``bridge [--convention crtk|omni] [--device-ns NS] [--offset-m 'x y z'] [--axes xyz] ... [--ros-args ...]``."""
-    ap = argparse.ArgumentParser(prog="bridge", description=__doc__.splitlines()[0])
-    ap.add_argument("--convention", choices=sorted(CONVENTIONS))
-    ap.add_argument("--device-ns", help="namespace of the device topics (default 'device'; '' for none)")
-    ap.add_argument("--offset-m", type=_vec3, help="tissue position of the device origin, 'x y z' (m)")
-    ap.add_argument("--scale", type=float, help="tissue m per device m")
-    ap.add_argument("--axes", help="tissue x, y, z as signed device axes, e.g. xyz or x-zy")
-    ap.add_argument("--force-scale", type=float)
-    ap.add_argument("--max-force-n", type=float)
-    ap.add_argument("--watchdog-s", type=float)
-    opts, rest = ap.parse_known_args(argv)
-    overrides = {k: v for k, v in vars(opts).items() if v is not None}
-    if "axes" in overrides:
-        axes_matrix(overrides["axes"])  # fail early with a clear message
-    from ..ros_util import run_nodes
-
-    cls = _build_node_class()
-    return run_nodes([lambda: cls(overrides)], args=rest, executor=EXECUTOR)
+    """``skin-sim bridge [options] [--ros-args ...]``."""
+    return BridgeNode.main(argv)
 
 
 if __name__ == "__main__":

@@ -35,8 +35,6 @@ from msgs_schema.tissue import (  # noqa: F401  (re-exported: the model's view o
 NODE_NAME = "skin_sim_node"
 
 
-
-
 @dataclass(frozen=True)
 class LayerConfig:
     """One layer's Kelvin-Voigt (eq 6) and membrane (eq 1) parameters, SI units."""

@@ -189,7 +189,7 @@ def scene_path(trajectory: str | None, rate_hz: float = 1000.0, jitter_s: float 
     propagator is recomputed every tick; 20 us is a stated choice, well inside the measured DDS jitter.
     ``trajectory`` None: the tool hovers 5 mm above the tissue for ``idle_s``.
     """
-    from ..device.mock_tool import LIFT_Z_M, TRAJECTORIES
+    from ..device.trajectories import LIFT_Z_M, TRAJECTORIES
 
     rng = np.random.default_rng(seed)
     duration = TRAJECTORIES[trajectory].duration_s if trajectory else idle_s

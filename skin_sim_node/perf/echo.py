@@ -15,6 +15,7 @@ from rclpy.node import Node
 from msgs_schema import convert as cv
 from msgs_schema.qos import publisher, subscription
 
+from ..device.base import publish_while_ok
 from ..ros_util import PeriodicLoop, run_nodes
 
 
@@ -42,11 +43,14 @@ class EchoNode(Node):
             self._loop.stop()
 
     def _on_tick(self, _now, _elapsed) -> None:
-        self._pub.publish(cv.fill_wrench(self._msg, self.get_clock().now().nanoseconds, "tissue", (0.0, 0.0, 0.0)))
+        if not self.context.ok():  # Ctrl-C/SIGTERM: the timer or loop may fire once more; publish nothing
+            return
+        msg = cv.fill_wrench(self._msg, self.get_clock().now().nanoseconds, "tissue", (0.0, 0.0, 0.0))
+        publish_while_ok(self, self._pub, msg)
 
     def _on_pose(self, msg) -> None:
         stamp, frame, _ = cv.read_pose(msg)
-        self._pub.publish(cv.fill_wrench(self._msg, stamp, frame, (0.0, 0.0, 0.0)))
+        publish_while_ok(self, self._pub, cv.fill_wrench(self._msg, stamp, frame, (0.0, 0.0, 0.0)))
 
 
 def main(argv=None) -> int:

@@ -26,6 +26,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from skin_sim_msgs.msg import ContactModel
 
 from msgs_schema import convert as cv
 from msgs_schema.parameters import ALL_PARAMETERS, SPEC_BY_NAME, TISSUE_PREFIX, check_value, session_params
@@ -110,6 +111,8 @@ class SkinSimNode(Node):
         # I/O
         self._pub_wrench = publisher(self, "tool_wrench")
         self._pub_contact = publisher(self, "contact")
+        self._model_msg = ContactModel()
+        self._pub_model = publisher(self, "contact_model")
         self._pub_diag = publisher(self, "diagnostics")
         self.add_on_set_parameters_callback(self._on_set_parameters)  # validate (ros2/demos: on_set checks)
         self.add_post_set_parameters_callback(self._post_set_parameters)  # apply the accepted set
@@ -232,6 +235,7 @@ class SkinSimNode(Node):
             stamp = r.stamp_ns if pose_driven else self._ros_now_ns()
             self._pub_wrench.publish(cv.fill_wrench_from_tick(self._wrench, r, stamp, self._frame))
             self._pub_contact.publish(cv.fill_contact_from_tick(self._contact, r, stamp, self._frame))
+            self._pub_model.publish(cv.fill_contact_model_from_tick(self._model_msg, r, stamp, self._frame))  # bridge renders it
         if now_ns >= self._next_display_ns and self.params.display_rate_hz > 0:
             self._next_display_ns = now_ns + self._display_period_ns()
             self._snapshot_display()  # after the publishes: the wrench never waits for it

@@ -22,7 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from ..device.sim_device import DeviceParams  # noqa: E402
+from ..device.stylus import DeviceParams  # noqa: E402
 from . import haptic_loop as hl  # noqa: E402
 from . import numerics as nm  # noqa: E402
 from . import stiffening  # noqa: E402

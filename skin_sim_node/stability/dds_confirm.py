@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..device.mock_tool import TRAJECTORIES
+from ..device.trajectories import TRAJECTORIES
 from ..model import config_from_flat
 from ..model.config import default_flat
 from .haptic_loop import TissueEnv, Verdict, run_loop, verdict_kind
@@ -99,9 +99,10 @@ def over_dds(rate_hz: float, k_n_per_m: float, stabiliser: str, log_dir: Path, m
             params = [a for name, v in wall_overrides(k_n_per_m).items() for a in ("-p", f"tissue.{name}:={v}")]
             node = scene.node(*params, "-p", "watchdog_s:=0.5", "-p", f"rate_hz:={rate_hz}")
             scene.wait_for_log(node, "live:", timeout_s=180)
-            scene.start("bridge", "bridge", "--watchdog-s", "0.5")
+            # the sweep's coupling (the node's force held per device tick); the bridge runs the passivity controller
+            scene.start("bridge", "bridge", "--watchdog-s", "0.5", "--force-source", "wrench", "--stabiliser", stabiliser)
             device = scene.start(
-                "device", "device", "--hand-path", PATH, "--rate-hz", str(rate_hz), "--stabiliser", stabiliser,
+                "device", "device", "--hand-path", PATH, "--rate-hz", str(rate_hz),
                 "--substep-s", "5e-5", "--start-delay-s", "3.0",
             )  # fmt: skip
             mon.wrench.clear()

@@ -1,6 +1,6 @@
 """Haptic-loop stability: the simulated Touch against a rendered stiffness, swept in-process.
 
-The loop is the product's: the pure :class:`skin_sim_node.device.sim_device.SimulatedDevice` (45 g stylus,
+The loop is the product's: the pure :class:`skin_sim_node.device.stylus.SimulatedDevice` (45 g stylus,
 hand spring and damper) reports its pose, the environment answers a force, and the device applies
 it one tick late with a zero-order hold (``delay_ticks`` in total, >= 1). The stylus and hand are
 integrated in 50 us substeps, so they behave as continuous physics and only the loop is sampled.
@@ -27,8 +27,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from tqdm import tqdm
 
-from ..device.mock_tool import LIFT_Z_M, Trajectory
-from ..device.sim_device import DeviceParams, SimulatedDevice
+from ..device.stylus import DeviceParams, SimulatedDevice
+from ..device.trajectories import LIFT_Z_M, Trajectory
 
 SUBSTEP_S = 50e-6
 """Stylus integration substep: omega * h = 0.017 at 5 N/mm (omega = sqrt(5300 / 0.045) = 343 rad/s)."""

@@ -26,7 +26,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from ..device.sim_device import DeviceParams  # noqa: E402
+from ..device.stylus import DeviceParams  # noqa: E402
 from ..model import SkinModel, TissueConfig, preset  # noqa: E402
 from ..session import SessionParams  # noqa: E402
 from ..validation.methods import static_dt_s  # noqa: E402

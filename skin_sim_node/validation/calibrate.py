@@ -236,9 +236,7 @@ def _check_magnitudes(path: Path, a: np.ndarray, cfg: TissueConfig) -> None:
     total = cfg.total_thickness_m
     if d.max() > total:
         mm = " (is the file in millimetres? /1000 it would fit)" if d.max() / 1e3 <= total else ""
-        raise CalibrationInputError(
-            f"{path}: depth up to {d.max():g} m exceeds the tissue thickness {total:g} m{mm}{hint}"
-        )
+        raise CalibrationInputError(f"{path}: depth up to {d.max():g} m exceeds the tissue thickness {total:g} m{mm}{hint}")
     if d.min() <= 0:
         raise CalibrationInputError(f"{path}: depth {d.min():g} m <= 0: depths are positive indentations below the surface{hint}")
     if f.min() < 0 or f.max() > MAX_PLAUSIBLE_FORCE_N:
@@ -325,6 +323,7 @@ def fit_membrane(datasets: list[IndentData], cfg: TissueConfig, n: int = 59) -> 
     Fitted to the same force and field data as :func:`fit` (contact offsets are ignored:
     the membrane is homogeneous).
     """
+
     def response(p):
         mem = skin_membrane(cfg, float(np.exp(p[0])), float(np.exp(p[1])))
         f1, u1 = static_indentation(mem, n, n, 1.0, (0.0, 0.0), cfg.tool_radius_m)

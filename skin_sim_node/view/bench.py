@@ -133,18 +133,24 @@ def print_summary(res: dict, s: dict) -> None:
     print(f"\nview closed vs open, same node process, {len(res['phases'])} alternating phases of {res['duration_s']:.0f} s "
           f"(machine shared: compare the ratios)")  # fmt: skip
     for p in res["phases"]:
-        print(f"  cycle {p['cycle']} view {p['view']:6s}: latency p50 {p['p50_ms']:.3f} ms p99 {p['p99_ms']:.3f} ms "
-              f"(n {p['n']}), node rate {p['rate_hz']:.0f} Hz, missed slots {p['missed_slots']}, "
-              f"node CPU {p['node_cpu_pct']:.0f} %, view CPU {p['view_cpu_pct']:.0f} %, "
-              f"view+browser CPU {p['view_browser_cpu_pct']:.0f} %"
-              + (f", page {p['page_frames_hz']:.1f} frames/s, {p['page_grids_hz']:.1f} grids/s" if "page_frames_hz" in p else ""))
+        print(
+            f"  cycle {p['cycle']} view {p['view']:6s}: latency p50 {p['p50_ms']:.3f} ms p99 {p['p99_ms']:.3f} ms "
+            f"(n {p['n']}), node rate {p['rate_hz']:.0f} Hz, missed slots {p['missed_slots']}, "
+            f"node CPU {p['node_cpu_pct']:.0f} %, view CPU {p['view_cpu_pct']:.0f} %, "
+            f"view+browser CPU {p['view_browser_cpu_pct']:.0f} %"
+            + (f", page {p['page_frames_hz']:.1f} frames/s, {p['page_grids_hz']:.1f} grids/s" if "page_frames_hz" in p else "")
+        )
     for kind in ("closed", "view", "open"):
         c = s[kind]
-        print(f"pooled {kind:6s}: p50 {c['p50_ms']:.3f} ms, p99 {c['p99_ms']:.3f} ms, "
-              f"missed slots {c['missed_slots_per_s']:.1f}/s, "
-              f"view CPU {c['view_cpu_pct']:.0f} %, view+browser CPU {c['view_browser_cpu_pct']:.0f} % of one core")
-    print(f"ratio to closed: view process alone p99 {s['ratio_p99_view_only']:.2f}; view + page p50 {s['ratio_p50']:.2f}, "
-          f"p99 {s['ratio_p99']:.2f}; page {s['page_frames_hz']:.1f} frames/s, {s['page_grids_hz']:.1f} grid updates/s")
+        print(
+            f"pooled {kind:6s}: p50 {c['p50_ms']:.3f} ms, p99 {c['p99_ms']:.3f} ms, "
+            f"missed slots {c['missed_slots_per_s']:.1f}/s, "
+            f"view CPU {c['view_cpu_pct']:.0f} %, view+browser CPU {c['view_browser_cpu_pct']:.0f} % of one core"
+        )
+    print(
+        f"ratio to closed: view process alone p99 {s['ratio_p99_view_only']:.2f}; view + page p50 {s['ratio_p50']:.2f}, "
+        f"p99 {s['ratio_p99']:.2f}; page {s['page_frames_hz']:.1f} frames/s, {s['page_grids_hz']:.1f} grid updates/s"
+    )
 
 
 def main(argv=None) -> int:

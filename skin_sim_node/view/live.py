@@ -238,4 +238,3 @@ class LiveSource:
             self.node.destroy_node()
         finally:
             rclpy.try_shutdown(context=self.context)
-

@@ -1,0 +1,135 @@
+"""The local contact model message (issue 12): what the node sends the device bridge with each force.
+
+The node publishes ``skin_sim_msgs/msg/ContactModel`` on ``tool/contact_model`` (QoS class
+``haptic``: best-effort, keep-last 1; a lost model is covered by the previous one until its
+time-to-live runs out). The bridge renders ``F(x, v) = f0 + K (x - x0) + D (v - v0)`` from the
+device's own pose stream every servo tick (:mod:`skin_sim_node.device.render`). The message
+definition is ``interfaces/skin_sim_msgs/msg/ContactModel.msg``, built by ``scripts/setup.sh``; why a
+package and not a layout in standard messages: ``docs/devices.md``.
+
+:class:`LocalModel` is the plain (no ROS) form; :func:`fill_contact_model` and
+:func:`read_contact_model` convert with attribute access only, so they work on rclpy messages and
+on ``rosbags`` dataclasses alike. This module imports no ROS code.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+MSG_TYPE = "skin_sim_msgs/msg/ContactModel"
+
+DEFAULT_TTL_S = 0.05
+"""Time-to-live of a model (s). The node's input watchdog (``watchdog_s`` = 50 ms): a model older than
+that comes from a server that has stopped answering, and 50 ms is 5 server periods at the slowest
+rate of the rate lever (100 Hz), so one or two lost models never start a fade."""
+
+DEFAULT_VALIDITY_RADIUS_M = 2e-3
+"""Validity radius (m). A linearisation of the tissue holds while the tool stays within a fraction of
+the layer thicknesses (dermis ~1.3 mm, docs/model.md); 2 mm is 20 periods of a brisk 0.1 m/s drag at
+1 kHz and 5 at 250 Hz, so an ordinary stroke never leaves the model between updates."""
+
+
+STALE_RADIUS_M = 10.0
+"""Validity radius of the zero model a stale tick sends (m): larger than any device workspace (a Touch's is
+160 x 120 x 70 mm), so the bridge renders the zero force wherever the tool is."""
+
+
+@dataclass(frozen=True)
+class LocalModel:
+    """One local contact model, tissue frame, SI units (fields as ``ContactModel.msg``).
+
+    ``stiffness_n_per_m`` and ``damping_n_s_per_m`` are (3, 3) with the force on the tool as
+    output: ``normal . K . normal <= 0`` for a tissue that pushes back harder the deeper it is pressed.
+    """
+
+    sequence: int
+    stamp_ns: int
+    frame_id: str
+    x0_m: np.ndarray
+    v0_m_s: np.ndarray
+    f0_n: np.ndarray
+    stiffness_n_per_m: np.ndarray
+    damping_n_s_per_m: np.ndarray
+    normal: np.ndarray
+    validity_radius_m: float = DEFAULT_VALIDITY_RADIUS_M
+    time_to_live_s: float = DEFAULT_TTL_S
+
+    def __post_init__(self):
+        for name, shape in (("x0_m", (3,)), ("v0_m_s", (3,)), ("f0_n", (3,)), ("normal", (3,)),
+                            ("stiffness_n_per_m", (3, 3)), ("damping_n_s_per_m", (3, 3))):  # fmt: skip
+            object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=float).reshape(shape))
+
+    @property
+    def finite(self) -> bool:
+        """True if every number is finite and the radius and time-to-live are >= 0."""
+        arrays = (self.x0_m, self.v0_m_s, self.f0_n, self.stiffness_n_per_m, self.damping_n_s_per_m, self.normal)
+        return (
+            all(bool(np.isfinite(a).all()) for a in arrays)
+            and math.isfinite(self.validity_radius_m) and self.validity_radius_m >= 0
+            and math.isfinite(self.time_to_live_s) and self.time_to_live_s >= 0
+        )  # fmt: skip
+
+
+def fill_contact_model(msg, m: LocalModel):
+    """Fill a ``ContactModel`` message the caller owns (preallocated on the haptic path)."""
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(m.stamp_ns), 1_000_000_000)
+    msg.header.frame_id = m.frame_id
+    msg.sequence = int(m.sequence)
+    msg.x0_m[:] = m.x0_m
+    msg.v0_m_s[:] = m.v0_m_s
+    msg.f0_n[:] = m.f0_n
+    msg.stiffness_n_per_m[:] = m.stiffness_n_per_m.ravel()
+    msg.damping_n_s_per_m[:] = m.damping_n_s_per_m.ravel()
+    msg.normal[:] = m.normal
+    msg.validity_radius_m = float(m.validity_radius_m)
+    msg.time_to_live_s = float(m.time_to_live_s)
+    return msg
+
+
+def read_contact_model(msg) -> LocalModel:
+    """``ContactModel`` message -> :class:`LocalModel` (copies the arrays)."""
+    return LocalModel(
+        sequence=int(msg.sequence),
+        stamp_ns=int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec),
+        frame_id=msg.header.frame_id,
+        x0_m=np.array(msg.x0_m, dtype=float),
+        v0_m_s=np.array(msg.v0_m_s, dtype=float),
+        f0_n=np.array(msg.f0_n, dtype=float),
+        stiffness_n_per_m=np.array(msg.stiffness_n_per_m, dtype=float).reshape(3, 3),
+        damping_n_s_per_m=np.array(msg.damping_n_s_per_m, dtype=float).reshape(3, 3),
+        normal=np.array(msg.normal, dtype=float),
+        validity_radius_m=float(msg.validity_radius_m),
+        time_to_live_s=float(msg.time_to_live_s),
+    )
+
+
+def fill_contact_model_from_tick(
+    msg, result, t_ns: int, frame: str, ttl_s: float = DEFAULT_TTL_S, radius_m: float = DEFAULT_VALIDITY_RADIUS_M
+):
+    """``tool/contact_model`` from a haptic tick's result (``skin_sim_node.session.TickResult``, read by attribute).
+
+    ``f0`` is the published force (after the session's clamp, rate bound and watchdog); ``K``, ``D`` and the
+    normal are the model's tangent (:class:`skin_sim_node.model.contact.ContactTangent`). A stale tick (no
+    valid tool input; the session reports the tool lifted 1 m away) sends a zero model valid anywhere
+    (:data:`STALE_RADIUS_M`): the node says "no force" and the bridge renders that, fresh, rather than fading.
+    """
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
+    msg.header.frame_id = frame
+    msg.sequence = int(result.seq)
+    tg = result.tangent
+    msg.x0_m[:] = result.x0_m
+    msg.v0_m_s[:] = result.velocity_m_s
+    msg.f0_n[:] = 0.0 if result.stale else result.force_n
+    if result.stale:
+        msg.stiffness_n_per_m[:] = 0.0
+        msg.damping_n_s_per_m[:] = 0.0
+    else:
+        msg.stiffness_n_per_m[:] = np.asarray(tg.stiffness_n_per_m).ravel()
+        msg.damping_n_s_per_m[:] = np.asarray(tg.damping_n_s_per_m).ravel()
+    msg.normal[:] = tg.normal
+    msg.validity_radius_m = float(STALE_RADIUS_M if result.stale else radius_m)
+    msg.time_to_live_s = float(ttl_s)
+    return msg

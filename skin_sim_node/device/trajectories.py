@@ -1,0 +1,189 @@
+"""Scripted, deterministic tool trajectories. Pure: no ROS.
+
+The mock tool (:mod:`skin_sim_node.device.mock_tool`) publishes them; the simulated device
+uses the same paths as its hand path.
+
+Every trajectory is a chain of cosine ramps ``p(s) = a + (b - a) (1 - cos(pi s)) / 2``
+(``s = t / T``) with the exact velocity ``(b - a) pi / (2 T) sin(pi s)``: position and
+velocity are continuous, and every segment starts and ends at rest. All positions are
+in the tissue frame (sheet centred on the origin, z up, rest surface z = 0; the tool
+presses for z < 0). Each starts and ends lifted at ``z = LIFT_Z_M``.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass, field
+
+LIFT_Z_M = 0.005
+"""Lifted tool height (m): 5 mm clears the rest surface by far more than any relaxing bulge."""
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A piecewise cosine-ramp path.
+
+    Parameters
+    ----------
+    name : str
+    start_m : tuple of float
+        Start position (m, tissue frame).
+    segments : tuple of (duration_s, target_m)
+        Each segment ramps from the previous point to ``target_m`` in ``duration_s``;
+        ``target_m`` equal to the previous point is a hold.
+    description : str
+    """
+
+    name: str
+    start_m: Vec3
+    segments: tuple[tuple[float, Vec3], ...]
+    description: str = ""
+    _t0: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    _p0: tuple[Vec3, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        t0, p0, t, p = [], [], 0.0, tuple(float(c) for c in self.start_m)
+        for dur, target in self.segments:
+            if not dur > 0:
+                raise ValueError(f"{self.name}: segment durations must be > 0, got {dur}")
+            t0.append(t)
+            p0.append(p)
+            t += float(dur)
+            p = tuple(float(c) for c in target)
+        object.__setattr__(self, "_t0", tuple(t0))
+        object.__setattr__(self, "_p0", tuple(p0))
+
+    @property
+    def duration_s(self) -> float:
+        """Total duration (s)."""
+        return sum(d for d, _ in self.segments)
+
+    @property
+    def end_m(self) -> Vec3:
+        return tuple(float(c) for c in self.segments[-1][1]) if self.segments else tuple(self.start_m)
+
+    def sample(self, t: float) -> tuple[Vec3, Vec3]:
+        """Position (m) and exact velocity (m/s) at time ``t`` (s); held at the ends outside ``[0, duration_s]``."""
+        if t <= 0.0 or not self.segments:
+            return tuple(float(c) for c in self.start_m), (0.0, 0.0, 0.0)
+        if t >= self.duration_s:
+            return self.end_m, (0.0, 0.0, 0.0)
+        i = bisect.bisect_right(self._t0, t) - 1
+        dur, b = self.segments[i]
+        a = self._p0[i]
+        s = (t - self._t0[i]) / dur
+        w = 0.5 * (1.0 - math.cos(math.pi * s))
+        dw = 0.5 * math.pi / dur * math.sin(math.pi * s)
+        pos = tuple(ai + (bi - ai) * w for ai, bi in zip(a, b))
+        vel = tuple((bi - ai) * dw for ai, bi in zip(a, b))
+        return pos, vel
+
+
+def _press(name: str, x_m: float, depth_m: float, press_s: float, hold_s: float, release_s: float, lifted_s: float, desc: str):
+    up = (x_m, 0.0, LIFT_Z_M)
+    down = (x_m, 0.0, -depth_m)
+    return Trajectory(name, up, ((press_s, down), (hold_s, down), (release_s, up), (lifted_s, up)), desc)
+
+
+def _build() -> dict[str, Trajectory]:
+    lift = LIFT_Z_M
+    trajs = [
+        _press(
+            "press_hold_release", 0.0, 2.5e-3, 0.5, 1.0, 0.3, 0.5,
+            "centre: press to 2.5 mm over 0.5 s, hold 1 s, release over 0.3 s, stay lifted 0.5 s",
+        ),
+        _press(
+            "light_touch", 0.0, 20e-6, 0.5, 1.0, 0.3, 0.5,
+            "centre: press to 20 um (epidermis only: the epidermis/dermis interface peaks at 35 um), hold 1 s, "
+            "release over 0.3 s, stay lifted 0.5 s",
+        ),
+        _press(
+            "press_all_layers", 0.0, 4.0e-3, 0.8, 1.0, 0.5, 0.5,
+            "centre: press to 4.0 mm (below the dermis/fat interface, 1.275 +- 0.5 mm: all three layers)",
+        ),
+        Trajectory(
+            "drag",
+            (-0.02, 0.0, lift),
+            (
+                (0.5, (-0.02, 0.0, -1.5e-3)),
+                (0.2, (-0.02, 0.0, -1.5e-3)),
+                (2.0, (0.02, 0.0, -1.5e-3)),
+                (0.2, (0.02, 0.0, -1.5e-3)),
+                (0.3, (0.02, 0.0, lift)),
+                (0.3, (0.02, 0.0, lift)),
+            ),
+            "press to 1.5 mm at x = -20 mm, drag along x to +20 mm over 2 s across the egg-carton "
+            "peaks (x = 0, +-5 mm, ...) and valleys (x = +-2.5 mm, ...) of the dermis/fat interface, lift",
+        ),
+        _press(
+            "edge_press", 0.05, 2.0e-3, 0.5, 1.0, 0.3, 0.5,
+            "press to 2 mm at x = 50 mm, 10 mm from the +x sheet edge",
+        ),
+        Trajectory(
+            "fast_stab",
+            (0.0, 0.0, lift),
+            (
+                (0.3, (0.0, 0.0, 0.0)),
+                (0.1, (0.0, 0.0, 0.0)),
+                (0.02, (0.0, 0.0, -3.0e-3)),
+                (0.02, (0.0, 0.0, 0.0)),
+                (0.2, (0.0, 0.0, lift)),
+                (0.3, (0.0, 0.0, lift)),
+            ),
+            "approach the surface, stab from the surface to 3 mm in 20 ms and out in 20 ms, lift",
+        ),
+        Trajectory(
+            "lift_during_relax",
+            (0.0, 0.0, lift),
+            (
+                (0.5, (0.0, 0.0, -3.0e-3)),
+                (0.3, (0.0, 0.0, -3.0e-3)),
+                (0.015, (0.0, 0.0, 0.5e-3)),
+                (0.015, (0.0, 0.0, -1.0e-3)),
+                (0.3, (0.0, 0.0, -1.0e-3)),
+                (0.3, (0.0, 0.0, lift)),
+                (0.3, (0.0, 0.0, lift)),
+            ),
+            "press 3 mm, release to +0.5 mm in 15 ms, come back down to 1 mm 30 ms after the release "
+            "started (the tissue is still relaxing: fat release time constant is tens of ms), hold, lift",
+        ),
+    ]  # fmt: skip
+    return {t.name: t for t in trajs}
+
+
+TRAJECTORIES: dict[str, Trajectory] = _build()
+"""The scripted trajectories by name."""
+
+
+class ScriptClock:
+    """Maps loop time to trajectory time: start delay, repeats, then a lifted tail.
+
+    Parameters
+    ----------
+    traj : Trajectory
+    start_delay_s : float
+        Time holding the start pose before the first run (lets DDS discovery finish).
+    repeat : int
+        Number of runs; ``<= 0`` loops forever.
+    tail_s : float
+        Time holding the end pose after the last run before :attr:`done`.
+    """
+
+    def __init__(self, traj: Trajectory, start_delay_s: float, repeat: int, tail_s: float):
+        self.traj, self.start_delay_s, self.repeat, self.tail_s = traj, start_delay_s, repeat, tail_s
+
+    def trajectory_time(self, t_s: float) -> float:
+        """Trajectory time (s) at loop time ``t_s``."""
+        t = t_s - self.start_delay_s
+        d = self.traj.duration_s
+        if t <= 0.0:
+            return 0.0
+        if self.repeat <= 0:
+            return math.fmod(t, d)
+        return t - d * (self.repeat - 1) if t >= d * self.repeat else math.fmod(t, d)
+
+    def done(self, t_s: float) -> bool:
+        return self.repeat > 0 and t_s >= self.start_delay_s + self.traj.duration_s * self.repeat + self.tail_s

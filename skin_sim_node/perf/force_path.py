@@ -1,0 +1,330 @@
+"""``skin-sim force-path``: the server rate as a level-of-detail lever (issue 12), offline (no DDS).
+
+For each scene (press, drag, release) and server rate (1000, 500, 250, 100 Hz by default):
+
+- the *device* ticks at 1 kHz along the scene's path (prescribed motion, exact velocity);
+- the *server* (a :class:`SkinModel` stepped at the server rate) answers the newest device pose with
+  its force and local tangent (:meth:`SkinModel.tangent`), packed as a
+  :class:`msgs_schema.contact_model.LocalModel`, which reaches the bridge ``--latency-ms`` later;
+- the *bridge* renders every device tick, with :class:`skin_sim_node.device.render.ContactRenderer`
+  and, on the same models, with the hold-last-force baseline (:class:`HoldLastRenderer`);
+- the *reference* is the full model stepped at 1 kHz at the device pose.
+
+It prints, per scene and rate, the p99 and maximum of ``|F_rendered - F_reference|`` as a percentage
+of the scene's peak reference force, for both bridges from the same run, and draws
+``docs/figures/force_path_rate.png``. Takes about 10-30 s (numba warm-up included).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from msgs_schema.contact_model import DEFAULT_TTL_S, DEFAULT_VALIDITY_RADIUS_M, LocalModel
+
+from ..device.render import ContactRenderer, HoldLastRenderer
+from ..device.trajectories import TRAJECTORIES
+from ..model import SkinModel, load_tissue_config
+from ..model.skin_model import warm_up
+from ..scenes import DEFAULT_PARAMS, REPO
+
+DEVICE_HZ = 1000.0
+RATES_HZ = (1000.0, 500.0, 250.0, 100.0)
+
+
+@dataclass(frozen=True)
+class ForceScene:
+    """A hand path and the window (s) in which the error is counted (the path runs from 0 for the state)."""
+
+    name: str
+    path: str
+    window_s: tuple[float, float]
+    description: str
+
+
+SCENES = (
+    ForceScene("press", "press_all_layers", (0.0, 1.8), "press to 4 mm in 0.8 s and hold 1 s (all three layers)"),
+    ForceScene("drag", "drag", (0.0, 3.5), "press to 1.5 mm, drag 40 mm in 2 s across the egg-carton interface, lift"),
+    ForceScene("release", "press_all_layers", (1.7, 2.8), "from the 4 mm hold, release over 0.5 s, then lifted"),
+)
+
+
+def tangent_model(model: SkinModel, seq: int, stamp_ns: int, x, v) -> LocalModel:
+    """The server's answer to a pose, as the node publishes it."""
+    t = model.tangent()
+    return LocalModel(
+        seq,
+        stamp_ns,
+        "tissue",
+        x,
+        v,
+        t.force_n,
+        t.stiffness_n_per_m,
+        t.damping_n_s_per_m,
+        t.normal,
+        DEFAULT_VALIDITY_RADIUS_M,
+        DEFAULT_TTL_S,
+    )
+
+
+def run_scene(cfg, scene: ForceScene, rate_hz: float, latency_ticks: int, renderer_kw: dict) -> dict:
+    """Error series of both bridges against the 1 kHz reference for one scene and server rate."""
+    traj = TRAJECTORIES[scene.path]
+    dt = 1.0 / DEVICE_HZ
+    n = int(round(min(scene.window_s[1], traj.duration_s) / dt)) + 1
+    ref, srv = SkinModel(cfg), SkinModel(cfg)
+    render, hold = ContactRenderer(**renderer_kw), HoldLastRenderer()
+    every = DEVICE_HZ / rate_hz
+    pending: list[tuple[int, LocalModel]] = []
+    next_srv, last_srv_t, seq = 0.0, None, 0
+    f_ref = np.zeros((n, 3))
+    f_ren = np.zeros((n, 3))
+    f_hold = np.zeros((n, 3))
+    for k in range(n):
+        t = k * dt
+        x, v = traj.sample(t)
+        ref.step(x, v, dt if k else 0.0)
+        f_ref[k] = ref.tangent().force_n
+        if k >= next_srv - 1e-9:  # the server's tick: answers the newest device pose
+            srv.step(x, v, t - last_srv_t if last_srv_t is not None else 0.0)
+            last_srv_t = t
+            seq += 1
+            pending.append((k + latency_ticks, tangent_model(srv, seq, int(t * 1e9), x, v)))
+            next_srv += every
+        while pending and pending[0][0] <= k:
+            _, m = pending.pop(0)
+            render.set_model(m, t)
+            hold.set_model(m, t)
+        f_ren[k] = render.render(t, x, v)
+        f_hold[k] = hold.render(t, x, v)
+    lo = int(round(scene.window_s[0] / dt))
+    sl = slice(lo, n)
+    peak = float(np.linalg.norm(f_ref[sl], axis=1).max())
+    out = {"peak_n": peak, "t_s": np.arange(n)[sl] * dt, "f_ref": f_ref[sl], "f_render": f_ren[sl], "f_hold": f_hold[sl]}
+    for key, f in (("render", f_ren), ("hold", f_hold)):
+        err = np.linalg.norm(f[sl] - f_ref[sl], axis=1)
+        out[f"{key}_p99_pct"] = 100.0 * float(np.percentile(err, 99)) / peak if peak > 0 else float("nan")
+        out[f"{key}_max_pct"] = 100.0 * float(err.max()) / peak if peak > 0 else float("nan")
+    return out
+
+
+def chart(results: dict, rates, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw={"width_ratios": [1.1, 1]})
+    ax = axes[0]
+    colours = {"press": "tab:blue", "drag": "tab:orange", "release": "tab:green"}
+    for name, by_rate in results.items():
+        c = colours.get(name, "k")
+        ax.plot(
+            rates, [max(by_rate[r]["render_p99_pct"], 0.01) for r in rates], "o-", color=c, label=f"{name}: local model rendered"
+        )
+        ax.plot(
+            rates,
+            [max(by_rate[r]["hold_p99_pct"], 0.01) for r in rates],
+            "s--",
+            color=c,
+            alpha=0.7,
+            label=f"{name}: hold last force",
+        )
+    ax.axhline(5.0, color="grey", lw=0.8, ls=":")
+    ax.text(rates[-1], 5.3, "5 % of peak", color="grey", fontsize=8)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xticks(rates, [f"{r:.0f}" for r in rates])
+    ax.set_xlabel("server (model) rate, Hz; device renders at 1 kHz")
+    ax.set_ylabel("p99 |F_device - F_full model| (% of scene peak; floor 0.01)")
+    ax.set_title("Force error at the device vs server rate")
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    ax = axes[1]
+    r250 = results["drag"][250.0] if 250.0 in results.get("drag", {}) else next(iter(results["drag"].values()))
+    ax.plot(r250["t_s"], r250["f_ref"][:, 2], "k-", lw=1.2, label="full model at 1 kHz (reference)")
+    ax.plot(r250["t_s"], r250["f_render"][:, 2], "-", color="tab:orange", lw=0.9, label="rendered local model")
+    ax.plot(r250["t_s"], r250["f_hold"][:, 2], "-", color="tab:purple", lw=0.7, alpha=0.8, label="hold last force")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("normal force F_z (N)")
+    ax.set_title("drag scene, server at 250 Hz")
+    ax.legend(fontsize=7)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="skin-sim force-path", description=__doc__.splitlines()[0])
+    ap.add_argument("--rates", type=float, nargs="+", default=list(RATES_HZ), help="server rates (Hz)")
+    ap.add_argument("--latency-ms", type=float, default=1.0, help="pose-to-model delivery delay, whole device ticks (default 1)")
+    ap.add_argument("--device-limits", action="store_true", help="apply the Touch's force and stiffness caps (default: off)")
+    ap.add_argument("--chart", type=Path, default=REPO / "docs" / "figures" / "force_path_rate.png")
+    ap.add_argument("--no-chart", action="store_true")
+    ap.add_argument("--msg-cost", action="store_true", help="measure the contact model message types instead (about 10 s)")
+    args = ap.parse_args(argv)
+    if args.msg_cost:
+        print("skin-sim force-path --msg-cost: contact model message candidates ...", flush=True)
+        print_msg_cost(5.0)
+        return 0
+    print("skin-sim force-path: offline server-rate lever (press, drag, release; device at 1 kHz) ...", flush=True)
+    cfg = load_tissue_config(DEFAULT_PARAMS)
+    t0 = time.perf_counter()
+    warm_up(cfg)
+    print(f"  numba warm-up {time.perf_counter() - t0:.1f} s", flush=True)
+    kw = {} if args.device_limits else {"max_force_n": math.inf, "max_stiffness_n_per_m": math.inf}
+    rates = sorted(args.rates, reverse=True)
+    latency = max(int(round(args.latency_ms)), 0)
+    limits = "on (Touch: 3.3 N, 1.02 N/mm)" if args.device_limits else "off"
+    print(
+        f"  device limits {limits}; model delivered {latency} tick(s) after the pose it answers; "
+        "error = |F_device - F_full model at 1 kHz|, % of the scene's peak reference force"
+    )
+    print(f"  {'scene':8s} {'rate Hz':>7s} | {'peak N':>6s} | rendered p99 / max % | hold-last p99 / max % | ratio p99")
+    results: dict[str, dict[float, dict]] = {}
+    for sc in SCENES:
+        for r in rates:
+            res = run_scene(cfg, sc, r, latency, kw)
+            results.setdefault(sc.name, {})[r] = res
+            ratio = res["hold_p99_pct"] / max(res["render_p99_pct"], 0.01)  # floor: 0.01 % of peak
+            bound = ">" if res["render_p99_pct"] < 0.01 else ""
+            ren = f"{res['render_p99_pct']:8.2f} / {res['render_max_pct']:6.2f}"
+            hold = f"{res['hold_p99_pct']:9.2f} / {res['hold_max_pct']:6.2f}"
+            print(
+                f"  {sc.name:8s} {r:7.0f} | {res['peak_n']:6.3f} | {ren}   | {hold}     | hold/rendered {bound}{ratio:.1f}x",
+                flush=True,
+            )
+    if not args.no_chart:
+        print(f"  chart: {chart(results, rates, args.chart)}")
+    return 0
+
+
+# --- message type cost (issue 12: custom interface package vs a documented layout in standard messages) -------
+def _layout_values(m: LocalModel) -> list[float]:
+    """The 31 numbers of a contact model in the standard-message layout that was measured against the package."""
+    return [float(m.sequence), *m.x0_m, *m.v0_m_s, *m.f0_n, *m.stiffness_n_per_m.ravel(), *m.damping_n_s_per_m.ravel(),
+            *m.normal, m.validity_radius_m, m.time_to_live_s]  # fmt: skip
+
+
+def msg_cost(duration_s: float = 3.0, rate_hz: float = 1000.0) -> dict:
+    """Fill + serialize, and fill + publish to a matched reader, per message, for each candidate type at ``rate_hz``.
+
+    Candidates: ``skin_sim_msgs/ContactModel`` (the package), ``sensor_msgs/JointState`` with the 31 numbers in
+    ``position`` (stamp and frame in the header; names empty, or 31 labels), ``std_msgs/Float64MultiArray`` (no
+    header) and, as the same-run baseline, ``geometry_msgs/WrenchStamped`` (the force alone, ``tool/wrench``).
+    Returns {name: (fill+serialize us p50, p99, fill+publish us p50, p99, bytes)}.
+    """
+    import threading
+
+    import rclpy
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+    from skin_sim_msgs.msg import ContactModel
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+    from msgs_schema.contact_model import fill_contact_model
+    from msgs_schema.convert import fill_wrench, set_stamp
+    from msgs_schema.qos import PROFILES
+
+    from ..ros_util import sleep_until_ns
+
+    rng = np.random.default_rng(0)
+    lm = LocalModel(1, 0, "tissue", rng.normal(size=3), rng.normal(size=3), rng.normal(size=3), rng.normal(size=(3, 3)),
+                    rng.normal(size=(3, 3)), (0, 0, 1), DEFAULT_VALIDITY_RADIUS_M, DEFAULT_TTL_S)  # fmt: skip
+    labels = [f"v{i}" for i in range(31)]
+
+    def fill_js(msg, t_ns, names):
+        set_stamp(msg.header, t_ns)
+        msg.header.frame_id = "tissue"
+        if names and len(msg.name) != 31:
+            msg.name = labels
+        msg.position = _layout_values(lm)
+        return msg
+
+    def fill_fa(msg, t_ns):
+        if not msg.layout.dim:
+            msg.layout.dim = [MultiArrayDimension(label="skin_sim_contact_model_v1", size=31, stride=31)]
+        msg.data = _layout_values(lm)
+        return msg
+
+    kinds = {
+        "WrenchStamped (force only, baseline)": (WrenchStamped, lambda m, t: fill_wrench(m, t, "tissue", lm.f0_n)),
+        "skin_sim_msgs/ContactModel": (ContactModel, lambda m, t: fill_contact_model(m, lm)),
+        "JointState layout, no names": (JointState, lambda m, t: fill_js(m, t, False)),
+        "JointState layout, 31 names": (JointState, lambda m, t: fill_js(m, t, True)),
+        "Float64MultiArray layout (no header)": (Float64MultiArray, fill_fa),
+    }
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    pub_node = rclpy.create_node(f"msg_cost_pub_{os.getpid()}", context=ctx)
+    sub_node = rclpy.create_node(f"msg_cost_sub_{os.getpid()}", context=ctx)
+    received = dict.fromkeys(kinds, 0)
+    pubs = {}
+    for i, (name, (cls, _)) in enumerate(kinds.items()):
+        topic = f"msg_cost/t{i}"
+        pubs[name] = pub_node.create_publisher(cls, topic, PROFILES["haptic"])
+        sub_node.create_subscription(cls, topic, lambda _m, n=name: received.__setitem__(n, received[n] + 1), PROFILES["haptic"])
+    ex = rclpy.executors.SingleThreadedExecutor(context=ctx)
+    ex.add_node(sub_node)
+    stop = threading.Event()
+    th = threading.Thread(target=lambda: [ex.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)], daemon=True)
+    th.start()
+    time.sleep(1.0)  # discovery
+    msgs = {name: cls() for name, (cls, _) in kinds.items()}
+    ser = {name: [] for name in kinds}
+    pub = {name: [] for name in kinds}
+    size = {}
+    n = int(duration_s * rate_hz)
+    period = int(1e9 / rate_hz)
+    nxt = time.perf_counter_ns()
+    order = list(kinds.items())
+    for k in range(n):
+        nxt += period
+        sleep_until_ns(nxt)
+        j = k % len(order)
+        for name, (_, fill) in order[j:] + order[:j]:  # interleaved, first place rotating: the same machine state for all
+            t0 = time.perf_counter_ns()
+            b = serialize_message(fill(msgs[name], t0))
+            t1 = time.perf_counter_ns()
+            pubs[name].publish(fill(msgs[name], t1))
+            t2 = time.perf_counter_ns()
+            ser[name].append(t1 - t0)
+            pub[name].append(t2 - t1)
+            size[name] = len(b)
+    time.sleep(0.3)
+    stop.set()
+    th.join(timeout=2)
+    out = {}
+    for name in kinds:
+        s, p = np.array(ser[name]) * 1e-3, np.array(pub[name]) * 1e-3
+        out[name] = (np.percentile(s, 50), np.percentile(s, 99), np.percentile(p, 50), np.percentile(p, 99), size[name],
+                     received[name] / n)  # fmt: skip
+    pub_node.destroy_node()
+    sub_node.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+    return out
+
+
+def print_msg_cost(duration_s: float) -> None:
+    print(f"  message cost at 1 kHz for {duration_s:.0f} s, one matched reader in this process, types interleaved "
+          "(shared machine: read the ratios to the WrenchStamped baseline of the same run)")  # fmt: skip
+    res = msg_cost(duration_s)
+    base = res["WrenchStamped (force only, baseline)"]
+    print(f"  {'type':40s} | fill+serialize us p50 / p99 | fill+publish us p50 / p99 (x baseline p50) | bytes | received")
+    for name, (s50, s99, p50, p99, nbytes, rx) in res.items():
+        print(f"  {name:40s} | {s50:7.1f} / {s99:7.1f}            | {p50:7.1f} / {p99:7.1f} ({p50 / base[2]:.2f}x)"
+              f"                | {nbytes:5d} | {100 * rx:.1f} %")  # fmt: skip
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

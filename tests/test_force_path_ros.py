@@ -1,0 +1,149 @@
+"""The device force path over real DDS (issue 12, issue 15 items 5 and 9): real processes, the test as observer.
+
+- killed node: the bridge's force fades to zero within TTL + fade and never steps;
+- Ctrl-C on the bridge and on the echo's timer: no "Failed to publish" noise;
+- the simulated device alone says how to connect it.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+
+from geometry_msgs.msg import WrenchStamped  # noqa: E402
+
+from msgs_schema.contact_model import DEFAULT_TTL_S  # noqa: E402
+from msgs_schema.convert import read_wrench  # noqa: E402
+from msgs_schema.qos import PROFILES  # noqa: E402
+from skin_sim_node.device.render import FADE_S  # noqa: E402
+from skin_sim_node.scenes import Scene  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
+NOISE = ("Failed to publish", "Traceback", "context is invalid")
+
+
+@pytest.fixture
+def scene(tmp_path):
+    with Scene(tmp_path / "logs", domain_id=int(os.environ["ROS_DOMAIN_ID"])) as sc:
+        yield sc
+
+
+class CommandObserver:
+    """Records the bridge's force commands (device/servo_cf): (rx_ns, stamp_ns, fx, fy, fz)."""
+
+    def __init__(self):
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx)
+        self.node = rclpy.create_node(f"force_observer_{os.getpid()}", context=self.ctx)
+        self.rows: list[tuple] = []
+        self.node.create_subscription(WrenchStamped, "device/servo_cf", self._on, PROFILES["driver"])
+        self.ex = rclpy.executors.SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        while not self._stop.is_set():
+            self.ex.spin_once(timeout_sec=0.05)
+
+    def _on(self, msg):
+        t, _, f = read_wrench(msg)
+        self.rows.append((time.monotonic_ns(), t, *f))
+
+    def array(self) -> np.ndarray:
+        return np.array(list(self.rows), dtype=float).reshape(-1, 5)
+
+    def close(self):
+        self._stop.set()
+        self.thread.join(timeout=2)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+def test_killed_node_force_fades_within_ttl_plus_fade_never_steps(scene):
+    obs = CommandObserver()
+    try:
+        node = scene.node()
+        scene.wait_for_log(node, "live:", timeout_s=180)
+        scene.start("bridge", "bridge")
+        scene.start("device", "device", "--hand-path", "press_hold_release", "--loop", "--start-delay-s", "2.0")
+        # wait for the first hold (2.5 mm, 1 s): a steady force for 0.3 s
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            a = obs.array()
+            recent = a[a[:, 0] > time.monotonic_ns() - 0.3e9]
+            if len(recent) > 100 and recent[:, 4].min() > 0.005 and np.ptp(recent[:, 4]) < 0.2 * recent[:, 4].mean():
+                break
+            time.sleep(0.05)
+        else:
+            pytest.fail("no steady hold force at the device: " + node.log()[-2000:])
+        t_kill = time.monotonic_ns()
+        node.popen.send_signal(signal.SIGKILL)
+        time.sleep(0.5)
+    finally:
+        obs.close()
+    a = obs.array()
+    before = a[a[:, 0] < t_kill]
+    after = a[a[:, 0] >= t_kill]
+    f_kill = float(np.linalg.norm(before[-1, 2:]))
+    mags = np.linalg.norm(after[:, 2:], axis=1)
+    assert f_kill > 0.005 and len(after) > 200, "the device kept ticking after the kill"
+    # zero within TTL + fade of the kill (plus 30 ms of DDS and scheduling allowance)
+    t_zero = after[np.argmax(mags == 0.0), 0] if np.any(mags == 0.0) else np.inf
+    fade_ms = (t_zero - t_kill) * 1e-6
+    trace = [(round((t - t_kill) * 1e-6, 1), round(float(f), 4)) for t, f in zip(after[::10, 0], mags[::10])]
+    assert fade_ms <= (DEFAULT_TTL_S + FADE_S) * 1e3 + 30, f"force not zero {fade_ms:.1f} ms after the kill: {trace}"
+    assert np.all(mags[after[:, 0] >= t_zero] == 0.0)
+    # never a step: each command differs from the one before by at most the fade's slope over the device time
+    # between them (their stamps: a late tick covers more of the fade), plus a tenth of the force for the hold's jitter
+    seq = np.concatenate([before[-50:], after])
+    m = np.linalg.norm(seq[:, 2:], axis=1)
+    steps = np.abs(np.diff(m))
+    dt_s = np.maximum(np.diff(seq[:, 1]) * 1e-9, 1e-3)
+    allowed = f_kill * (1.5 * dt_s / FADE_S + 0.1)
+    worst = int(np.argmax(steps - allowed))
+    ctx = [(round((seq[i, 0] - t_kill) * 1e-6, 1), round(float(m[i]), 4)) for i in range(max(worst - 3, 0), worst + 4)]
+    assert np.all(steps <= allowed), (
+        f"step of {steps[worst]:.4f} N over {dt_s[worst] * 1e3:.1f} ms from {f_kill:.4f} N: (ms after kill, N) {ctx}"
+    )
+    t_high = seq[np.flatnonzero(m >= 0.95 * f_kill)[-1], 0]
+    ramp_ms = (t_zero - t_high) * 1e-6
+    assert ramp_ms >= 0.6 * FADE_S * 1e3, f"the force came down in {ramp_ms:.1f} ms"
+    print(
+        f"killed node: force {f_kill:.4f} N at the kill, zero {fade_ms:.1f} ms after it (TTL {DEFAULT_TTL_S * 1e3:.0f} ms "
+        f"+ fade {FADE_S * 1e3:.0f} ms), ramp {ramp_ms:.1f} ms, largest step {steps.max() / f_kill:.3f} of the force "
+        f"(over {dt_s[int(np.argmax(steps))] * 1e3:.1f} ms of device time)"
+    )
+
+
+@pytest.mark.parametrize(
+    ("name", "command", "ready"),
+    [
+        ("bridge", ("bridge",), "bridge crtk:"),
+        ("echo_timer", ("echo", "--ticker-hz", "1000"), "live: echo"),
+        ("echo_thread", ("echo", "--ticker-hz", "1000", "--ticker-kind", "thread"), "live: echo"),
+    ],
+)
+def test_ctrl_c_is_quiet(scene, name, command, ready):
+    """SIGINT a real process (what Ctrl-C sends): exit 0, no publish-after-shutdown noise on stdout/stderr."""
+    proc = scene.start(name, *command)
+    scene.wait_for_log(proc, ready, timeout_s=60)
+    time.sleep(1.0)
+    proc.popen.send_signal(signal.SIGINT)
+    assert proc.popen.wait(timeout=10) == 0
+    log = proc.log()
+    assert not [n for n in NOISE if n in log], log[-3000:]
+
+
+def test_device_alone_says_how_to_connect_it(scene):
+    dev = scene.start("device", "device", "--hand-path", "light_touch", "--start-delay-s", "0.2")
+    scene.wait_for_log(dev, "no force commands received: is the bridge running?", timeout_s=30)
+    assert "three terminals" in dev.log()
