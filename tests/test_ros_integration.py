@@ -14,6 +14,7 @@ rclpy = pytest.importorskip("rclpy")
 from geometry_msgs.msg import PoseStamped, TwistStamped  # noqa: E402
 
 from msgs_schema import convert as cv  # noqa: E402
+from msgs_schema.parameters import SPEC_BY_NAME  # noqa: E402
 from skin_sim_node.model import SkinModel, load_tissue_config  # noqa: E402
 from skin_sim_node.ros_util import PeriodicLoop  # noqa: E402
 from skin_sim_node.scenes import DEFAULT_PARAMS, Scene  # noqa: E402
@@ -272,7 +273,8 @@ def test_parameter_change_applied_or_rejected(scene, monitor):
     src.run(0.6)
     f_before = held_force()
     assert f_before > 0.005
-    (r,) = set_params(Parameter("tissue.layers.fat.stiffness_n_per_m", Parameter.Type.DOUBLE, 50.0))
+    fat_k = SPEC_BY_NAME["tissue.layers.fat.stiffness_n_per_m"].default
+    (r,) = set_params(Parameter("tissue.layers.fat.stiffness_n_per_m", Parameter.Type.DOUBLE, 20.0 * fat_k))
     assert r.successful, r.reason
     monitor.wrench.clear()
     src2 = PoseSource(monitor, press_path(2.0e-3, ramp_s=0.2))

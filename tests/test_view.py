@@ -92,7 +92,8 @@ def test_bag_timeline_matches_the_bag_readers(bag):
     assert h["force"][2] == pytest.approx(fz.max())
     assert h["depth_m"] > 0 and h["tool"][2] < 0  # the tool is in the tissue at peak force
     tl = bag.timeline()
-    assert tl["duration_s"] == pytest.approx(bag.duration_s) and max(tl["force_n"]) <= fz.max() + 1e-9
+    assert tl["duration_s"] == pytest.approx(bag.duration_s)
+    assert max(tl["force_n"]) <= fz.max() + 0.5e-6  # the timeline rounds to 1 uN
 
 
 def test_bag_seek_sends_the_grid_at_that_time(bag):
