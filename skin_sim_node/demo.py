@@ -86,7 +86,7 @@ def deepest_figure(cfg, poses: list, layer_heights: list, path: Path, title: str
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle, Patch
+    from matplotlib.patches import Circle, Patch, Rectangle
 
     p = np.array(poses, dtype=float)
     k = int(np.argmin(p[:, 3]))
@@ -114,8 +114,11 @@ def deepest_figure(cfg, poses: list, layer_heights: list, path: Path, title: str
         a1.fill_between(xs * 1e3, below * 1e3, top * 1e3, color=LAYER_COLOURS[i % 3], lw=0)
         a1.plot(xs * 1e3, top * 1e3, "k", lw=0.5)
         handles.append(Patch(color=LAYER_COLOURS[i % 3], label=LAYER_NAMES[i] if i < 3 else f"layer {i}"))
-    a1.add_patch(Circle((tx * 1e3, tz * 1e3 + r_mm), r_mm, color="0.35", alpha=0.85, zorder=5))
-    handles.append(Patch(color="0.35", label=f"tool (r = {r_mm:.1f} mm), tip at z = {tz * 1e3:.2f} mm"))
+    if cfg.tool_shape == "sphere":
+        a1.add_patch(Circle((tx * 1e3, tz * 1e3 + r_mm), r_mm, color="0.35", alpha=0.85, zorder=5))
+    else:  # flat punch: a cylinder of the tool radius, drawn 3 radii tall
+        a1.add_patch(Rectangle((tx * 1e3 - r_mm, tz * 1e3), 2 * r_mm, 3 * r_mm, color="0.35", alpha=0.85, zorder=5))
+    handles.append(Patch(color="0.35", label=f"{cfg.tool_shape} tool (r = {r_mm:.1f} mm), tip at z = {tz * 1e3:.2f} mm"))
     half = max(4 * r_mm, 6.0)
     a1.set_xlim(tx * 1e3 - half, tx * 1e3 + half)
     a1.set_ylim(-cfg.total_thickness_m * 1e3, max(2 * r_mm + 0.5, 1.0))
