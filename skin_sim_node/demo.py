@@ -65,15 +65,15 @@ def summarize(monitor, wall_s: float, poses: list) -> dict:
 
 
 def force_at_deepest(poses: list, wrenches: list, window_ns: int = 20_000_000):
-    """``(depth_m, force_n)``: the largest wrench received within ``window_ns`` after the deepest tool pose.
+    """``(depth_m, force_n)``: the wrench received nearest in time to the deepest tool pose, within ``window_ns``.
 
     ``poses`` are ``(rx_ns, x, y, z)`` and ``wrenches`` ``(rx_ns, stamp_ns, fz)`` as this process received them.
     """
     if not poses or not wrenches:
         return None
     t_deep, _, _, z = min(poses, key=lambda p: p[3])
-    near = [fz for rx, _, fz in wrenches if t_deep <= rx <= t_deep + window_ns]
-    return (-z, max(near)) if near else None
+    rx, _, fz = min(wrenches, key=lambda w: abs(w[0] - t_deep))
+    return (-z, fz) if abs(rx - t_deep) <= window_ns else None
 
 
 def deepest_figure(cfg, poses: list, layer_heights: list, path: Path, title: str) -> tuple[Path, float]:
@@ -209,6 +209,8 @@ def main(argv=None) -> int:
         depth_m, force_n = deep
         verdict = "the run's maximum" if force_n >= 0.99 * s["peak_force_n"] else "NOT the run's maximum"
         print(f"  force at the deepest point ({depth_m * 1e3:.2f} mm): {force_n:.4f} N, {verdict} (1 % tolerance)")
+    else:
+        print("  force at the deepest point: no tool/wrench received within 20 ms of the deepest pose at this observer")
     print(
         f"  node: {s['node_rate_hz']:.0f} haptic ticks/s (node diagnostics achieved_rate_hz: model ticks per second, "
         "median of its 1 s windows with the tool present)"
