@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..scenes import Scene, pick_domain_id
+from .monitor import Monitor
 
 SECTIONS = ("floor", "tickcost", "latency", "jitter", "levers", "startup", "joinstall")
 DEFAULT_SECTIONS = SECTIONS[:-1]  # joinstall is opt-in: its trials measure a rare event
@@ -165,69 +166,16 @@ def diag_counts(diags: list[dict]) -> dict:
     }
 
 
-class StreamObserver:
-    """The benchmark's observer: ``tool/wrench`` and ``diagnostics`` only, in its own rclpy context.
+class StreamObserver(Monitor):
+    """The benchmark's observer: a :class:`skin_sim_node.perf.monitor.Monitor` of ``tool/wrench`` and
+    ``diagnostics`` only, in its own rclpy context.
 
-    Lighter than :class:`skin_sim_node.perf.monitor.Monitor` (no ``contact`` reader): at 4 kHz each
-    reader is 4000 Python callbacks a second in this process, and an observer that cannot keep
-    up would count its own losses as the node's missed ticks. Records as the Monitor does:
-    ``wrench`` (rx_ns, stamp_ns, fz), ``diagnostics`` (rx_ns, {key: value}, level, message).
+    No ``contact`` or image readers: at 4 kHz each reader is 4000 Python callbacks a second in this
+    process, and an observer that cannot keep up would count its own losses as the node's missed ticks.
     """
 
     def __init__(self, name: str, record_depth: int):
-        import rclpy
-
-        from msgs_schema.qos import subscription
-
-        from ..ros_util import make_executor, spin_context
-
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node(name, context=self.context)
-        self.wrench: list[tuple[int, int, float]] = []
-        self.diagnostics: list = []
-        clock = self.node.get_clock()
-        self.now_ns = lambda: clock.now().nanoseconds
-
-        def on_wrench(msg):
-            from msgs_schema import convert as cv
-
-            stamp, _, f = cv.read_wrench(msg)
-            self.wrench.append((self.now_ns(), stamp, f[2]))
-
-        def on_diag(msg):
-            for st in msg.status:
-                self.diagnostics.append((self.now_ns(), {kv.key: kv.value for kv in st.values}, st.level, st.message))
-
-        subscription(self.node, "tool_wrench", on_wrench, depth=record_depth)
-        subscription(self.node, "diagnostics", on_diag)
-        self._executor = make_executor("events", self.context)
-        self._executor.add_node(self.node)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=spin_context, args=(self._executor, self.context, self._stop), daemon=True)
-        self._thread.start()
-
-    def publisher(self, key: str):
-        from msgs_schema.qos import publisher
-
-        return publisher(self.node, key)
-
-    def wait_for(self, predicate, timeout_s: float, what: str) -> None:
-        end = time.monotonic() + timeout_s
-        while not predicate():
-            if time.monotonic() > end:
-                raise TimeoutError(f"observer: {what} not met within {timeout_s} s")
-            time.sleep(0.02)
-
-    def close(self) -> None:
-        import rclpy
-
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        try:
-            self.node.destroy_node()
-        finally:
-            rclpy.try_shutdown(context=self.context)
+        super().__init__(name, images=False, contact=False, record_depth=record_depth)
 
 
 def start_case(scene: Scene, kind: str, rate_hz: float, node_args: tuple[str, ...] = ()):

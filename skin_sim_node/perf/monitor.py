@@ -36,12 +36,15 @@ class Monitor:
         executor: str = "events",
         images: bool = True,
         record_depth: int = RECORD_DEPTH,
+        contact: bool = True,
     ):
         """``record_depth``: reader history of wrench/contact. Deep (default) to record every sample;
-        1 to time arrivals as a device sees them (a stalled observer would timestamp a backlog late)."""
+        1 to time arrivals as a device sees them (a stalled observer would timestamp a backlog late).
+        ``images`` and ``contact`` off: only ``tool/wrench`` and ``diagnostics`` (the benchmarks' observer)."""
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node(name, context=self.context)
+        self._clock = self.node.get_clock()
         self.wrench: list[tuple[int, int, float]] = []
         self.contact: list = []
         self.height_map: list = []
@@ -51,7 +54,8 @@ class Monitor:
         self._lock = threading.Lock()
         # an observer records every sample: a deep reader queue, so its own stalls lose nothing
         subscription(self.node, "tool_wrench", self._on_wrench, depth=record_depth)
-        subscription(self.node, "contact", self._on_contact, depth=record_depth)
+        if contact:
+            subscription(self.node, "contact", self._on_contact, depth=record_depth)
         if images:
             subscription(self.node, "height_map", lambda m: self._on_image(m, self.height_map))
             subscription(self.node, "layer_heights", lambda m: self._on_image(m, self.layer_heights))
@@ -63,7 +67,7 @@ class Monitor:
         self._thread.start()
 
     def _now(self) -> int:
-        return self.node.get_clock().now().nanoseconds
+        return self._clock.now().nanoseconds
 
     def _spin(self) -> None:
         spin_context(self._executor, self.context, self._stop)
