@@ -21,11 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..scenes import Scene
-
-
-def _pcts(a) -> list[float]:
-    a = np.asarray(a, dtype=float)
-    return [float(np.percentile(a, 50)), float(np.percentile(a, 99)), float(a.max())] if a.size else [float("nan")] * 3
+from .bench_node import _pcts
 
 
 def run_device_side(duration_s: float, label: str, log_dir: Path) -> dict:
