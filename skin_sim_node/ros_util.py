@@ -10,6 +10,7 @@ import ctypes
 import ctypes.util
 import gc
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable
@@ -39,6 +40,12 @@ def run_nodes(factories: list[Callable[[], object]], args=None, executor: str = 
     (measured: it busy-loops), so it is driven by ``spin_once(timeout_sec=0.1)``. A node
     may define ``stop()``; it is called before ``destroy_node()``. Returns the exit code.
     """
+    # rclpy's C-level handler shuts the context down on SIGINT, then calls the handler it replaced.
+    # Python's default one raises KeyboardInterrupt wherever the main thread is, at 1 kHz most often
+    # inside a timer callback, where the EventsExecutor logs it through a rosout publisher that is
+    # already gone ("Failed to publish log message to rosout"). A handler that does nothing leaves the
+    # shutdown to rclpy, and the loop below ends on rclpy.ok().
+    signal.signal(signal.SIGINT, lambda *_: None)
     rclpy.init(args=args)
     nodes = []
     code = 0

@@ -330,14 +330,32 @@ def test_modal_integrator_bounded_and_energy_non_increasing_1e5_steps(default_cf
 
 
 # --- over real DDS ------------------------------------------------------------------------------------
+MAX_OVERRUN_SHARE = 0.02
+"""A DDS run counts only if the simulated device kept its 1 kHz servo clock: at most 2 % of its ticks overran
+(a quiet run here: 16-23 of ~5,500). Two busy processes on this 2-core machine made it 7-13 %, and then the
+passivity-controlled loop, which the bridge closes from poses that arrive late or not at all, grew in 3 of 4
+runs: that is a test of the load, not of the loop."""
+
+
+def _over_dds_valid(tmp_path, stabiliser, attempts=3):
+    """:func:`over_dds` until the device's clock held (see :data:`MAX_OVERRUN_SHARE`); each attempt's figures kept."""
+    from skin_sim_node.stability.dds_confirm import over_dds
+
+    tried = []
+    for i in range(attempts):
+        verdict, stats = over_dds(1000.0, 4000.0, stabiliser, tmp_path / f"{stabiliser}{i}")
+        tried.append((verdict, stats))
+        if stats and stats[1] <= MAX_OVERRUN_SHARE * stats[0]:
+            return verdict, stats
+    pytest.fail(f"{stabiliser}: the simulated device overran > {MAX_OVERRUN_SHARE:.0%} of its ticks in {attempts} runs: {tried}")
+
+
 @pytest.mark.ros
 def test_dds_loop_naive_limit_cycles_and_passivity_settles(tmp_path, ros_domain):
     """Node + bridge + simulated Touch at 1 kHz on a 4 N/mm wall: the sweep's two verdicts, over DDS."""
     pytest.importorskip("rclpy")
-    from skin_sim_node.stability.dds_confirm import over_dds
-
-    naive, _ = over_dds(1000.0, 4000.0, "none", tmp_path / "naive")
-    stab, stats = over_dds(1000.0, 4000.0, "passivity", tmp_path / "passivity")
+    naive, _ = _over_dds_valid(tmp_path, "none")
+    stab, stats = _over_dds_valid(tmp_path, "passivity")
     assert not naive.stable and naive.std_late_n > 0.2, naive
     assert stab.stable and stab.std_late_n < 0.02 and stab.mean_late_n > 0.3, (stab, stats)
 

@@ -45,14 +45,8 @@ class EchoNode(Node):
     def _on_tick(self, _now, _elapsed) -> None:
         if not self.context.ok():  # Ctrl-C/SIGTERM: the timer or loop may fire once more; publish nothing
             return
-        try:
-            msg = cv.fill_wrench(self._msg, self.get_clock().now().nanoseconds, "tissue", (0.0, 0.0, 0.0))
-            publish_while_ok(self, self._pub, msg)
-        except KeyboardInterrupt:
-            # Ctrl-C lands in whichever Python code runs, at 1 kHz most often this callback; rclpy's own
-            # handler has already shut the context down, so run_nodes ends its loop. Letting it escape made
-            # the EventsExecutor log it through a rosout publisher that is already gone.
-            return
+        msg = cv.fill_wrench(self._msg, self.get_clock().now().nanoseconds, "tissue", (0.0, 0.0, 0.0))
+        publish_while_ok(self, self._pub, msg)
 
     def _on_pose(self, msg) -> None:
         stamp, frame, _ = cv.read_pose(msg)
