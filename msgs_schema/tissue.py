@@ -183,7 +183,8 @@ def _interface_specs() -> list[ParamSpec]:
 TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
     [
         _s(
-            "form", "layered",
+            "form",
+            "layered",
             "force and engagement model: 'layered' (all layers in series from first contact, strain-stiffening, "
             "series Kelvin-Voigt chain, friction) or 'paper' (Fig 3 engagement, common velocity, eq 9)",
             ("layered", "paper"),
@@ -205,17 +206,24 @@ TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
         _i("modes.n", 15, "modal terms along y (N in eq 2); <= 61, as modes.m", 1, 61),
         _f("tool.radius_m", _TOOL_RADIUS_M, "m", "tool tip radius; the disk load of the indentation shape"),
         _s(
-            "tool.shape", "flat",
+            "tool.shape",
+            "flat",
             "tool tip: 'flat' punch of tool.radius_m, or 'sphere' of that radius (contact radius sqrt(R d); layered form)",
             ("flat", "sphere"),
         ),
         _f(
-            "contact.friction_coefficient", FRICTION_COEFFICIENT, "1",
+            "contact.friction_coefficient",
+            FRICTION_COEFFICIENT,
+            "1",
             "Coulomb friction coefficient of the tool on dry skin (layered form; Derler and Gerhardt 2012: typically 0.5)",
-            0.0, 5.0, False,
+            0.0,
+            5.0,
+            False,
         ),
         _f(
-            "contact.slip_speed_m_s", SLIP_SPEED_M_S, "m/s",
+            "contact.slip_speed_m_s",
+            SLIP_SPEED_M_S,
+            "m/s",
             "viscous regularisation speed of the friction: tangential force mu F v/sqrt(v^2 + v_s^2)",
         ),
     ]

@@ -138,9 +138,7 @@ def test_fast_press_and_retraction_layered_chain_needs_no_bound(default_cfg):
     Dampers x10: with the springs fitted to the neo-Hookean reference every default layer relaxes in b/k ~ 0.5-0.6 ms,
     under one 1 ms tick, so the tissue follows any retraction the session passes and contact never separates; x10
     gives the 5-6 ms of a slower tissue (the pre-fit default had 3.6 ms), which the tool outruns."""
-    slow = default_cfg.replace(
-        **{f"layers.{la.name}.damping_n_s_per_m": 10 * la.damping_n_s_per_m for la in default_cfg.layers}
-    )
+    slow = default_cfg.replace(**{f"layers.{la.name}.damping_n_s_per_m": 10 * la.damping_n_s_per_m for la in default_cfg.layers})
     r = _press_retract_compressions(slow)
     assert CONTACT_SEPARATED in r.events() and REUSS_BOUND not in r.events()
 

@@ -38,8 +38,12 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--attach", action="store_true", help="use an already running node (it needs max_stamp_age_s:=0.0)")
     g.add_argument("--images", action="store_true", help="also record the node's display grids in the live bag")
     g.add_argument("--contact", action="store_true", help="also record tissue/contact in the live bag (more load on 2 cores)")
-    g.add_argument("--force-tol-frac", type=float, default=LIVE.force_rel,
-                   help=f"max |dF| allowed, fraction of peak (default {LIVE.force_rel}, as skin-sim compare)")
+    g.add_argument(
+        "--force-tol-frac",
+        type=float,
+        default=LIVE.force_rel,
+        help=f"max |dF| allowed, fraction of peak (default {LIVE.force_rel}, as skin-sim compare)",
+    )
     g.add_argument("--min-answered", type=float, default=LIVE.min_matched,
                    help=f"min fraction of poses answered (default {LIVE.min_matched}, as skin-sim compare)")  # fmt: skip
     g.add_argument("--timeout-s", type=float, default=180.0, help="node start-up timeout (numba warm-up, discovery)")

@@ -185,8 +185,11 @@ def main(points: int = 40) -> int:
         slope = "" if prev is None else f", slope {(f - prev[1]) / (d - prev[0]) / 1e3:.2f} N/mm"
         print(f"  {d * 1e3:6.3f} mm: {f:9.3f} N{slope}", flush=True)
         prev = (d, f)
-    print("stiffening vs the layered neo-Hookean / linear force ratios of the reference (default moduli; "
-          + ", ".join(f"{r}" for r in FEM_NONLINEAR_RATIO.values()) + " at 1, 2, 3 mm):")
+    print(
+        "stiffening vs the layered neo-Hookean / linear force ratios of the reference (default moduli; "
+        + ", ".join(f"{r}" for r in FEM_NONLINEAR_RATIO.values())
+        + " at 1, 2, 3 mm):"
+    )
     for d, r in FEM_NONLINEAR_RATIO.items():
         print(f"  {d * 1e3:.0f} mm: model {quasi_static_force(cfg, d) / linear_series_force(cfg, d):.3f}, FEM {r}", flush=True)
     n_fit, rms = fit_stiffening(cfg)

@@ -159,8 +159,9 @@ def solve(s3: Setup3D, progress: bool = True, sample_step_m: float = 0.5e-3) -> 
         bar.update()
         bar.set_postfix(depth_mm=f"{d * 1e3:.2f}", force_n=f"{forces[-1]:.3g}")
 
-    iters = march(pb, stops, on_stop, s3.max_depth_m, solver=sparse_solve,
-                  min_step_m=MIN_STEP_FRACTION * s3.max_depth_m / s3.n_steps)
+    iters = march(
+        pb, stops, on_stop, s3.max_depth_m, solver=sparse_solve, min_step_m=MIN_STEP_FRACTION * s3.max_depth_m / s3.n_steps
+    )
     if depths and depths[-1] < s3.max_depth_m - 1e-12:
         tqdm.write(f"neo-Hookean 3D {s3.key()[:8]}: stopped at {depths[-1] * 1e3:.2f} mm (deepest converged load step)")
     bar.close()
