@@ -267,11 +267,12 @@ def run_case(
     return out
 
 
-def run_interleaved(cases: list[tuple[str, tuple[str, ...], dict]], total_s: float, slot_s: float, log_dir: Path) -> list[dict]:
+def run_interleaved(cases: list[tuple], total_s: float, slot_s: float, log_dir: Path) -> list[dict]:
     """Latency of several cases under the same machine load: all run at once, each in its own DDS domain,
     and one 1 kHz pose source feeds them in turn, ``slot_s`` each, for ``total_s`` each in all.
 
-    ``cases``: ``(label, node args, node environment)``; label ``echo`` is the bare rclpy echo. The first
+    ``cases``: ``(label, node args, node environment[, companions])`` (see :func:`latency_variant`); label
+    ``echo`` is the bare rclpy echo. The first
     100 ms of each slot are not counted (the process resumes after a pause; the node's watchdog has
     released the tissue). Figures as :func:`run_case`'s latency case, plus ``slots``.
     """
@@ -287,13 +288,15 @@ def run_interleaved(cases: list[tuple[str, tuple[str, ...], dict]], total_s: flo
     with ExitStack() as stack:
         targets = []
         domains: set[int] = set()
-        for label, args, env in cases:
+        for label, args, env, *more in cases:
             while (domain := pick_domain_id()) in domains:  # one domain each: a shared one would cross-answer poses
                 pass
             domains.add(domain)
             scene = stack.enter_context(Scene(log_dir / label, domain_id=domain))
             scene.env.update(env)
             proc = scene.start("echo", "echo") if label == "echo" else scene.node(*args)
+            for name in more[0] if more else ():
+                scene.start(name, *COMPANIONS[name])
             targets.append((label, scene, proc))
         for _, scene, proc in targets:
             scene.wait_for_log(proc, "live:", timeout_s=180)
@@ -577,12 +580,22 @@ def _ratio(a, b) -> str:
     return f"{a[0] / b[0]:.2f}x / {a[1] / b[1]:.2f}x / {a[2] / b[2]:.2f}x"
 
 
-def latency_variant(spec: str, node_args: tuple[str, ...]) -> tuple[str, tuple[str, ...], dict[str, str]]:
-    """``NAME=P:=V,env.VAR:=VALUE,...`` -> (name, node arguments, node environment)."""
+COMPANIONS = {"view": ("view", "--port", "0")}
+"""Processes a latency case may start beside its node (``with.NAME``): ``view`` is ``skin-sim view``, which
+reads every display topic (height maps, mesh) and the contact topics, as a trainee's open browser view does."""
+
+
+def latency_variant(spec: str, node_args: tuple[str, ...]) -> tuple[str, tuple[str, ...], dict[str, str], tuple[str, ...]]:
+    """``NAME=P:=V,env.VAR:=VALUE,with.view,...`` -> (name, node arguments, node environment, companions)."""
     name, _, params = spec.partition("=")
     items = [p for p in params.split(",") if p]
     env = dict(p[4:].split(":=", 1) for p in items if p.startswith("env."))
-    return name, node_args + tuple(a for p in items if not p.startswith("env.") for a in ("-p", p)), env
+    companions = tuple(p[5:] for p in items if p.startswith("with."))
+    unknown = [c for c in companions if c not in COMPANIONS]
+    if unknown:
+        raise SystemExit(f"latency variant {name}: unknown with.{unknown[0]} (choose {', '.join(COMPANIONS)})")
+    args = tuple(a for p in items if not p.startswith(("env.", "with.")) for a in ("-p", p))
+    return name, node_args + args, env, companions
 
 
 def print_latency(echo: dict, nodes: list[dict]) -> None:
@@ -658,7 +671,8 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--latency-variant", action="append", default=[],
         help="latency node case NAME=P:=V,P:=V (repeatable; default one case 'node' with --node-param only); "
-        "an item env.VAR:=VALUE sets the node's environment, e.g. env.RMW_FASTRTPS_PUBLICATION_MODE:=ASYNCHRONOUS",
+        "an item env.VAR:=VALUE sets the node's environment, e.g. env.RMW_FASTRTPS_PUBLICATION_MODE:=ASYNCHRONOUS; "
+        "with.view also runs skin-sim view on that node (a display reader)",
     )  # fmt: skip
     ap.add_argument(
         "--observer-rt", type=int, default=0,
@@ -730,7 +744,7 @@ def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, e
     if "latency" in sections and args.interleave_s > 0:
         progress.stage(f"latency, interleaved {args.interleave_s:g} s slots: echo and {len(variants)} node case(s)",
                        est["latency"][0])  # fmt: skip
-        cases = [("echo", (), {}), *(latency_variant(spec, node_args) for spec in variants)]
+        cases = [("echo", (), {}, ()), *(latency_variant(spec, node_args) for spec in variants)]
         rows = run_interleaved(cases, args.latency_s, args.interleave_s, log_dir / "latency_interleaved")
         results["latency"] = rows
         print(f"\n(interleaved: all cases running, one pose stream switched between them every {args.interleave_s:g} s, "
@@ -743,7 +757,9 @@ def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, e
         for spec in variants:
             name, _, params = spec.partition("=")
             progress.stage(f"latency: {name}", est["latency"][0])
-            _, extra, env = latency_variant(spec, node_args)
+            _, extra, env, companions = latency_variant(spec, node_args)
+            if companions:
+                raise SystemExit("with.NAME needs the interleaved latency case (--interleave-s > 0)")
             nodes.append(run_case("node", args.latency_s, 1000.0, log_dir / f"latency_{name}", extra, env=env))
             nodes[-1]["label"] = name
         results["latency"] = [echo, *nodes]

@@ -103,14 +103,17 @@ def _moved(model: SkinModel, last_q, last_centre, last_active) -> bool:
 
 
 DISPLAY_NICE = 19
-"""Niceness of the display worker process (the lowest CFS weight, 15 against a default thread's 1024): on a
-machine with fewer free cores than busy threads its grid builds and large publishes yield to the haptic
-process; with a core to spare it runs as before. Set before rclpy starts, so its DDS threads inherit it."""
+"""Niceness of the display worker process where ``SCHED_IDLE`` is refused (the lowest CFS weight, 15
+against a default thread's 1024): on a machine with fewer free cores than busy threads its grid builds
+and large publishes yield to the haptic process; with a core to spare it runs as before. Set before
+rclpy starts, so its DDS threads inherit it."""
 
 
 def lower_priority(nice: int = DISPLAY_NICE) -> int:
-    """Raise the niceness of every thread of this process to ``nice`` (Linux niceness is per thread; the
-    BLAS threads that importing NumPy started already exist); threads started later inherit it."""
+    """Put every thread of this process in ``SCHED_IDLE`` (it runs only on a CPU nothing else wants) and
+    raise its niceness to ``nice`` (the fallback where SCHED_IDLE is refused). Both are per thread on
+    Linux: the BLAS threads that importing NumPy started already exist; threads started later inherit
+    them. Returns the niceness."""
     try:
         tids = [int(t) for t in os.listdir("/proc/self/task")]
     except OSError:
@@ -119,6 +122,10 @@ def lower_priority(nice: int = DISPLAY_NICE) -> int:
         try:
             os.setpriority(os.PRIO_PROCESS, tid, max(nice, os.getpriority(os.PRIO_PROCESS, tid)))
         except OSError:
+            pass
+        try:
+            os.sched_setscheduler(tid, os.SCHED_IDLE, os.sched_param(0))
+        except (OSError, AttributeError):
             pass
     return os.getpriority(os.PRIO_PROCESS, 0)
 
@@ -145,6 +152,7 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
     frame = FRAMES["tissue"]
     last_seq, last_pub, count = -1, 0.0, 0
     last_q, last_centre, last_active = None, None, None
+    was_watched = False
     try:
         while rclpy.ok() and os.getppid() == parent_pid:
             while conn.poll():
@@ -159,9 +167,15 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
                     display = payload
             period = 1.0 / display["display_rate_hz"] if display["display_rate_hz"] > 0 else 0.5
             t0 = time.monotonic()
-            if display["display_rate_hz"] > 0:
+            # lazy, as image_transport: no reader of any display topic, no grid built (a reader that
+            # joins gets a frame at once)
+            watched = {k: p.get_subscription_count() > 0 for k, p in pubs.items()}
+            joined, was_watched = any(watched.values()) and not was_watched, any(watched.values())
+            if display["display_rate_hz"] > 0 and was_watched:
                 seq, v, driven = snap.read(model.q, model.centre, model.level, model.active)
-                if display.get("on_change", True):
+                if joined:
+                    build = v == version
+                elif display.get("on_change", True):
                     # lod: rebuild only when the snapshot moved by more than the tolerance (or once a second)
                     changed = v == version and seq != last_seq and _moved(model, last_q, last_centre, last_active)
                     build = v == version and (changed or t0 - last_pub > 1.0)
@@ -172,12 +186,14 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
                     last_q, last_centre, last_active = model.q.copy(), model.centre.copy(), model.active.copy()
                     g = model.build_grid()
                     stamp = node.get_clock().now().nanoseconds
-                    pubs["height_map"].publish(cv.fill_image(image, stamp, frame, g.heights_m[0]))
-                    pubs["layer_heights"].publish(cv.fill_image(layers_image, stamp, frame, np.moveaxis(g.heights_m, 0, -1)))
+                    if watched["height_map"]:
+                        pubs["height_map"].publish(cv.fill_image(image, stamp, frame, g.heights_m[0]))
+                    if watched["layer_heights"]:
+                        pubs["layer_heights"].publish(cv.fill_image(layers_image, stamp, frame, np.moveaxis(g.heights_m, 0, -1)))
                     count += 1
                     rate = display["mesh_rate_hz"]
                     every = max(1, round(display["display_rate_hz"] / rate)) if rate > 0 else 0
-                    if display["publish_mesh"] and every and count % every == 0:
+                    if display["publish_mesh"] and watched["mesh"] and every and (count % every == 0 or joined):
                         affected = g.displacement_m > 1e-6  # deeper than 1 um: visibly deformed
                         n_l = affected.shape[0]
                         deepest = np.where(affected.any(axis=0), n_l - 1 - np.argmax(affected[::-1], axis=0), -1)

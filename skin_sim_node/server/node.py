@@ -42,6 +42,11 @@ from .display import DisplayProcess
 
 NODE_NAME = "skin_sim_node"
 STATS_LEN = 16384
+READERS_CHECK_NS = 100_000_000
+"""How often the tick asks DDS whether ``tissue/contact`` and ``tool/contact_model`` have readers (100 ms).
+Neither is published while nobody reads it, as image_transport's lazy publishers do: measured here, the two
+publishes were most of what a tick costs beyond the wrench. A reader that joins gets them from the next check on;
+``tool/wrench`` is always published."""
 
 
 def descriptor(spec) -> ParameterDescriptor:
@@ -114,6 +119,8 @@ class SkinSimNode(Node):
         self._model_msg = ContactModel()
         self._pub_model = publisher(self, "contact_model")
         self._pub_diag = publisher(self, "diagnostics")
+        self._readers_checked_ns = -READERS_CHECK_NS
+        self._contact_read = self._model_read = True
         self.add_on_set_parameters_callback(self._on_set_parameters)  # validate (ros2/demos: on_set checks)
         self.add_post_set_parameters_callback(self._post_set_parameters)  # apply the accepted set
         depth = self.params.input_queue_depth
@@ -234,8 +241,14 @@ class SkinSimNode(Node):
             self._last_pub_force = force
             stamp = r.stamp_ns if pose_driven else self._ros_now_ns()
             self._pub_wrench.publish(cv.fill_wrench_from_tick(self._wrench, r, stamp, self._frame))
-            self._pub_contact.publish(cv.fill_contact_from_tick(self._contact, r, stamp, self._frame))
-            self._pub_model.publish(cv.fill_contact_model_from_tick(self._model_msg, r, stamp, self._frame))  # bridge renders it
+            if now_ns - self._readers_checked_ns >= READERS_CHECK_NS:
+                self._readers_checked_ns = now_ns
+                self._contact_read = self._pub_contact.get_subscription_count() > 0
+                self._model_read = self._pub_model.get_subscription_count() > 0
+            if self._model_read:  # the bridge renders it
+                self._pub_model.publish(cv.fill_contact_model_from_tick(self._model_msg, r, stamp, self._frame))
+            if self._contact_read:
+                self._pub_contact.publish(cv.fill_contact_from_tick(self._contact, r, stamp, self._frame))
         if now_ns >= self._next_display_ns and self.params.display_rate_hz > 0:
             self._next_display_ns = now_ns + self._display_period_ns()
             self._snapshot_display()  # after the publishes: the wrench never waits for it
