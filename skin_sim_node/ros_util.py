@@ -25,6 +25,17 @@ except ImportError:  # pragma: no cover - older rclpy
     EventsExecutor = None
 
 
+HAPTIC_TRANSPORTS = "UDPv4"
+"""Fast DDS builtin transports of every skin-sim process (``FASTDDS_BUILTIN_TRANSPORTS``, unless the caller set it).
+
+Why not the default (shared memory + UDPv4): opening the shared-memory port of a participant that joins runs a
+health check that waits about 333 ms on a healthy idle port and holds the receive path meanwhile (Fast DDS
+2.14, eProsima/Fast-DDS#6535). A reader joining ``tool/wrench`` (``ros2 topic echo``, RViz, a recorder) then froze
+the node's pose input for 334-338 ms: in 8 of 23 join trials here with shared memory, 0 of 9 with UDPv4 only (the joiner
+keeping the default transports; ``docs/performance_rate.md``). Under ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
+rmw_fastrtps installs its own transports, shared memory included, and this setting has no effect."""
+
+
 def make_executor(kind: str = "events", context=None):
     """``events`` (rclpy.experimental.EventsExecutor, if present) or ``single``, on ``context``."""
     if kind == "events" and EventsExecutor is not None:
@@ -40,6 +51,7 @@ def run_nodes(factories: list[Callable[[], object]], args=None, executor: str = 
     (measured: it busy-loops), so it is driven by ``spin_once(timeout_sec=0.1)``. A node
     may define ``stop()``; it is called before ``destroy_node()``. Returns the exit code.
     """
+    os.environ.setdefault("FASTDDS_BUILTIN_TRANSPORTS", HAPTIC_TRANSPORTS)  # before any participant exists
     # rclpy's C-level handler shuts the context down on SIGINT, then calls the handler it replaced.
     # Python's default one raises KeyboardInterrupt wherever the main thread is, at 1 kHz most often
     # inside a timer callback, where the EventsExecutor logs it through a rosout publisher that is
