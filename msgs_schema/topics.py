@@ -59,26 +59,26 @@ TOPICS = {
         "Header stamp = stamp of the pose it answers.",
     ),
     "contact": TopicSpec(
-        "tissue/contact", "sensor_msgs/msg/JointState", "haptic", "m, m/s, Pa", FRAMES["tissue"], "haptic rate",
+        "tissue/contact", "sensor_msgs/msg/JointState", "haptic", "m, m/s, Pa", FRAMES["tissue"], "haptic rate, while read",
         "Contact state, one entry per layer (epidermis, dermis, fat): position = compression (m), "
         "velocity = compression rate (m/s), effort = layer stress (Pa, 0 when not affected).",
     ),
     "contact_model": TopicSpec(
         "tool/contact_model", "skin_sim_msgs/msg/ContactModel", "haptic", "m, N, N/m, N*s/m, s", FRAMES["tissue"],
-        "with each force (haptic rate)",
+        "with each force (haptic rate), while read",
         "Local contact model for the device bridge (msgs_schema/contact_model.py, docs/devices.md): the answered pose "
         "x0, force f0, K = dF/dx, D = dF/dv, normal, validity radius, time-to-live, sequence number.",
     ),
     "height_map": TopicSpec(
-        "tissue/height_map", "sensor_msgs/msg/Image", "display", "m", FRAMES["tissue"], "display rate (60 Hz)",
+        "tissue/height_map", "sensor_msgs/msg/Image", "display", "m", FRAMES["tissue"], "display rate (60 Hz), while read",
         "32FC1 surface height (m, z up) over the sheet; row 0 at y = -size_y/2, column 0 at x = -size_x/2.",
     ),
     "layer_heights": TopicSpec(
-        "tissue/layer_heights", "sensor_msgs/msg/Image", "display", "m", FRAMES["tissue"], "display rate",
+        "tissue/layer_heights", "sensor_msgs/msg/Image", "display", "m", FRAMES["tissue"], "display rate, while read",
         "32FC3: per cell the heights (m, z up) of the surface, the epidermis/dermis and the dermis/fat interfaces.",
     ),
     "mesh": TopicSpec(
-        "tissue/mesh", "visualization_msgs/msg/Marker", "display", "m", FRAMES["tissue"], "display rate",
+        "tissue/mesh", "visualization_msgs/msg/Marker", "display", "m", FRAMES["tissue"], "mesh_rate_hz, while read",
         "TRIANGLE_LIST mesh of the deformed surface, coloured by the deepest affected layer under each vertex.",
     ),
     "diagnostics": TopicSpec(

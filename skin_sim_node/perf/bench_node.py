@@ -57,10 +57,11 @@ LEVER_PRESETS = {
     "off-no-poses": ("precise_sleep:=false", "pose_rate_hz:=0"),
 }
 SETTLE_S = 5.0
-"""Seconds between the observer joining and the measurement. Measured (Fast DDS 2.14, the wheel):
-when a reader of ``tool/wrench`` joins, the writer's ``publish()`` blocked once for ~335 ms about
-2-3 s later in 8 of 23 trials, with the GIL held, so the whole node stalls; it did not recur in
-steady state. The figures are steady state; docs/performance_rate.md reports the join stall."""
+"""Seconds between the observer joining and the measurement. Measured (Fast DDS 2.14, the wheel): when a
+participant joins, opening its shared-memory port froze the node's receive path for ~335 ms in 8 of 23
+trials (eProsima/Fast-DDS#6535); skin-sim's processes use UDPv4 only (``ros_util.HAPTIC_TRANSPORTS``), but
+under ``LOCALHOST`` discovery, which the scenes default to, rmw_fastrtps adds shared memory back. The figures
+are steady state; docs/performance_rate.md reports the join stall."""
 BENCH_ONLY = ("pose_rate_hz:=", "switch_interval_s:=")  # lever entries that are not node parameters
 CASE_OVERHEAD_S = 8.0
 """Wall time of a case beyond its measured seconds and :data:`SETTLE_S`, for the estimates printed at
