@@ -31,7 +31,7 @@ HAPTIC_TRANSPORTS = "UDPv4"
 Why not the default (shared memory + UDPv4): opening the shared-memory port of a participant that joins runs a
 health check that waits about 333 ms on a healthy idle port and holds the receive path meanwhile (Fast DDS
 2.14, eProsima/Fast-DDS#6535). A reader joining ``tool/wrench`` (``ros2 topic echo``, RViz, a recorder) then froze
-the node's pose input for 334-338 ms: in 8 of 23 join trials here with shared memory, 0 of 9 with UDPv4 only (the joiner
+the node's pose input for 334-338 ms: in 11 of 38 join trials here with shared memory, 0 of 24 with UDPv4 only (the joiner
 keeping the default transports; ``docs/performance_rate.md``). Under ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
 rmw_fastrtps installs its own transports, shared memory included, and this setting has no effect."""
 

@@ -444,7 +444,11 @@ def tick_cost(n: int = 5000) -> dict:
     return {k: _pcts(v[warm:]) for k, v in t.items()}
 
 
-PUBLICATION_MODES = ("SYNCHRONOUS", "ASYNCHRONOUS")
+JOIN_TRANSPORTS = ("DEFAULT", "UDPv4")
+"""``FASTDDS_BUILTIN_TRANSPORTS`` of the node and observer A in the join trials: Fast DDS's default (shared memory
+and UDPv4) against skin-sim's default (:data:`skin_sim_node.ros_util.HAPTIC_TRANSPORTS`). The joiner keeps the
+default, as ``ros2 topic echo`` would. Under ``LOCALHOST`` discovery rmw_fastrtps sets its own transports and
+both rows run the same: run with ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``."""
 JOINER = """
 import rclpy
 from msgs_schema.qos import subscription
@@ -463,8 +467,8 @@ JOIN_WATCH_S = 6.0
 """Seconds watched after a reader joins: the stall came 2-3 s after the join (see :data:`SETTLE_S`)."""
 
 
-def join_stall(mode: str, log_dir: Path, node_args: tuple[str, ...] = (), before_s: float = 4.0) -> dict:
-    """The joining-reader stall with ``RMW_FASTRTPS_PUBLICATION_MODE=mode`` in the node's environment.
+def join_stall(transports: str, log_dir: Path, node_args: tuple[str, ...] = (), before_s: float = 4.0) -> dict:
+    """The joining-reader stall with ``FASTDDS_BUILTIN_TRANSPORTS=transports`` for the node and observer A.
 
     The node answers 1 kHz poses (input mode, defaults, display on) to observer A; after ``before_s`` a
     second reader of ``tool/wrench`` joins (its own rclpy context). Figures: the longest gap between
@@ -480,10 +484,19 @@ def join_stall(mode: str, log_dir: Path, node_args: tuple[str, ...] = (), before
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
-        scene.env["RMW_FASTRTPS_PUBLICATION_MODE"] = mode
+        joiner_env = dict(scene.env)
+        scene.env["FASTDDS_BUILTIN_TRANSPORTS"] = transports
         proc = scene.node(*node_args)
         scene.wait_for_log(proc, "live:", timeout_s=180)
-        mon = StreamObserver("bench_join_a", record_depth=1)
+        own = os.environ.get("FASTDDS_BUILTIN_TRANSPORTS")
+        os.environ["FASTDDS_BUILTIN_TRANSPORTS"] = transports  # observer A's participant is created now
+        try:
+            mon = StreamObserver("bench_join_a", record_depth=1)
+        finally:
+            if own is None:
+                os.environ.pop("FASTDDS_BUILTIN_TRANSPORTS")
+            else:
+                os.environ["FASTDDS_BUILTIN_TRANSPORTS"] = own
         pose_pub, twist_pub = mon.publisher("tool_pose"), mon.publisher("tool_twist")
         pose, twist = PoseStamped(), TwistStamped()
         sent: list[int] = []
@@ -505,7 +518,7 @@ def join_stall(mode: str, log_dir: Path, node_args: tuple[str, ...] = (), before
         time.sleep(before_s)
         t_join = mon.now_ns()
         # the joining reader is a process of its own, so its start-up takes no GIL from observer A
-        joiner = subprocess.Popen([sys.executable, "-c", JOINER], env=scene.env, stdout=subprocess.PIPE, text=True)
+        joiner = subprocess.Popen([sys.executable, "-c", JOINER], env=joiner_env, stdout=subprocess.PIPE, text=True)
         time.sleep(JOIN_WATCH_S)
         t_end = mon.now_ns()
         loop.stop()
@@ -524,18 +537,20 @@ def join_stall(mode: str, log_dir: Path, node_args: tuple[str, ...] = (), before
 
     gap_b, ans_b = window(t_before, t_join)
     gap_a, ans_a = window(t_join, t_end)
-    return {"mode": mode, "max_gap_before_ms": gap_b, "max_gap_after_ms": gap_a, "answered_before_pct": ans_b,
+    return {"transports": transports, "max_gap_before_ms": gap_b, "max_gap_after_ms": gap_a, "answered_before_pct": ans_b,
             "answered_after_pct": ans_a, "joiner_wrenches": joined_got}  # fmt: skip
 
 
 def print_join_stall(rows: list[dict]) -> None:
     print(f"\njoining-reader stall: a second tool/wrench reader joins; longest gap between wrench arrivals at the first "
           f"reader, ms, {JOIN_WATCH_S:.0f} s after the join vs the seconds before it (answered %)")  # fmt: skip
+    if os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST") == "LOCALHOST":
+        print("  note: LOCALHOST discovery: rmw_fastrtps sets its own transports, so both rows ran with shared memory")
     for r in rows:
-        print(f"  {r['mode']:>12}: before {r['max_gap_before_ms']:7.1f} ({r['answered_before_pct']:5.1f} %) | after join "
+        print(f"  {r['transports']:>12}: before {r['max_gap_before_ms']:7.1f} ({r['answered_before_pct']:5.1f} %) | after join "
               f"{r['max_gap_after_ms']:7.1f} ({r['answered_after_pct']:5.1f} %) | joiner got {r['joiner_wrenches']}")  # fmt: skip
-    for mode in PUBLICATION_MODES:
-        g = [r["max_gap_after_ms"] for r in rows if r["mode"] == mode]
+    for mode in JOIN_TRANSPORTS:
+        g = [r["max_gap_after_ms"] for r in rows if r["transports"] == mode]
         if g:
             print(
                 f"  {mode:>12}: after-join max gap median {np.median(g):.1f} ms, worst {max(g):.1f} ms, "
@@ -655,7 +670,10 @@ def main(argv=None) -> int:
         help="latency: run echo and node cases at once and switch the pose stream between them every this many "
         "seconds (the same machine load for all; 0: one case after the other)",
     )
-    ap.add_argument("--join-trials", type=int, default=4, help="joinstall: trials per publication mode (~25 s each)")
+    ap.add_argument(
+        "--join-trials", type=int, default=4,
+        help="joinstall: trials per transport setting (~25 s each; run with ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET)",
+    )  # fmt: skip
     ap.add_argument("--duration-s", type=float, default=60.0, help="seconds of the first-rate jitter case (missed ticks)")
     ap.add_argument("--jitter-s", type=float, default=20.0, help="seconds of the other rates' jitter cases")
     ap.add_argument("--latency-s", type=float, default=30.0, help="seconds of each latency case")
@@ -809,8 +827,8 @@ def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, e
     if "joinstall" in sections:
         rows = []
         for trial in range(args.join_trials):
-            for mode in PUBLICATION_MODES:  # interleaved: the same machine load for both
-                progress.stage(f"join stall: trial {trial + 1}/{args.join_trials}, Fast DDS publication {mode}", JOIN_TRIAL_EST_S)
+            for mode in JOIN_TRANSPORTS:  # interleaved: the same machine load for both
+                progress.stage(f"join stall: trial {trial + 1}/{args.join_trials}, Fast DDS transports {mode}", JOIN_TRIAL_EST_S)
                 rows.append(join_stall(mode, log_dir / f"join_{mode}_{trial}", node_args))
         results["joinstall"] = rows
         print_join_stall(rows)
