@@ -251,3 +251,34 @@ def test_mode_counts_are_described_as_the_model_runs_them(default_cfg):
     assert max(s.modes_per_axis) > 1  # a deep press raises the levels
     fixed = HapticSession(SkinModel(default_cfg.replace(**{"lod.adaptive_modes": False})), SessionParams())
     assert fixed.describe_modes().startswith(f"fixed modes: {m}x{n} per axis") and fixed.modes_per_axis == (max(m, n),) * 3
+
+
+@pytest.mark.parametrize("form", ["layered", "paper"])
+def test_warm_up_compiles_every_kernel_a_press_through_the_session_uses(form):
+    """After ``warm_up`` a press, drag and release through the session compiles (or loads) no kernel: the node calls
+    ``warm_up`` at start, and the first contact once loaded ``contact_jacobians`` inside the tick (a 100 ms stall)."""
+    import gc
+
+    from numba.core.registry import CPUDispatcher
+
+    from skin_sim_node.model import config_from_flat, preset
+    from skin_sim_node.model.config import default_flat
+    from skin_sim_node.model.skin_model import warm_up
+
+    cfg = preset("default") if form == "layered" else config_from_flat({**default_flat(), "form": "paper"})
+    warm_up(cfg)
+
+    def signatures():
+        return {id(o): (o.__name__, len(o.signatures)) for o in gc.get_objects() if isinstance(o, CPUDispatcher)}
+
+    before = signatures()
+    s = HapticSession(SkinModel(cfg), SessionParams())
+    now = 1_700_000_000_000_000_000
+    for i in range(600):
+        d = 3e-3 * min(i, 200) / 200 if i < 400 else -1e-3
+        now += 1_000_000
+        s.on_pose(now, "tissue", (2e-5 * max(i - 200, 0), 0.0, -d), now_ns=now, rx_ns=now)
+        s.tick(now, 1_000_000)
+    after = signatures()
+    grown = [(name, before.get(k, (name, 0))[1], n) for k, (name, n) in after.items() if n != before.get(k, (name, 0))[1]]
+    assert not grown, f"kernels compiled after warm_up: {grown}"

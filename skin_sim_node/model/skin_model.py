@@ -399,11 +399,16 @@ def _grow(box: list, d) -> None:
 
 
 def warm_up(cfg: TissueConfig) -> None:
-    """Compile (or load from numba's cache) every kernel and touch every code path once."""
+    """Compile (or load from numba's cache) every kernel and touch every code path once.
+
+    Includes :meth:`SkinModel.tangent`, which the session calls in contact: left to the first press, loading its
+    kernel from the cache stalled a live node's tick thread for 100 ms or more (seen in a native profile).
+    """
     model = SkinModel(cfg)
     for i in range(60):
         d = 4e-3 * min(i, 30) / 30
         model.step((0.001 * i, 0.0, -d), (0.001, 0.0, -0.1), 1e-3)
+        model.tangent()
     model.step((0.0, 0.0, 0.01), (0.0, 0.0, 0.5), 1e-3)
     model.step((0.0, 0.0, 0.01), (0.0, 0.0, 0.0), 2e-3)
     model.surface_displacement_at(0.0, 0.0)
