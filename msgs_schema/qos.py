@@ -44,10 +44,11 @@ def publisher(node, key: str, name: str | None = None):
     return node.create_publisher(spec.msg_class, name or spec.name, qos_for(key))
 
 
-def subscription(node, key: str, callback, name: str | None = None, depth: int | None = None):
-    """Subscribe with the contract's QoS for ``key``; ``depth`` overrides its history depth."""
+def subscription(node, key: str, callback, name: str | None = None, depth: int | None = None, raw: bool = False):
+    """Subscribe with the contract's QoS for ``key``; ``depth`` overrides its history depth; ``raw``: the callback
+    gets the serialized CDR bytes (see :func:`msgs_schema.convert.read_stamped_vec3_cdr`)."""
     spec = TOPICS[key]
     profile = qos_for(key)
     if depth is not None and depth != profile.depth:
         profile = QoSProfile(reliability=profile.reliability, history=profile.history, depth=depth, durability=profile.durability)
-    return node.create_subscription(spec.msg_class, name or spec.name, callback, profile)
+    return node.create_subscription(spec.msg_class, name or spec.name, callback, profile, raw=raw)

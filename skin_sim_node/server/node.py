@@ -22,7 +22,6 @@ import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -97,7 +96,8 @@ class SkinSimNode(Node):
         self._frame = FRAMES["tissue"]
         self._sim_time = bool(self.get_parameter("use_sim_time").value)
         # preallocated messages
-        self._wrench = WrenchStamped()
+        self._wrench_cdr = cv.WrenchCdr(self._frame)
+        self._n_undecodable = 0
         self._contact = JointState()
         self._diag = DiagnosticArray()
         # statistics (ring buffers, written under the lock)
@@ -124,8 +124,9 @@ class SkinSimNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)  # validate (ros2/demos: on_set checks)
         self.add_post_set_parameters_callback(self._post_set_parameters)  # apply the accepted set
         depth = self.params.input_queue_depth
-        subscription(self, "tool_pose", self._on_pose, depth=depth)
-        subscription(self, "tool_twist", self._on_twist, depth=depth)
+        # serialized in, serialized out: no rclpy message objects on the 1 kHz path (msgs_schema/convert.py)
+        subscription(self, "tool_pose", self._on_pose, depth=depth, raw=True)
+        subscription(self, "tool_twist", self._on_twist, depth=depth, raw=True)
         self._diag_timer = self.create_timer(self.params.diagnostics_period_s, self._publish_diagnostics)
         # display work runs in its own process; this thread only copies the modal state to it
         args = [a for a in (ros_args or []) if "__node:=" not in a]
@@ -194,20 +195,34 @@ class SkinSimNode(Node):
         """ROS time; the system clock directly unless use_sim_time (6 us less per pose)."""
         return self.get_clock().now().nanoseconds if self._sim_time else time.time_ns()
 
+    def _bad_input(self, key: str, exc: Exception) -> None:
+        """A buffer that is not a stamped pose or twist: dropped, counted, logged once."""
+        self._n_undecodable += 1
+        if self._n_undecodable == 1:
+            self._log_event("undecodable", f"{key}: {exc}")
+
     def _log_event(self, kind: str, message: str) -> None:
         self.get_logger().warning(f"[{kind}] {message} (logged once; counted in diagnostics)")
 
     # --- inputs -----------------------------------------------------------------------
-    def _on_pose(self, msg: PoseStamped) -> None:
-        stamp, frame, xyz = cv.read_pose(msg)
+    def _on_pose(self, data: bytes) -> None:
+        try:
+            stamp, frame, xyz = cv.read_stamped_vec3_cdr(data)
+        except ValueError as exc:
+            self._bad_input("tool_pose", exc)
+            return
         with self._lock:
             rx = time.perf_counter_ns()
             rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx)
             if rejected is None and self.params.loop_mode == "input":
                 self._tick(rx, pose_driven=True)
 
-    def _on_twist(self, msg: TwistStamped) -> None:
-        stamp, frame, lin = cv.read_twist(msg)
+    def _on_twist(self, data: bytes) -> None:
+        try:
+            stamp, frame, lin = cv.read_stamped_vec3_cdr(data)
+        except ValueError as exc:
+            self._bad_input("tool_twist", exc)
+            return
         with self._lock:
             self.session.on_twist(stamp, frame, lin)
 
@@ -240,7 +255,7 @@ class SkinSimNode(Node):
             self._last_pub_ns = now_ns
             self._last_pub_force = force
             stamp = r.stamp_ns if pose_driven else self._ros_now_ns()
-            self._pub_wrench.publish(cv.fill_wrench_from_tick(self._wrench, r, stamp, self._frame))
+            self._pub_wrench.publish(self._wrench_cdr.fill_from_tick(r, stamp))
             if now_ns - self._readers_checked_ns >= READERS_CHECK_NS:
                 self._readers_checked_ns = now_ns
                 self._contact_read = self._pub_contact.get_subscription_count() > 0
@@ -328,6 +343,7 @@ class SkinSimNode(Node):
             "idle_ticks_total": str(idle_ticks),
             "modes_per_axis": ",".join(map(str, modes)),  # per layer, now (adaptive modes: each layer's level)
             "idle_unpublished_total": str(self._n_idle_skipped),
+            "undecodable_inputs_total": str(self._n_undecodable),
         }
         values.update({f"count_{k}": str(v) for k, v in sorted(counts.items())})
         values.update({f"regime_{k}": str(v) for k, v in sorted(regime.items())})  # docs/stability.md
