@@ -66,6 +66,8 @@ def read_stamped_vec3_cdr(data: bytes):
     off = 4 + _align8(12 + n)
     if n == 0 or off + 24 > len(data):
         raise ValueError(f"truncated CDR message ({len(data)} bytes, frame_id of {n} bytes)")
+    if data[15 + n] != 0:
+        raise ValueError("malformed CDR message: frame_id is not NUL-terminated")
     frame = data[16 : 15 + n].decode("utf-8", "replace")
     return sec * NS + nsec, frame, struct.unpack_from(e + "3d", data, off)
 

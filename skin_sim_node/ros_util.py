@@ -36,6 +36,16 @@ keeping the default transports; ``docs/performance_rate.md``). Under ``ROS_AUTOM
 rmw_fastrtps installs its own transports, shared memory included, and this setting has no effect."""
 
 
+_interrupts = [0]
+
+
+def _quiet_first_interrupt(_signum, _frame) -> None:
+    """SIGINT: nothing on the first (rclpy's own handler shuts the context down), KeyboardInterrupt after."""
+    _interrupts[0] += 1
+    if _interrupts[0] > 1:
+        raise KeyboardInterrupt
+
+
 def make_executor(kind: str = "events", context=None):
     """``events`` (rclpy.experimental.EventsExecutor, if present) or ``single``, on ``context``."""
     if kind == "events" and EventsExecutor is not None:
@@ -55,9 +65,10 @@ def run_nodes(factories: list[Callable[[], object]], args=None, executor: str = 
     # rclpy's C-level handler shuts the context down on SIGINT, then calls the handler it replaced.
     # Python's default one raises KeyboardInterrupt wherever the main thread is, at 1 kHz most often
     # inside a timer callback, where the EventsExecutor logs it through a rosout publisher that is
-    # already gone ("Failed to publish log message to rosout"). A handler that does nothing leaves the
-    # shutdown to rclpy, and the loop below ends on rclpy.ok().
-    signal.signal(signal.SIGINT, lambda *_: None)
+    # already gone ("Failed to publish log message to rosout"). A first Ctrl-C that raises nothing leaves the
+    # shutdown to rclpy, and the loop below ends on rclpy.ok(); a second one (start-up still compiling, or a
+    # hung clean-up) interrupts as usual.
+    signal.signal(signal.SIGINT, _quiet_first_interrupt)
     rclpy.init(args=args)
     nodes = []
     code = 0

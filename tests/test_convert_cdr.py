@@ -49,3 +49,10 @@ def test_big_endian_encapsulation_is_read():
     body = struct.pack(">iII", 12, 34, len(name)) + name
     body += b"\0" * (-len(body) % 8) + struct.pack(">3d", 1.0, -2.0, 0.5)
     assert cv.read_stamped_vec3_cdr(b"\x00\x00\x00\x00" + body) == (12 * 10**9 + 34, "tissue", (1.0, -2.0, 0.5))
+
+
+def test_a_frame_id_without_its_nul_is_refused():
+    good = bytearray(serialize_message(cv.fill_pose(PoseStamped(), 5, "tissue", (0.0, 0.0, 0.0))))
+    good[15 + 7] = ord("x")  # the NUL after "tissue"
+    with pytest.raises(ValueError, match="NUL"):
+        cv.read_stamped_vec3_cdr(bytes(good))

@@ -359,16 +359,15 @@ def test_dds_loop_naive_limit_cycles_and_passivity_settles(tmp_path, ros_domain)
     """Node + bridge + simulated Touch at 1 kHz on a 4 N/mm wall: the sweep's two verdicts, over DDS.
 
     The naive loop must grow in its first valid run. The passivity-controlled loop must settle in one of up to
-    three: the bridge books the energy of the force it commanded, but over DDS 3-7 % of commands never reach the
-    device in a valid run (it then holds the previous one), and one full-suite run here grew late in the hold
-    (13 overruns, 93 % of commands received) while the same test alone passed 6 of 6; the naive loop grew in
-    every run.
+    three (weak: a regression that failed half the runs would still pass 7 times in 8). The bridge books the
+    energy of the force it commanded, but over DDS 3-7 % of commands never reach the device in a valid run (it
+    then holds the previous one), and one full-suite run here grew late in the hold (13 overruns, 93 % of
+    commands received) while the same test alone passed 6 of 6; the naive loop grew in every run.
     """
     pytest.importorskip("rclpy")
-    naive, _ = _over_dds_valid(tmp_path, "none", attempts=1)
+    naive, _ = _over_dds_valid(tmp_path, "none")
     assert not naive.stable and naive.std_late_n > 0.2, naive
-    stab, stats = _over_dds_valid(tmp_path, "passivity", accept=_settled)
-    assert _settled(stab), (stab, stats)
+    _over_dds_valid(tmp_path, "passivity", accept=_settled)  # fails with every attempt's figures if none settled
 
 
 # --- stiffening tissue: tangent at depth vs loop limits (issue 11 item 6) ---------------------------------------------

@@ -24,10 +24,9 @@ from ..ros_util import PeriodicLoop, run_nodes
 from .mapping import parse_vec3
 
 HOUSEKEEPING_PERIOD_S = 0.05
-"""Period of a timer in the loop-thread nodes (mock tool, simulated device). It wakes the executor so
-that ``run_nodes``' Python-level SIGTERM handler runs within 50 ms even when no message arrives (the
-main thread otherwise sleeps in the wait set and never runs it), and it ends the process from the
-executor thread when the script is done."""
+"""Period of a timer in the loop-thread nodes (mock tool, simulated device). It wakes the executor at least
+every 50 ms even when no message arrives, and it ends the process from the executor thread when the script
+is done (``rclpy.try_shutdown``)."""
 
 EXECUTOR = "events"
 """rclpy executor for :func:`run_nodes` (which drives it with ``spin_once(timeout)``: far less CPU per

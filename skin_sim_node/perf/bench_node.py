@@ -485,6 +485,7 @@ def join_stall(transports: str, log_dir: Path, node_args: tuple[str, ...] = (), 
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
         joiner_env = dict(scene.env)
+        joiner_env.pop("FASTDDS_BUILTIN_TRANSPORTS", None)  # the joiner keeps Fast DDS's default, as ros2 topic echo
         scene.env["FASTDDS_BUILTIN_TRANSPORTS"] = transports
         proc = scene.node(*node_args)
         scene.wait_for_log(proc, "live:", timeout_s=180)
@@ -597,8 +598,9 @@ def _ratio(a, b) -> str:
 
 
 COMPANIONS = {"view": ("view", "--port", "0")}
-"""Processes a latency case may start beside its node (``with.NAME``): ``view`` is ``skin-sim view``, which
-reads every display topic (height maps, mesh) and the contact topics, as a trainee's open browser view does."""
+"""Processes a latency case may start beside its node (``with.NAME``): ``view`` is ``skin-sim view`` with no page
+open; it reads ``tissue/layer_heights`` (so the display worker builds the grid at display rate), ``tissue/contact``,
+``tool/pose``, ``tool/wrench`` and the diagnostics. No reader of ``tissue/height_map`` or the mesh."""
 
 
 def latency_variant(spec: str, node_args: tuple[str, ...]) -> tuple[str, tuple[str, ...], dict[str, str], tuple[str, ...]]:

@@ -152,7 +152,7 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
     frame = FRAMES["tissue"]
     last_seq, last_pub, count = -1, 0.0, 0
     last_q, last_centre, last_active = None, None, None
-    was_watched = False
+    last_readers: dict[str, int] = {}
     try:
         while rclpy.ok() and os.getppid() == parent_pid:
             while conn.poll():
@@ -167,11 +167,13 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
                     display = payload
             period = 1.0 / display["display_rate_hz"] if display["display_rate_hz"] > 0 else 0.5
             t0 = time.monotonic()
-            # lazy, as image_transport: no reader of any display topic, no grid built (a reader that
-            # joins gets a frame at once)
-            watched = {k: p.get_subscription_count() > 0 for k, p in pubs.items()}
-            joined, was_watched = any(watched.values()) and not was_watched, any(watched.values())
-            if display["display_rate_hz"] > 0 and was_watched:
+            # lazy, as image_transport: no reader of any display topic, no grid built; a topic whose reader
+            # count grew (a first or a further reader) gets a frame at once
+            readers = {k: p.get_subscription_count() for k, p in pubs.items()}
+            watched = {k: n > 0 for k, n in readers.items()}
+            joined = {k for k, n in readers.items() if n > last_readers.get(k, 0)}
+            last_readers = readers
+            if display["display_rate_hz"] > 0 and any(watched.values()):
                 seq, v, driven = snap.read(model.q, model.centre, model.level, model.active)
                 if joined:
                     build = v == version
@@ -193,7 +195,7 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
                     count += 1
                     rate = display["mesh_rate_hz"]
                     every = max(1, round(display["display_rate_hz"] / rate)) if rate > 0 else 0
-                    if display["publish_mesh"] and watched["mesh"] and every and (count % every == 0 or joined):
+                    if display["publish_mesh"] and watched["mesh"] and every and (count % every == 0 or "mesh" in joined):
                         affected = g.displacement_m > 1e-6  # deeper than 1 um: visibly deformed
                         n_l = affected.shape[0]
                         deepest = np.where(affected.any(axis=0), n_l - 1 - np.argmax(affected[::-1], axis=0), -1)
