@@ -383,10 +383,13 @@ def tick_cost(n: int = 5000) -> dict:
     """In-process cost (us, p50/p99/max) of each step of the node's pose-to-force path, one thread, no load.
 
     Shows how long each tick holds the GIL: everything except the numba model step (``nogil``).
-    A 1 Hz press 0-3 mm deep at 1 kHz stamps; publishers on an rclpy node with no subscriber.
+    A 1 Hz press 0-3 mm deep at 1 kHz stamps; publishers on an rclpy node with no subscriber. The pose is read
+    and the wrench written serialized, as the node does; the contact message is timed although the node
+    publishes it only while it has a reader.
     """
     import rclpy
-    from geometry_msgs.msg import PoseStamped, WrenchStamped
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.serialization import serialize_message
     from sensor_msgs.msg import JointState
 
     from msgs_schema import convert as cv
@@ -403,8 +406,11 @@ def tick_cost(n: int = 5000) -> dict:
     rclpy.init(context=ctx)
     node = rclpy.create_node("bench_tick_cost", context=ctx)
     pub_w, pub_c = publisher(node, "tool_wrench"), publisher(node, "contact")
-    pose, wrench, contact = PoseStamped(), WrenchStamped(), JointState()
-    keys = ("read_pose", "on_pose", "tick (session + model)", "model step (nogil)", "publish wrench", "publish contact")
+    pose, wrench_cdr, contact = PoseStamped(), cv.WrenchCdr("tissue"), JointState()
+    keys = (
+        "read_pose (CDR)", "on_pose", "tick (session + model)", "model step (nogil)", "publish wrench (CDR)",
+        "publish contact (only while read)",
+    )  # fmt: skip
     t = {k: np.zeros(n) for k in keys}
     step = model.step
     step_ns = [0]
@@ -423,15 +429,15 @@ def tick_cost(n: int = 5000) -> dict:
         for i in range(n):
             stamp = base + i * 1_000_000
             z = -1.5e-3 * (1 - math.cos(2 * math.pi * i / 1000))
-            cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, z))
+            data = serialize_message(cv.fill_pose(pose, stamp, "tissue", (0.0, 0.0, z)))  # as the node receives it
             t0 = clock()
-            st, frame, xyz = cv.read_pose(pose)
+            st, frame, xyz = cv.read_stamped_vec3_cdr(data)
             t1 = clock()
             session.on_pose(st, frame, xyz, now_ns=stamp, rx_ns=t1)
             t2 = clock()
             r = session.tick(t2, 1_000_000)
             t3 = clock()
-            pub_w.publish(cv.fill_wrench_from_tick(wrench, r, st, "tissue"))
+            pub_w.publish(wrench_cdr.fill_from_tick(r, st))
             t4 = clock()
             pub_c.publish(cv.fill_contact_from_tick(contact, r, st, "tissue"))
             t5 = clock()
@@ -748,7 +754,7 @@ def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, e
         results["tickcost"] = cost
         print("\nper-tick cost of the pose-to-force path in one thread, us (p50 p99 max); all but the model step hold the GIL")
         for k, v in cost.items():
-            print(f"  {k:>24}: {v[0]:7.1f} {v[1]:7.1f} {v[2]:8.1f}")
+            print(f"  {k:>33}: {v[0]:7.1f} {v[1]:7.1f} {v[2]:8.1f}")
     if "floor" in sections:
         rows = {}
         for prio in (0, 80):

@@ -195,22 +195,25 @@ class SkinSimNode(Node):
         """ROS time; the system clock directly unless use_sim_time (6 us less per pose)."""
         return self.get_clock().now().nanoseconds if self._sim_time else time.time_ns()
 
-    def _bad_input(self, key: str, exc: Exception) -> None:
-        """A buffer that is not a stamped pose or twist: dropped, counted, logged once."""
-        self._n_undecodable += 1
-        if self._n_undecodable == 1:
-            self._log_event("undecodable", f"{key}: {exc}")
+    def _decode(self, key: str, data: bytes):
+        """(stamp_ns, frame, vector) of a serialized pose or twist; None for a buffer that is not one
+        (dropped, counted in diagnostics, logged once)."""
+        try:
+            return cv.read_stamped_vec3_cdr(data)
+        except ValueError as exc:
+            self._n_undecodable += 1
+            if self._n_undecodable == 1:
+                self._log_event("undecodable", f"{key}: {exc}")
+            return None
 
     def _log_event(self, kind: str, message: str) -> None:
         self.get_logger().warning(f"[{kind}] {message} (logged once; counted in diagnostics)")
 
     # --- inputs -----------------------------------------------------------------------
     def _on_pose(self, data: bytes) -> None:
-        try:
-            stamp, frame, xyz = cv.read_stamped_vec3_cdr(data)
-        except ValueError as exc:
-            self._bad_input("tool_pose", exc)
+        if (pose := self._decode("tool_pose", data)) is None:
             return
+        stamp, frame, xyz = pose
         with self._lock:
             rx = time.perf_counter_ns()
             rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx)
@@ -218,11 +221,9 @@ class SkinSimNode(Node):
                 self._tick(rx, pose_driven=True)
 
     def _on_twist(self, data: bytes) -> None:
-        try:
-            stamp, frame, lin = cv.read_stamped_vec3_cdr(data)
-        except ValueError as exc:
-            self._bad_input("tool_twist", exc)
+        if (twist := self._decode("tool_twist", data)) is None:
             return
+        stamp, frame, lin = twist
         with self._lock:
             self.session.on_twist(stamp, frame, lin)
 
