@@ -61,9 +61,9 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         "input_queue_depth", int, 1, "1",
         "pose/twist reader history (read at start): 1 answers the newest sample only (lowest latency, "
-        "for live haptics); 10 lets a node descheduled for a few ms answer every sample in order "
-        "(replay agreement), at the cost of a latency tail",
-        1, 100, False, read_only=True,
+        "for live haptics); more lets a node that was stalled answer every sample in order "
+        "(live replay uses 500), at the cost of a latency tail",
+        1, 1000, False, read_only=True,
     ),
     ParamSpec("tissue_frame", str, "tissue", "-", "frame_id the tool pose must carry"),
     ParamSpec(

@@ -35,6 +35,14 @@ from .offline import ReplayResult, bag_topic
 HANDSHAKE_LEAD_NS = 5_000_000_000
 
 
+LIVE_QUEUE_DEPTH = 500
+"""Pose/twist reader history of the node a live replay starts. Replay wants every sample answered in order,
+not the newest only. 10 covered a node descheduled for a few ms, but under ``LOCALHOST`` discovery Fast DDS can
+freeze a process's receive path for ~333 ms while it opens a joining participant's shared-memory port
+(eProsima/Fast-DDS#6535; ``docs/performance_rate.md``): the README's record -> replay --live -> compare sequence
+then lost 324 of 2860 poses (one 386 ms hole) in one CI run of four. 500 holds half a second at 1 kHz."""
+
+
 def _events_file(inputs: Inputs, path: Path) -> None:
     """The inputs as arrays for the publisher process."""
     names = sorted({e[2] for e in inputs.events})
@@ -124,8 +132,8 @@ def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path) -> int:
         if scene is not None:
             # recorded stamps are old: no age check. Offline replay has no watchdog, so a scheduling
             # stall of the live node longer than 50 ms must not release the tissue mid-replay.
-            # input_queue_depth 10: after a scheduling stall the node answers every queued pose in order
-            extra = ["-p", "max_stamp_age_s:=0.0", "-p", "watchdog_s:=1.0", "-p", "input_queue_depth:=10"]
+            # input_queue_depth LIVE_QUEUE_DEPTH: after a stall the node answers every queued pose in order
+            extra = ["-p", "max_stamp_age_s:=0.0", "-p", "watchdog_s:=1.0", "-p", f"input_queue_depth:={LIVE_QUEUE_DEPTH}"]
             if not args.images:  # the display worker competes for the 2 cores; the comparison needs no grids
                 extra += ["-p", "display_rate_hz:=0.0", "-p", "publish_mesh:=false"]
             node = scene.node(*extra, params=args.params)
