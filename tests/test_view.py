@@ -233,7 +233,7 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
             assert b.evaluate("window.skinView.diag !== null && window.skinView.diag.values.achieved_rate_hz !== undefined")
             # parameters come from the node at run time; a bad value typed into the page shows the node's reason
             b.wait_for("document.querySelector('input[data-name=\"tissue.layers.dermis.stiffness_n_per_m\"]') !== null",
-                       20, "the stiffness field")  # fmt: skip
+                       60, "the stiffness field")  # fmt: skip
             r = b.evaluate("window.skinViewSetParam('tissue.layers.dermis.stiffness_n_per_m', '-5')")
             assert r["ok"] is False
             shown = b.evaluate("document.getElementById('param-result').textContent")
@@ -254,3 +254,24 @@ def test_bad_bag_is_one_line_error(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     assert main([str(tmp_path / "empty")]) == 2
     assert "not a rosbag2 folder" in capsys.readouterr().err
+
+
+@pytest.mark.ros
+@needs_browser
+def test_page_opened_before_the_node_lists_its_parameters_once_it_runs(ros_domain, tmp_path):
+    """A view (and its page) started before the node shows why there are no parameters, then lists them."""
+    from skin_sim_node.scenes import Scene
+    from skin_sim_node.view.browser import Browser
+
+    ns = "/view_late"
+    with Scene(tmp_path / "logs") as scene:
+        view = scene.start("view", "view", "--namespace", ns, "--port", "0")
+        scene.wait_for_log(view, "skin-sim view: http", timeout_s=60)
+        url = view.log().split("skin-sim view: ", 1)[1].split()[0]
+        with Browser(url) as b:
+            b.wait_for("document.getElementById('params').textContent.includes('not found')", 60, "the reason")
+            node = scene.node("-r", f"__ns:={ns}")
+            scene.wait_for_log(node, "live:", timeout_s=180)
+            b.wait_for("document.querySelector('input[data-name=\"tissue.layers.dermis.stiffness_n_per_m\"]') !== null",
+                       60, "the stiffness field once the node runs")  # fmt: skip
+            assert b.evaluate("document.getElementById('param-node').textContent") == f"{ns}/skin_sim_node"

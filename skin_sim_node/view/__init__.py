@@ -90,7 +90,7 @@ def main(argv=None) -> int:
         from .live import LiveSource
 
         source = LiveSource(args.namespace, rate_hz=args.rate_hz)
-        source.refresh_geometry()
+        source.refresh_geometry(wait_s=3.0)  # a view started before its node serves at once, with default geometry
     on_ready = None
     if args.screenshot:
 

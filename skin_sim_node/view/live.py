@@ -25,6 +25,10 @@ TUNABLE = re.compile(r"stiffness|damping|friction|tolerance")
 """Parameters the page lists first (issue 14: stiffness, damping, friction, mode tolerance); the rest are
 one click away. Matched against the names the node reports at run time, so new ones appear by themselves."""
 SERVICE_TIMEOUT_S = 3.0  # a parameter call that takes longer than this is reported as unanswered
+SERVICE_WAIT_S = 10.0
+"""How long a call first waits for the node's parameter services to be discovered. A view process that
+has just started may not yet know them; a request sent before the service's reader matched is lost."""
+SERVICE_TRIES = 2  # a request lost while discovery completes is sent once more
 
 
 def parse_value(text: str, ptype: int):
@@ -112,30 +116,54 @@ class LiveSource:
         return future.result()
 
     _running = False
+    server = None  # the ViewServer, once :meth:`run` starts
 
-    def _get(self, names: list[str]) -> dict:
-        res = self._wait(self.client.get_parameters(names), "get_parameters")
+    def _call(self, call, what: str, wait_s: float = SERVICE_WAIT_S, tries: int = SERVICE_TRIES):
+        """``call()`` returns a future; wait for the services, send, and resend if unanswered."""
+        if not self.client.wait_for_services(timeout_sec=wait_s):
+            raise TimeoutError(f"{what}: the parameter services of {self.namespace.rstrip('/')}/{NODE_NAME} "
+                               f"were not found within {wait_s:.0f} s (is the node running in this "
+                               "namespace and ROS_DOMAIN_ID?)")  # fmt: skip
+        for attempt in range(tries):
+            try:
+                return self._wait(call(), what)
+            except TimeoutError:
+                if attempt == tries - 1:
+                    raise
+
+    def _get(self, names: list[str], **call) -> dict:
+        res = self._call(lambda: self.client.get_parameters(names), "get_parameters", **call)
         from rclpy.parameter import parameter_value_to_python
 
         return {n: (v.type, parameter_value_to_python(v)) for n, v in zip(names, res.values)}
 
-    def refresh_geometry(self) -> None:
+    def refresh_geometry(self, wait_s: float = SERVICE_WAIT_S) -> None:
         """Sheet size and tool radius from the node (its grid and patch), defaults if it does not answer."""
         try:
-            got = self._get(["tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m"])
+            names = ["tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m"]
+            got = self._get(names, wait_s=wait_s, tries=1)
         except TimeoutError:
             return
-        self.sheet_m = (float(got["tissue.sheet.size_x_m"][1]), float(got["tissue.sheet.size_y_m"][1]))
-        self.tool_radius_m = float(got["tissue.tool.radius_m"][1])
+        self._set_geometry(got)
+
+    def _set_geometry(self, got: dict) -> bool:
+        """Take sheet size and tool radius from a get_parameters answer; True if they changed."""
+        new = ((float(got["tissue.sheet.size_x_m"][1]), float(got["tissue.sheet.size_y_m"][1])),
+               float(got["tissue.tool.radius_m"][1]))  # fmt: skip
+        changed = new != (self.sheet_m, self.tool_radius_m)
+        self.sheet_m, self.tool_radius_m = new
+        return changed
 
     def params(self) -> dict:
         """The node's parameters as it reports them now, tunable ones flagged (none hard-coded)."""
         try:
-            names = sorted(self._wait(self.client.list_parameters([], 0), "list_parameters").result.names)
+            names = sorted(self._call(lambda: self.client.list_parameters([], 0), "list_parameters").result.names)
             got = self._get(names)
-            descs = self._wait(self.client.describe_parameters(names), "describe_parameters").descriptors
+            descs = self._call(lambda: self.client.describe_parameters(names), "describe_parameters").descriptors
         except TimeoutError as exc:
-            return {"ok": False, "reason": str(exc), "params": []}
+            return {"ok": False, "reason": str(exc), "params": [], "retry": True}
+        if self._set_geometry(got) and self.server is not None:
+            self.server.broadcast_text(self.info())  # the node was not found at start: the page had defaults
         out = []
         for d in descs:
             ptype, value = got[d.name]
@@ -158,7 +186,7 @@ class LiveSource:
             return {"ok": False, "name": name, "reason": f"the node has no parameter {name!r}"}
         value = parse_value(text, ptype)
         try:
-            res = self._wait(self.client.set_parameters([Parameter(name, value=value)]), "set_parameters")
+            res = self._call(lambda: self.client.set_parameters([Parameter(name, value=value)]), "set_parameters")
         except TimeoutError as exc:
             return {"ok": False, "name": name, "reason": str(exc)}
         r = res.results[0]

@@ -204,9 +204,17 @@ function showDiag(d) {
 
 // --- parameters ---------------------------------------------------------------------------
 let paramList = [];
+let paramRetry = null;
 async function loadParams() {
-  const r = await (await fetch("/api/params")).json();
-  if (!r.ok) { $("param-node").textContent = ""; $("params").innerHTML = `<tr><td>${r.reason}</td></tr>`; return; }
+  clearTimeout(paramRetry);
+  let r;
+  try { r = await (await fetch("/api/params")).json(); }
+  catch (e) { r = { ok: false, reason: `view server: ${e}`, retry: true }; }
+  if (!r.ok) {
+    $("param-node").textContent = ""; $("params").innerHTML = `<tr><td>${r.reason}</td></tr>`;
+    if (r.retry) paramRetry = setTimeout(loadParams, 2000); // the node's services may not be discovered yet
+    return;
+  }
   $("param-node").textContent = r.node;
   paramList = r.params;
   renderParams();
