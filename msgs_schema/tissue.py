@@ -64,6 +64,10 @@ def _lod_specs() -> list[ParamSpec]:
 # Default layer values (the `default` preset). Sources: docs/model.md, "Parameter sources".
 _TOOL_RADIUS_M = 2.5e-3
 _TOOL_AREA_M2 = math.pi * _TOOL_RADIUS_M**2
+FOUNDATION_LENGTH_M = 1.63e-3
+"""Decay length of the membranes' foundation (patch.foundation_length_m). Fitted by ``skin-sim calibrate`` to
+the surface fields of the 3D neo-Hookean reference (1.631 mm; peak, valley, edge at their deepest step; docs/validation.md
+section 0b), with the patch at the paper's 60 mm."""
 _LAYER_DEFAULTS = {
     # thickness_m, youngs_modulus_pa (quasi-static compression/indentation modulus), density_kg_per_m3,
     # shear_wave_speed_m_per_s (elastography: the membrane's dynamics, eq 1)
@@ -193,6 +197,17 @@ TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
         _f("sheet.size_y_m", 0.12, "m", "tissue sheet extent along y, centred on the frame origin"),
         _f("patch.size_x_m", 0.06, "m", "deformation patch side along x (paper: 60 mm)"),
         _f("patch.size_y_m", 0.06, "m", "deformation patch side along y (paper: 60 mm)"),
+        _f(
+            "patch.foundation_length_m",
+            FOUNDATION_LENGTH_M,
+            "m",
+            "decay length l of the membranes' elastic foundation (k_A = T / l^2): how far the dent spreads from the "
+            "tool; fitted to the large-deformation reference's surface fields (skin-sim calibrate); 0: the paper's "
+            "bare membrane",
+            0.0,
+            0.06,
+            False,
+        ),
         _i("grid.nx", 120, "output height-map cells along x over the sheet", 2, 1024),
         _i("grid.ny", 120, "output height-map cells along y over the sheet", 2, 1024),
         _i(

@@ -56,6 +56,7 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS):
     paper[TISSUE_PREFIX + "form"] = "paper"
     paper[TISSUE_PREFIX + "modes.m"] = 1
     paper[TISSUE_PREFIX + "modes.n"] = 1
+    paper[TISSUE_PREFIX + "patch.foundation_length_m"] = 0.0  # the paper's bare membrane (eq 1)
     # eq 9 is one fixed mode, undamped, 6.11 um deep (below lod.tolerance_m): no level-of-detail shortcuts
     for lever in ("adaptive_modes", "affected_layers", "idle"):
         paper[f"{TISSUE_PREFIX}lod.{lever}"] = False

@@ -26,7 +26,7 @@ COMMANDS = {
     "stability-dds": ("skin_sim_node.stability.dds_confirm", "confirm haptic-loop sweep points with real processes over DDS"),
     "record": ("skin_sim_node.bags.record", "record a scene's tool inputs and node outputs to a rosbag2 folder"),
     "replay": ("skin_sim_node.bags.replay", "replay a bag through the model offline (or --live against a node)"),
-    "calibrate": ("skin_sim_node.validation.calibrate", "fit the model's layer springs (and patch) to the FEM or a measured CSV"),
+    "calibrate": ("skin_sim_node.validation.calibrate", "fit the layer springs, stiffening and foundation to the FEM or a CSV"),
     "compare": ("skin_sim_node.bags.compare", "diff two output bags with tolerances; non-zero exit when they differ"),
     "view": ("skin_sim_node.view", "live 3D view of the tissue in the browser, from the node's topics or a bag (docs/view.md)"),
 }

@@ -270,7 +270,7 @@ def test_force_follows_the_tilted_deformed_surface(cfg):
     m = SkinModel(cfg)
     physics.press(m, 0.0, 0.0, 3e-3, 0.05)
     m.step((0.0, 0.0, 0.01), (0, 0, 0), 1e-3)  # lift off; the dent relaxes
-    x = 0.012
+    x = 0.005  # 2.5 mm outside the punch's rim, on the dent's flank (it decays over the foundation length)
     s = m.surface_displacement_at(x, 0.0)
     assert s > 1e-4
     m.step((x, 0.0, -(s + 2e-5)), (0, 0, 0), 1e-3)

@@ -33,8 +33,8 @@ def paper_model(default_cfg):
     return SkinModel(paper_form(default_cfg))
 
 
-def static_membrane_fd(a, b, r0, n=241):
-    """Finite-difference solution of -lap(w) = disk indicator on the patch, fixed edges."""
+def static_membrane_fd(a, b, r0, n=241, foundation_length_m=0.0):
+    """Finite-difference solution of -lap(w) + w / l^2 = disk indicator on the patch, fixed edges (l = 0: none)."""
     h = a / (n + 1)
     x = (np.arange(n) + 1) * h
     y = (np.arange(n) + 1) * (b / (n + 1))
@@ -43,6 +43,8 @@ def static_membrane_fd(a, b, r0, n=241):
     lap1 = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n)) / h**2
     eye = sp.identity(n)
     L = sp.kron(lap1, eye) + sp.kron(eye, lap1)
+    if foundation_length_m > 0:
+        L = L + sp.identity(n * n) / foundation_length_m**2
     w = spsolve(L.tocsc(), p.ravel()).reshape(n, n)
     return x, y, w, p
 
@@ -98,6 +100,24 @@ def test_series_converges_to_static_membrane_solution():
         errors.append(np.abs(series(beta, x, y, a, b) - w_fd).max())
     assert all(e1 > e2 for e1, e2 in zip(errors, errors[1:])), errors
     assert errors[-1] < 0.02 and errors[0] > 0.3
+
+
+def test_foundation_shape_converges_to_fd_solution_and_is_local():
+    """With a foundation (docs/model.md section 3) the series is the static solution of
+    -T lap(w) + (T / l^2) w = p, and the dent decays over about l instead of spreading over the patch."""
+    a = b = 0.06
+    r0, ell = 0.0025, 1.63e-3
+    x, y, w, _ = static_membrane_fd(a, b, r0, n=479, foundation_length_m=ell)  # 0.125 mm cells
+    w_fd = w / w[len(x) // 2, len(y) // 2]
+    errors = []
+    for modes in (9, 21, 41, 61):
+        beta = shape_coefficients(modes, modes, a, b, r0, foundation_length_m=ell)
+        errors.append(np.abs(series(beta, x, y, a, b) - w_fd).max())
+    assert all(e1 > e2 for e1, e2 in zip(errors, errors[1:])), errors
+    assert errors[-1] < 0.02, errors
+    i_c, i_far = len(x) // 2, int(np.argmin(np.abs(x - (a / 2 + r0 + 5 * ell))))  # 5 l outside the rim
+    bare = static_membrane_fd(a, b, r0, n=479)[2]
+    assert w_fd[i_far, i_c] < 0.02 and bare[i_far, i_c] / bare[i_c, i_c] > 0.3
 
 
 def test_shape_is_unit_at_contact_and_only_odd_modes():
@@ -190,12 +210,11 @@ def test_tissue_returns_to_rest(model):
 
 def test_recontact_uses_deformed_surface(model):
     press_and_release(model, depth=3e-3)
-    for _ in range(3):
-        model.step((0.0, 0.0, 0.02), (0, 0, 0), 1e-3)
+    model.step((0.0, 0.0, 0.02), (0, 0, 0), 1e-3)  # 2 ms after the lift (layered: the dent halves every ~1 ms)
     surf = model.surface_displacement_at(0.0, 0.0)
-    assert surf > 1e-3  # still deep in the dent
+    assert surf > 0.5e-3  # still deep in the dent
     # a tool above the dented surface but below z = 0 does not touch
-    model.step((0.0, 0.0, -0.5 * surf), (0, 0, 0), 1e-3)
+    model.step((0.0, 0.0, -0.25 * surf), (0, 0, 0), 1e-3)
     assert not model.in_contact and model.force_n == 0.0
     # lowering it to the dented surface touches it
     s = model.surface_displacement_at(0.0, 0.0)
@@ -215,7 +234,7 @@ def test_unilateral_contact_never_pulls(model):
 def test_edge_clipping(default_cfg):
     m = SkinModel(default_cfg)
     half = default_cfg.sheet_size_m[0] / 2
-    x_edge = half - 0.01  # the 60 mm patch sticks 20 mm out of the sheet
+    x_edge = half - 0.003  # the 60 mm patch sticks 27 mm out of the sheet; the dent is cut 3 mm from the tool
     for _ in range(5):
         m.step((x_edge, 0.0, -2e-3), (0, 0, 0), 1e-3)
     g = m.build_grid()

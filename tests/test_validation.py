@@ -43,14 +43,15 @@ def test_axis_nodes_hit_tool_radius_and_extent():
 
 @pytest.mark.parametrize("form", ["layered", "paper"])
 def test_calibration_recovers_known_parameters(form):
-    """Synthetic data from known springs, stiffening exponent (layered form only) and patch side: the fit recovers them.
+    """Synthetic data from known springs, stiffening exponent (layered form only) and foundation length: the fit
+    recovers them.
 
     Layered form: the epidermis spring is not fitted (its compliance is 0.1 % of the chain's); it keeps its value."""
     base = preset("default").replace(form=form, **{"modes.m": 5, "modes.n": 5, "lod.adaptive_modes": False})
     names = calibrate.fitted_springs(base)
     truth_k = (200.0, 60.0) if form == "layered" else (6000.0, 200.0, 25.0)
     truth_n = 1.2
-    changes = dict(zip(names, truth_k), **dict.fromkeys(calibrate.PATCH_NAMES, 0.04))
+    changes = dict(zip(names, truth_k), **{calibrate.FOUNDATION_NAME: 4e-3})
     if form == "layered":
         changes.update(dict.fromkeys(calibrate.N_NAMES, truth_n))
     truth = base.replace(**changes)
@@ -62,7 +63,7 @@ def test_calibration_recovers_known_parameters(form):
     assert len(names) == (2 if form == "layered" else 3)
     for name, want in zip(names, truth_k):
         assert res.params[name] == pytest.approx(want, rel=0.01)
-    assert res.params["patch.size_x_m"] == pytest.approx(0.04, rel=0.01)
+    assert res.params[calibrate.FOUNDATION_NAME] == pytest.approx(4e-3, rel=0.01)
     if form == "layered":
         assert res.params[calibrate.STIFFENING_NAME] == pytest.approx(truth_n, rel=0.01)
     else:

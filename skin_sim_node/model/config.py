@@ -97,6 +97,7 @@ class TissueConfig:
     tool_shape: str = "flat"  # "flat" or "sphere"
     friction_coefficient: float = 0.0
     slip_speed_m_s: float = 1e-3
+    foundation_length_m: float = 0.0  # membranes' foundation decay length (modal.py); 0: bare membrane
 
     @property
     def total_thickness_m(self) -> float:
@@ -176,6 +177,7 @@ def config_from_flat(values: dict[str, Any]) -> TissueConfig:
         tool_shape=flat["tool.shape"],
         friction_coefficient=flat["contact.friction_coefficient"],
         slip_speed_m_s=flat["contact.slip_speed_m_s"],
+        foundation_length_m=flat["patch.foundation_length_m"],
     )
     _check_geometry(cfg)
     return cfg

@@ -186,6 +186,11 @@ def averaged_bounds(x, y, radius, dradius_dd, lp, bottom, bounds, dbx, dby, dbd)
     bounds[nif + 1] = bottom
 
 
+SPHERE_MIN_DEPTH_M = 1e-15
+"""Depth floor of the sphere's contact radius: ``R d`` underflows to 0 for a subnormal depth (found by the property
+test at d = 5e-324), and ``da/dd = R / 2a`` would divide by it. Far below any resolvable indentation."""
+
+
 @njit(**JIT)
 def contact_geometry(depth, radius, sphere):
     """Contact radius ``a`` (m), load scale ``s`` and their depth derivatives for a tool ``depth`` > 0.
@@ -199,7 +204,7 @@ def contact_geometry(depth, radius, sphere):
         return radius, 1.0, 0.0, 0.0
     if depth >= radius:
         return radius, 0.5, 0.0, 0.0
-    a = math.sqrt(radius * depth)
+    a = math.sqrt(radius * max(depth, SPHERE_MIN_DEPTH_M))
     return a, depth / (2.0 * radius), 1.0 / (2.0 * radius), 0.5 * radius / a
 
 

@@ -13,6 +13,16 @@ sin(beta yc)``. The shape is normalised so the truncated series is exactly 1 at 
 contact point: a layer compressed by ``dx`` has ``B_mn = dx * beta_mn``. ``T`` and ``p``
 cancel, so ``beta`` depends only on the geometry, and with the contact at the patch
 centre only odd ``m`` and odd ``n`` survive.
+
+**Foundation** (``patch.foundation_length_m = l``, layered default). Each membrane rests on the
+tissue below it, an elastic (Winkler) foundation of stiffness ``k_A = T / l^2`` per unit area:
+eq 1 becomes ``rho_A u_tt = T lap(u) - (T / l^2) u`` (a Pasternak foundation: the membrane's
+tension is its shear layer). Eq 3 keeps its sine modes; ``kappa^2`` becomes ``kappa^2 + 1/l^2``
+in the static shape (``W_mn = p_mn / (T (kappa^2 + 1/l^2))``) and in the modal frequencies
+(``lambda_mn = c sqrt(kappa^2 + 1/l^2)``). The dent then decays over about ``l`` from the tool,
+as a layered solid's surface does, instead of spreading over the whole patch; ``l = 0`` (the
+``paper`` preset) is the paper's bare membrane. ``l`` is fitted to the large-deformation
+reference's surface fields (``skin-sim calibrate``).
 """
 
 from __future__ import annotations
@@ -25,7 +35,12 @@ from scipy.special import j1
 from .config import TissueConfig
 
 
-def disk_load_coefficients(m_max, n_max, a, b, r0, xc=None, yc=None) -> np.ndarray:
+def foundation_wavenumber2(foundation_length_m: float) -> float:
+    """``1 / l^2`` (1/m^2) of a foundation of decay length ``l``; 0 for none (``l = 0``, the bare membrane)."""
+    return 1.0 / foundation_length_m**2 if foundation_length_m > 0 else 0.0
+
+
+def disk_load_coefficients(m_max, n_max, a, b, r0, xc=None, yc=None, foundation_length_m=0.0) -> np.ndarray:
     """Unnormalised static-deflection coefficients ``T W_mn / p`` (units m^2), shape (M, N)."""
     xc = a / 2 if xc is None else xc
     yc = b / 2 if yc is None else yc
@@ -37,12 +52,12 @@ def disk_load_coefficients(m_max, n_max, a, b, r0, xc=None, yc=None) -> np.ndarr
     sin_y = np.sin(n * np.pi * yc / b)
     sin_x[np.abs(sin_x) < 1e-12] = 0.0  # exact nodes, e.g. even modes of a centred load
     sin_y[np.abs(sin_y) < 1e-12] = 0.0
-    return load * sin_x * sin_y / kappa**2
+    return load * sin_x * sin_y / (kappa**2 + foundation_wavenumber2(foundation_length_m))
 
 
-def shape_coefficients(m_max: int, n_max: int, a: float, b: float, r0: float) -> np.ndarray:
+def shape_coefficients(m_max: int, n_max: int, a: float, b: float, r0: float, foundation_length_m=0.0) -> np.ndarray:
     """``beta_mn``: eq 3 coefficients of the unit-depth indentation shape, shape (M, N)."""
-    w = disk_load_coefficients(m_max, n_max, a, b, r0)
+    w = disk_load_coefficients(m_max, n_max, a, b, r0, foundation_length_m=foundation_length_m)
     m = np.arange(1, m_max + 1)[:, None]
     n = np.arange(1, n_max + 1)[None, :]
     centre = np.sin(m * np.pi / 2) * np.sin(n * np.pi / 2)
@@ -86,7 +101,7 @@ class ModalBasis:
     mode_m: np.ndarray  # (K,) int64, 1-based
     mode_n: np.ndarray  # (K,) int64
     beta: np.ndarray  # (K,) shape coefficients of the full basis, dimensionless
-    lam: np.ndarray  # (L, K) rad/s, eq 3: c pi sqrt(m^2/a^2 + n^2/b^2)
+    lam: np.ndarray  # (L, K) rad/s, eq 3: c sqrt(pi^2 (m^2/a^2 + n^2/b^2) + 1/l^2)
     gamma: np.ndarray  # (L,) 1/s, modal damping rate from each layer's b
     m_used: np.ndarray  # distinct mode_m values, for the separable grid sum
     n_used: np.ndarray  # distinct mode_n values
@@ -113,22 +128,26 @@ def modal_basis(cfg: TissueConfig) -> ModalBasis:
 
     Damping: the layer's Kelvin-Voigt damper ``b`` acts on the fundamental mode's modal
     mass ``m11 = rho_A a b / 4``, so every mode decays at ``gamma = b / (2 m11)``
-    (uniform viscous damping of the membrane). With ``lod.adaptive_modes`` the basis holds
-    the odd modes up to :data:`REFERENCE_MODES` per axis, in levels of 1, 3, 5, ... modes
-    per axis; otherwise the fixed ``modes.m x modes.n``.
+    (uniform viscous damping of the membrane). A foundation raises every ``lambda`` (module
+    docstring); it is taken as viscoelastic, with a dashpot that keeps the (1,1) mode's damping
+    ratio ``gamma / lambda_11`` (the default ``b`` critically damps it, ``msgs_schema.tissue``), so
+    ``gamma`` grows by the factor ``lambda_11`` grows and the released dent does not overshoot.
+    With ``lod.adaptive_modes`` the basis holds the odd modes up to :data:`REFERENCE_MODES` per
+    axis, in levels of 1, 3, 5, ... modes per axis; otherwise the fixed ``modes.m x modes.n``.
     """
     a, b = cfg.patch_size_m
     r0 = cfg.tool_radius_m
+    ell = cfg.foundation_length_m
     adaptive = cfg.lod.adaptive_modes
     m_max, n_max = (REFERENCE_MODES, REFERENCE_MODES) if adaptive else cfg.modes
     mode_m, mode_n = _shell_modes(m_max, n_max)
-    w = disk_load_coefficients(m_max, n_max, a, b, r0)
+    w = disk_load_coefficients(m_max, n_max, a, b, r0, foundation_length_m=ell)
     centre = np.sin(mode_m * np.pi / 2) * np.sin(mode_n * np.pi / 2)
     w_k = w[mode_m - 1, mode_n - 1]
     beta_k = np.ascontiguousarray(w_k / np.sum(w_k * centre))
     if adaptive:
         levels = np.arange(1, m_max + 1, 2, dtype=np.int64)
-        w_ref = disk_load_coefficients(REFERENCE_MODES, REFERENCE_MODES, a, b, r0)
+        w_ref = disk_load_coefficients(REFERENCE_MODES, REFERENCE_MODES, a, b, r0, foundation_length_m=ell)
         k_prefix = np.array([((lv + 1) // 2) ** 2 for lv in levels], dtype=np.int64)
         table = np.zeros((levels.size, beta_k.size))
         for i, k in enumerate(k_prefix):
@@ -141,9 +160,12 @@ def modal_basis(cfg: TissueConfig) -> ModalBasis:
         table = beta_k[None, :].copy()
         err = np.zeros(1)  # not used: a fixed count is not chosen by tolerance
         m_lim = levels.copy()
-    kappa = np.pi * np.sqrt((mode_m / a) ** 2 + (mode_n / b) ** 2)
+    kappa2 = np.pi**2 * ((mode_m / a) ** 2 + (mode_n / b) ** 2)
+    kappa = np.sqrt(kappa2 + foundation_wavenumber2(ell))
     lam = np.array([layer.wave_speed_m_per_s * kappa for layer in cfg.layers])
-    gamma = np.array([layer.damping_n_s_per_m / (2 * layer.areal_density_kg_per_m2 * a * b / 4) for layer in cfg.layers])
+    # the foundation's dashpot keeps the fundamental's damping ratio: gamma scales as its lambda does
+    found = float(np.sqrt(1.0 + foundation_wavenumber2(ell) / (np.pi**2 * (1 / a**2 + 1 / b**2))))
+    gamma = np.array([found * layer.damping_n_s_per_m / (2 * layer.areal_density_kg_per_m2 * a * b / 4) for layer in cfg.layers])
     return ModalBasis(
         mode_m, mode_n, beta_k, lam, gamma, np.unique(mode_m), np.unique(mode_n), levels, k_prefix, m_lim, table, err
     )

@@ -12,10 +12,11 @@ Fitted (log-parameters, ``scipy.optimize.least_squares``):
   measured 1.5 MPa (Geerligs et al. 2011).
 - ``layers.*.stiffening`` (layered form only; one exponent ``n`` shared by the layers): the
   compression law ``f = k h ((1 - c/h)^-n - 1) / n`` (docs/model.md section 6).
-- ``patch.size_x_m = patch.size_y_m`` (only when surface fields are given): the membrane's
-  static shape does not depend on ``T`` (it cancels when the shape is normalised to the
-  depth, ``docs/model.md`` section 3), so the patch side is the one parameter that sets how
-  far the static indentation spreads.
+- ``patch.foundation_length_m`` (only when surface fields are given): the membranes' static
+  shape does not depend on ``T`` (it cancels when the shape is normalised to the depth,
+  ``docs/model.md`` section 3); with the patch at the paper's 60 mm, the foundation's decay
+  length ``l`` is the one parameter that sets how far the static indentation spreads
+  (:mod:`skin_sim_node.model.modal`).
 
 Not fitted: thicknesses and interfaces (measured geometry), densities and tensions (they set
 only the dynamics, which static data cannot see), dampers ``b`` (no rate data in a static FEM).
@@ -52,7 +53,9 @@ K_NAMES = tuple(f"layers.{n}.stiffness_n_per_m" for n in LAYER_NAMES)
 N_NAMES = tuple(f"layers.{n}.stiffening" for n in LAYER_NAMES)
 STIFFENING_NAME = "layers.*.stiffening"  # the one fitted exponent, reported under this name
 N_BOUNDS = (0.0, 10.0)  # the schema's bounds of layers.*.stiffening
-PATCH_NAMES = ("patch.size_x_m", "patch.size_y_m")
+FOUNDATION_NAME = "patch.foundation_length_m"
+FOUNDATION_BOUNDS_M = (1e-4, 0.06)  # 0.1 mm (finer than any grid) to the paper's patch side (a bare membrane)
+FOUNDATION_START_M = 5e-3  # the start when the base has none (l = 0): about the stack's thickness
 STIFFENING_RESTART = 1.0
 """Second start of the exponent (layered form): from the default's small n the fit can stall at the n = 0 bound with
 the dermis/fat split swapped (seen on synthetic data with n = 1.2); the better of the two fits is kept."""
@@ -101,17 +104,16 @@ def fitted_springs(base: TissueConfig) -> tuple[str, ...]:
     return K_NAMES[1:] if base.form == "layered" else K_NAMES
 
 
-def _apply(base: TissueConfig, p: np.ndarray, fit_patch: bool) -> TissueConfig:
-    """``p``: log k (:func:`fitted_springs`), then the stiffening exponent (layered form), then log patch side (with fields)."""
+def _apply(base: TissueConfig, p: np.ndarray, fit_field: bool) -> TissueConfig:
+    """``p``: log k (:func:`fitted_springs`), the stiffening exponent (layered form), log foundation length (fields)."""
     ks = fitted_springs(base)
     changes = dict(zip(ks, np.exp(p[: len(ks)]).tolist()))
     i = len(ks)
     if _fits_stiffening(base):
         changes.update(dict.fromkeys(N_NAMES, float(p[i])))
         i += 1
-    if fit_patch:
-        side = float(np.exp(p[i]))
-        changes.update({PATCH_NAMES[0]: side, PATCH_NAMES[1]: side})
+    if fit_field:
+        changes[FOUNDATION_NAME] = float(np.exp(p[i]))
     return base.replace(**changes)
 
 
@@ -124,12 +126,12 @@ class Fit:
     n_evals: int
 
 
-def fit(datasets: list[IndentData], base: TissueConfig | None = None, fit_patch: bool | None = None) -> Fit:
-    """Least-squares fit of the layer springs, the stiffening exponent (layered form) and the patch side (when fields
-    are given)."""
+def fit(datasets: list[IndentData], base: TissueConfig | None = None, fit_field: bool | None = None) -> Fit:
+    """Least-squares fit of the layer springs, the stiffening exponent (layered form) and the foundation length (when
+    fields are given)."""
     base = base or preset("default")
-    if fit_patch is None:
-        fit_patch = any(d.field_xy_m is not None for d in datasets)
+    if fit_field is None:
+        fit_field = any(d.field_xy_m is not None for d in datasets)
     flat = base.as_flat()
     names = list(fitted_springs(base))
     p0 = [np.log(flat[n]) for n in names]
@@ -139,15 +141,15 @@ def fit(datasets: list[IndentData], base: TissueConfig | None = None, fit_patch:
         lo.append(N_BOUNDS[0])
         hi.append(N_BOUNDS[1])
         names.append(STIFFENING_NAME)
-    if fit_patch:
-        p0.append(np.log(base.patch_size_m[0]))
-        lo.append(np.log(2.05 * base.tool_radius_m))
-        hi.append(np.log(min(base.sheet_size_m)))
-        names.append(PATCH_NAMES[0])
+    if fit_field:
+        p0.append(np.log(base.foundation_length_m or FOUNDATION_START_M))
+        lo.append(np.log(FOUNDATION_BOUNDS_M[0]))
+        hi.append(np.log(FOUNDATION_BOUNDS_M[1]))
+        names.append(FOUNDATION_NAME)
     p0 = np.clip(np.array(p0), np.array(lo) + 1e-9, np.array(hi) - 1e-9)
 
     def fun(p):
-        return residuals(_apply(base, p, fit_patch), datasets)
+        return residuals(_apply(base, p, fit_field), datasets)
 
     r0 = fun(p0)
     starts = [p0]
@@ -158,7 +160,7 @@ def fit(datasets: list[IndentData], base: TissueConfig | None = None, fit_patch:
     sols = [least_squares(fun, p, bounds=(lo, hi), x_scale=1.0, diff_step=1e-4, xtol=1e-12, ftol=1e-12, gtol=1e-12)
             for p in starts]  # fmt: skip
     sol = min(sols, key=lambda r: r.cost)
-    cfg = _apply(base, sol.x, fit_patch)
+    cfg = _apply(base, sol.x, fit_field)
     params = {n: float(v if n == STIFFENING_NAME else np.exp(v)) for n, v in zip(names, sol.x)}
     rms = float(np.sqrt(np.mean(sol.fun**2) * sol.fun.size / len(datasets)))
     rms0 = float(np.sqrt(np.mean(r0**2) * r0.size / len(datasets)))
