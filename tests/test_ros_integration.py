@@ -169,6 +169,60 @@ def test_grid_shows_indentation_at_tool(scene, monitor):
     assert np.all(layers[:, :, 0] >= layers[:, :, 1]) and np.all(layers[:, :, 1] >= layers[:, :, 2])
 
 
+def circle_path(depth=1.0e-3, radius=5e-3, period_s=2.0, ramp_s=0.3):
+    """Press at (radius, 0), then circle the centre at that depth: the tissue never stops changing."""
+    press = press_path(depth, radius, 0.0, ramp_s)
+    w = 2 * math.pi / period_s
+
+    def path(t):
+        if t < ramp_s:
+            return press(t)
+        a = w * (t - ramp_s)
+        return (radius * math.cos(a), radius * math.sin(a), -depth), (-radius * w * math.sin(a), radius * w * math.cos(a), 0.0)
+
+    return path
+
+
+def slow_press_path(start_depth=0.5e-3, speed_m_s=0.2e-3):
+    """Press to ``start_depth``, then on at ``speed_m_s``: the grid changes by the display tolerance (10 um) only
+    about 20 times a second."""
+    press = press_path(start_depth, 0.0, 0.0, 0.3)
+
+    def path(t):
+        if t < 0.3:
+            return press(t)
+        return (0.0, 0.0, -(start_depth + speed_m_s * (t - 0.3))), (0.0, 0.0, -speed_m_s)
+
+    return path
+
+
+@pytest.mark.parametrize(("mesh_rate_hz", "motion"), [(5.0, "circle"), (2.0, "circle"), (5.0, "slow press")])
+def test_mesh_follows_its_rate_while_the_tissue_moves(scene, mesh_rate_hz, motion):
+    """tissue/mesh comes at mesh_rate_hz by the clock while the tissue changes. It used to come every n-th grid
+    build (n = display_rate_hz / mesh_rate_hz = 12), and grids are built only on change: under a slow press, about
+    20 builds/s, that was 1.7 meshes/s instead of 5."""
+    from skin_sim_node.perf.monitor import Monitor
+
+    start_node(scene, f"mesh_rate_hz:={mesh_rate_hz}")
+    mon = Monitor(name=f"test_mesh_{os.getpid()}", mesh=True)
+    try:
+        src = PoseSource(mon, circle_path() if motion == "circle" else slow_press_path())
+        src.start()
+        try:
+            mon.wait_for(lambda: len(mon.mesh) >= 2, 30, "two meshes")
+            time.sleep(1.0)  # settled into the circle
+            n0, t0 = len(mon.mesh), time.monotonic()
+            time.sleep(4.0)
+            rate = (len(mon.mesh) - n0) / (time.monotonic() - t0)
+        finally:
+            src.stop()
+        print(f"tissue/mesh, {motion}: {rate:.2f} meshes/s at mesh_rate_hz {mesh_rate_hz}")
+        assert 0.6 * mesh_rate_hz <= rate <= 1.2 * mesh_rate_hz, rate
+        assert all(n > 100 for _, _, n in mon.mesh[n0:])  # a 120 x 120 grid at stride 4: 30 x 30 vertices per triangle list
+    finally:
+        mon.close()
+
+
 def test_bad_input_rejected_logged_once_node_survives(scene, monitor):
     node = start_node(scene, "input_queue_depth:=10")  # a burst of bad samples is not dropped by the reader
     src = PoseSource(monitor, press_path())

@@ -25,8 +25,8 @@ class Monitor:
     """Subscribes to the node's outputs; every record carries the local ROS-clock arrival time.
 
     Records: ``wrench`` (rx_ns, stamp_ns, fz), ``contact`` (rx_ns, stamp_ns, compression[3],
-    stress[3]), ``height_map``/``layer_heights`` (rx_ns, stamp_ns, array), ``diagnostics``
-    (rx_ns, {key: value}).
+    stress[3]), ``height_map``/``layer_heights`` (rx_ns, stamp_ns, array), ``mesh`` (rx_ns, stamp_ns,
+    vertex count), ``diagnostics`` (rx_ns, {key: value}).
     """
 
     def __init__(
@@ -37,10 +37,12 @@ class Monitor:
         images: bool = True,
         record_depth: int = RECORD_DEPTH,
         contact: bool = True,
+        mesh: bool = False,
     ):
         """``record_depth``: reader history of wrench/contact. Deep (default) to record every sample;
         1 to time arrivals as a device sees them (a stalled observer would timestamp a backlog late).
-        ``images`` and ``contact`` off: only ``tool/wrench`` and ``diagnostics`` (the benchmarks' observer)."""
+        ``images`` and ``contact`` off: only ``tool/wrench`` and ``diagnostics`` (the benchmarks' observer).
+        ``mesh`` on: also ``tissue/mesh`` (off by default: the node builds the mesh only while it is read)."""
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node(name, context=self.context)
@@ -50,6 +52,7 @@ class Monitor:
         self.height_map: list = []
         self.layer_heights: list = []
         self.diagnostics: list = []
+        self.mesh: list[tuple[int, int, int]] = []  # rx_ns, stamp_ns, vertex count
         self._keep_images = keep_images
         self._lock = threading.Lock()
         # an observer records every sample: a deep reader queue, so its own stalls lose nothing
@@ -59,6 +62,8 @@ class Monitor:
         if images:
             subscription(self.node, "height_map", lambda m: self._on_image(m, self.height_map))
             subscription(self.node, "layer_heights", lambda m: self._on_image(m, self.layer_heights))
+        if mesh:
+            subscription(self.node, "mesh", lambda m: self.mesh.append((self._now(), cv.stamp_ns(m.header), len(m.points))))
         subscription(self.node, "diagnostics", self._on_diag)
         self._executor = make_executor(executor, self.context)
         self._executor.add_node(self.node)

@@ -12,6 +12,7 @@ retries until it reads the same even ``seq`` before and after copying.
 
 from __future__ import annotations
 
+import math
 import multiprocessing as mp
 import os
 import time
@@ -150,7 +151,8 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
     model = SkinModel(config_from_flat(tissue_flat))
     version = 0
     frame = FRAMES["tissue"]
-    last_seq, last_pub, count = -1, 0.0, 0
+    last_seq, last_pub, last_mesh = -1, 0.0, -math.inf
+    mesh_grid = None  # the newest grid not yet sent as a mesh (the mesh runs below the display rate)
     last_q, last_centre, last_active = None, None, None
     last_readers: dict[str, int] = {}
     try:
@@ -192,15 +194,19 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
                         pubs["height_map"].publish(cv.fill_image(image, stamp, frame, g.heights_m[0]))
                     if watched["layer_heights"]:
                         pubs["layer_heights"].publish(cv.fill_image(layers_image, stamp, frame, np.moveaxis(g.heights_m, 0, -1)))
-                    count += 1
-                    rate = display["mesh_rate_hz"]
-                    every = max(1, round(display["display_rate_hz"] / rate)) if rate > 0 else 0
-                    if display["publish_mesh"] and watched["mesh"] and every and (count % every == 0 or "mesh" in joined):
-                        affected = g.displacement_m > 1e-6  # deeper than 1 um: visibly deformed
-                        n_l = affected.shape[0]
-                        deepest = np.where(affected.any(axis=0), n_l - 1 - np.argmax(affected[::-1], axis=0), -1)
-                        verts, cols = cv.mesh_arrays(g.xs_m, g.ys_m, g.heights_m[0], deepest, display["mesh_stride"])
-                        pubs["mesh"].publish(cv.fill_mesh_marker(marker, Point, ColorRGBA, stamp, frame, verts, cols))
+                    mesh_grid = (g, stamp)
+                # the mesh at mesh_rate_hz by the clock, from the newest grid (a count of builds is no clock:
+                # builds happen only on change, so every n-th build gave ~1 mesh/s); a grid that changed
+                # between two meshes is sent once the interval has passed, so the last shape always arrives
+                rate = display["mesh_rate_hz"]
+                due = rate > 0 and (t0 - last_mesh >= 1.0 / rate or "mesh" in joined)
+                if mesh_grid is not None and display["publish_mesh"] and watched["mesh"] and due:
+                    (g, stamp), mesh_grid, last_mesh = mesh_grid, None, t0
+                    affected = g.displacement_m > 1e-6  # deeper than 1 um: visibly deformed
+                    n_l = affected.shape[0]
+                    deepest = np.where(affected.any(axis=0), n_l - 1 - np.argmax(affected[::-1], axis=0), -1)
+                    verts, cols = cv.mesh_arrays(g.xs_m, g.ys_m, g.heights_m[0], deepest, display["mesh_stride"])
+                    pubs["mesh"].publish(cv.fill_mesh_marker(marker, Point, ColorRGBA, stamp, frame, verts, cols))
             time.sleep(max(0.0, period - (time.monotonic() - t0)))
     except KeyboardInterrupt:
         pass
