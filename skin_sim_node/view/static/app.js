@@ -23,9 +23,11 @@ const scene = new THREE.Scene();
 scene.background = new THREE.Color(0x1d2127);
 const camera = new THREE.PerspectiveCamera(40, 1, 1, 2000);
 camera.up.set(0, 0, 1);
-camera.position.set(-80, -125, 85);
+// framed on the middle of the sheet, close enough to see a punch-sized dent (it decays within a few mm of the
+// tool: the membranes' foundation) and the cut-away layers; scroll out for the whole 120 mm sheet
+camera.position.set(-32, -50, 34);
 const controls = new OrbitControls(camera, renderer.domElement);
-controls.target.set(0, 0, -5);
+controls.target.set(0, 0, -3);
 controls.update();
 scene.add(new THREE.HemisphereLight(0xffffff, 0x404050, 1.6));
 const sun = new THREE.DirectionalLight(0xffffff, 1.6);
