@@ -230,6 +230,8 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
             not_bg, skin = _tissue_pixels(shot)
             assert not_bg > 0.08 and skin > 0.05, (not_bg, skin)
             assert b.evaluate("document.getElementById('mode').textContent") == f"live {ns}"
+            # layered form, no tissue/contact reader (it would make the node publish it every tick): all 3 layers
+            b.wait_for("document.getElementById('layers').textContent === '3'", 20, "3 layers during a press")
             assert b.evaluate("window.skinView.diag !== null && window.skinView.diag.values.achieved_rate_hz !== undefined")
             # parameters come from the node at run time; a bad value typed into the page shows the node's reason
             b.wait_for("document.querySelector('input[data-name=\"tissue.layers.dermis.stiffness_n_per_m\"]') !== null",

@@ -67,6 +67,9 @@ def main(argv=None) -> int:
     ap.add_argument("--port", type=int, default=PORT, help="HTTP port (0: any free port)")
     ap.add_argument("--rate-hz", type=float, default=DISPLAY_RATE_HZ, help="frames per second sent to the page")
     ap.add_argument("--duration-s", type=float, help="stop after this long (default: until Ctrl-C)")
+    ap.add_argument("--contact", action="store_true",
+                    help="also read tissue/contact (per-layer stress, for the paper form's layer count); the node "
+                         "then publishes it every haptic tick, which costs its latency")  # fmt: skip
     ap.add_argument("--screenshot", type=Path, help="open the page in headless Chromium and save a PNG after --shot-after-s")
     ap.add_argument("--shot-after-s", type=float, default=3.0, help="delay before the screenshot")
     ap.add_argument(
@@ -89,7 +92,7 @@ def main(argv=None) -> int:
     else:
         from .live import LiveSource
 
-        source = LiveSource(args.namespace, rate_hz=args.rate_hz)
+        source = LiveSource(args.namespace, rate_hz=args.rate_hz, contact=args.contact)
         source.refresh_geometry(wait_s=3.0)  # a view started before its node serves at once, with default geometry
     on_ready = None
     if args.screenshot:

@@ -15,6 +15,8 @@ import re
 import threading
 import time
 
+import numpy as np
+
 from msgs_schema import convert as cv
 from msgs_schema.parameters import SPEC_BY_NAME
 
@@ -52,7 +54,7 @@ def parse_value(text: str, ptype: int):
 class LiveSource:
     """rclpy node ``skin_sim_view`` in ``namespace``; :meth:`run` publishes frames to a ViewServer."""
 
-    def __init__(self, namespace: str = "", rate_hz: float = 30.0, node_name: str = NODE_NAME):
+    def __init__(self, namespace: str = "", rate_hz: float = 30.0, node_name: str = NODE_NAME, contact: bool = False):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.parameter_client import AsyncParameterClient
@@ -76,11 +78,13 @@ class LiveSource:
         self._diag_new = False
         subscription(self.node, "tool_pose", lambda m: setattr(self, "pose", m))
         subscription(self.node, "tool_wrench", lambda m: setattr(self, "wrench", m))
-        subscription(self.node, "contact", lambda m: setattr(self, "contact", m))
+        if contact:  # a reader of tissue/contact makes the node publish it every tick (lazy): opt-in
+            subscription(self.node, "contact", lambda m: setattr(self, "contact", m))
         subscription(self.node, "layer_heights", self._on_grid)
         subscription(self.node, "diagnostics", self._on_diag)
         self.sheet_m = (SPEC_BY_NAME["tissue.sheet.size_x_m"].default, SPEC_BY_NAME["tissue.sheet.size_y_m"].default)
         self.tool_radius_m = SPEC_BY_NAME["tissue.tool.radius_m"].default
+        self.form = None  # the node's tissue.form once known: "layered" engages every layer from first contact
         self._stop = threading.Event()
         self.frames = 0
 
@@ -140,7 +144,7 @@ class LiveSource:
     def refresh_geometry(self, wait_s: float = SERVICE_WAIT_S) -> None:
         """Sheet size and tool radius from the node (its grid and patch), defaults if it does not answer."""
         try:
-            names = ["tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m"]
+            names = ["tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", "tissue.form"]
             got = self._get(names, wait_s=wait_s, tries=1)
         except TimeoutError:
             return
@@ -152,6 +156,8 @@ class LiveSource:
                float(got["tissue.tool.radius_m"][1]))  # fmt: skip
         changed = new != (self.sheet_m, self.tool_radius_m)
         self.sheet_m, self.tool_radius_m = new
+        if "tissue.form" in got:
+            self.form = str(got["tissue.form"][1])
         return changed
 
     def params(self) -> dict:
@@ -226,6 +232,9 @@ class LiveSource:
         if self.contact is not None:
             _, comp, _, stress = cv.read_contact(self.contact)
             h["compression_m"], h["stress_pa"] = comp.tolist(), stress.tolist()
+            h["layers"] = int(sum(1 for x in stress if x > 0))
+        elif self.form == "layered" and "force" in h:
+            h["layers"] = 3 if np.linalg.norm(h["force"]) > 0 else 0  # all layers in series from first contact
         return h
 
     def run(self, server, duration_s: float | None = None) -> None:

@@ -279,7 +279,7 @@ function onFrame(buf) {
   state.depth = h.depth_m;
   $("force").textContent = h.force ? h.force[2].toFixed(4) : "-";
   $("depth").textContent = h.depth_m !== undefined ? (h.depth_m * 1e3).toFixed(2) : "-";
-  $("layers").textContent = h.stress_pa ? h.stress_pa.filter((s) => s > 0).length : "-";
+  $("layers").textContent = h.layers !== undefined ? h.layers : h.stress_pa ? h.stress_pa.filter((s) => s > 0).length : "-";
   updateTool(h);
   plots(h);
   dirty = true;
