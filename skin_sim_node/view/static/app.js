@@ -182,15 +182,22 @@ function drawPlot(canvas, xs, ys, xlabel, cursor) {
   ctx.stroke();
   if (cursor !== undefined) { ctx.strokeStyle = "#ff5252"; ctx.beginPath(); ctx.moveTo(X(cursor), 0); ctx.lineTo(X(cursor), H); ctx.stroke(); }
 }
-function plots(h) {
+let plotH = null, plotsDirty = false;
+function plots(h) { // records every frame; the canvases are redrawn with the scene, at most RENDER_HZ
+  plotH = h; plotsDirty = true;
+  if (timeline) return;
+  const t = performance.now() / 1e3;
+  hist.t.push(t); hist.f.push(h.force ? h.force[2] : 0); hist.d.push((h.depth_m || 0) * 1e3);
+  while (hist.t.length && hist.t[0] < t - HIST_S) { hist.t.shift(); hist.f.shift(); hist.d.shift(); }
+}
+function drawPlots() {
+  const h = plotH;
   if (timeline) {
     drawPlot($("plot-t"), timeline.t_s, timeline.force_n, "t (s)", h.t_s);
     drawPlot($("plot-d"), timeline.depth_m.map((d) => d * 1e3), timeline.force_n, "depth (mm)", h.depth_m !== undefined ? h.depth_m * 1e3 : undefined);
     return;
   }
   const t = performance.now() / 1e3;
-  hist.t.push(t); hist.f.push(h.force ? h.force[2] : 0); hist.d.push((h.depth_m || 0) * 1e3);
-  while (hist.t.length && hist.t[0] < t - HIST_S) { hist.t.shift(); hist.f.shift(); hist.d.shift(); }
   drawPlot($("plot-t"), hist.t.map((x) => x - t), hist.f, "t (s)");
   drawPlot($("plot-d"), hist.d, hist.f, "depth (mm)");
 }
@@ -310,13 +317,18 @@ connect();
 controls.addEventListener("change", () => { dirty = true; });
 window.addEventListener("resize", () => { dirty = true; });
 // at most RENDER_HZ redraws: leaves the main thread time to take frames when WebGL runs on the CPU (no GPU)
-const RENDER_HZ = parseFloat(new URLSearchParams(location.search).get("render_hz") || "30");
-let lastRender = 0;
+// (10 when WebGL runs on the CPU: at 30 Hz SwiftShader took 1.5 of this machine's 2 cores from the haptic node)
+const RENDER_HZ = parseFloat(new URLSearchParams(location.search).get("render_hz") || (software ? "10" : "30"));
+let lastRender = 0, lastPlots = 0;
 (function loop(now) {
   requestAnimationFrame(loop);
   if (dirty && now - lastRender >= 1000 / RENDER_HZ - 2) {
     dirty = false; lastRender = now;
     renderer.render(scene, camera);
     state.renders = (state.renders || 0) + 1;
+  }
+  if (plotsDirty && now - lastPlots >= 1000 / RENDER_HZ - 2) { // 2D canvases cost CPU too: same cap
+    plotsDirty = false; lastPlots = now;
+    drawPlots();
   }
 })(0);
