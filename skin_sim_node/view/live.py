@@ -146,9 +146,9 @@ class LiveSource:
         try:
             names = ["tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", "tissue.form"]
             got = self._get(names, wait_s=wait_s, tries=1)
-        except TimeoutError:
-            return
-        self._set_geometry(got)
+            self._set_geometry(got)
+        except (TimeoutError, KeyError, TypeError, ValueError):
+            return  # no answer, or a node without one of these (rclpy answers nothing then): keep the defaults
 
     def _set_geometry(self, got: dict) -> bool:
         """Take sheet size and tool radius from a get_parameters answer; True if they changed."""
@@ -168,7 +168,11 @@ class LiveSource:
             descs = self._call(lambda: self.client.describe_parameters(names), "describe_parameters").descriptors
         except TimeoutError as exc:
             return {"ok": False, "reason": str(exc), "params": [], "retry": True}
-        if self._set_geometry(got) and self.server is not None:
+        try:
+            changed = self._set_geometry(got)
+        except (KeyError, TypeError, ValueError):
+            changed = False  # a node without these parameters: keep the defaults
+        if changed and self.server is not None:
             self.server.broadcast_text(self.info())  # the node was not found at start: the page had defaults
         out = []
         for d in descs:
@@ -187,7 +191,7 @@ class LiveSource:
             got = self._get([name])
         except TimeoutError as exc:
             return {"ok": False, "name": name, "reason": str(exc)}
-        ptype = got[name][0]
+        ptype = got.get(name, (0, None))[0]
         if ptype == 0:
             return {"ok": False, "name": name, "reason": f"the node has no parameter {name!r}"}
         value = parse_value(text, ptype)
