@@ -165,6 +165,7 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
                 if kind == "tissue":
                     version, model = payload[0], SkinModel(config_from_flat(payload[1]))
                     last_q = last_centre = last_active = None  # new rest heights: the next frame rebuilds
+                    mesh_grid = None  # a pending mesh of the old tissue is not sent
                 elif kind == "display":
                     display = payload
             period = 1.0 / display["display_rate_hz"] if display["display_rate_hz"] > 0 else 0.5

@@ -19,6 +19,7 @@ import numpy as np
 
 from msgs_schema import convert as cv
 from msgs_schema.parameters import SPEC_BY_NAME
+from msgs_schema.tissue import LAYER_NAMES
 
 from .frames import diag_message, encode_frame, tool_depth_m
 
@@ -145,15 +146,19 @@ class LiveSource:
         """Sheet size and tool radius from the node (its grid and patch), defaults if it does not answer."""
         try:
             names = ["tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", "tissue.form"]
-            got = self._get(names, wait_s=wait_s, tries=1)
-            self._set_geometry(got)
-        except (TimeoutError, KeyError, TypeError, ValueError):
-            return  # no answer, or a node without one of these (rclpy answers nothing then): keep the defaults
+            self._set_geometry(self._get(names, wait_s=wait_s, tries=1))
+        except TimeoutError:
+            return
 
     def _set_geometry(self, got: dict) -> bool:
-        """Take sheet size and tool radius from a get_parameters answer; True if they changed."""
-        new = ((float(got["tissue.sheet.size_x_m"][1]), float(got["tissue.sheet.size_y_m"][1])),
-               float(got["tissue.tool.radius_m"][1]))  # fmt: skip
+        """Take sheet size and tool radius from a get_parameters answer; True if they changed.
+
+        A node without one of them (rclpy then answers no values at all) leaves the defaults."""
+        try:
+            new = ((float(got["tissue.sheet.size_x_m"][1]), float(got["tissue.sheet.size_y_m"][1])),
+                   float(got["tissue.tool.radius_m"][1]))  # fmt: skip
+        except (KeyError, TypeError, ValueError):
+            return False
         changed = new != (self.sheet_m, self.tool_radius_m)
         self.sheet_m, self.tool_radius_m = new
         if "tissue.form" in got:
@@ -168,11 +173,7 @@ class LiveSource:
             descs = self._call(lambda: self.client.describe_parameters(names), "describe_parameters").descriptors
         except TimeoutError as exc:
             return {"ok": False, "reason": str(exc), "params": [], "retry": True}
-        try:
-            changed = self._set_geometry(got)
-        except (KeyError, TypeError, ValueError):
-            changed = False  # a node without these parameters: keep the defaults
-        if changed and self.server is not None:
+        if self._set_geometry(got) and self.server is not None:
             self.server.broadcast_text(self.info())  # the node was not found at start: the page had defaults
         out = []
         for d in descs:
@@ -238,7 +239,7 @@ class LiveSource:
             h["compression_m"], h["stress_pa"] = comp.tolist(), stress.tolist()
             h["layers"] = int(sum(1 for x in stress if x > 0))
         elif self.form == "layered" and "force" in h:
-            h["layers"] = 3 if np.linalg.norm(h["force"]) > 0 else 0  # all layers in series from first contact
+            h["layers"] = len(LAYER_NAMES) if np.linalg.norm(h["force"]) > 0 else 0  # all in series from first contact
         return h
 
     def run(self, server, duration_s: float | None = None) -> None:
