@@ -55,6 +55,11 @@ def isolated_env(domain_id: int | None = None, log_dir: Path | None = None) -> d
     return env
 
 
+STOP_TIMEOUT_S = 10.0
+"""What every skin-sim process is given to exit after SIGINT or SIGTERM before a scene kills it. Measured with two
+busy processes beside it (tests/test_shutdown.py): node 0.7-0.8 s, bridge and device 0.2-0.5 s."""
+
+
 @dataclass
 class Proc:
     name: str
@@ -101,7 +106,8 @@ class Scene:
             time.sleep(0.05)
         raise TimeoutError(f"{proc.name} did not log {text!r} within {timeout_s} s:\n{proc.log()[-3000:]}")
 
-    def stop(self, proc: Proc, timeout_s: float = 5.0) -> int:
+    def stop(self, proc: Proc, timeout_s: float = STOP_TIMEOUT_S) -> int:
+        """SIGTERM ``proc`` and wait up to ``timeout_s`` for it; SIGKILL it past that (its code is then -9)."""
         if proc.popen.poll() is None:
             proc.popen.send_signal(signal.SIGTERM)
             try:
