@@ -165,24 +165,39 @@ def test_dds_across_network_namespaces():
 
 
 def test_bench_timer_case_reports_periods_and_node_counts(tmp_path):
-    """One short ``skin-sim bench`` jitter case end to end: the stamps of a real stream, the node's own counts."""
-    from skin_sim_node.perf.bench_node import run_case
+    """One short ``skin-sim bench`` jitter case end to end: its figures are those of the stamps it recorded and of
+    the node's own diagnostics (recomputed here), whatever the machine's load made of them."""
+    from skin_sim_node.perf.bench_node import diag_counts, run_case
 
-    r = run_case("node-timer", 2.0, 1000.0, tmp_path, ("-p", "display_rate_hz:=0.0"), settle_s=1.0)
-    assert r["samples"] > 100
-    assert 0.0 <= r["missed_pct"] <= 100.0 and 0.0 <= r["late_pct"] <= 100.0
-    assert r["period_ms"][0] <= r["period_ms"][1] <= r["period_ms"][2]
-    assert r["node_ticks"] > 100 and 0.0 <= r["node_missed_pct"] <= 100.0 and r["node_rate_hz"] > 0
+    r = run_case("node-timer", 2.0, 1000.0, tmp_path, ("-p", "display_rate_hz:=0.0"), settle_s=1.0, keep_stamps=True)
+    assert r["samples"] > 100 and r["wrenches"] == len(r["stamps_ns"])
+    again = period_stats(r["stamps_ns"], 1000.0)
+    assert again["samples"] == r["samples"] and again["missed_pct"] == r["missed_pct"] and again["period_ms"] == r["period_ms"]
+    counts = diag_counts(r["diagnostics"])
+    assert counts == {k: r[k] for k in counts}
+    assert r["node_ticks"] > 100 and r["node_rate_hz"] > 0
+
+
+def test_diag_counts_sums_the_windows_after_the_first():
+    from skin_sim_node.perf.bench_node import diag_counts
+
+    def d(total, missed, late, hz):
+        return {"ticks_total": str(total), "missed_slots_window": str(missed), "late_ticks_window": str(late),
+                "achieved_rate_hz": str(hz), "period_us_p99": "1100", "kernel_us_p99": "20"}  # fmt: skip
+
+    c = diag_counts([d(500, 99, 99, 1.0), d(1500, 10, 4, 990.0), d(2500, 30, 6, 1000.0)])
+    assert (c["node_windows"], c["node_ticks"], c["node_late_ticks"]) == (2, 2000, 10)
+    assert c["node_missed_pct"] == pytest.approx(100 * 40 / 2040) and c["node_rate_hz"] == pytest.approx(995.0)
+    assert diag_counts([d(1, 0, 0, 1.0)]) == {"node_windows": 1}
 
 
 def test_scale_one_session_in_its_namespace(tmp_path):
-    """``skin-sim scale`` with one namespaced session: its diagnostics arrive and count missed slots."""
+    """``skin-sim scale`` with one namespaced session: its diagnostics arrive (under its namespace) and count ticks."""
     from skin_sim_node.perf.scale import run_scale
 
     rows = run_scale(1, 3.0, 1000.0, "timer", ["display_rate_hz:=0.0"], tmp_path)
     s = rows[0]["per_session"][0]
     assert s["node_windows"] >= 1 and s["node_ticks"] > 100
-    assert 0.0 <= s["node_missed_pct"] <= 100.0
 
 
 def test_progress_prints_a_line_per_stage_with_the_remaining_estimate(capsys):

@@ -198,9 +198,11 @@ def run_case(
     pose_rate_hz: float = 1000.0,
     settle_s: float | None = None,
     env: dict[str, str] | None = None,
+    keep_stamps: bool = False,
 ) -> dict:
     """Run one case for ``duration_s`` measured seconds, from ``settle_s`` (default :data:`SETTLE_S`)
-    after the observer joined; returns its figures (see the module doc)."""
+    after the observer joined; returns its figures (see the module doc), and with ``keep_stamps`` the wrench
+    stamps they were computed from (``stamps_ns``) and the node's diagnostics (``diagnostics``)."""
     settle_s = SETTLE_S if settle_s is None else settle_s
     from geometry_msgs.msg import PoseStamped, TwistStamped
 
@@ -265,6 +267,9 @@ def run_case(
     else:
         out.update(period_stats([s for _, s, _ in records], rate_hz))
     out.update(diag_counts(diags))
+    if keep_stamps:
+        out["stamps_ns"] = [s for _, s, _ in records]
+        out["diagnostics"] = diags
     return out
 
 

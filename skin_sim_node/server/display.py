@@ -104,17 +104,16 @@ def _moved(model: SkinModel, last_q, last_centre, last_active) -> bool:
 
 
 DISPLAY_NICE = 19
-"""Niceness of the display worker process where ``SCHED_IDLE`` is refused (the lowest CFS weight, 15
-against a default thread's 1024): on a machine with fewer free cores than busy threads its grid builds
-and large publishes yield to the haptic process; with a core to spare it runs as before. Set before
-rclpy starts, so its DDS threads inherit it."""
+"""Niceness of every thread of the display worker process: the lowest CFS weight (15 against a default
+thread's 1024), so on a machine with fewer free cores than busy threads its grid builds and large publishes
+yield to the haptic process; with a core to spare it runs as before. Set before rclpy starts, so its DDS
+threads inherit it. Not ``SCHED_IDLE`` (as before): that yields to every other process too, and with two busy
+processes beside the node (a browser and a build) the view got no mesh in 30 s."""
 
 
 def lower_priority(nice: int = DISPLAY_NICE) -> int:
-    """Put every thread of this process in ``SCHED_IDLE`` (it runs only on a CPU nothing else wants) and
-    raise its niceness to ``nice`` (the fallback where SCHED_IDLE is refused). Both are per thread on
-    Linux: the BLAS threads that importing NumPy started already exist; threads started later inherit
-    them. Returns the niceness."""
+    """Raise the niceness of every thread of this process to ``nice`` (per thread on Linux: the BLAS threads
+    that importing NumPy started already exist; threads started later inherit it). Returns the niceness."""
     try:
         tids = [int(t) for t in os.listdir("/proc/self/task")]
     except OSError:
@@ -124,11 +123,14 @@ def lower_priority(nice: int = DISPLAY_NICE) -> int:
             os.setpriority(os.PRIO_PROCESS, tid, max(nice, os.getpriority(os.PRIO_PROCESS, tid)))
         except OSError:
             pass
-        try:
-            os.sched_setscheduler(tid, os.SCHED_IDLE, os.sched_param(0))
-        except (OSError, AttributeError):
-            pass
     return os.getpriority(os.PRIO_PROCESS, 0)
+
+
+def mesh_due(now_s: float, last_mesh_s: float, mesh_rate_hz: float, joined: bool) -> bool:
+    """Whether the mesh goes out now: ``mesh_rate_hz`` by the clock from the newest grid, or at once for a reader
+    that joined. A count of grid builds is no clock: builds happen only on change, so every n-th build gave ~1 mesh/s
+    under a slow press instead of 5."""
+    return mesh_rate_hz > 0 and (now_s - last_mesh_s >= 1.0 / mesh_rate_hz or joined)
 
 
 def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pid):  # pragma: no cover - child process
@@ -196,11 +198,8 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
                     if watched["layer_heights"]:
                         pubs["layer_heights"].publish(cv.fill_image(layers_image, stamp, frame, np.moveaxis(g.heights_m, 0, -1)))
                     mesh_grid = (g, stamp)
-                # the mesh at mesh_rate_hz by the clock, from the newest grid (a count of builds is no clock:
-                # builds happen only on change, so every n-th build gave ~1 mesh/s); a grid that changed
-                # between two meshes is sent once the interval has passed, so the last shape always arrives
-                rate = display["mesh_rate_hz"]
-                due = rate > 0 and (t0 - last_mesh >= 1.0 / rate or "mesh" in joined)
+                # a grid that changed between two meshes is sent once the interval has passed: the last shape arrives
+                due = mesh_due(t0, last_mesh, display["mesh_rate_hz"], "mesh" in joined)
                 if mesh_grid is not None and display["publish_mesh"] and watched["mesh"] and due:
                     (g, stamp), mesh_grid, last_mesh = mesh_grid, None, t0
                     affected = g.displacement_m > 1e-6  # deeper than 1 um: visibly deformed
@@ -218,11 +217,8 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
 
 
 def restore_priority(pid: int) -> None:
-    """Undo :func:`lower_priority` for every thread of process ``pid`` (``SCHED_OTHER``, niceness 0), best effort.
-
-    Leaving ``SCHED_IDLE`` for ``SCHED_OTHER`` is allowed to the owner; lowering the niceness needs
-    ``CAP_SYS_NICE`` (root), else the worker keeps niceness 19, which still gets 5 x the CPU of ``SCHED_IDLE``.
-    """
+    """Undo :func:`lower_priority` for every thread of process ``pid`` (``SCHED_OTHER``, niceness 0), best effort:
+    lowering the niceness needs ``CAP_SYS_NICE`` (root); without it the worker keeps niceness 19."""
     try:
         tids = [int(t) for t in os.listdir(f"/proc/{pid}/task")]
     except OSError:
@@ -240,9 +236,9 @@ def restore_priority(pid: int) -> None:
 
 CLOSE_WAIT_S = 0.5
 """How long the owner waits for the worker to leave on its own at shutdown before it kills it. A quiet worker
-leaves within one display period (17 ms at 60 Hz); under load it runs SCHED_IDLE (:data:`DISPLAY_NICE`) and two
-busy processes starve it for seconds, which kept the node 5-30 s in its shutdown, past the 5 s its launchers
-allow. The worker holds nothing to save: it only publishes."""
+leaves within one display period (17 ms at 60 Hz); under load, at niceness 19 (:data:`DISPLAY_NICE`; it ran
+SCHED_IDLE before), two busy processes starved it for seconds, which kept the node 5-30 s in its shutdown, past
+the 5 s its launchers allowed. The worker holds nothing to save: it only publishes."""
 
 
 class DisplayProcess:
