@@ -199,7 +199,17 @@ def test_node_idle_does_no_kernel_work_and_heartbeats(tmp_path, ros_domain):
     from skin_sim_node.perf.monitor import Monitor
 
     with Scene(tmp_path / "logs", domain_id=domain) as scene:
-        node = scene.node("-p", "idle_heartbeat_hz:=100.0", "-p", "diagnostics_period_s:=0.2", "-p", "display_rate_hz:=0.0")
+        # a reader 1000 deep: a node stalled by the machine's load still sees every pose (the counts below are its)
+        node = scene.node(
+            "-p",
+            "idle_heartbeat_hz:=100.0",
+            "-p",
+            "diagnostics_period_s:=0.2",
+            "-p",
+            "display_rate_hz:=0.0",
+            "-p",
+            "input_queue_depth:=1000",
+        )
         scene.wait_for_log(node, "live:", timeout_s=180)
         mon = Monitor(name=f"test_lod_monitor_{domain}", images=False)
         try:
