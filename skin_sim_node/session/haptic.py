@@ -108,6 +108,23 @@ class TickResult:
         return self.force_n[2]
 
 
+def _part(part: str, name: str, doc: str) -> property:
+    """A read-only attribute of the session that is attribute ``name`` of its part ``part``.
+
+    Parameters
+    ----------
+    part : str
+        ``"inputs"``, ``"limits"`` or ``"_event"``.
+    name : str
+    doc : str
+
+    Returns
+    -------
+    property
+    """
+    return property(lambda self: getattr(getattr(self, part), name), doc=doc)
+
+
 class HapticSession:
     """Owns a :class:`SkinModel` and turns input samples into force ticks.
 
@@ -135,8 +152,7 @@ class HapticSession:
 
     def __init__(self, model: SkinModel, params: SessionParams, log: Callable[[str, str], None] | None = None):
         self.model = None
-        self._events = EventLog(log)
-        self._event = self._events
+        self._event = EventLog(log)
         self.inputs = InputPolicy(params, self._event)
         self.limits = ForceLimits(params, self._event)
         self._params = params
@@ -146,7 +162,7 @@ class HapticSession:
         self.last: TickResult | None = None  # the last tick's result
         self.set_model(model)
 
-    # --- parameters, counts and input state (the policy's and the limits' own) ---------------------
+    # --- parameters, and the parts' state as attributes of the session (read-only) -----------------------
     @property
     def params(self) -> SessionParams:
         """The session's parameters; setting them (a live parameter change) applies from the next call."""
@@ -156,55 +172,16 @@ class HapticSession:
     def params(self, params: SessionParams) -> None:
         self._params = self.inputs.params = self.limits.params = params
 
-    @property
-    def counts(self):
-        """Occurrences of each rejection and safety event (``collections.Counter``)."""
-        return self._events.counts
-
-    @property
-    def regime_counts(self):
-        """Occurrences of each model-regime event (``collections.Counter``, :data:`REGIME_EVENTS`)."""
-        return self._events.regime_counts
-
-    @property
-    def force_n(self) -> float:
-        """The last published force (N, along +z)."""
-        return self.limits.force_n
-
-    @property
-    def stale(self) -> bool:
-        """The input watchdog fired at the last tick (force zero, tissue released)."""
-        return self.inputs.stale
-
-    @property
-    def pose_rx_ns(self) -> int | None:
-        """Caller-clock arrival time of the last accepted pose (None before any)."""
-        return self.inputs.pose_rx_ns
-
-    @property
-    def pose_stamp_ns(self) -> int | None:
-        """Stamp of the last accepted pose (None before any)."""
-        return self.inputs.pose_stamp_ns
-
-    @property
-    def pose(self) -> tuple[float, float, float]:
-        """The last accepted tool position (m)."""
-        return self.inputs.pose
-
-    @property
-    def twist_stamp_ns(self) -> int | None:
-        """Stamp of the last accepted twist (None before any)."""
-        return self.inputs.twist_stamp_ns
-
-    @property
-    def twist(self) -> tuple[float, float, float]:
-        """The last accepted tool velocity (m/s)."""
-        return self.inputs.twist
-
-    @property
-    def answered_stamp_ns(self) -> int:
-        """Stamp of the last pose a tick answered (0 before any)."""
-        return self.inputs.answered_stamp_ns
+    counts = _part("_event", "counts", "Occurrences of each rejection and safety event (``collections.Counter``).")
+    regime_counts = _part("_event", "regime_counts", "Occurrences of each model-regime event (:data:`REGIME_EVENTS`).")
+    force_n = _part("limits", "force_n", "The last published force (N, along +z).")
+    stale = _part("inputs", "stale", "The input watchdog fired at the last tick (force zero, tissue released).")
+    pose_rx_ns = _part("inputs", "pose_rx_ns", "Caller-clock arrival time of the last accepted pose (None before any).")
+    pose_stamp_ns = _part("inputs", "pose_stamp_ns", "Stamp of the last accepted pose (None before any).")
+    pose = _part("inputs", "pose", "The last accepted tool position (m).")
+    twist_stamp_ns = _part("inputs", "twist_stamp_ns", "Stamp of the last accepted twist (None before any).")
+    twist = _part("inputs", "twist", "The last accepted tool velocity (m/s).")
+    answered_stamp_ns = _part("inputs", "answered_stamp_ns", "Stamp of the last pose a tick answered (0 before any).")
 
     def set_model(self, model: SkinModel) -> None:
         """Swap in a new model (a live tissue parameter change); the tissue restarts at rest.
@@ -232,21 +209,7 @@ class HapticSession:
 
     # --- inputs (the policy's) --------------------------------------------------------------
     def on_pose(self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None, rx_ns: int | None = None) -> str | None:
-        """Validate and store a tool pose (:meth:`.inputs.InputPolicy.on_pose`).
-
-        Parameters
-        ----------
-        stamp_ns : int
-            The pose's stamp.
-        frame : str
-            Its frame id.
-        xyz : sequence of 3 float
-            Tool position (m).
-        now_ns : int, optional
-            The receiver's clock in the stamps' time base (ROS time), for the stamp age check (None skips it, as
-            offline replay does).
-        rx_ns : int, optional
-            Arrival time on the clock that :meth:`tick` gets (default ``now_ns``, else the stamp).
+        """Validate and store a tool pose: :meth:`.inputs.InputPolicy.on_pose` (its parameters and return).
 
         Returns
         -------
@@ -256,16 +219,7 @@ class HapticSession:
         return self.inputs.on_pose(stamp_ns, frame, xyz, now_ns, rx_ns)
 
     def on_twist(self, stamp_ns: int, frame: str, linear) -> str | None:
-        """Validate and store a tool twist (:meth:`.inputs.InputPolicy.on_twist`).
-
-        Parameters
-        ----------
-        stamp_ns : int
-            The twist's stamp.
-        frame : str
-            Its frame id.
-        linear : sequence of 3 float
-            Tool velocity (m/s).
+        """Validate and store a tool twist: :meth:`.inputs.InputPolicy.on_twist` (its parameters and return).
 
         Returns
         -------
@@ -339,10 +293,10 @@ class HapticSession:
         rate = tuple([k * c for c in comp])
         stress = (m.stress_pa,) * n + (0.0,) * (nl - n)
         self._seq += 1
-        events = self._events.take()
+        events = self._event.take()
         flags = m.flags
         self.last = TickResult(
-            seq=self._seq, stamp_ns=self.answered_stamp_ns, answered=answered, x0_m=tuple(pos), velocity_m_s=tuple(v),
+            seq=self._seq, stamp_ns=self.inputs.answered_stamp_ns, answered=answered, x0_m=tuple(pos), velocity_m_s=tuple(v),
             force_n=(0.0, 0.0, force), depth_m=depth, n_affected=n, compression_m=comp, compression_rate_m_s=rate,
             stress_pa=stress, flags=flags, events=events, stale=stale, idle=m.last_tick_idle,
             tangent=m.tangent() if flags & FLAG_CONTACT else NO_CONTACT,
@@ -401,12 +355,18 @@ class HapticSession:
         if f & FLAG_BOTTOMED:
             self._event(TOOL_BELOW_TISSUE, f"tool {-pos[2] * 1e3:.2f} mm deep, below the tissue: depth clamped at the bottom")
         if f & FLAG_LAYER_BOUND:
-            self._event(REUSS_BOUND, "a layer's Reuss compression left [0, thickness] (fast press or retraction, or a "
-                        "saturated layer): held at the bound, the rest of the depth split over the others")  # fmt: skip
+            self._event(
+                REUSS_BOUND,
+                "a layer's Reuss compression left [0, thickness] (fast press or retraction, or a "
+                "saturated layer): held at the bound, the rest of the depth split over the others",
+            )
         if f & FLAG_SEPARATED:
             self._event(CONTACT_SEPARATED, "tool retracted faster than the tissue follows (Reuss stress <= 0): contact released")
         if f & FLAG_OFF_SHEET and pos[2] < 0.0:
             self._event(TOOL_OFF_SHEET, f"tool at ({pos[0] * 1e3:.1f}, {pos[1] * 1e3:.1f}) mm is off the sheet: no contact")
         if f & FLAG_CONTACT and (abs(pos[0]) > self._patch_free[0] or abs(pos[1]) > self._patch_free[1]):
-            self._event(PATCH_CLIPPED, f"contact at ({pos[0] * 1e3:.1f}, {pos[1] * 1e3:.1f}) mm: the deformation patch "
-                        "passes the sheet edge and is clipped there (the paper's incomplete deformation)")  # fmt: skip
+            self._event(
+                PATCH_CLIPPED,
+                f"contact at ({pos[0] * 1e3:.1f}, {pos[1] * 1e3:.1f}) mm: the deformation patch "
+                "passes the sheet edge and is clipped there (the paper's incomplete deformation)",
+            )

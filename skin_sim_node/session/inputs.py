@@ -13,19 +13,7 @@ from typing import NamedTuple
 
 from msgs_schema.parameters import SessionParams
 
-from .events import (
-    FUTURE_STAMP,
-    NON_FINITE,
-    STALE_STAMP,
-    STAMP_BACKWARDS,
-    STAMP_DUPLICATE,
-    STAMP_RESYNC,
-    TELEPORT,
-    TICK_CLAMPED,
-    UNKNOWN_FRAME,
-    WATCHDOG,
-    EventSink,
-)
+from . import events as ev
 
 LIFTED = (0.0, 0.0, 1.0)
 """The tool position before any pose: 1 m above the rest surface, off the tissue."""
@@ -118,7 +106,7 @@ class InputPolicy:
         Stamp of the last pose a tick answered (0 before any).
     """
 
-    def __init__(self, params: SessionParams, event: EventSink):
+    def __init__(self, params: SessionParams, event: ev.EventSink):
         self.params = params
         self._event = event
         self.pose_stamp_ns: int | None = None  # last accepted pose
@@ -161,30 +149,30 @@ class InputPolicy:
         p = self.params
         x, y, z = (float(c) for c in xyz)
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-            return self._event(NON_FINITE, f"rejected tool pose with non-finite position ({x}, {y}, {z})")
+            return self._event(ev.NON_FINITE, f"rejected tool pose with non-finite position ({x}, {y}, {z})")
         if frame != p.tissue_frame:
-            return self._event(UNKNOWN_FRAME, f"rejected tool pose in frame '{frame}', expected '{p.tissue_frame}'")
+            return self._event(ev.UNKNOWN_FRAME, f"rejected tool pose in frame '{frame}', expected '{p.tissue_frame}'")
         if now_ns is not None and p.max_stamp_age_s > 0:
             age = (now_ns - stamp_ns) * 1e-9
             if age > p.max_stamp_age_s:
                 return self._event(
-                    STALE_STAMP,
+                    ev.STALE_STAMP,
                     f"rejected tool pose: stamp is {age:.3f} s old (limit {p.max_stamp_age_s} s); "
                     "check clock sync or use_sim_time",
                 )
             if -age > p.max_future_s:
                 return self._event(
-                    FUTURE_STAMP, f"rejected tool pose: stamp is {-age:.3f} s in the future; check clock sync or use_sim_time"
+                    ev.FUTURE_STAMP, f"rejected tool pose: stamp is {-age:.3f} s in the future; check clock sync or use_sim_time"
                 )
         if self.pose_stamp_ns is not None and stamp_ns <= self.pose_stamp_ns:
             self._backwards_run += 1
             if self._backwards_run < p.resync_after:
                 if stamp_ns == self.pose_stamp_ns:
-                    return self._event(STAMP_DUPLICATE, "rejected tool pose with a repeated stamp")
+                    return self._event(ev.STAMP_DUPLICATE, "rejected tool pose with a repeated stamp")
                 return self._event(
-                    STAMP_BACKWARDS, f"rejected tool pose: stamp went back {(self.pose_stamp_ns - stamp_ns) * 1e-6:.3f} ms"
+                    ev.STAMP_BACKWARDS, f"rejected tool pose: stamp went back {(self.pose_stamp_ns - stamp_ns) * 1e-6:.3f} ms"
                 )
-            self._event(STAMP_RESYNC, f"{self._backwards_run} poses behind the last stamp: following the new time line")
+            self._event(ev.STAMP_RESYNC, f"{self._backwards_run} poses behind the last stamp: following the new time line")
             self.pose_stamp_ns = self._last_used_stamp_ns = None
             self._teleported = True
         self._backwards_run = 0
@@ -193,7 +181,7 @@ class InputPolicy:
             dt = (stamp_ns - self.pose_stamp_ns) * 1e-9
             if dist > p.teleport_distance_m or dist > p.max_tool_speed_m_s * max(dt, 1e-3):
                 self._teleported = True
-                self._event(TELEPORT, f"tool jumped {dist * 1e3:.1f} mm in {dt * 1e3:.2f} ms: contact restarted")
+                self._event(ev.TELEPORT, f"tool jumped {dist * 1e3:.1f} mm in {dt * 1e3:.2f} ms: contact restarted")
         self._prev_pose_stamp_ns, self._prev_pose = self.pose_stamp_ns, self.pose
         self.pose_stamp_ns, self.pose = stamp_ns, (x, y, z)
         self.pose_rx_ns = rx_ns if rx_ns is not None else (now_ns if now_ns is not None else stamp_ns)
@@ -201,16 +189,7 @@ class InputPolicy:
         return None
 
     def on_twist(self, stamp_ns: int, frame: str, linear) -> str | None:
-        """Validate and store a tool twist (its linear part).
-
-        Parameters
-        ----------
-        stamp_ns : int
-            The twist's stamp.
-        frame : str
-            Its frame id; must be ``tissue_frame``.
-        linear : sequence of 3 float
-            Tool velocity (m/s).
+        """Validate and store a tool twist (its linear part): as :meth:`on_pose`, with ``linear`` the velocity (m/s).
 
         Returns
         -------
@@ -219,9 +198,9 @@ class InputPolicy:
         """
         vx, vy, vz = (float(c) for c in linear)
         if not (math.isfinite(vx) and math.isfinite(vy) and math.isfinite(vz)):
-            return self._event(NON_FINITE, f"rejected tool twist with non-finite velocity ({vx}, {vy}, {vz})")
+            return self._event(ev.NON_FINITE, f"rejected tool twist with non-finite velocity ({vx}, {vy}, {vz})")
         if frame != self.params.tissue_frame:
-            return self._event(UNKNOWN_FRAME, f"rejected tool twist in frame '{frame}', expected '{self.params.tissue_frame}'")
+            return self._event(ev.UNKNOWN_FRAME, f"rejected tool twist in frame '{frame}', expected '{self.params.tissue_frame}'")
         self.twist_stamp_ns, self.twist = stamp_ns, (vx, vy, vz)
         return None
 
@@ -246,7 +225,7 @@ class InputPolicy:
         p = self.params
         stale = self.pose_rx_ns is None or (now_ns - self.pose_rx_ns) * 1e-9 > p.watchdog_s
         if stale and not self.stale:
-            self._event(WATCHDOG, f"no valid tool pose for {p.watchdog_s * 1e3:.0f} ms: force set to zero, tissue released")
+            self._event(ev.WATCHDOG, f"no valid tool pose for {p.watchdog_s * 1e3:.0f} ms: force set to zero, tissue released")
         self.stale = stale
         answered = self._pending and not stale
         release = False
@@ -279,6 +258,6 @@ class InputPolicy:
                 pos = self.pose
         dt = max(dt_ns, 0) * 1e-9
         if dt > p.max_dt_s:
-            self._event(TICK_CLAMPED, f"tick interval {dt * 1e3:.1f} ms advanced as max_dt_s = {p.max_dt_s * 1e3:.0f} ms")
+            self._event(ev.TICK_CLAMPED, f"tick interval {dt * 1e3:.1f} ms advanced as max_dt_s = {p.max_dt_s * 1e3:.0f} ms")
             dt = p.max_dt_s
         return TickInput(answered, stale, pos, v, dt, release)
