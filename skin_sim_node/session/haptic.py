@@ -144,6 +144,10 @@ class HapticSession:
     ----------
     model : SkinModel
         The model it runs (:meth:`set_model` swaps it).
+    inputs : InputPolicy
+        The input and stamp policy (its state: :attr:`pose`, :attr:`stale`, ... read through the session).
+    limits : ForceLimits
+        The force limits (:attr:`force_n`).
     velocity : tuple of 3 float
         The tool velocity the last tick ran at (m/s).
     last : TickResult or None
