@@ -12,7 +12,7 @@ import struct
 import numpy as np
 
 from .contact_model import fill_contact_model_from_tick  # noqa: F401 - the local contact model (issue 12)
-from .topics import LAYER_LABELS
+from .tissue import LAYER_NAMES
 
 NS = 1_000_000_000
 
@@ -131,8 +131,8 @@ def fill_contact(msg, t_ns: int, frame: str, compression_m, rate_m_s, stress_pa)
     """JointState: one entry per layer; position = compression, velocity = rate, effort = stress."""
     set_stamp(msg.header, t_ns)
     msg.header.frame_id = frame
-    if len(msg.name) != len(LAYER_LABELS):
-        msg.name = list(LAYER_LABELS)
+    if len(msg.name) != len(LAYER_NAMES):
+        msg.name = list(LAYER_NAMES)
     msg.position = [float(c) for c in compression_m]
     msg.velocity = [float(c) for c in rate_m_s]
     msg.effort = [float(c) for c in stress_pa]

@@ -1,69 +1,84 @@
-"""The node's parameter schema: node parameters plus the tissue schema of the model core.
+"""The node's parameter schema: node parameters plus the tissue schema, and their validation.
 
 One list of :class:`ParamSpec` (name, type, default, unit, description, bounds). The node
 declares ROS parameters with descriptors from it, ``config/*.yaml`` files use these names
-under ``ros__parameters``, and :func:`node_params_from_flat` validates a dotted dict
-into a frozen :class:`NodeParams`. Imports no ROS code.
+under ``ros__parameters``, and :func:`validate_parameters` validates a full dotted dict into a
+frozen :class:`NodeParams` and the checked tissue values (which
+:func:`skin_sim_node.model.config.build_config` turns into the model's config). Imports no ROS code.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import field, fields, make_dataclass, replace
+from typing import Any
 
 from .spec import ConfigError, ParamSpec
-from .tissue import TISSUE_PARAMETERS
+from .tissue import TISSUE_PARAMETERS, tissue_defaults
+
+NODE_NAME = "skin_sim_node"
+"""The haptic server's node name: its parameter services, and the top key of ``config/*.yaml``."""
 
 TISSUE_PREFIX = "tissue."
+"""The prefix the node declares the tissue parameters with."""
 
 
 NODE_PARAMETERS: tuple[ParamSpec, ...] = (
-    ParamSpec("rate_hz", float, 1000.0, "Hz", "haptic loop rate; 1 kHz is the haptics norm (Phantom servo loop)", 10.0, 20000.0),
     ParamSpec(
-        "display_rate_hz", float, 60.0, "Hz", "height map / mesh publish rate (a display refresh rate)", 0.0, 1000.0, False
+        "rate_hz", float, 1000.0, "Hz", "haptic loop rate; 1 kHz is the haptics norm (Phantom servo loop)",
+        min=10.0, max=20000.0,
+    ),
+    ParamSpec(
+        "display_rate_hz", float, 60.0, "Hz", "height map / mesh publish rate (a display refresh rate)",
+        min=0.0, max=1000.0, min_exclusive=False,
     ),
     ParamSpec(
         "watchdog_s", float, 0.05, "s",
         "input age after which force goes to zero and the tissue is released: 50 ticks at 1 kHz, "
-        "well past DDS jitter yet shorter than a hand can react to (~0.1 s)", 0.001, 10.0,
+        "well past DDS jitter yet shorter than a hand can react to (~0.1 s)", min=0.001, max=10.0,
     ),
     ParamSpec(
         "max_stamp_age_s", float, 1.0, "s",
-        "reject poses whose stamp differs from the node clock by more than this (0 disables)", 0.0, 3600.0, False,
+        "reject poses whose stamp differs from the node clock by more than this (0 disables)", min=0.0, max=3600.0,
+        min_exclusive=False,
     ),
     ParamSpec(
         "max_force_n", float, 10.0, "N",
-        "node-side force clamp; device limits (3.3 N for a Touch) are applied by the bridge", 0.0, 1000.0,
+        "node-side force clamp; device limits (3.3 N for a Touch) are applied by the bridge", min=0.0, max=1000.0,
     ),
     ParamSpec(
         "max_force_rate_n_per_s", float, 1000.0, "N/s",
         "bound on the force's rate of change (0 disables): the fastest rise the default tissue gives a 0.1 m/s probing "
         "press (epidermis k = 9.7 kN/m: ~1000 N/s) passes, while a step from an edge, teleport or fast stab is spread "
-        "over ticks (3.3 N over 3.3 ms); on the receive clock, with a 1 ms allowance. See docs/stability.md", 0.0, 1e6, False,
+        "over ticks (3.3 N over 3.3 ms); on the receive clock, with a 1 ms allowance. See docs/stability.md",
+        min=0.0, max=1e6, min_exclusive=False,
     ),
     ParamSpec(
         "teleport_distance_m", float, 0.02, "m",
-        "a pose jump larger than this between samples restarts contact (20 mm: 20x a 1 m/s hand at 1 kHz)", 0.0, 10.0,
+        "a pose jump larger than this between samples restarts contact (20 mm: 20x a 1 m/s hand at 1 kHz)", min=0.0, max=10.0,
     ),
     ParamSpec(
         "max_tool_speed_m_s", float, 3.0, "m/s",
-        "speed cap of the velocity estimate; faster apparent motion is a teleport (hands rarely exceed 2 m/s)", 0.0, 100.0,
+        "speed cap of the velocity estimate; faster apparent motion is a teleport (hands rarely exceed 2 m/s)", min=0.0,
+        max=100.0,
     ),
     ParamSpec(
         "twist_max_skew_s", float, 0.005, "s",
-        "use the twist topic when its stamp is within this of the pose's, else differentiate poses", 0.0, 1.0, False,
+        "use the twist topic when its stamp is within this of the pose's, else differentiate poses", min=0.0, max=1.0,
+        min_exclusive=False,
     ),
     ParamSpec(
         "fallback_rate_hz", float, 100.0, "Hz",
         "input mode: clock that ticks when no pose came for 1.5 of its periods (watchdog, relaxation); the "
         "modal integrator is exact for any dt, and a 1 kHz wake-up only contends for the GIL with pose callbacks",
-        1.0, 20000.0,
+        min=1.0, max=20000.0,
     ),
     ParamSpec(
         "input_queue_depth", int, 1, "1",
         "pose/twist reader history (read at start): 1 answers the newest sample only (lowest latency, "
         "for live haptics); more lets a node that was stalled answer every sample in order "
         "(live replay uses 500), at the cost of a latency tail",
-        1, 1000, False, read_only=True,
+        min=1, max=1000, min_exclusive=False, read_only=True,
     ),
     ParamSpec("tissue_frame", str, "tissue", "-", "frame_id the tool pose must carry"),
     ParamSpec(
@@ -74,20 +89,20 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("publish_mesh", bool, True, "-", "publish the RViz mesh marker at display rate"),
     ParamSpec(
         "mesh_stride", int, 4, "1", "grid cells per mesh vertex in the deformed region (4: ~3 ms per 60 mm patch mesh)",
-        1, 64, False,
+        min=1, max=64, min_exclusive=False,
     ),
     ParamSpec(
         "mesh_rate_hz", float, 5.0, "Hz",
         "mesh marker rate: rclpy holds a Python object per vertex and the GIL while it fills them, so it is kept low",
-        0.0, 100.0, False,
+        min=0.0, max=100.0, min_exclusive=False,
     ),
-    ParamSpec("diagnostics_period_s", float, 1.0, "s", "diagnostics publish period", 0.05, 60.0),
+    ParamSpec("diagnostics_period_s", float, 1.0, "s", "diagnostics publish period", min=0.05, max=60.0),
     ParamSpec(
         "idle_heartbeat_hz", float, 0.0, "Hz",
         "lod idle: while the tissue is at rest and untouched (no kernel work), publish wrench and contact at most "
         "at this rate, e.g. 100 (10 ms: five beats within the bridge's 50 ms wrench watchdog). Default 0: every "
         "pose is answered, the one-wrench-per-pose contract that live replay and its tests rely on",
-        0.0, 20000.0, False,
+        min=0.0, max=20000.0, min_exclusive=False,
     ),
     ParamSpec(
         "display_on_change", bool, True, "-",
@@ -100,7 +115,7 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "SCHED_FIFO priority of the haptic threads, 1-99 (0: normal scheduling). Opt-in: needs root or "
         "CAP_SYS_NICE; when refused the node logs a warning and runs at normal priority. 80 sits above "
         "the kernel's threaded IRQs (50 on PREEMPT_RT) as servo loops usually do",
-        0, 99, False, read_only=True,
+        min=0, max=99, min_exclusive=False, read_only=True,
     ),
     ParamSpec(
         "rt_scope", str, "process", "-",
@@ -110,12 +125,13 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         choices=("haptic", "process"), read_only=True,
     ),
     ParamSpec(
-        "haptic_cpu", int, -1, "1", "pin the haptic clock thread to this CPU (-1: no pinning)", -1, 1023, False, read_only=True,
+        "haptic_cpu", int, -1, "1", "pin the haptic clock thread to this CPU (-1: no pinning)",
+        min=-1, max=1023, min_exclusive=False, read_only=True,
     ),
     ParamSpec(
         "spin_tail_us", float, 0.0, "us",
-        "busy-wait this long before each haptic deadline instead of sleeping (0: sleep all the way)", 0.0, 1000.0, False,
-        read_only=True,
+        "busy-wait this long before each haptic deadline instead of sleeping (0: sleep all the way)", min=0.0, max=1000.0,
+        min_exclusive=False, read_only=True,
     ),
     ParamSpec(
         "precise_sleep", bool, True, "-",
@@ -126,23 +142,26 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
 ALL_PARAMETERS: tuple[ParamSpec, ...] = NODE_PARAMETERS + tuple(
     replace(s, name=TISSUE_PREFIX + s.name) for s in TISSUE_PARAMETERS
 )
+"""Every node parameter as the node declares it (tissue parameters with :data:`TISSUE_PREFIX`)."""
 SPEC_BY_NAME = {s.name: s for s in ALL_PARAMETERS}
+"""The one lookup of a parameter's spec, by its declared name."""
 
 
 SESSION_ONLY_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         "max_dt_s", float, 0.1, "s",
         "longest interval one tick advances the model (a stalled caller does not jump the tissue ahead): "
-        "100 ticks at 1 kHz, twice the default watchdog_s", 0.0, 10.0,
+        "100 ticks at 1 kHz, twice the default watchdog_s", min=0.0, max=10.0,
     ),
     ParamSpec(
         "max_future_s", float, 0.05, "s",
-        "a pose stamp this far ahead of the node clock is rejected (clock skew allowance, as watchdog_s)", 0.0, 3600.0, False,
+        "a pose stamp this far ahead of the node clock is rejected (clock skew allowance, as watchdog_s)", min=0.0,
+        max=3600.0, min_exclusive=False,
     ),
     ParamSpec(
         "resync_after", int, 50, "1",
-        "this many consecutive backwards stamps: accept the new time line (a restarted publisher; 50 ms at 1 kHz)", 1, 100000,
-        False,
+        "this many consecutive backwards stamps: accept the new time line (a restarted publisher; 50 ms at 1 kHz)",
+        min=1, max=100000, min_exclusive=False,
     ),
 )  # fmt: skip
 """Session limits that are not node parameters (the session's own; see :class:`SessionParams`)."""
@@ -180,17 +199,122 @@ def session_params(node_params, **overrides) -> SessionParams:
     return SessionParams(**({k: getattr(node_params, k) for k in SESSION_KEYS} | overrides))
 
 
-def check_value(name: str, value):
-    """Coerce and bound-check one parameter; raises ConfigError with the reason."""
+def check_value(name: str, value: Any) -> Any:
+    """Coerce and bound-check one parameter by its declared name.
+
+    Parameters
+    ----------
+    name : str
+        Declared name (tissue parameters with the ``tissue.`` prefix).
+    value : Any
+
+    Returns
+    -------
+    Any
+        The value as the spec's type.
+
+    Raises
+    ------
+    ConfigError
+        An unknown name or a bad value, with the reason.
+    """
     spec = SPEC_BY_NAME.get(name)
     if spec is None:
         raise ConfigError(f"unknown parameter {name!r}")
     return spec.check(value)
 
 
-def node_params_from_flat(flat: dict) -> NodeParams:
+def node_params_from_flat(flat: Mapping[str, Any]) -> NodeParams:
+    """The :class:`NodeParams` of a dotted parameter dict (its ``tissue.`` names are left out).
+
+    Parameters
+    ----------
+    flat : mapping
+        Declared name -> value; missing node parameters take their defaults.
+
+    Returns
+    -------
+    NodeParams
+
+    Raises
+    ------
+    ConfigError
+        An unknown name or a bad value, with the reason.
+    """
     values = {s.name: s.default for s in NODE_PARAMETERS}
     for name, value in flat.items():
         if not name.startswith(TISSUE_PREFIX):
             values[name] = check_value(name, value)
     return NodeParams(**{f.name: values[f.name] for f in fields(NodeParams)})
+
+
+def tissue_part(flat: Mapping[str, Any], prefix: str = TISSUE_PREFIX) -> dict[str, Any]:
+    """The tissue parameters of a node's dotted parameter dict, prefix stripped.
+
+    Parameters
+    ----------
+    flat : mapping
+        Declared name -> value.
+    prefix : str
+
+    Returns
+    -------
+    dict
+    """
+    return {k[len(prefix) :]: v for k, v in flat.items() if k.startswith(prefix)}
+
+
+def check_tissue(values: Mapping[str, Any]) -> dict[str, Any]:
+    """Every tissue parameter, checked: ``values`` coerced and bound-checked, the others at their defaults.
+
+    Parameters
+    ----------
+    values : mapping
+        Dotted tissue name without the ``tissue.`` prefix -> value.
+
+    Returns
+    -------
+    dict
+        Every tissue parameter (no prefix) -> its checked value: what
+        :func:`skin_sim_node.model.config.build_config` takes.
+
+    Raises
+    ------
+    ConfigError
+        Unknown names, wrong types, out-of-bound values; the message names the parameter without the prefix.
+    """
+    unknown = sorted(n for n in values if TISSUE_PREFIX + n not in SPEC_BY_NAME)
+    if unknown:
+        raise ConfigError(f"unknown tissue parameter(s): {', '.join(unknown)}")
+    flat = tissue_defaults()
+    for name, value in values.items():
+        flat[name] = SPEC_BY_NAME[TISSUE_PREFIX + name].check(value, label=name)
+    return flat
+
+
+def validate_parameters(flat: Mapping[str, Any], changed: Iterable[str] = ()) -> tuple[NodeParams, dict[str, Any]]:
+    """Validate a full dotted node parameter dict: the node parameters and the tissue values.
+
+    Parameters
+    ----------
+    flat : mapping
+        Declared name -> value (a parameter file's, or the node's after a set).
+    changed : iterable of str
+        Names checked first against their declared spec, so that the reason for a rejected set names the
+        parameter as the node declares it (``tissue.`` prefix kept).
+
+    Returns
+    -------
+    node_params : NodeParams
+    tissue : dict
+        The checked tissue values (:func:`check_tissue`); the model's own geometry checks follow when
+        :func:`skin_sim_node.model.config.build_config` builds its config from them.
+
+    Raises
+    ------
+    ConfigError
+        With the reason.
+    """
+    for name in changed:
+        check_value(name, flat[name])
+    return node_params_from_flat(flat), check_tissue(tissue_part(flat))

@@ -6,61 +6,102 @@ Imports nothing from the implementation: the model and the node import this, nev
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import KW_ONLY, dataclass
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
+T = TypeVar("T", bool, int, float, str)
+
 
 class ConfigError(ValueError):
-    """A tissue configuration that the model cannot run on; the message says why."""
+    """A parameter value or a tissue configuration that cannot be used; the message says why."""
 
 
 @dataclass(frozen=True)
-class ParamSpec:
-    """One parameter: dotted name, Python type, default, unit, bounds, description."""
+class ParamSpec(Generic[T]):
+    """One parameter: dotted name, Python type, default, unit, description; bounds and flags by keyword.
+
+    Parameters
+    ----------
+    name : str
+        Dotted name (``tissue.`` prefix for tissue parameters as the node declares them).
+    type : type
+        ``float``, ``int``, ``bool`` or ``str``: :meth:`check` returns a value of this type.
+    default : T
+    unit : str
+        SI unit (``"1"``: a count or ratio, ``"-"``: none).
+    description : str
+        The reason for the default and what the parameter does.
+    min, max : float, optional
+        Bounds (None: unbounded).
+    min_exclusive : bool
+        ``min`` itself is out of bounds (default True: ``value > min``; False: ``value >= min``).
+    choices : tuple of str
+        The allowed values of a string parameter (empty: any).
+    read_only : bool
+        Read at start only: a live set is refused.
+    """
 
     name: str
-    type: type
-    default: Any
+    type: type[T]
+    default: T
     unit: str
     description: str
+    _: KW_ONLY
     min: float | None = None
     max: float | None = None
     min_exclusive: bool = True
     choices: tuple[str, ...] = ()
     read_only: bool = False
 
-    def check(self, value: Any) -> Any:
-        """Return ``value`` coerced to this spec's type, or raise :class:`ConfigError`."""
+    def check(self, value: Any, label: str | None = None) -> T:
+        """``value`` coerced to this spec's type and bound-checked.
+
+        Parameters
+        ----------
+        value : Any
+        label : str, optional
+            The name the error message gives (default: :attr:`name`).
+
+        Returns
+        -------
+        T
+
+        Raises
+        ------
+        ConfigError
+            A value of the wrong type, non-finite, out of bounds, or not one of the choices.
+        """
+        name = self.name if label is None else label
         if self.type is str:
             if not isinstance(value, str):
-                raise ConfigError(f"{self.name}: expected a string, got {value!r}")
+                raise ConfigError(f"{name}: expected a string, got {value!r}")
             if self.choices and value not in self.choices:
-                raise ConfigError(f"{self.name} = {value!r}: must be one of {', '.join(self.choices)}")
+                raise ConfigError(f"{name} = {value!r}: must be one of {', '.join(self.choices)}")
             return value
         if self.type is bool:
             if not isinstance(value, (bool, np.bool_)):
-                raise ConfigError(f"{self.name}: expected true/false, got {value!r}")
+                raise ConfigError(f"{name}: expected true/false, got {value!r}")
             return bool(value)
         if self.type is int:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 if isinstance(value, float) and value.is_integer():
                     value = int(value)
                 else:
-                    raise ConfigError(f"{self.name}: expected an integer, got {value!r}")
+                    raise ConfigError(f"{name}: expected an integer, got {value!r}")
             value = int(value)
         elif self.type is float:
             if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-                raise ConfigError(f"{self.name}: expected a number, got {value!r}")
+                raise ConfigError(f"{name}: expected a number, got {value!r}")
             value = float(value)
             if not math.isfinite(value):
-                raise ConfigError(f"{self.name}: must be finite, got {value!r}")
+                raise ConfigError(f"{name}: must be finite, got {value!r}")
         if self.min is not None:
             bad = value <= self.min if self.min_exclusive else value < self.min
             if bad:
                 op = ">" if self.min_exclusive else ">="
-                raise ConfigError(f"{self.name} = {value!r} {self.unit}: must be {op} {self.min}")
+                raise ConfigError(f"{name} = {value!r} {self.unit}: must be {op} {self.min}")
         if self.max is not None and value > self.max:
-            raise ConfigError(f"{self.name} = {value!r} {self.unit}: must be <= {self.max}")
+            raise ConfigError(f"{name} = {value!r} {self.unit}: must be <= {self.max}")
         return value

@@ -2,34 +2,44 @@
 
 The single definition of every tissue parameter. The ROS node declares its parameters from
 it, the YAML presets in ``config/`` use its names under ``ros__parameters`` (with the
-``tissue.`` prefix), and :func:`skin_sim_node.model.config.config_from_flat` builds the
-frozen config the model runs on. Defaults are the ``default`` preset; their sources are in
-``docs/model.md`` (section "Parameter sources"). Imports nothing from the implementation.
+``tissue.`` prefix), :func:`msgs_schema.parameters.check_tissue` validates values against it,
+and :func:`skin_sim_node.model.config.build_config` builds the frozen config the model runs on.
+Defaults are the ``default`` preset; their sources are in ``docs/model.md`` (section "Parameter
+sources"). Imports nothing from the implementation.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from .spec import ParamSpec
 
 LAYER_NAMES = ("epidermis", "dermis", "fat")
+"""The layers, top down: the one list (the contact message's entries, the snapshot's rows, the presets' keys)."""
 INTERFACE_NAMES = ("epidermis_dermis", "dermis_fat")
+"""The interfaces between consecutive layers, top down."""
 
 
-def _f(name, default, unit, desc, lo=0.0, hi=None, lo_excl=True):
-    return ParamSpec(name, float, default, unit, desc, lo, hi, lo_excl)
+def _f(
+    name: str, default: float, unit: str, desc: str, *, min: float = 0.0, max: float | None = None, min_exclusive: bool = True
+) -> ParamSpec[float]:
+    """A float parameter, by default ``> 0``."""
+    return ParamSpec(name, float, default, unit, desc, min=min, max=max, min_exclusive=min_exclusive)
 
 
-def _i(name, default, desc, lo=1, hi=None):
-    return ParamSpec(name, int, default, "1", desc, lo, hi, False)
+def _i(name: str, default: int, desc: str, *, min: int = 1, max: int | None = None) -> ParamSpec[int]:
+    """A count (unit ``1``), by default ``>= 1``."""
+    return ParamSpec(name, int, default, "1", desc, min=min, max=max, min_exclusive=False)
 
 
-def _b(name, default, desc):
+def _b(name: str, default: bool, desc: str) -> ParamSpec[bool]:
+    """A switch."""
     return ParamSpec(name, bool, default, "-", desc)
 
 
-def _s(name, default, desc, choices):
+def _s(name: str, default: str, desc: str, choices: tuple[str, ...]) -> ParamSpec[str]:
+    """One of ``choices``."""
     return ParamSpec(name, str, default, "-", desc, choices=choices)
 
 
@@ -62,20 +72,25 @@ def _lod_specs() -> list[ParamSpec]:
 
 
 # Default layer values (the `default` preset). Sources: docs/model.md, "Parameter sources".
-_TOOL_RADIUS_M = 2.5e-3
-_TOOL_AREA_M2 = math.pi * _TOOL_RADIUS_M**2
+TOOL_RADIUS_M = 2.5e-3
+"""Default tool tip radius (``tool.radius_m``)."""
+_TOOL_AREA_M2 = math.pi * TOOL_RADIUS_M**2
 FOUNDATION_LENGTH_M = 1.63e-3
 """Decay length of the membranes' foundation (patch.foundation_length_m). Fitted by ``skin-sim calibrate`` to
 the surface fields of the 3D neo-Hookean reference (1.631 mm; peak, valley, edge at their deepest step; docs/validation.md
 section 0b), with the patch at the paper's 60 mm."""
-_LAYER_DEFAULTS = {
+LAYER_DEFAULTS = {
     # thickness_m, youngs_modulus_pa (quasi-static compression/indentation modulus), density_kg_per_m3,
     # shear_wave_speed_m_per_s (elastography: the membrane's dynamics, eq 1)
     "epidermis": (75e-6, 1.5e6, 1150.0, 2.2),
     "dermis": (1.2e-3, 20e3, 1116.0, 2.2),
     "fat": (4.0e-3, 26.1e3, 971.0, 0.9),
 }
-_POISSON = 0.48
+"""Per layer (in :data:`LAYER_NAMES` order): thickness (m), Young's modulus (Pa), density (kg/m^3) and shear wave
+speed (m/s) behind the ``layers.*`` defaults."""
+POISSON_RATIO = 0.48
+"""Poisson ratio of every layer (nearly incompressible soft tissue): the Sneddon punch stiffness and the FEM
+references."""
 _PATCH_M = 0.06
 STIFFENING_EXPONENT = 0.119
 """Default ``n`` of the compression law ``phi = ((1 - eps)^-n - 1) / n`` for every layer: fitted, with
@@ -120,7 +135,7 @@ def flat_punch_stiffness_n_per_m(youngs_modulus_pa: float, radius_m: float) -> f
 
     Sneddon (1965); the ``paper`` preset's per-layer ``k`` (its values before the layered form).
     """
-    return 2.0 * youngs_modulus_pa * radius_m / (1.0 - _POISSON**2)
+    return 2.0 * youngs_modulus_pa * radius_m / (1.0 - POISSON_RATIO**2)
 
 
 def column_stiffness_n_per_m(youngs_modulus_pa: float, thickness_m: float, area_m2: float = _TOOL_AREA_M2) -> float:
@@ -140,7 +155,7 @@ PAPER_MODULI_PA = {"epidermis": 1.5e6, "dermis": 20e3, "fat": 2.5e3}
 
 def _layer_specs() -> list[ParamSpec]:
     specs = []
-    for name, (h, e, rho, c) in _LAYER_DEFAULTS.items():
+    for name, (h, e, rho, c) in LAYER_DEFAULTS.items():
         k = layered_stiffness_n_per_m(name, e, h)
         damping = critical_damping_n_s_per_m(rho, h, c)
         tension = rho * h * c**2  # T = rho_areal c^2 (eq 1) with c from elastography
@@ -152,7 +167,7 @@ def _layer_specs() -> list[ParamSpec]:
                 f"{name} Kelvin-Voigt spring k (eq 6); layered form: small-strain stiffness at the mean thickness "
                 "(column E A / h times the load-spreading factor fitted to the neo-Hookean reference)",
             ),
-            _f(p + "damping_n_s_per_m", damping, "N*s/m", f"{name} Kelvin-Voigt damper b (eq 6)", 0.0, None, False),
+            _f(p + "damping_n_s_per_m", damping, "N*s/m", f"{name} Kelvin-Voigt damper b (eq 6)", min_exclusive=False),
             _f(p + "area_m2", _TOOL_AREA_M2, "m^2", f"{name} loaded area A (eq 6; paper form)"),
             _f(
                 p + "density_kg_per_m3",
@@ -164,7 +179,7 @@ def _layer_specs() -> list[ParamSpec]:
             _f(
                 p + "stiffening", STIFFENING_EXPONENT, "1",
                 f"{name} exponent n of the layered form's law f = k h ((1 - c/h)^-n - 1) / n (0: -k h ln(1 - c/h))",
-                0.0, 10.0, False,
+                max=10.0, min_exclusive=False,
             ),
         ]  # fmt: skip
     return specs
@@ -177,7 +192,7 @@ def _interface_specs() -> list[ParamSpec]:
     for name, (amp, wl) in defaults.items():
         p = f"interfaces.{name}."
         specs += [
-            _f(p + "amplitude_m", amp, "m", f"{name} egg-carton amplitude", 0.0, None, False),
+            _f(p + "amplitude_m", amp, "m", f"{name} egg-carton amplitude", min_exclusive=False),
             _f(p + "wavelength_x_m", wl, "m", f"{name} egg-carton wavelength along x"),
             _f(p + "wavelength_y_m", wl, "m", f"{name} egg-carton wavelength along y"),
         ]
@@ -204,22 +219,20 @@ TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
             "decay length l of the membranes' elastic foundation (k_A = T / l^2): how far the dent spreads from the "
             "tool; fitted to the large-deformation reference's surface fields (skin-sim calibrate); 0: the paper's "
             "bare membrane",
-            0.0,
-            0.06,
-            False,
+            max=0.06,
+            min_exclusive=False,
         ),
-        _i("grid.nx", 120, "output height-map cells along x over the sheet", 2, 1024),
-        _i("grid.ny", 120, "output height-map cells along y over the sheet", 2, 1024),
+        _i("grid.nx", 120, "output height-map cells along x over the sheet", min=2, max=1024),
+        _i("grid.ny", 120, "output height-map cells along y over the sheet", min=2, max=1024),
         _i(
             "modes.m",
             15,
             "modal terms along x (M in eq 2); <= 61: with jittery tick intervals the propagator "
             "is recomputed every tick, ~67 us at 61 x 61",
-            1,
-            61,
+            max=61,
         ),
-        _i("modes.n", 15, "modal terms along y (N in eq 2); <= 61, as modes.m", 1, 61),
-        _f("tool.radius_m", _TOOL_RADIUS_M, "m", "tool tip radius; the disk load of the indentation shape"),
+        _i("modes.n", 15, "modal terms along y (N in eq 2); <= 61, as modes.m", max=61),
+        _f("tool.radius_m", TOOL_RADIUS_M, "m", "tool tip radius; the disk load of the indentation shape"),
         _s(
             "tool.shape",
             "flat",
@@ -231,9 +244,8 @@ TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
             FRICTION_COEFFICIENT,
             "1",
             "Coulomb friction coefficient of the tool on dry skin (layered form; Derler and Gerhardt 2012: typically 0.5)",
-            0.0,
-            5.0,
-            False,
+            max=5.0,
+            min_exclusive=False,
         ),
         _f(
             "contact.slip_speed_m_s",
@@ -246,4 +258,16 @@ TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
     + _interface_specs()
     + _lod_specs()
 )
-SPEC_BY_NAME = {s.name: s for s in TISSUE_PARAMETERS}
+"""Every tissue parameter, named without the ``tissue.`` prefix the node declares them with
+(:data:`msgs_schema.parameters.SPEC_BY_NAME` looks them up)."""
+
+
+def tissue_defaults() -> dict[str, Any]:
+    """Every tissue parameter at its default.
+
+    Returns
+    -------
+    dict
+        Dotted name (no ``tissue.`` prefix) -> default, in schema order.
+    """
+    return {s.name: s.default for s in TISSUE_PARAMETERS}

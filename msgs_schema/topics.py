@@ -7,7 +7,8 @@ Names are relative, so ``--ros-args -r __ns:=/bed1`` or remapping works. QoS cla
   lost one, and a reliable writer blocks or buffers when a reader stalls. A best-effort
   reader also matches reliable writers, so any device driver can feed the node.
   The node's pose and twist readers use history depth ``input_queue_depth`` (default 1; live
-  replay uses 10 so that a node descheduled for a few ms answers every sample in order).
+  replay uses 500, ``skin_sim_node/bags/live.py: LIVE_QUEUE_DEPTH``, so that a stalled node
+  answers every sample in order).
 - ``display``: reliable, keep-last 1, volatile. Display-rate data that RViz (whose
   default subscriptions are reliable) must receive; the newest frame only.
 - ``diagnostics``: reliable, keep-last 10.
@@ -112,5 +113,3 @@ TOPICS = {
         "Force command in the omni_common family (AleBarte Geomagic_Touch_ROS2_Drivers: touch/force_feedback).",
     ),
 }  # fmt: skip
-
-LAYER_LABELS = ("epidermis", "dermis", "fat")

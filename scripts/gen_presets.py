@@ -9,16 +9,9 @@ as in eq 9.
 import math
 from pathlib import Path
 
-from msgs_schema.parameters import ALL_PARAMETERS, TISSUE_PREFIX
-from skin_sim_node.model.config import (
-    _TOOL_RADIUS_M,
-    LAYER_NAMES,
-    PAPER_MODULI_PA,
-    config_from_flat,
-    dump_yaml,
-    flat_punch_stiffness_n_per_m,
-    tissue_part,
-)
+from msgs_schema.parameters import ALL_PARAMETERS, TISSUE_PREFIX, tissue_part
+from msgs_schema.tissue import LAYER_NAMES, PAPER_MODULI_PA, TOOL_RADIUS_M, flat_punch_stiffness_n_per_m
+from skin_sim_node.model.config import config_from_flat, dump_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "config"
@@ -26,17 +19,23 @@ DOCS = ROOT / "docs" / "parameters.md"
 
 
 def _bounds(spec) -> str:
+    """The bounds column: ``lo < x <= hi`` (``<=`` below for an inclusive minimum), ``-`` when unbounded."""
     lo = "" if spec.min is None else f"{spec.min:g} {'<' if spec.min_exclusive else '<='} "
     hi = "" if spec.max is None else f" <= {spec.max:g}"
     return f"{lo}x{hi}" if (lo or hi) else "-"
 
 
 def write_parameter_doc(path: Path = DOCS) -> None:
-    """One table row per parameter: the schema is the single source, this page is generated."""
+    """One table row per parameter: the schema is the single source, this page is generated.
+
+    Parameters
+    ----------
+    path : Path
+    """
     rows = [
         "# Parameters of skin_sim_node",
         "",
-        "Generated from `msgs_schema/parameters.py` and `skin_sim_node/model/config.py` by",
+        "Generated from `msgs_schema/parameters.py` and `msgs_schema/tissue.py` by",
         "`python scripts/gen_presets.py`; do not edit by hand. Defaults are `config/default.yaml`.",
         "",
         "| name | type | default | unit | bounds | description |",
@@ -50,6 +49,13 @@ def write_parameter_doc(path: Path = DOCS) -> None:
 
 
 def main(config_dir: Path = CONFIG, doc_path: Path = DOCS):
+    """Write ``default.yaml`` and ``paper.yaml`` into ``config_dir`` and the parameter reference to ``doc_path``.
+
+    Parameters
+    ----------
+    config_dir : Path
+    doc_path : Path
+    """
     default = {s.name: s.default for s in ALL_PARAMETERS}
     dump_yaml(default, config_dir / "default.yaml")
     paper = dict(default)
@@ -64,7 +70,7 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS):
     for n in LAYER_NAMES:
         p = f"{TISSUE_PREFIX}layers.{n}."
         paper[p + "damping_n_s_per_m"] = 0.0
-        paper[p + "stiffness_n_per_m"] = flat_punch_stiffness_n_per_m(PAPER_MODULI_PA[n], _TOOL_RADIUS_M)
+        paper[p + "stiffness_n_per_m"] = flat_punch_stiffness_n_per_m(PAPER_MODULI_PA[n], TOOL_RADIUS_M)
         paper[p + "tension_n_per_m"] = paper[p + "density_kg_per_m3"] * paper[p + "thickness_m"] * c**2
     config_from_flat(tissue_part(paper, TISSUE_PREFIX))
     dump_yaml(paper, config_dir / "paper.yaml")

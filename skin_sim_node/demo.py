@@ -18,13 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
+from msgs_schema.tissue import LAYER_NAMES
+
 from .model import load_tissue_config
 from .scenes import DEFAULT_PARAMS, Scene
 
 PROMISED_HZ = 1000.0
 """The rate the demo promises at the device: a Touch's 1 kHz servo loop (every device tick gets a force)."""
 
-LAYER_NAMES = ("epidermis", "dermis", "fat")
 LAYER_COLOURS = ("#f2c9a5", "#d9777a", "#f5e08e")  # as skin_sim_node.viz.plots
 
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from msgs_schema.tissue import LAYER_DEFAULTS
 from skin_sim_node.model import preset
-from skin_sim_node.model.config import _LAYER_DEFAULTS
 from skin_sim_node.validation import hyperelastic as h
 from skin_sim_node.validation.large_deformation import SMALL_STRAIN_DEPTH_M, SMALL_STRAIN_TOL
 from skin_sim_node.validation.references import AXI_REFERENCE_LEVEL, axisym
@@ -41,12 +41,12 @@ def test_neo_hookean_is_stress_free_at_rest_and_linear_elastic_at_small_strain()
 
 def test_layer_moduli_are_read_from_the_config():
     cfg = preset("default")
-    assert h.layer_moduli_pa(cfg) == pytest.approx([v[1] for v in _LAYER_DEFAULTS.values()], rel=1e-12)
+    assert h.layer_moduli_pa(cfg) == pytest.approx([v[1] for v in LAYER_DEFAULTS.values()], rel=1e-12)
     k = cfg.as_flat()["layers.dermis.stiffness_n_per_m"]
     stiffer = cfg.replace(**{"layers.dermis.stiffness_n_per_m": 2 * k})
-    assert h.layer_moduli_pa(stiffer)[1] == pytest.approx(2 * _LAYER_DEFAULTS["dermis"][1], rel=1e-12)
+    assert h.layer_moduli_pa(stiffer)[1] == pytest.approx(2 * LAYER_DEFAULTS["dermis"][1], rel=1e-12)
     s = h.setup_from_config(stiffer, level=0)
-    assert s.moduli_pa[1] == pytest.approx(2 * _LAYER_DEFAULTS["dermis"][1])
+    assert s.moduli_pa[1] == pytest.approx(2 * LAYER_DEFAULTS["dermis"][1])
     assert s.tool_radius_m == cfg.tool_radius_m
     assert s.thickness_m == tuple(la.thickness_m for la in cfg.layers)
 

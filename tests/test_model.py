@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.sparse.linalg import spsolve
 
-from msgs_schema.tissue import _TOOL_RADIUS_M, PAPER_MODULI_PA, flat_punch_stiffness_n_per_m
+from msgs_schema.tissue import PAPER_MODULI_PA, TOOL_RADIUS_M, flat_punch_stiffness_n_per_m
 from skin_sim_node.model import SkinModel, classify, config_from_flat
 from skin_sim_node.model.config import WALL_STRAIN, ConfigError, default_flat
 from skin_sim_node.model.layered import DT_FLOOR_S, compression_law
@@ -18,7 +18,7 @@ from skin_sim_node.model.modal import disk_load_coefficients, shape_coefficients
 
 def paper_form(cfg):
     """The paper's form on the given tissue, with the Sneddon k the default tissue had before the layered form."""
-    k = {f"layers.{n}.stiffness_n_per_m": flat_punch_stiffness_n_per_m(e, _TOOL_RADIUS_M) for n, e in PAPER_MODULI_PA.items()}
+    k = {f"layers.{n}.stiffness_n_per_m": flat_punch_stiffness_n_per_m(e, TOOL_RADIUS_M) for n, e in PAPER_MODULI_PA.items()}
     return cfg.replace(form="paper", **k)
 
 

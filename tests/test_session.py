@@ -17,6 +17,7 @@ from skin_sim_node.session import (
     STAMP_DUPLICATE,
     STAMP_RESYNC,
     TELEPORT,
+    TICK_CLAMPED,
     UNKNOWN_FRAME,
     WATCHDOG,
     HapticSession,
@@ -282,3 +283,97 @@ def test_warm_up_compiles_every_kernel_a_press_through_the_session_uses(form):
     after = signatures()
     grown = [(name, before.get(k, (name, 0))[1], n) for k, (name, n) in after.items() if n != before.get(k, (name, 0))[1]]
     assert not grown, f"kernels compiled after warm_up: {grown}"
+
+
+# --- the seams on their own: input policy and force limits without a model ---------------------------------
+
+
+def _policy(**params):
+    from skin_sim_node.session import EventLog, InputPolicy
+
+    events = EventLog()
+    return InputPolicy(SessionParams(**params), events), events
+
+
+def test_input_policy_alone_decides_what_a_tick_runs_at():
+    """No model: accepted poses are answered once, at the stamps' interval; a pose-less tick holds the pose."""
+    pol, events = _policy()
+    assert pol.take(T0, MS) == (False, True, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0), 1e-3, True)  # no pose yet: stale, release
+    assert pol.on_pose(T0, "tissue", (0.0, 0.0, -1e-3), now_ns=T0, rx_ns=T0) is None
+    first = pol.take(T0, MS)
+    assert first.answered and not first.stale and first.pos == (0.0, 0.0, -1e-3) and first.dt_s == 1e-3
+    pol.on_pose(T0 + 2 * MS, "tissue", (0.0, 0.0, -1.2e-3), now_ns=T0 + 2 * MS, rx_ns=T0 + 2 * MS)
+    second = pol.take(T0 + 2 * MS, MS)  # elapsed 1 ms, stamps 2 ms apart: the stamps win
+    assert second.answered and second.dt_s == pytest.approx(2e-3) and second.velocity[2] == pytest.approx(-0.1)
+    held = pol.take(T0 + 3 * MS, MS)  # no new pose: held, at rest, not released
+    assert not held.answered and held.pos == (0.0, 0.0, -1.2e-3) and held.velocity == (0.0, 0.0, 0.0) and not held.release
+    assert pol.answered_stamp_ns == T0 + 2 * MS and events.take() == ()
+
+
+def test_input_policy_alone_watchdog_teleport_and_interval_clamp():
+    pol, events = _policy(watchdog_s=0.01, max_dt_s=0.005)
+    pol.on_pose(T0, "tissue", (0.0, 0.0, -1e-3), now_ns=T0, rx_ns=T0)
+    pol.take(T0, MS)
+    stale = pol.take(T0 + 20 * MS, 20 * MS)  # past the watchdog: lifted off, released, interval clamped
+    assert stale.stale and stale.release and stale.pos == (0.0, 0.0, 1.0) and stale.dt_s == 0.005
+    assert events.take() == (WATCHDOG, TICK_CLAMPED)
+    pol.on_pose(T0 + 21 * MS, "tissue", (0.05, 0.0, -1e-3), now_ns=T0 + 21 * MS, rx_ns=T0 + 21 * MS)  # 50 mm jump
+    jumped = pol.take(T0 + 21 * MS, MS)
+    assert jumped.answered and jumped.release and jumped.velocity == (0.0, 0.0, 0.0)
+    assert events.take() == (TELEPORT,) and events.counts == {WATCHDOG: 1, TICK_CLAMPED: 1, TELEPORT: 1}
+
+
+def test_velocity_estimate_alone():
+    from skin_sim_node.session import velocity_estimate
+
+    p = SessionParams()
+    twist = velocity_estimate(p, T0, (0.0, 0.0, 0.0), T0 - MS, (0.0, 0.0, 1e-4), T0 + 2 * MS, (0.1, 0.0, 0.0))
+    assert twist == (0.1, 0.0, 0.0)  # the twist, within twist_max_skew_s of the pose
+    diff = velocity_estimate(p, T0, (0.0, 0.0, 0.0), T0 - MS, (0.0, 0.0, 1e-4), T0 + 20 * MS, (0.1, 0.0, 0.0))
+    assert diff == pytest.approx((0.0, 0.0, -0.1))  # twist too far from the pose: the pose difference
+    capped = velocity_estimate(p, T0, (0.0, 0.0, 0.0), T0 - MS, (0.0, 0.0, 1.0), None, None)
+    assert math.hypot(*capped) == pytest.approx(p.max_tool_speed_m_s)
+    assert velocity_estimate(p, T0, (0.0, 0.0, 0.0), None, (0.0, 0.0, 1.0), None, None) == (0.0, 0.0, 0.0)
+
+
+def _limits(**params):
+    from skin_sim_node.session import EventLog, ForceLimits
+
+    events = EventLog()
+    return ForceLimits(SessionParams(**params), events), events
+
+
+def test_force_limits_alone_clamp_non_finite_and_stale():
+    lim, events = _limits(max_force_n=2.0, max_force_rate_n_per_s=0.0)
+    assert lim.apply(1.5, MS, False) == (1.5, False)
+    assert lim.apply(5.0, MS, False) == (2.0, False) and events.take() == (FORCE_CLAMPED,)
+    assert lim.apply(math.nan, MS, False) == (0.0, True) and events.take() == ("force_non_finite",)
+    assert lim.apply(1.0, MS, False, state_finite=lambda: False) == (0.0, True)  # a NaN elsewhere in the state
+    assert lim.apply(1.0, MS, True) == (0.0, False) and lim.force_n == 0.0  # stale: zero, whatever the model says
+
+
+def test_force_limits_alone_rate_bound_is_a_token_bucket():
+    """Over any window W the force moves at most rate (W + RATE_ALLOWANCE_S); a lowered clamp applies at once."""
+    rate = 100.0
+    lim, events = _limits(max_force_rate_n_per_s=rate)
+    lim.apply(0.0, MS, False)  # the first tick fills the bucket to one allowance
+    out = [lim.apply(1.0, MS, False)[0] for _ in range(5)]
+    assert out == pytest.approx([0.1 * (k + 1) for k in range(5)])  # 1 ms ticks: rate * 1 ms each
+    assert events.counts["force_rate_limited"] == 5
+    burst = [lim.apply(1.0, 20_000, False)[0] for _ in range(5)]  # five ticks 20 us apart share 100 us of budget
+    assert burst[-1] - out[-1] == pytest.approx(rate * 5 * 20e-6)
+    lim.params = SessionParams(max_force_rate_n_per_s=rate, max_force_n=0.05)
+    assert lim.apply(1.0, MS, False)[0] == 0.05  # the clamp is the hard limit, even right after a lowering
+
+
+def test_session_imports_only_the_models_public_api():
+    """The session (every module of skin_sim_node.session) imports the model package, none of its modules."""
+    from test_architecture import import_graph
+
+    pending = {"skin_sim_node.model.contact"}  # ContactTangent, normal_tangent: until the model package exports them
+    graph = import_graph()
+    session = {m: ts for m, ts in graph.items() if m == "skin_sim_node.session" or m.startswith("skin_sim_node.session.")}
+    assert len(session) >= 4, sorted(session)
+    model = {m: sorted(t for t in ts if t.startswith("skin_sim_node.model.") and t not in pending) for m, ts in session.items()}
+    assert {m: ts for m, ts in model.items() if ts} == {}
+    assert "skin_sim_node.model" in graph["skin_sim_node.session.haptic"]

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from msgs_schema.tissue import _TOOL_RADIUS_M, PAPER_MODULI_PA, flat_punch_stiffness_n_per_m
+from msgs_schema.tissue import PAPER_MODULI_PA, TOOL_RADIUS_M, flat_punch_stiffness_n_per_m
 from skin_sim_node.device.passivity import PassivityController
 from skin_sim_node.model import SkinModel, preset
 from skin_sim_node.session import (
@@ -47,7 +47,7 @@ RATE = SessionParams().max_force_rate_n_per_s
 def paper_form_cfg():
     """The paper's form (Fig 3 engagement, common velocity) with the default preset's tissue and the Sneddon springs
     it shipped with before the layered form (the ``paper`` preset itself is the one-mode eq 9 setting)."""
-    k = {f"layers.{n}.stiffness_n_per_m": flat_punch_stiffness_n_per_m(e, _TOOL_RADIUS_M) for n, e in PAPER_MODULI_PA.items()}
+    k = {f"layers.{n}.stiffness_n_per_m": flat_punch_stiffness_n_per_m(e, TOOL_RADIUS_M) for n, e in PAPER_MODULI_PA.items()}
     return preset("default").replace(form="paper", **k)
 
 

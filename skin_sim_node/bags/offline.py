@@ -17,11 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import session_params
-from msgs_schema.topics import LAYER_LABELS, TOPICS
+from msgs_schema.parameters import session_params, validate_parameters
+from msgs_schema.tissue import LAYER_NAMES
+from msgs_schema.topics import TOPICS
 
 from ..model import SkinModel
-from ..model.config import load_yaml, validate_all
+from ..model.config import build_config, load_yaml
 from ..scenes import DEFAULT_PARAMS
 from ..session import HapticSession
 from .inputs import POSE, Inputs
@@ -37,8 +38,9 @@ def bag_topic(key: str) -> str:
 
 def load_params(path=DEFAULT_PARAMS):
     """(SessionParams with the stamp-age check off, TissueConfig) from a node parameter file."""
-    node_params, cfg = validate_all(load_yaml(path))
-    return session_params(node_params, max_stamp_age_s=0.0), cfg  # offline: stamps are not compared with any clock
+    node_params, tissue = validate_parameters(load_yaml(path))
+    # offline: stamps are not compared with any clock
+    return session_params(node_params, max_stamp_age_s=0.0), build_config(tissue)
 
 
 @dataclass
@@ -171,7 +173,7 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
     return ReplayResult(
         np.array(stamps, dtype=np.int64), np.array(forces), np.array(n_aff, dtype=int), np.array(depths),
         np.array(xyzs).reshape(-1, 3), dict(session.counts), inputs.n_poses, inputs.n_twists, n_grids, peak_i,
-        peak_state, cfg, tuple(LAYER_LABELS), frame,
+        peak_state, cfg, tuple(LAYER_NAMES), frame,
     )  # fmt: skip
 
 

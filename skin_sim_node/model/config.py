@@ -1,8 +1,10 @@
-"""Tissue configuration: the frozen config the model runs on, validation and YAML I/O.
+"""Tissue configuration: the frozen config the model runs on, built from checked parameters, and YAML I/O.
 
-The schema itself (:data:`msgs_schema.tissue.TISSUE_PARAMETERS`) lives in the contract;
-:func:`config_from_flat` validates dotted parameters against it and builds the frozen
-:class:`TissueConfig`. :func:`validate_all` does the same for a full node parameter dict.
+The schema (:data:`msgs_schema.tissue.TISSUE_PARAMETERS`) and the validation of parameter values
+(:func:`msgs_schema.parameters.check_tissue`, :func:`msgs_schema.parameters.validate_parameters`) live in
+the contract. Here :func:`build_config` turns checked values into the frozen :class:`TissueConfig`, with the
+model's own geometry checks (patch within the sheet, tool within the patch, interfaces that do not cross);
+:func:`config_from_flat` is the two in one, for values that were not checked yet.
 """
 
 from __future__ import annotations
@@ -15,24 +17,27 @@ from typing import Any
 import numpy as np
 import yaml
 
+from msgs_schema.parameters import NODE_NAME, check_tissue, tissue_part
 from msgs_schema.spec import ConfigError
-from msgs_schema.tissue import (  # noqa: F401  (re-exported: the model's view of the schema)
-    _LAYER_DEFAULTS,
-    _POISSON,
-    _TOOL_RADIUS_M,
-    INTERFACE_NAMES,
-    LAYER_NAMES,
-    LOD_TOLERANCE_M,
-    PAPER_MODULI_PA,
-    SPEC_BY_NAME,
-    TISSUE_PARAMETERS,
-    WALL_STRAIN,
-    column_stiffness_n_per_m,
-    critical_damping_n_s_per_m,
-    flat_punch_stiffness_n_per_m,
-)
+from msgs_schema.tissue import INTERFACE_NAMES, LAYER_NAMES, LOD_TOLERANCE_M, WALL_STRAIN, tissue_defaults
 
-NODE_NAME = "skin_sim_node"
+__all__ = [
+    "WALL_STRAIN",
+    "ConfigError",
+    "InterfaceConfig",
+    "LayerConfig",
+    "LodConfig",
+    "TissueConfig",
+    "build_config",
+    "config_from_flat",
+    "default_flat",
+    "dump_yaml",
+    "flatten",
+    "load_tissue_config",
+    "load_yaml",
+    "preset",
+    "unflatten",
+]
 
 
 @dataclass(frozen=True)
@@ -50,6 +55,7 @@ class LayerConfig:
 
     @property
     def areal_density_kg_per_m2(self) -> float:
+        """``density * thickness`` (kg/m^2), the membrane's mass per area (eq 1)."""
         return self.density_kg_per_m3 * self.thickness_m
 
     @property
@@ -101,38 +107,78 @@ class TissueConfig:
 
     @property
     def total_thickness_m(self) -> float:
+        """Sum of the layers' mean thicknesses (m)."""
         return sum(layer.thickness_m for layer in self.layers)
 
     def as_flat(self) -> dict[str, Any]:
+        """The checked dotted parameters it was built from (no ``tissue.`` prefix)."""
         return dict(self.flat)
 
     def replace(self, **changes: Any) -> TissueConfig:
-        """A new validated config with some dotted parameters changed."""
+        """A new validated config with some dotted parameters changed.
+
+        Parameters
+        ----------
+        **changes
+            Dotted tissue name (no prefix) -> new value.
+
+        Returns
+        -------
+        TissueConfig
+        """
         flat = self.as_flat()
         flat.update(changes)
         return config_from_flat(flat)
 
 
 def default_flat() -> dict[str, Any]:
-    return {s.name: s.default for s in TISSUE_PARAMETERS}
+    """Every tissue parameter at its default (:func:`msgs_schema.tissue.tissue_defaults`).
+
+    Returns
+    -------
+    dict
+        Dotted name (no ``tissue.`` prefix) -> default.
+    """
+    return tissue_defaults()
 
 
 def config_from_flat(values: dict[str, Any]) -> TissueConfig:
-    """Validate dotted parameters (missing ones take schema defaults) into a TissueConfig.
+    """Check dotted tissue parameters (missing ones take schema defaults) and build a TissueConfig.
+
+    :func:`msgs_schema.parameters.check_tissue` (unknown names, wrong types, out-of-bound values), then
+    :func:`build_config` (the geometry); either raises :class:`ConfigError` with the reason.
+
+    Parameters
+    ----------
+    values : dict
+        Dotted tissue name (no ``tissue.`` prefix) -> value.
+
+    Returns
+    -------
+    TissueConfig
+    """
+    return build_config(check_tissue(values))
+
+
+def build_config(flat: dict[str, Any]) -> TissueConfig:
+    """The frozen TissueConfig of checked tissue parameters, after the model's own geometry checks.
+
+    Parameters
+    ----------
+    flat : dict
+        Every tissue parameter (no ``tissue.`` prefix) -> its checked value, as
+        :func:`msgs_schema.parameters.check_tissue` returns them.
+
+    Returns
+    -------
+    TissueConfig
 
     Raises
     ------
     ConfigError
-        Unknown names, wrong types, out-of-bound values, a patch larger than the
-        sheet, or interfaces that cross each other, pierce the surface or the bottom.
+        A patch larger than the sheet, a tool as wide as the patch, or interfaces that cross each other,
+        pierce the surface or the bottom.
     """
-    unknown = sorted(set(values) - set(SPEC_BY_NAME))
-    if unknown:
-        raise ConfigError(f"unknown tissue parameter(s): {', '.join(unknown)}")
-    flat = default_flat()
-    for name, value in values.items():
-        flat[name] = SPEC_BY_NAME[name].check(value)
-
     layers = tuple(
         LayerConfig(
             name=n,
@@ -184,7 +230,7 @@ def config_from_flat(values: dict[str, Any]) -> TissueConfig:
 
 
 def _check_geometry(cfg: TissueConfig) -> None:
-
+    """Raise :class:`ConfigError` if the patch, the tool or the interfaces do not fit (see :func:`build_config`)."""
     sx, sy = cfg.sheet_size_m
     px, py = cfg.patch_size_m
     if px > sx or py > sy:
@@ -206,7 +252,24 @@ def _check_geometry(cfg: TissueConfig) -> None:
 
 
 def load_yaml(path: str | Path, node_name: str = NODE_NAME) -> dict[str, Any]:
-    """Read a ``ros__parameters`` YAML file and return all its parameters, dotted."""
+    """Read a ``ros__parameters`` YAML file and return all its parameters, dotted (not validated).
+
+    Parameters
+    ----------
+    path : str or Path
+    node_name : str
+        The top key; a file with a single other top key is read under that one.
+
+    Returns
+    -------
+    dict
+        Declared name -> value.
+
+    Raises
+    ------
+    ConfigError
+        No ``<node_name>: ros__parameters:`` at the top.
+    """
     with open(path) as fh:
         doc = yaml.safe_load(fh) or {}
     if node_name not in doc and len(doc) == 1:
@@ -219,6 +282,18 @@ def load_yaml(path: str | Path, node_name: str = NODE_NAME) -> dict[str, Any]:
 
 
 def flatten(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested mappings to dotted names (``{"a": {"b": 1}}`` -> ``{"a.b": 1}``).
+
+    Parameters
+    ----------
+    tree : dict
+    prefix : str
+        Put before every name.
+
+    Returns
+    -------
+    dict
+    """
     out: dict[str, Any] = {}
     for key, value in tree.items():
         name = f"{prefix}{key}"
@@ -230,6 +305,16 @@ def flatten(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def unflatten(flat: dict[str, Any]) -> dict[str, Any]:
+    """Dotted names to nested mappings, the inverse of :func:`flatten`.
+
+    Parameters
+    ----------
+    flat : dict
+
+    Returns
+    -------
+    dict
+    """
     tree: dict[str, Any] = {}
     for name, value in flat.items():
         node = tree
@@ -240,18 +325,31 @@ def unflatten(flat: dict[str, Any]) -> dict[str, Any]:
     return tree
 
 
-def tissue_part(flat: dict[str, Any], prefix: str = "tissue.") -> dict[str, Any]:
-    """The tissue parameters of a node's dotted parameter dict, prefix stripped."""
-    return {k[len(prefix) :]: v for k, v in flat.items() if k.startswith(prefix)}
-
-
 def load_tissue_config(path: str | Path) -> TissueConfig:
-    """Load and validate the ``tissue.*`` parameters of a node YAML file."""
+    """Load, check and build the ``tissue.*`` parameters of a node YAML file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    TissueConfig
+    """
     return config_from_flat(tissue_part(load_yaml(path)))
 
 
 def dump_yaml(flat_by_prefix: dict[str, Any], path: str | Path, node_name: str = NODE_NAME) -> None:
-    """Write dotted parameters as a ``ros__parameters`` YAML file."""
+    """Write dotted parameters as a ``ros__parameters`` YAML file.
+
+    Parameters
+    ----------
+    flat_by_prefix : dict
+        Declared name -> value, written in this order.
+    path : str or Path
+    node_name : str
+        The top key.
+    """
     doc = {node_name: {"ros__parameters": unflatten(flat_by_prefix)}}
     with open(path, "w") as fh:
         yaml.safe_dump(doc, fh, sort_keys=False)
@@ -270,10 +368,3 @@ def preset(name: str) -> TissueConfig:
     if not path.exists():
         raise ConfigError(f"no preset named {name!r} (looked for {path})")
     return load_tissue_config(path)
-
-
-def validate_all(flat: dict):
-    """Validate a full dotted node parameter dict: returns ``(NodeParams, TissueConfig)``."""
-    from msgs_schema.parameters import TISSUE_PREFIX, node_params_from_flat
-
-    return node_params_from_flat(flat), config_from_flat(tissue_part(flat, TISSUE_PREFIX))

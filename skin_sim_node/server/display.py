@@ -20,9 +20,11 @@ from multiprocessing import shared_memory
 
 import numpy as np
 
-from ..model import SkinModel, config_from_flat
+from msgs_schema.tissue import LAYER_NAMES
 
-MAX_LAYERS = 3
+from ..model import SkinModel, TissueConfig
+
+MAX_LAYERS = len(LAYER_NAMES)
 MAX_MODES = 31 * 31  # odd-odd modes of the 61 x 61 parameter bound
 _HEADER = 4  # int64: seq, n_layers, n_modes, config version
 
@@ -133,7 +135,7 @@ def mesh_due(now_s: float, last_mesh_s: float, mesh_rate_hz: float, joined: bool
     return mesh_rate_hz > 0 and (now_s - last_mesh_s >= 1.0 / mesh_rate_hz or joined)
 
 
-def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pid):  # pragma: no cover - child process
+def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # pragma: no cover - child process
     lower_priority()  # first: every thread started below (rclpy, DDS) inherits it
     import rclpy
     from geometry_msgs.msg import Point
@@ -150,7 +152,7 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
     pubs = {k: publisher(node, k) for k in ("height_map", "layer_heights", "mesh")}
     image, layers_image, marker = Image(), Image(), Marker()
     snap = SnapshotBuffer(shm_name)
-    model = SkinModel(config_from_flat(tissue_flat))
+    model = SkinModel(cfg)  # the config the node validated and built
     version = 0
     frame = FRAMES["tissue"]
     last_seq, last_pub, last_mesh = -1, 0.0, -math.inf
@@ -165,7 +167,7 @@ def _worker(shm_name, tissue_flat, display, ros_args, namespace, conn, parent_pi
                     return
                 kind, payload = msg
                 if kind == "tissue":
-                    version, model = payload[0], SkinModel(config_from_flat(payload[1]))
+                    version, model = payload[0], SkinModel(payload[1])
                     last_q = last_centre = last_active = None  # new rest heights: the next frame rebuilds
                     mesh_grid = None  # a pending mesh of the old tissue is not sent
                 elif kind == "display":
@@ -242,16 +244,28 @@ the 5 s its launchers allowed. The worker holds nothing to save: it only publish
 
 
 class DisplayProcess:
-    """Owner side: the shared snapshot, the pipe, and the worker process."""
+    """Owner side: the shared snapshot, the pipe, and the worker process.
 
-    def __init__(self, tissue_flat: dict, display: dict, ros_args: list[str], namespace: str):
+    Parameters
+    ----------
+    cfg : TissueConfig
+        The tissue the worker starts with (pickled to it; it validates nothing).
+    display : dict
+        The display settings (``display_rate_hz``, ``mesh_rate_hz``, ``publish_mesh``, ``mesh_stride``, ``on_change``).
+    ros_args : list of str
+        The node's ROS arguments (without its ``__node:=`` remap).
+    namespace : str
+        The node's namespace.
+    """
+
+    def __init__(self, cfg: TissueConfig, display: dict, ros_args: list[str], namespace: str):
         self.snap = SnapshotBuffer()
         ctx = mp.get_context("spawn")  # never fork a process that runs DDS threads
         self._conn, child = ctx.Pipe()
         self.version = 0
         self.proc = ctx.Process(
             target=_worker,
-            args=(self.snap.shm.name, tissue_flat, display, ros_args, namespace, child, os.getpid()),
+            args=(self.snap.shm.name, cfg, display, ros_args, namespace, child, os.getpid()),
             name="skin_sim_display",
             daemon=True,
         )
@@ -261,11 +275,18 @@ class DisplayProcess:
         """Copy the modal state (:meth:`HapticSession.display_state`) into shared memory."""
         self.snap.write(state["q"], state["centre"], state["driven"], self.version, state["level"], state["active"])
 
-    def set_tissue(self, tissue_flat: dict) -> None:
+    def set_tissue(self, cfg: TissueConfig) -> None:
+        """Send the worker a new tissue: the config the node validated and built (no validation here).
+
+        Parameters
+        ----------
+        cfg : TissueConfig
+        """
         self.version += 1
-        self._conn.send(("tissue", (self.version, tissue_flat)))
+        self._conn.send(("tissue", (self.version, cfg)))
 
     def set_display(self, display: dict) -> None:
+        """Send the worker new display settings (the dict :class:`DisplayProcess` takes)."""
         self._conn.send(("display", display))
 
     def close(self) -> None:

@@ -28,18 +28,26 @@ from sensor_msgs.msg import JointState
 from skin_sim_msgs.msg import ContactModel
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import ALL_PARAMETERS, SPEC_BY_NAME, TISSUE_PREFIX, check_value, session_params
+from msgs_schema.parameters import (
+    ALL_PARAMETERS,
+    NODE_NAME,
+    SPEC_BY_NAME,
+    TISSUE_PREFIX,
+    NodeParams,
+    session_params,
+    validate_parameters,
+)
 from msgs_schema.qos import publisher, subscription
+from msgs_schema.tissue import TISSUE_PARAMETERS
 from msgs_schema.topics import FRAMES
 
-from ..model import ConfigError, SkinModel
-from ..model.config import tissue_part, validate_all
+from ..model import ConfigError, SkinModel, TissueConfig
+from ..model.config import build_config
 from ..model.skin_model import warm_up
 from ..ros_util import LoopTiming, PeriodicLoop, run_nodes, set_process_realtime, set_realtime
 from ..session import HapticSession, TickResult
 from .display import DisplayProcess
 
-NODE_NAME = "skin_sim_node"
 STATS_LEN = 16384
 READERS_CHECK_NS = 100_000_000
 """How often the tick asks DDS whether ``tissue/contact`` and ``tool/contact_model`` have readers (100 ms).
@@ -61,22 +69,50 @@ def descriptor(spec) -> ParameterDescriptor:
     return d
 
 
-_TISSUE_NAMES = {s.name[len(TISSUE_PREFIX) :] for s in ALL_PARAMETERS if s.name.startswith(TISSUE_PREFIX)}
+_TISSUE_NAMES = {s.name for s in TISSUE_PARAMETERS}
 
 
 def reason(exc: Exception) -> str:
-    """A rejection reason naming the parameter as the node declares it (``tissue.`` prefix kept)."""
+    """A rejection reason naming the parameter as the node declares it (``tissue.`` prefix kept).
+
+    Parameters
+    ----------
+    exc : Exception
+        A :class:`ConfigError` of the contract's checks or the model's geometry checks.
+
+    Returns
+    -------
+    str
+    """
     msg = str(exc)
     head = msg.split(" ", 1)[0].rstrip(":")
     return TISSUE_PREFIX + msg if head in _TISSUE_NAMES else msg
 
 
-def validate(flat: dict, changed=()):
-    """``(NodeParams, TissueConfig)`` of a full dotted parameter dict; each ``changed`` name is checked
-    against its own (prefixed) schema entry first, so the reason names it as declared. Raises ConfigError."""
-    for name in changed:
-        check_value(name, flat[name])
-    return validate_all(flat)
+def validate(flat: dict, changed=()) -> tuple[NodeParams, TissueConfig]:
+    """The node parameters and the built tissue config of a full dotted parameter dict.
+
+    The contract validates (:func:`msgs_schema.parameters.validate_parameters`), the model builds
+    (:func:`skin_sim_node.model.config.build_config`, with its geometry checks).
+
+    Parameters
+    ----------
+    flat : dict
+        Declared name -> value.
+    changed : iterable of str
+        Names checked first against their declared spec, so that the reason names them as declared.
+
+    Returns
+    -------
+    NodeParams, TissueConfig
+
+    Raises
+    ------
+    ConfigError
+        With the reason.
+    """
+    node_params, tissue = validate_parameters(flat, changed)
+    return node_params, build_config(tissue)
 
 
 class SkinSimNode(Node):
@@ -121,6 +157,7 @@ class SkinSimNode(Node):
         self._pub_diag = publisher(self, "diagnostics")
         self._readers_checked_ns = -READERS_CHECK_NS
         self._contact_read = self._model_read = True
+        self._accepted: tuple[dict, dict, NodeParams, TissueConfig] | None = None  # on_set's validated set, for post_set
         self.add_on_set_parameters_callback(self._on_set_parameters)  # validate (ros2/demos: on_set checks)
         self.add_post_set_parameters_callback(self._post_set_parameters)  # apply the accepted set
         depth = self.params.input_queue_depth
@@ -130,7 +167,7 @@ class SkinSimNode(Node):
         self._diag_timer = self.create_timer(self.params.diagnostics_period_s, self._publish_diagnostics)
         # display work runs in its own process; this thread only copies the modal state to it
         args = [a for a in (ros_args or []) if "__node:=" not in a]
-        self._display = DisplayProcess(tissue_part(self._flat, "tissue."), self._display_settings(), args, self.get_namespace())
+        self._display = DisplayProcess(cfg, self._display_settings(), args, self.get_namespace())
         self._next_display_ns = 0  # the haptic tick copies the state for the display at display_rate_hz (no thread of its own)
         self._loop = PeriodicLoop(self._clock_period_ns(), self._on_clock, timing=self._haptic_timing(), on_warning=self._warn)
         self._apply_rt_scope()
@@ -179,9 +216,6 @@ class SkinSimNode(Node):
             self._warn(problem)
         else:
             self.get_logger().info(f"SCHED_FIFO {p.rt_priority} for the haptic threads ({p.rt_scope} scope)")
-
-    def _period_ns(self) -> int:
-        return int(1e9 / self.params.rate_hz)
 
     def _clock_period_ns(self) -> int:
         """The thread clock: rate_hz in timer mode, fallback_rate_hz in input mode."""
@@ -362,35 +396,54 @@ class SkinSimNode(Node):
         self._diag.status = [st]
         self._pub_diag.publish(self._diag)
 
-    # --- live parameters: validated in on_set, applied in post_set (as ros2/demos) -------------
+    # --- live parameters: validated once in on_set, applied in post_set (as ros2/demos) -------------
     def _on_set_parameters(self, params) -> SetParametersResult:
-        """Validate a set against the whole parameter set; nothing is applied here."""
+        """Validate a set against the whole parameter set and keep the result for :meth:`_post_set_parameters`.
+
+        Parameters
+        ----------
+        params : list of rclpy.parameter.Parameter
+
+        Returns
+        -------
+        SetParametersResult
+            Refused with the reason on a :class:`ConfigError`; nothing is applied here.
+        """
         ours = [p for p in params if p.name in SPEC_BY_NAME]  # use_sim_time, qos overrides: rclpy's own
         if not ours:
             return SetParametersResult(successful=True)
-        flat = dict(self._flat)
-        flat.update({p.name: p.value for p in ours})
+        changes = {p.name: p.value for p in ours}
+        flat = self._flat | changes
         try:
-            validate(flat, [p.name for p in ours])
+            node_params, cfg = validate(flat, changes)
         except ConfigError as exc:
             why = reason(exc)
             self.get_logger().warning(f"parameter change rejected: {why}")
             return SetParametersResult(successful=False, reason=why)
+        self._accepted = (changes, flat, node_params, cfg)
         return SetParametersResult(successful=True)
 
     def _post_set_parameters(self, params) -> None:
-        """Apply an accepted set: new session limits, loop periods, display settings; a new model on a tissue change."""
+        """Apply the set on_set accepted: new session limits, loop periods, display settings; a new model on a
+        tissue change.
+
+        Parameters
+        ----------
+        params : list of rclpy.parameter.Parameter
+        """
         ours = [p for p in params if p.name in SPEC_BY_NAME]
         if not ours:
             return
-        flat = dict(self._flat)
-        flat.update({p.name: p.value for p in ours})
-        node_params, cfg = validate_all(flat)  # on_set accepted exactly this set
+        changes = {p.name: p.value for p in ours}
+        accepted, self._accepted = self._accepted, None
+        if accepted is None or accepted[0] != changes:  # rclpy calls post_set right after on_set accepted this set
+            accepted = (changes, self._flat | changes, *validate(self._flat | changes, changes))
+        _, flat, node_params, cfg = accepted
         new_model = SkinModel(cfg) if any(p.name.startswith(TISSUE_PREFIX) for p in ours) else None
         with self._lock:
             if new_model is not None:
                 self.session.set_model(new_model)
-                self._display.set_tissue(tissue_part(flat, TISSUE_PREFIX))  # under the lock: snapshots carry the new version
+                self._display.set_tissue(cfg)  # under the lock: snapshots carry the new version
             self.session.params = session_params(node_params)
             self.params = node_params
             self._flat = flat

@@ -41,8 +41,9 @@ import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 from scipy.optimize import least_squares
 
+from msgs_schema.tissue import LAYER_NAMES
 from skin_sim_node.model import SkinModel, TissueConfig, preset
-from skin_sim_node.model.config import LAYER_NAMES, dump_yaml
+from skin_sim_node.model.config import dump_yaml
 from skin_sim_node.solvers import static_indentation
 
 from .methods import skin_membrane, static_force_n

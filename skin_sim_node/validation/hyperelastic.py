@@ -47,8 +47,8 @@ import scipy.sparse.linalg as spla
 from skfem import Basis, ElementQuad2, ElementVector, MeshQuad
 from tqdm import tqdm
 
-from msgs_schema.tissue import LOAD_SPREADING
-from skin_sim_node.model.config import _POISSON, TissueConfig, preset
+from msgs_schema.tissue import LOAD_SPREADING, POISSON_RATIO
+from skin_sim_node.model.config import TissueConfig, preset
 
 from .fem import axis_nodes
 
@@ -57,7 +57,7 @@ CACHE_DIR = Path(__file__).resolve().parents[2] / "docs" / "validation" / "hyper
 SAVE_DEPTHS_M = (0.1e-3, 0.5e-3, 1e-3, 2e-3, 3e-3)  # depths whose surface profile is stored
 
 
-def layer_moduli_pa(cfg: TissueConfig, poisson: float = _POISSON) -> tuple[float, float, float]:
+def layer_moduli_pa(cfg: TissueConfig, poisson: float = POISSON_RATIO) -> tuple[float, float, float]:
     """Young's modulus per layer, read from the config (both forms).
 
     ``layers.<name>.youngs_modulus_pa`` when the schema has it; otherwise inverted from the layer
@@ -96,7 +96,7 @@ class AxiSetup:
     thickness_m: tuple[float, float, float]
     moduli_pa: tuple[float, float, float]
     tool_radius_m: float
-    poisson: float = _POISSON
+    poisson: float = POISSON_RATIO
     extent_m: float = 0.03
     n_tool: int = 8
     n_out: int = 12

@@ -18,12 +18,11 @@ import time
 import numpy as np
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import SPEC_BY_NAME
+from msgs_schema.parameters import NODE_NAME, SPEC_BY_NAME
 from msgs_schema.tissue import LAYER_NAMES
 
 from .frames import diag_message, encode_frame, tool_depth_m
 
-NODE_NAME = "skin_sim_node"
 TUNABLE = re.compile(r"stiffness|damping|friction|tolerance")
 """Parameters the page lists first (issue 14: stiffness, damping, friction, mode tolerance); the rest are
 one click away. Matched against the names the node reports at run time, so new ones appear by themselves."""

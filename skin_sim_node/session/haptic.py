@@ -1,0 +1,376 @@
+"""The haptic session's tick: input policy -> model step -> force limits -> one :class:`TickResult`. No rclpy.
+
+The live node and the offline replay both drive the model through :class:`HapticSession`, so they apply the
+same input checks (:mod:`.inputs`), velocity estimate and force limits (:mod:`.limits`). Times are integer
+nanoseconds: message stamps for inputs, the caller's clock for ``now_ns``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from msgs_schema.parameters import SessionParams
+
+from ..model import FLAG_BOTTOMED, FLAG_CONTACT, FLAG_LAYER_BOUND, FLAG_OFF_SHEET, FLAG_SEPARATED, SkinModel
+from ..model.contact import ContactTangent, normal_tangent  # not exported by skin_sim_node.model yet
+from .events import (
+    CONTACT_SEPARATED,
+    DEGENERATE_WAVE_SPEED,
+    PATCH_CLIPPED,
+    REUSS_BOUND,
+    TOOL_BELOW_TISSUE,
+    TOOL_OFF_SHEET,
+    EventLog,
+)
+from .inputs import InputPolicy
+from .limits import ForceLimits
+
+NO_CONTACT = normal_tangent(0.0, 0.0, 0.0, 0.0)
+"""The tangent out of contact (no force, no stiffness), shared: :meth:`SkinModel.tangent` builds its arrays
+anew on each call (8 us of a 1 ms tick), so it is called only while the tool is in contact."""
+
+DEGENERATE_RETURN_S = 1.0
+"""A layer whose fundamental mode needs longer than this for a quarter period (``pi / (2 lambda_11)``)
+to return has a degenerate wave speed: skin visibly recovers from an indent well within a second,
+while the paper's eq 9 (``lambda_11 = 0.0032 rad/s``) takes 490 s. Such a layer is released from
+rest (``B*_mn = 0``, as eq 9 itself), since with no restoring force in human time a release velocity
+``v`` would carry it ``v / lambda_11`` (31 m at 0.1 m/s) away."""
+
+STATE_CHECK_TICKS = 64
+"""Every this many ticks the force limits also ask whether the model's energy is finite (a NaN can hide in
+a layer that does not touch the force)."""
+
+
+@dataclass(frozen=True)
+class TickResult:
+    """What one haptic tick produced: the one output path (node, offline replay and benchmarks read only this).
+
+    :func:`msgs_schema.convert.fill_wrench_from_tick` and :func:`msgs_schema.convert.fill_contact_from_tick`
+    turn it into the ``tool/wrench`` and ``tissue/contact`` messages.
+
+    Attributes
+    ----------
+    seq : int
+        Tick sequence number, increasing by one per tick of this session (from 1).
+    stamp_ns : int
+        Stamp of the pose the model ran at (the last accepted pose; 0 before any).
+    answered : bool
+        This tick consumed a newly accepted pose (it answers that pose).
+    x0_m : tuple of 3 float
+        Tool position the model ran at (tissue frame, m); ``z = 1 m`` (lifted off) when stale.
+    velocity_m_s : tuple of 3 float
+        Tool velocity the model ran at (m/s).
+    force_n : tuple of 3 float
+        Published reaction force on the tool (N) after the session's clamp, rate bound and watchdog.
+    depth_m : float
+        Tool depth of the Reuss split (eq 6), 0 out of contact.
+    n_affected : int
+        Layers engaged by the contact (the deepest reached).
+    compression_m, compression_rate_m_s, stress_pa : tuple of float, one per layer
+        Reuss compression of each layer, its rate (the normal speed shared in proportion to the
+        compression), and the common Reuss stress on the engaged layers (0 on the others).
+    flags : int
+        Model regime flags of the step (``skin_sim_node.model.FLAG_*``).
+    events : tuple of str
+        Rejection, safety and regime event kinds raised since the previous tick (each occurrence).
+    stale : bool
+        The input watchdog fired: the force is zero and the tissue released.
+    idle : bool
+        The model skipped the kernel (tissue at rest, tool off it).
+    tangent : ContactTangent
+        The model's local linearisation at ``x0_m`` (:meth:`SkinModel.tangent`), for the local contact model.
+    """
+
+    seq: int
+    stamp_ns: int
+    answered: bool
+    x0_m: tuple[float, float, float]
+    velocity_m_s: tuple[float, float, float]
+    force_n: tuple[float, float, float]
+    depth_m: float
+    n_affected: int
+    compression_m: tuple[float, ...]
+    compression_rate_m_s: tuple[float, ...]
+    stress_pa: tuple[float, ...]
+    flags: int
+    events: tuple[str, ...]
+    stale: bool
+    idle: bool
+    tangent: ContactTangent
+
+    @property
+    def force_z_n(self) -> float:
+        """The force along the tissue normal ``+z`` (N), the model's single force component."""
+        return self.force_n[2]
+
+
+def _part(part: str, name: str, doc: str) -> property:
+    """A read-only attribute of the session that is attribute ``name`` of its part ``part``.
+
+    Parameters
+    ----------
+    part : str
+        ``"inputs"``, ``"limits"`` or ``"_event"``.
+    name : str
+    doc : str
+
+    Returns
+    -------
+    property
+    """
+    return property(lambda self: getattr(getattr(self, part), name), doc=doc)
+
+
+class HapticSession:
+    """Owns a :class:`SkinModel` and turns input samples into force ticks.
+
+    Composes the :class:`~.inputs.InputPolicy` (which samples are accepted, what a tick runs at), the model's
+    step and the :class:`~.limits.ForceLimits` (what is published of its force), and builds the tick's
+    :class:`TickResult`.
+
+    Parameters
+    ----------
+    model : SkinModel
+    params : SessionParams
+    log : callable(kind, message), optional
+        Called once per event kind (the first occurrence); every occurrence is counted
+        in :attr:`counts` (rejections, safety actions) or :attr:`regime_counts` (:data:`REGIME_EVENTS`).
+
+    Attributes
+    ----------
+    model : SkinModel
+        The model it runs (:meth:`set_model` swaps it).
+    inputs : InputPolicy
+        The input and stamp policy (its state: :attr:`pose`, :attr:`stale`, ... read through the session).
+    limits : ForceLimits
+        The force limits (:attr:`force_n`).
+    velocity : tuple of 3 float
+        The tool velocity the last tick ran at (m/s).
+    last : TickResult or None
+        The last tick's result.
+    """
+
+    def __init__(self, model: SkinModel, params: SessionParams, log: Callable[[str, str], None] | None = None):
+        self.model = None
+        self._event = EventLog(log)
+        self.inputs = InputPolicy(params, self._event)
+        self.limits = ForceLimits(params, self._event)
+        self._params = params
+        self._ticks = 0
+        self.velocity = (0.0, 0.0, 0.0)
+        self._seq = 0
+        self.last: TickResult | None = None  # the last tick's result
+        self.set_model(model)
+
+    # --- parameters, and the parts' state as attributes of the session (read-only) -----------------------
+    @property
+    def params(self) -> SessionParams:
+        """The session's parameters; setting them (a live parameter change) applies from the next call."""
+        return self._params
+
+    @params.setter
+    def params(self, params: SessionParams) -> None:
+        self._params = self.inputs.params = self.limits.params = params
+
+    counts = _part("_event", "counts", "Occurrences of each rejection and safety event (``collections.Counter``).")
+    regime_counts = _part("_event", "regime_counts", "Occurrences of each model-regime event (:data:`REGIME_EVENTS`).")
+    force_n = _part("limits", "force_n", "The last published force (N, along +z).")
+    stale = _part("inputs", "stale", "The input watchdog fired at the last tick (force zero, tissue released).")
+    pose_rx_ns = _part("inputs", "pose_rx_ns", "Caller-clock arrival time of the last accepted pose (None before any).")
+    pose_stamp_ns = _part("inputs", "pose_stamp_ns", "Stamp of the last accepted pose (None before any).")
+    pose = _part("inputs", "pose", "The last accepted tool position (m).")
+    twist_stamp_ns = _part("inputs", "twist_stamp_ns", "Stamp of the last accepted twist (None before any).")
+    twist = _part("inputs", "twist", "The last accepted tool velocity (m/s).")
+    answered_stamp_ns = _part("inputs", "answered_stamp_ns", "Stamp of the last pose a tick answered (0 before any).")
+
+    def set_model(self, model: SkinModel) -> None:
+        """Swap in a new model (a live tissue parameter change); the tissue restarts at rest.
+
+        Parameters
+        ----------
+        model : SkinModel
+        """
+        self.model = model
+        # degenerate-layer release, moving into SkinModel: which layers
+        lam11 = model.basis.lam.min(axis=1)  # each layer's fundamental, rad/s
+        with np.errstate(divide="ignore"):
+            quarter_s = np.where(lam11 > 0, 0.5 * math.pi / lam11, math.inf)
+        self._degenerate = quarter_s > DEGENERATE_RETURN_S
+        if self._degenerate.any():
+            names = ", ".join(la.name for la, d in zip(model.cfg.layers, self._degenerate) if d)
+            self._event(
+                DEGENERATE_WAVE_SPEED,
+                f"degenerate wave speed: {names} take {quarter_s.max():.3g} s to return (c = "
+                f"{min(la.wave_speed_m_per_s for la in model.cfg.layers):.3g} m/s); released from rest",
+            )
+        # ---
+        cfg = model.cfg
+        self._patch_free = (0.5 * (cfg.sheet_size_m[0] - cfg.patch_size_m[0]), 0.5 * (cfg.sheet_size_m[1] - cfg.patch_size_m[1]))
+
+    # --- inputs (the policy's) --------------------------------------------------------------
+    def on_pose(self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None, rx_ns: int | None = None) -> str | None:
+        """Validate and store a tool pose: :meth:`.inputs.InputPolicy.on_pose` (its parameters and return).
+
+        Returns
+        -------
+        str or None
+            None if accepted, else the rejection kind.
+        """
+        return self.inputs.on_pose(stamp_ns, frame, xyz, now_ns, rx_ns)
+
+    def on_twist(self, stamp_ns: int, frame: str, linear) -> str | None:
+        """Validate and store a tool twist: :meth:`.inputs.InputPolicy.on_twist` (its parameters and return).
+
+        Returns
+        -------
+        str or None
+            None if accepted, else the rejection kind.
+        """
+        return self.inputs.on_twist(stamp_ns, frame, linear)
+
+    # --- the tick ---------------------------------------------------------------------
+    def tick(self, now_ns: int, elapsed_ns: int) -> TickResult:
+        """One haptic tick: the input policy's sample, the model's step, the force limits.
+
+        If a new pose arrived, the model advances by the pose stamps' difference (less
+        the time already advanced by pose-less ticks); otherwise by ``elapsed_ns`` with the
+        last pose held.
+
+        Parameters
+        ----------
+        now_ns : int
+            The caller's clock (the watchdog's).
+        elapsed_ns : int
+            Caller-clock time since the previous tick.
+
+        Returns
+        -------
+        TickResult
+            Also kept in :attr:`last`; its force (N, along +z) is also :attr:`force_n`.
+        """
+        model = self.model
+        ti = self.inputs.take(now_ns, elapsed_ns)
+        self.velocity = ti.velocity
+        # degenerate-layer release, moving into SkinModel: the copies and the restart go, release and step stay
+        driven_before = model.driven.copy() if self._degenerate.any() else None
+        q_before = model.q.copy() if driven_before is not None else None
+        if ti.release:
+            model.release()
+        force = model.step(ti.pos, ti.velocity, ti.dt_s)
+        if driven_before is not None:
+            self._release_degenerate_from_rest(driven_before, q_before)
+        # ---
+        self._ticks += 1
+        self._regime_events(ti.pos)
+        check = self._state_finite if self._ticks % STATE_CHECK_TICKS == 0 else None
+        force, reset = self.limits.apply(force, elapsed_ns, ti.stale, check)
+        if reset:
+            model.reset()
+        return self._result(ti.answered, ti.pos, ti.velocity, force, ti.stale)
+
+    def _release_degenerate_from_rest(self, driven_before, q_before) -> None:
+        """A degenerate layer released this tick restarts from its last driven shape at rest (eq 9's ``B* = 0``).
+
+        Part of the degenerate-layer release block of :meth:`tick` (it moves into :class:`SkinModel`).
+        """
+        m = self.model
+        released = np.flatnonzero(driven_before.astype(bool) & ~m.driven.astype(bool) & self._degenerate)
+        if released.size:
+            m.restart_from_rest(released, q_before)
+
+    def _state_finite(self) -> bool:
+        """Whether the model's energy (hence its whole state) is finite."""
+        return math.isfinite(self.model.energy())
+
+    def _result(self, answered: bool, pos, v, force: float, stale: bool) -> TickResult:
+        """The frozen record of this tick (the contact message's per-layer rate and stress included)."""
+        m = self.model
+        n = m.n_affected
+        depth = m.depth_m
+        comp = tuple(m.compression_m.tolist())
+        nl = len(comp)
+        k = -v[2] / depth if depth > 0 else 0.0  # the normal speed, shared in proportion to each layer's compression
+        rate = tuple([k * c for c in comp])
+        stress = (m.stress_pa,) * n + (0.0,) * (nl - n)
+        self._seq += 1
+        events = self._event.take()
+        flags = m.flags
+        self.last = TickResult(
+            seq=self._seq, stamp_ns=self.inputs.answered_stamp_ns, answered=answered, x0_m=tuple(pos), velocity_m_s=tuple(v),
+            force_n=(0.0, 0.0, force), depth_m=depth, n_affected=n, compression_m=comp, compression_rate_m_s=rate,
+            stress_pa=stress, flags=flags, events=events, stale=stale, idle=m.last_tick_idle,
+            tangent=m.tangent() if flags & FLAG_CONTACT else NO_CONTACT,
+        )  # fmt: skip
+        return self.last
+
+    # --- read-outs for the node's diagnostics, display and logs (no caller reads the model) ---------------------
+    @property
+    def kernel_calls(self) -> int:
+        """Model kernel invocations so far (idle ticks make none)."""
+        return self.model.kernel_calls
+
+    @property
+    def modes_per_axis(self) -> tuple[int, ...]:
+        """Modes per axis each layer uses now (adaptive: its current level; else the fixed count)."""
+        return tuple(int(k) for k in self.model.modes_per_axis())
+
+    @property
+    def idle_ticks(self) -> int:
+        return self.model.idle_ticks
+
+    @property
+    def state_key(self) -> tuple[int, int]:
+        """Changes whenever the deformation may have changed (a kernel call, a reset or a new model)."""
+        return id(self.model), self.model.version
+
+    def display_state(self) -> dict:
+        """Live views of the modal state the display rebuilds the grid from (copy them before the next tick)."""
+        m = self.model
+        return {"q": m.q, "centre": m.centre, "driven": m.driven, "level": m.level, "active": m.active}
+
+    def build_grid(self):
+        """The display grid of the current deformation (:meth:`SkinModel.build_grid`)."""
+        return self.model.build_grid()
+
+    def state(self) -> dict:
+        """A copy of the model's dynamic state (see :meth:`SkinModel.state`), e.g. at peak force."""
+        return self.model.state()
+
+    def describe_modes(self) -> str:
+        """The mode counts the model really runs: adaptive levels, or the fixed ``modes.m x modes.n``."""
+        cfg, b = self.model.cfg, self.model.basis
+        if cfg.lod.adaptive_modes:
+            top = int(b.level_modes[-1])
+            return (
+                f"adaptive modes on (tissue.lod.adaptive_modes): each layer uses 1x1 to {top}x{top} modes per axis "
+                f"({b.n_modes} odd modes at most) to keep the truncation within tissue.lod.tolerance_m = "
+                f"{cfg.lod.tolerance_m:g} m; tissue.modes.m x n = {cfg.modes[0]}x{cfg.modes[1]} applies only with it off"
+            )
+        return f"fixed modes: {cfg.modes[0]}x{cfg.modes[1]} per axis ({b.n_modes} odd modes), adaptive modes off"
+
+    # --- model regime ---------------------------------------------------------------------
+    def _regime_events(self, pos) -> None:
+        """Log (once each) the model-regime flags of the last step; the kernel already bounded them."""
+        f = self.model.flags
+        if f & FLAG_BOTTOMED:
+            self._event(TOOL_BELOW_TISSUE, f"tool {-pos[2] * 1e3:.2f} mm deep, below the tissue: depth clamped at the bottom")
+        if f & FLAG_LAYER_BOUND:
+            self._event(
+                REUSS_BOUND,
+                "a layer's Reuss compression left [0, thickness] (fast press or retraction, or a "
+                "saturated layer): held at the bound, the rest of the depth split over the others",
+            )
+        if f & FLAG_SEPARATED:
+            self._event(CONTACT_SEPARATED, "tool retracted faster than the tissue follows (Reuss stress <= 0): contact released")
+        if f & FLAG_OFF_SHEET and pos[2] < 0.0:
+            self._event(TOOL_OFF_SHEET, f"tool at ({pos[0] * 1e3:.1f}, {pos[1] * 1e3:.1f}) mm is off the sheet: no contact")
+        if f & FLAG_CONTACT and (abs(pos[0]) > self._patch_free[0] or abs(pos[1]) > self._patch_free[1]):
+            self._event(
+                PATCH_CLIPPED,
+                f"contact at ({pos[0] * 1e3:.1f}, {pos[1] * 1e3:.1f}) mm: the deformation patch "
+                "passes the sheet edge and is clipped there (the paper's incomplete deformation)",
+            )

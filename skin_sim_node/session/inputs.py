@@ -1,0 +1,263 @@
+"""Input and stamp policy: which tool samples are accepted, and what the next tick runs at.
+
+Pose and twist checks (non-finite, frame), stamp checks (backwards, repeated, stale or future against the
+receiver's clock, resync onto a restarted publisher's time line), teleport detection, the input watchdog,
+the interval a tick advances, and the velocity estimate. No model and no rclpy: :meth:`InputPolicy.take`
+says what the tick runs at, and :class:`~skin_sim_node.session.haptic.HapticSession` runs the model.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from msgs_schema.parameters import SessionParams
+
+from . import events as ev
+
+LIFTED = (0.0, 0.0, 1.0)
+"""The tool position before any pose: 1 m above the rest surface, off the tissue."""
+
+AT_REST = (0.0, 0.0, 0.0)
+
+
+class TickInput(NamedTuple):
+    """What one tick runs the model at (:meth:`InputPolicy.take`).
+
+    Attributes
+    ----------
+    answered : bool
+        The tick consumes a newly accepted pose.
+    stale : bool
+        The input watchdog fired: no valid pose for ``watchdog_s``.
+    pos : tuple of 3 float
+        Tool position (tissue frame, m); the last pose lifted to ``z = 1 m`` when stale.
+    velocity : tuple of 3 float
+        Tool velocity (m/s): the estimate for an answered pose, zero otherwise.
+    dt_s : float
+        Interval the model advances (s), at most ``max_dt_s``.
+    release : bool
+        End contact before the step: the tool teleported, or the input went stale.
+    """
+
+    answered: bool
+    stale: bool
+    pos: tuple[float, float, float]
+    velocity: tuple[float, float, float]
+    dt_s: float
+    release: bool
+
+
+def velocity_estimate(
+    params: SessionParams, pose_stamp_ns: int, pose, prev_stamp_ns: int | None, prev_pose, twist_stamp_ns: int | None, twist
+) -> tuple[float, float, float]:
+    """The tool velocity at a pose: the twist if its stamp is close enough, else the pose difference, capped.
+
+    Parameters
+    ----------
+    params : SessionParams
+        ``twist_max_skew_s`` (how close the twist's stamp must be) and ``max_tool_speed_m_s`` (the cap).
+    pose_stamp_ns, pose : int, tuple of 3 float
+        The pose the tick answers.
+    prev_stamp_ns, prev_pose : int or None, tuple of 3 float
+        The accepted pose before it (None: none).
+    twist_stamp_ns, twist : int or None, tuple of 3 float
+        The last accepted twist (None: none).
+
+    Returns
+    -------
+    tuple of 3 float
+        Velocity (m/s), of magnitude at most ``max_tool_speed_m_s``; zero without a twist or an earlier pose.
+    """
+    if twist_stamp_ns is not None and abs(twist_stamp_ns - pose_stamp_ns) * 1e-9 <= params.twist_max_skew_s:
+        v = twist
+    elif prev_stamp_ns is not None and pose_stamp_ns > prev_stamp_ns:
+        dt = (pose_stamp_ns - prev_stamp_ns) * 1e-9
+        v = tuple((a - b) / dt for a, b in zip(pose, prev_pose))
+    else:
+        v = AT_REST
+    s = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if s > params.max_tool_speed_m_s:
+        v = tuple(c * params.max_tool_speed_m_s / s for c in v)
+    return v
+
+
+class InputPolicy:
+    """Accepts or rejects tool samples and decides what each tick runs at.
+
+    Parameters
+    ----------
+    params : SessionParams
+        Read at every call (the session replaces it on a live parameter change).
+    event : callable(kind, message) -> kind
+        Where rejections and policy events go (:class:`~skin_sim_node.session.events.EventLog`).
+
+    Attributes
+    ----------
+    pose_stamp_ns, pose : int or None, tuple of 3 float
+        The last accepted pose (stamp ns, tissue frame m).
+    pose_rx_ns : int or None
+        Arrival time of that pose on the caller's clock (the watchdog's).
+    twist_stamp_ns, twist : int or None, tuple of 3 float
+        The last accepted twist.
+    stale : bool
+        The watchdog state of the last :meth:`take`.
+    answered_stamp_ns : int
+        Stamp of the last pose a tick answered (0 before any).
+    """
+
+    def __init__(self, params: SessionParams, event: ev.EventSink):
+        self.params = params
+        self._event = event
+        self.pose_stamp_ns: int | None = None  # last accepted pose
+        self.pose = LIFTED
+        self.pose_rx_ns: int | None = None  # caller clock when it arrived
+        self._prev_pose_stamp_ns: int | None = None
+        self._prev_pose = LIFTED
+        self.twist_stamp_ns: int | None = None
+        self.twist = AT_REST
+        self._teleported = False
+        self._backwards_run = 0
+        self._last_used_stamp_ns: int | None = None  # stamp of the pose the last tick used
+        self._pending = False  # a pose arrived that no tick has consumed
+        self._advanced_since_pose_ns = 0
+        self.stale = True
+        self.answered_stamp_ns = 0
+
+    def on_pose(self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None, rx_ns: int | None = None) -> str | None:
+        """Validate and store a tool pose.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            The pose's stamp.
+        frame : str
+            Its frame id; must be ``tissue_frame``.
+        xyz : sequence of 3 float
+            Tool position (m).
+        now_ns : int, optional
+            The receiver's clock in the stamps' time base (ROS time), for the stamp age check (None skips it,
+            as offline replay does).
+        rx_ns : int, optional
+            Arrival time on the clock that :meth:`take` gets (default ``now_ns``, else the stamp).
+
+        Returns
+        -------
+        str or None
+            None if accepted, else the rejection kind.
+        """
+        p = self.params
+        x, y, z = (float(c) for c in xyz)
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+            return self._event(ev.NON_FINITE, f"rejected tool pose with non-finite position ({x}, {y}, {z})")
+        if frame != p.tissue_frame:
+            return self._event(ev.UNKNOWN_FRAME, f"rejected tool pose in frame '{frame}', expected '{p.tissue_frame}'")
+        if now_ns is not None and p.max_stamp_age_s > 0:
+            age = (now_ns - stamp_ns) * 1e-9
+            if age > p.max_stamp_age_s:
+                return self._event(
+                    ev.STALE_STAMP,
+                    f"rejected tool pose: stamp is {age:.3f} s old (limit {p.max_stamp_age_s} s); "
+                    "check clock sync or use_sim_time",
+                )
+            if -age > p.max_future_s:
+                return self._event(
+                    ev.FUTURE_STAMP, f"rejected tool pose: stamp is {-age:.3f} s in the future; check clock sync or use_sim_time"
+                )
+        if self.pose_stamp_ns is not None and stamp_ns <= self.pose_stamp_ns:
+            self._backwards_run += 1
+            if self._backwards_run < p.resync_after:
+                if stamp_ns == self.pose_stamp_ns:
+                    return self._event(ev.STAMP_DUPLICATE, "rejected tool pose with a repeated stamp")
+                return self._event(
+                    ev.STAMP_BACKWARDS, f"rejected tool pose: stamp went back {(self.pose_stamp_ns - stamp_ns) * 1e-6:.3f} ms"
+                )
+            self._event(ev.STAMP_RESYNC, f"{self._backwards_run} poses behind the last stamp: following the new time line")
+            self.pose_stamp_ns = self._last_used_stamp_ns = None
+            self._teleported = True
+        self._backwards_run = 0
+        if self.pose_stamp_ns is not None and not self._teleported:
+            dist = math.dist((x, y, z), self.pose)
+            dt = (stamp_ns - self.pose_stamp_ns) * 1e-9
+            if dist > p.teleport_distance_m or dist > p.max_tool_speed_m_s * max(dt, 1e-3):
+                self._teleported = True
+                self._event(ev.TELEPORT, f"tool jumped {dist * 1e3:.1f} mm in {dt * 1e3:.2f} ms: contact restarted")
+        self._prev_pose_stamp_ns, self._prev_pose = self.pose_stamp_ns, self.pose
+        self.pose_stamp_ns, self.pose = stamp_ns, (x, y, z)
+        self.pose_rx_ns = rx_ns if rx_ns is not None else (now_ns if now_ns is not None else stamp_ns)
+        self._pending = True
+        return None
+
+    def on_twist(self, stamp_ns: int, frame: str, linear) -> str | None:
+        """Validate and store a tool twist (its linear part): as :meth:`on_pose`, with ``linear`` the velocity (m/s).
+
+        Returns
+        -------
+        str or None
+            None if accepted, else the rejection kind.
+        """
+        vx, vy, vz = (float(c) for c in linear)
+        if not (math.isfinite(vx) and math.isfinite(vy) and math.isfinite(vz)):
+            return self._event(ev.NON_FINITE, f"rejected tool twist with non-finite velocity ({vx}, {vy}, {vz})")
+        if frame != self.params.tissue_frame:
+            return self._event(ev.UNKNOWN_FRAME, f"rejected tool twist in frame '{frame}', expected '{self.params.tissue_frame}'")
+        self.twist_stamp_ns, self.twist = stamp_ns, (vx, vy, vz)
+        return None
+
+    def take(self, now_ns: int, elapsed_ns: int) -> TickInput:
+        """What the next tick runs at; consumes the pending pose.
+
+        A new pose advances the model by the pose stamps' difference (less the time already advanced by
+        pose-less ticks, so several poses per tick lose no time); otherwise the tick advances by
+        ``elapsed_ns`` with the last pose held, lifted off when the watchdog fired.
+
+        Parameters
+        ----------
+        now_ns : int
+            The caller's clock (the one ``rx_ns`` is on).
+        elapsed_ns : int
+            Caller-clock time since the previous tick.
+
+        Returns
+        -------
+        TickInput
+        """
+        p = self.params
+        stale = self.pose_rx_ns is None or (now_ns - self.pose_rx_ns) * 1e-9 > p.watchdog_s
+        if stale and not self.stale:
+            self._event(ev.WATCHDOG, f"no valid tool pose for {p.watchdog_s * 1e3:.0f} ms: force set to zero, tissue released")
+        self.stale = stale
+        answered = self._pending and not stale
+        release = False
+        if answered:
+            self._pending = False
+            if self._last_used_stamp_ns is None:
+                dt_ns = elapsed_ns
+            else:  # from the pose the previous tick used: several poses per tick lose no time
+                dt_ns = self.pose_stamp_ns - self._last_used_stamp_ns - self._advanced_since_pose_ns
+            self._last_used_stamp_ns = self.pose_stamp_ns
+            self._advanced_since_pose_ns = 0
+            if self._teleported:
+                release = True
+                self._teleported = False
+                v = AT_REST
+            else:
+                v = velocity_estimate(
+                    p, self.pose_stamp_ns, self.pose, self._prev_pose_stamp_ns, self._prev_pose, self.twist_stamp_ns, self.twist
+                )
+            pos = self.pose
+            self.answered_stamp_ns = self.pose_stamp_ns
+        else:
+            dt_ns = elapsed_ns
+            self._advanced_since_pose_ns += elapsed_ns
+            v = AT_REST
+            if stale:
+                pos = (self.pose[0], self.pose[1], 1.0)  # unknown tool: treat as lifted off
+                release = True
+            else:
+                pos = self.pose
+        dt = max(dt_ns, 0) * 1e-9
+        if dt > p.max_dt_s:
+            self._event(ev.TICK_CLAMPED, f"tick interval {dt * 1e3:.1f} ms advanced as max_dt_s = {p.max_dt_s * 1e3:.0f} ms")
+            dt = p.max_dt_s
+        return TickInput(answered, stale, pos, v, dt, release)
