@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -254,6 +254,10 @@ class HapticSession:
         """
         model = self.model
         ti = self.inputs.take(now_ns, elapsed_ns)
+        if ti.hold and self.last is not None:  # no new pose: model, force and local model held (model time = stamps)
+            self._seq += 1
+            self.last = replace(self.last, seq=self._seq, answered=False, events=self._event.take())
+            return self.last
         self.velocity = ti.velocity
         # degenerate-layer release, moving into SkinModel: the copies and the restart go, release and step stay
         driven_before = model.driven.copy() if self._degenerate.any() else None
@@ -267,7 +271,7 @@ class HapticSession:
         self._ticks += 1
         self._regime_events(ti.pos)
         check = self._state_finite if self._ticks % STATE_CHECK_TICKS == 0 else None
-        force, reset = self.limits.apply(force, elapsed_ns, ti.stale, check)
+        force, reset = self.limits.apply(force, ti.rate_dt_ns, ti.stale, check)
         if reset:
             model.reset()
         return self._result(ti.answered, ti.pos, ti.velocity, force, ti.stale)

@@ -38,6 +38,12 @@ class TickInput(NamedTuple):
         Interval the model advances (s), at most ``max_dt_s``.
     release : bool
         End contact before the step: the tool teleported, or the input went stale.
+    hold : bool
+        No new pose and the input is not stale: the model is not stepped and the force is held (``dt_s`` is 0).
+        Model time follows the pose stamps; a pose-less tick does not advance it.
+    rate_dt_ns : int
+        The interval the force-rate bound allows a change over (ns): the stamp interval of an answered pose,
+        the caller's interval otherwise.
     """
 
     answered: bool
@@ -46,6 +52,8 @@ class TickInput(NamedTuple):
     velocity: tuple[float, float, float]
     dt_s: float
     release: bool
+    hold: bool = False
+    rate_dt_ns: int = 0
 
 
 def velocity_estimate(
@@ -118,9 +126,8 @@ class InputPolicy:
         self.twist = AT_REST
         self._teleported = False
         self._backwards_run = 0
-        self._last_used_stamp_ns: int | None = None  # stamp of the pose the last tick used
+        self._last_used_stamp_ns: int | None = None  # stamp of the pose the last tick used (model time)
         self._pending = False  # a pose arrived that no tick has consumed
-        self._advanced_since_pose_ns = 0
         self.stale = True
         self.answered_stamp_ns = 0
 
@@ -207,9 +214,13 @@ class InputPolicy:
     def take(self, now_ns: int, elapsed_ns: int) -> TickInput:
         """What the next tick runs at; consumes the pending pose.
 
-        A new pose advances the model by the pose stamps' difference (less the time already advanced by
-        pose-less ticks, so several poses per tick lose no time); otherwise the tick advances by
-        ``elapsed_ns`` with the last pose held, lifted off when the watchdog fired.
+        The stamps define the model's time. A new pose advances the model by its stamp's difference to the pose
+        the previous step used (several poses per tick lose no time). A tick without a new pose holds the model
+        and the force while the input is fresh, so it neither eats the next pose's time (a step of dt = 0, where
+        the Kelvin-Voigt chain is a rigid damper) nor changes the answer to any pose: the live node answers a
+        pose stream as the offline replay of it does, however the poses arrived. Once the watchdog fires the
+        tissue is released and relaxes on the caller's clock (``elapsed_ns``), lifted off; the next pose then
+        starts model time afresh.
 
         Parameters
         ----------
@@ -228,15 +239,19 @@ class InputPolicy:
             self._event(ev.WATCHDOG, f"no valid tool pose for {p.watchdog_s * 1e3:.0f} ms: force set to zero, tissue released")
         self.stale = stale
         answered = self._pending and not stale
+        if not answered and not stale:
+            return TickInput(False, False, self.pose, AT_REST, 0.0, False, hold=True, rate_dt_ns=0)
         release = False
         if answered:
             self._pending = False
-            if self._last_used_stamp_ns is None:
-                dt_ns = elapsed_ns
-            else:  # from the pose the previous tick used: several poses per tick lose no time
-                dt_ns = self.pose_stamp_ns - self._last_used_stamp_ns - self._advanced_since_pose_ns
+            # from the pose the previous step used (model time); contact restarts (the first pose after a start, a
+            # resync or a stale spell, and a teleport) step by max_dt_s: the tool has been where it is for an unknown
+            # time, so contact starts from the quasi-static state (dampers relaxed) and not through a rigid damper
+            # (a 1 mm restart in 1 ms raised 200 N before the force clamp)
+            restart = self._last_used_stamp_ns is None or self._teleported
+            dt_ns = int(p.max_dt_s * 1e9) if restart else self.pose_stamp_ns - self._last_used_stamp_ns
+            rate_dt_ns = elapsed_ns if self._last_used_stamp_ns is None else self.pose_stamp_ns - self._last_used_stamp_ns
             self._last_used_stamp_ns = self.pose_stamp_ns
-            self._advanced_since_pose_ns = 0
             if self._teleported:
                 release = True
                 self._teleported = False
@@ -247,17 +262,16 @@ class InputPolicy:
                 )
             pos = self.pose
             self.answered_stamp_ns = self.pose_stamp_ns
-        else:
-            dt_ns = elapsed_ns
-            self._advanced_since_pose_ns += elapsed_ns
+        else:  # stale: the tool is unknown, treated as lifted off; the tissue relaxes on the caller's clock
+            restart = False
+            dt_ns = rate_dt_ns = elapsed_ns
+            self._last_used_stamp_ns = None
             v = AT_REST
-            if stale:
-                pos = (self.pose[0], self.pose[1], 1.0)  # unknown tool: treat as lifted off
-                release = True
-            else:
-                pos = self.pose
+            pos = (self.pose[0], self.pose[1], 1.0)
+            release = True
         dt = max(dt_ns, 0) * 1e-9
         if dt > p.max_dt_s:
-            self._event(ev.TICK_CLAMPED, f"tick interval {dt * 1e3:.1f} ms advanced as max_dt_s = {p.max_dt_s * 1e3:.0f} ms")
+            if answered and not restart:  # a released tissue relaxing, or a restart, in steps of max_dt_s is no event
+                self._event(ev.TICK_CLAMPED, f"tick interval {dt * 1e3:.1f} ms advanced as max_dt_s = {p.max_dt_s * 1e3:.0f} ms")
             dt = p.max_dt_s
-        return TickInput(answered, stale, pos, v, dt, release)
+        return TickInput(answered, stale, pos, v, dt, release, hold=False, rate_dt_ns=max(rate_dt_ns, 0))

@@ -1,7 +1,8 @@
 """Force limits: what the session publishes of the model's force. No model and no rclpy.
 
 In order: a non-finite force (or model state) publishes 0 and asks for a reset to rest, the force is clamped
-to ``max_force_n``, its rate of change is bounded by a token bucket on the caller's clock, and a stale input
+to ``max_force_n``, its rate of change is bounded by a token bucket on the model's clock (the pose stamps), and a
+stale input
 publishes 0 (a safety stop is not rate limited).
 """
 
@@ -15,12 +16,12 @@ from msgs_schema.parameters import SessionParams
 from .events import FORCE_CLAMPED, FORCE_NON_FINITE, FORCE_RATE_LIMITED, EventSink
 
 RATE_ALLOWANCE_S = 1e-3
-"""Allowance of the force-rate bound (a token bucket on the caller's clock): over any window of W
-seconds the published force changes by at most ``max_force_rate_n_per_s * (W + RATE_ALLOWANCE_S)``.
-A tick may spend its own interval's change plus what earlier ticks left unspent, up to the larger of
-its interval and one 1 kHz servo period: a slow loop (250 Hz) still gets ``rate * dt`` per tick,
-poses processed in a burst after a stall share one period's change, and a stamp that jumps ahead
-buys nothing."""
+"""Allowance of the force-rate bound (a token bucket on the model's clock: the stamp interval of each answered
+pose, :attr:`TickInput.rate_dt_ns`): over any W seconds of pose stamps the published force changes by at most
+``max_force_rate_n_per_s * (W + RATE_ALLOWANCE_S)``. A tick may spend its own interval's change plus what earlier
+ticks left unspent, up to the larger of its interval and one 1 kHz servo period: a slow loop (250 Hz) still gets
+``rate * dt`` per tick. On the stamps, not the caller's clock, so that poses processed in a burst after a stall get
+the answer the offline replay gives them (tests/test_timing_policy.py)."""
 
 
 class ForceLimits:
@@ -56,7 +57,7 @@ class ForceLimits:
         force : float
             The model's force (N, along +z).
         elapsed_ns : int
-            Caller-clock time since the previous tick: the rate bound's clock.
+            Model time since the previous step (ns; the pose stamps' interval): the rate bound's clock.
         stale : bool
             The input watchdog fired: publish 0.
         state_finite : callable() -> bool, optional
