@@ -12,13 +12,18 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import numpy as np
-
 from msgs_schema.parameters import SessionParams
 
-from .model import SkinModel
-from .model import kernels as kn
-from .model.contact import ContactTangent, normal_tangent
+from .model import (
+    FLAG_BOTTOMED,
+    FLAG_CONTACT,
+    FLAG_LAYER_BOUND,
+    FLAG_OFF_SHEET,
+    FLAG_SEPARATED,
+    ContactTangent,
+    SkinModel,
+    normal_tangent,
+)
 
 __all__ = ["HapticSession", "SessionParams", "TickResult"]
 
@@ -61,13 +66,6 @@ A tick may spend its own interval's change plus what earlier ticks left unspent,
 its interval and one 1 kHz servo period: a slow loop (250 Hz) still gets ``rate * dt`` per tick,
 poses processed in a burst after a stall share one period's change, and a stamp that jumps ahead
 buys nothing."""
-
-DEGENERATE_RETURN_S = 1.0
-"""A layer whose fundamental mode needs longer than this for a quarter period (``pi / (2 lambda_11)``)
-to return has a degenerate wave speed: skin visibly recovers from an indent well within a second,
-while the paper's eq 9 (``lambda_11 = 0.0032 rad/s``) takes 490 s. Such a layer is released from
-rest (``B*_mn = 0``, as eq 9 itself), since with no restoring force in human time a release velocity
-``v`` would carry it ``v / lambda_11`` (31 m at 0.1 m/s) away."""
 
 
 @dataclass(frozen=True)
@@ -188,15 +186,11 @@ class HapticSession:
     def set_model(self, model: SkinModel) -> None:
         """Swap in a new model (a live tissue parameter change); the tissue restarts at rest."""
         self.model = model
-        lam11 = model.basis.lam.min(axis=1)  # each layer's fundamental, rad/s
-        with np.errstate(divide="ignore"):
-            quarter_s = np.where(lam11 > 0, 0.5 * math.pi / lam11, math.inf)
-        self._degenerate = quarter_s > DEGENERATE_RETURN_S
-        if self._degenerate.any():
-            names = ", ".join(la.name for la, d in zip(model.cfg.layers, self._degenerate) if d)
+        if model.degenerate_layers:  # the model releases them from rest itself
+            names = ", ".join(model.degenerate_layers)
             self._event(
                 DEGENERATE_WAVE_SPEED,
-                f"degenerate wave speed: {names} take {quarter_s.max():.3g} s to return (c = "
+                f"degenerate wave speed: {names} take {model.slowest_return_s:.3g} s to return (c = "
                 f"{min(la.wave_speed_m_per_s for la in model.cfg.layers):.3g} m/s); released from rest",
             )
         cfg = model.cfg
@@ -286,8 +280,6 @@ class HapticSession:
         """
         p = self.params
         model = self.model
-        driven_before = model.driven.copy() if self._degenerate.any() else None
-        q_before = model.q.copy() if driven_before is not None else None
         stale = self.pose_rx_ns is None or (now_ns - self.pose_rx_ns) * 1e-9 > p.watchdog_s
         if stale and not self.stale:
             self._event(WATCHDOG, f"no valid tool pose for {p.watchdog_s * 1e3:.0f} ms: force set to zero, tissue released")
@@ -326,8 +318,6 @@ class HapticSession:
         force = model.step(pos, v, dt)
         self._ticks += 1
         self._regime_events(pos)
-        if driven_before is not None:
-            self._release_degenerate_from_rest(driven_before, q_before)
         if not math.isfinite(force) or (self._ticks % 64 == 0 and not math.isfinite(model.energy())):
             self._event(FORCE_NON_FINITE, f"model state became non-finite (force {force}): published 0, tissue reset to rest")
             model.reset()
@@ -371,7 +361,7 @@ class HapticSession:
             seq=self._seq, stamp_ns=self.answered_stamp_ns, answered=answered, x0_m=tuple(pos), velocity_m_s=tuple(v),
             force_n=(0.0, 0.0, force), depth_m=depth, n_affected=n, compression_m=comp, compression_rate_m_s=rate,
             stress_pa=stress, flags=flags, events=events, stale=stale, idle=m.last_tick_idle,
-            tangent=m.tangent() if flags & kn.FLAG_CONTACT else NO_CONTACT,
+            tangent=m.tangent() if flags & FLAG_CONTACT else NO_CONTACT,
         )  # fmt: skip
         return self.last
 
@@ -424,22 +414,15 @@ class HapticSession:
     def _regime_events(self, pos) -> None:
         """Log (once each) the model-regime flags of the last step; the kernel already bounded them."""
         f = self.model.flags
-        if f & kn.FLAG_BOTTOMED:
+        if f & FLAG_BOTTOMED:
             self._event(TOOL_BELOW_TISSUE, f"tool {-pos[2] * 1e3:.2f} mm deep, below the tissue: depth clamped at the bottom")
-        if f & kn.FLAG_LAYER_BOUND:
+        if f & FLAG_LAYER_BOUND:
             self._event(REUSS_BOUND, "a layer's Reuss compression left [0, thickness] (fast press or retraction, or a "
                         "saturated layer): held at the bound, the rest of the depth split over the others")  # fmt: skip
-        if f & kn.FLAG_SEPARATED:
+        if f & FLAG_SEPARATED:
             self._event(CONTACT_SEPARATED, "tool retracted faster than the tissue follows (Reuss stress <= 0): contact released")
-        if f & kn.FLAG_OFF_SHEET and pos[2] < 0.0:
+        if f & FLAG_OFF_SHEET and pos[2] < 0.0:
             self._event(TOOL_OFF_SHEET, f"tool at ({pos[0] * 1e3:.1f}, {pos[1] * 1e3:.1f}) mm is off the sheet: no contact")
-        if f & kn.FLAG_CONTACT and (abs(pos[0]) > self._patch_free[0] or abs(pos[1]) > self._patch_free[1]):
+        if f & FLAG_CONTACT and (abs(pos[0]) > self._patch_free[0] or abs(pos[1]) > self._patch_free[1]):
             self._event(PATCH_CLIPPED, f"contact at ({pos[0] * 1e3:.1f}, {pos[1] * 1e3:.1f}) mm: the deformation patch "
                         "passes the sheet edge and is clipped there (the paper's incomplete deformation)")  # fmt: skip
-
-    def _release_degenerate_from_rest(self, driven_before, q_before) -> None:
-        """A degenerate layer released this tick restarts from its last driven shape at rest (eq 9's ``B* = 0``)."""
-        m = self.model
-        released = np.flatnonzero(driven_before.astype(bool) & ~m.driven.astype(bool) & self._degenerate)
-        if released.size:
-            m.restart_from_rest(released, q_before)
