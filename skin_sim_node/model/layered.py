@@ -52,22 +52,16 @@ from .layout import (
     LP_IF_MEAN,
     LP_N,
     LS_COMP,
-    OUT_DEPTH_M,
     OUT_DFN_DX,
     OUT_DFN_DY,
     OUT_DFN_DZ,
     OUT_FORCE_N,
     OUT_FX,
-    OUT_FY,
     OUT_FZ,
-    OUT_N_AFFECTED,
     OUT_NX,
     OUT_NY,
     OUT_NZ,
     OUT_RADIUS_M,
-    OUT_SETTLED,
-    OUT_STRESS_PA,
-    OUT_SURFACE_M,
     OUT_T,
     SP_BOTTOM,
     SP_MU,
@@ -75,9 +69,10 @@ from .layout import (
     SP_TOOL_R,
     SP_V_SLIP,
     SP_WALL,
+    Form,
     KernelArrays,
 )
-from .modal_kernels import begin_tick, drive_layer, layer_at, relax_layer, settled_flag
+from .modal_kernels import begin_tick, drive_layer, end_tick, layer_at, relax_layer
 
 RATE_CAP_M_S = 3.0
 """Largest layer rate handed to a membrane (m/s): the node's default tool speed cap (``max_tool_speed_m_s``;
@@ -435,19 +430,10 @@ def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, l
 
     Parameters
     ----------
-    tool_x, tool_y, tool_z : float
-        Tool tip (m, tissue frame, z up; the depth is ``-tool_z``).
     tool_vx, tool_vy, tool_vz : float
         Tool velocity (m/s): the friction's slip velocity and the cap of the membranes' rates.
-    dt : float
-        Time since the previous tick (s).
-    lp, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, aux, sbuf, out : ndarray
-        The grouped arrays (:mod:`.layout`); the state and ``out`` (``OUT_*``) are written.
-
-    Returns
-    -------
-    int
-        The step flags (``FLAG_*``).
+    tool_x, tool_y, tool_z, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, aux, sbuf, out
+        As :func:`~.paper.paper_step_kernel`, which also returns the step flags.
     """
     nl = istate.shape[1]
     flags, was_contact, surface, touching = begin_tick(
@@ -559,47 +545,29 @@ def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, l
         for li in range(nl):
             lstate[LS_COMP, li] = 0.0
             relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate)
-    out[OUT_FORCE_N] = force_n
-    out[OUT_STRESS_PA] = force_n / (math.pi * a * a) if a > 0.0 else 0.0
-    out[OUT_DEPTH_M] = depth if touching else 0.0
-    out[OUT_N_AFFECTED] = nl if touching else 0
-    out[OUT_SURFACE_M] = surface
-    out[OUT_SETTLED] = settled_flag(sp, lstate, istate)
-    out[OUT_FX] = fx
-    out[OUT_FY] = fy
-    out[OUT_FZ] = fz
-    out[OUT_NX] = nx
-    out[OUT_NY] = ny
-    out[OUT_NZ] = nz
-    out[OUT_RADIUS_M] = a
+    stress = force_n / (math.pi * a * a) if a > 0.0 else 0.0
+    d_out = depth if touching else 0.0
+    n_out = nl if touching else 0
+    end_tick(force_n, stress, d_out, n_out, surface, fx, fy, fz, nx, ny, nz, a, sp, lstate, istate, out)
     out[OUT_DFN_DX] = dfx
     out[OUT_DFN_DY] = dfy
     out[OUT_DFN_DZ] = dfz
     return flags
 
 
-class LayeredForm:
-    """The layered form bound to one model's kernel arrays (:class:`SkinModel` chooses its form once).
-
-    Parameters
-    ----------
-    arrays : KernelArrays
-        The model's arrays (:func:`.layout.pack`).
-    cfg : TissueConfig
-        Its configuration.
-    """
+class LayeredForm(Form):
+    """The layered form bound to one model's kernel arrays (:class:`~.layout.Form`)."""
 
     name = "layered"
 
     def __init__(self, arrays: KernelArrays, cfg: TissueConfig):
-        self._args = arrays.args
-        self._out = arrays.out
+        super().__init__(arrays, cfg)
         self._last_velocity = np.zeros(3)  # the tick's tool velocity, for the friction's Jacobian
         self._mu = cfg.friction_coefficient
         self._slip = cfg.slip_speed_m_s
 
     def tick(self, x, y, z, vx, vy, vz, dt) -> int:
-        """:func:`layered_step_kernel` at the tool position ``(x, y, z)`` (m) and velocity (m/s); returns the flags."""
+        """:func:`layered_step_kernel`; the velocity is kept for :meth:`tangent` (the friction's Jacobian)."""
         self._last_velocity[:] = (vx, vy, vz)
         vel = (float(vx), float(vy), float(vz))
         return layered_step_kernel(float(x), float(y), float(z), *vel, float(dt), *self._args)

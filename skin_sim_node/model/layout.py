@@ -296,6 +296,34 @@ class KernelArrays:
         )
 
 
+class Form:
+    """A tissue form bound to one model's kernel arrays: :class:`SkinModel` chooses its form once, at construction.
+
+    Subclasses (:class:`~.paper.PaperForm`, :class:`~.layered.LayeredForm`) give :meth:`tick` and :meth:`tangent`.
+
+    Parameters
+    ----------
+    arrays : KernelArrays
+        The model's arrays (:func:`pack`).
+    cfg : TissueConfig
+        Its configuration.
+    """
+
+    name = ""
+
+    def __init__(self, arrays: KernelArrays, cfg: TissueConfig):
+        self._args = arrays.args
+        self._out = arrays.out
+
+    def tick(self, x, y, z, vx, vy, vz, dt) -> int:
+        """The form's tick kernel at the tool position ``(x, y, z)`` (m) and velocity (m/s); returns the flags."""
+        raise NotImplementedError
+
+    def tangent(self, flags: int):
+        """The :class:`~.contact.ContactTangent` of the last tick (``flags``: its flags)."""
+        raise NotImplementedError
+
+
 def pack(cfg: TissueConfig, basis: ModalBasis) -> KernelArrays:
     """The kernel arrays of ``cfg`` with its modal ``basis``; the state is zero (no cached propagator)."""
     n_l = len(cfg.layers)

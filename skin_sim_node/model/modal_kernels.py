@@ -29,6 +29,19 @@ from .layout import (
     LS_CY,
     LS_DROPPED,
     LS_PROP_DT,
+    OUT_DEPTH_M,
+    OUT_FORCE_N,
+    OUT_FX,
+    OUT_FY,
+    OUT_FZ,
+    OUT_N_AFFECTED,
+    OUT_NX,
+    OUT_NY,
+    OUT_NZ,
+    OUT_RADIUS_M,
+    OUT_SETTLED,
+    OUT_STRESS_PA,
+    OUT_SURFACE_M,
     SP_HALF_X,
     SP_HALF_Y,
     SP_MODE_TOL,
@@ -275,6 +288,38 @@ def begin_tick(tool_x, tool_y, tool_z, dt, sp, bmodes, bvec, blev, bk, mstate, l
     depth = -tool_z
     touching = on_sheet and depth > 0.0 and (was_contact or depth >= surface)
     return flags, was_contact, surface, touching
+
+
+@njit(cache=True, nogil=True)
+def end_tick(force_n, stress_pa, depth_m, n_affected, surface_m, fx, fy, fz, nx, ny, nz, radius_m, sp, lstate, istate, out):
+    """The results both tick kernels write (section II.D.4, step 5), and the settled flag of the new state.
+
+    Parameters
+    ----------
+    force_n, stress_pa, depth_m, n_affected, surface_m : float
+        ``OUT_FORCE_N`` .. ``OUT_SURFACE_M`` (:mod:`.layout`).
+    fx, fy, fz, nx, ny, nz : float
+        The force vector (N) and the unit contact normal.
+    radius_m : float
+        Contact radius (m).
+    sp, lstate, istate : ndarray
+        The grouped arrays, for :func:`settled_flag`.
+    out : ndarray, shape (OUT_SIZE,)
+        Written: the slots above and ``OUT_SETTLED``.
+    """
+    out[OUT_FORCE_N] = force_n
+    out[OUT_STRESS_PA] = stress_pa
+    out[OUT_DEPTH_M] = depth_m
+    out[OUT_N_AFFECTED] = n_affected
+    out[OUT_SURFACE_M] = surface_m
+    out[OUT_SETTLED] = settled_flag(sp, lstate, istate)
+    out[OUT_FX] = fx
+    out[OUT_FY] = fy
+    out[OUT_FZ] = fz
+    out[OUT_NX] = nx
+    out[OUT_NY] = ny
+    out[OUT_NZ] = nz
+    out[OUT_RADIUS_M] = radius_m
 
 
 @njit(cache=True, nogil=True)

@@ -33,24 +33,14 @@ from .layout import (
     LP_IF_MEAN,
     LP_K,
     LS_COMP,
-    OUT_DEPTH_M,
     OUT_FORCE_N,
-    OUT_FX,
-    OUT_FY,
-    OUT_FZ,
     OUT_N_AFFECTED,
-    OUT_NX,
-    OUT_NY,
-    OUT_NZ,
-    OUT_RADIUS_M,
-    OUT_SETTLED,
-    OUT_STRESS_PA,
-    OUT_SURFACE_M,
     SP_BOTTOM,
     SP_TOOL_R,
+    Form,
     KernelArrays,
 )
-from .modal_kernels import begin_tick, drive_layer, relax_layer, settled_flag
+from .modal_kernels import begin_tick, drive_layer, end_tick, relax_layer
 
 
 @njit(cache=True, nogil=True)
@@ -270,43 +260,23 @@ def paper_step_kernel(
         else:
             lstate[LS_COMP, li] = 0.0
             relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate)
-    out[OUT_FORCE_N] = force
-    out[OUT_STRESS_PA] = sigma
-    out[OUT_DEPTH_M] = d_eff
-    out[OUT_N_AFFECTED] = n
-    out[OUT_SURFACE_M] = surface
-    out[OUT_SETTLED] = settled_flag(sp, lstate, istate)
-    out[OUT_FX] = 0.0
-    out[OUT_FY] = 0.0
-    out[OUT_FZ] = force
-    out[OUT_NX] = 0.0
-    out[OUT_NY] = 0.0
-    out[OUT_NZ] = 1.0
-    out[OUT_RADIUS_M] = sp[SP_TOOL_R] if touching else 0.0
+    radius = sp[SP_TOOL_R] if touching else 0.0
+    end_tick(force, sigma, d_eff, n, surface, 0.0, 0.0, force, 0.0, 0.0, 1.0, radius, sp, lstate, istate, out)
     return flags
 
 
-class PaperForm:
-    """The paper form bound to one model's kernel arrays (:class:`SkinModel` chooses its form once).
-
-    Parameters
-    ----------
-    arrays : KernelArrays
-        The model's arrays (:func:`.layout.pack`).
-    cfg : TissueConfig
-        Its configuration.
-    """
+class PaperForm(Form):
+    """The paper form bound to one model's kernel arrays (:class:`~.layout.Form`)."""
 
     name = "paper"
 
     def __init__(self, arrays: KernelArrays, cfg: TissueConfig):
-        self._args = arrays.args
-        self._out = arrays.out
+        super().__init__(arrays, cfg)
         self._k, self._b, self._area = arrays.lp[LP_K], arrays.lp[LP_B], arrays.lp[LP_AREA]
         self._radius = cfg.tool_radius_m
 
     def tick(self, x, y, z, vx, vy, vz, dt) -> int:
-        """:func:`paper_step_kernel` at the tool position ``(x, y, z)`` (m) and velocity (m/s); returns the flags."""
+        """:func:`paper_step_kernel`; only the normal velocity ``vz`` enters (eq 6)."""
         return paper_step_kernel(float(x), float(y), float(z), float(vz), float(dt), *self._args)
 
     def tangent(self, flags: int) -> ContactTangent:

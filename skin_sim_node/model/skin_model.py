@@ -45,6 +45,7 @@ from .layout import (
     OUT_SETTLED,
     OUT_STRESS_PA,
     OUT_T,
+    Form,
     pack,
     settle_tolerance_m,
 )
@@ -121,7 +122,7 @@ class SkinModel:
         self._out = arrays.out
         self.flags = 0
         # the form, chosen once: its tick kernel and its tangent
-        self._form = LayeredForm(arrays, cfg) if cfg.form == "layered" else PaperForm(arrays, cfg)
+        self._form: Form = LayeredForm(arrays, cfg) if cfg.form == "layered" else PaperForm(arrays, cfg)
         # degenerate layers (DEGENERATE_RETURN_S) are released from rest: only then does a tick copy the state
         lam11 = self.basis.lam.min(axis=1)  # each layer's fundamental, rad/s
         with np.errstate(divide="ignore"):
