@@ -61,6 +61,14 @@ rest (``B*_mn = 0``, as eq 9 itself), since with no restoring force in human tim
 ``v`` would carry it ``v / lambda_11`` (31 m at 0.1 m/s) away."""
 
 
+def quarter_periods_s(basis: ModalBasis) -> np.ndarray:
+    """Each layer's return time: the quarter period ``pi / (2 lambda_11)`` of its fundamental (s); inf for
+    ``lambda_11 = 0``."""
+    lam11 = basis.lam.min(axis=1)  # each layer's fundamental, rad/s
+    with np.errstate(divide="ignore"):
+        return np.where(lam11 > 0, 0.5 * math.pi / lam11, math.inf)
+
+
 @dataclass(frozen=True)
 class Grid:
     """Views of the model's grid buffers (valid until the next ``build_grid``).
@@ -93,8 +101,6 @@ class SkinModel:
     def __init__(self, cfg: TissueConfig):
         self.cfg = cfg
         self.basis: ModalBasis = modal_basis(cfg)
-        n_l = len(cfg.layers)
-        ny, nx = cfg.grid_shape
         lod = cfg.lod
         self._skip_settled = lod.affected_layers
         self._settle_tol = settle_tolerance_m(cfg)
@@ -124,15 +130,21 @@ class SkinModel:
         # the form, chosen once: its tick kernel and its tangent
         self._form: Form = LayeredForm(arrays, cfg) if cfg.form == "layered" else PaperForm(arrays, cfg)
         # degenerate layers (DEGENERATE_RETURN_S) are released from rest: only then does a tick copy the state
-        lam11 = self.basis.lam.min(axis=1)  # each layer's fundamental, rad/s
-        with np.errstate(divide="ignore"):
-            quarter_s = np.where(lam11 > 0, 0.5 * math.pi / lam11, math.inf)
+        quarter_s = quarter_periods_s(self.basis)
         self._degenerate = quarter_s > DEGENERATE_RETURN_S
         self._degenerate_layers = tuple(la.name for la, d in zip(cfg.layers, self._degenerate) if d)
         self._slowest_return_s = float(quarter_s.max())
-        self._released = np.zeros(n_l, dtype=bool)  # layers release() let go since the last tick
+        self._released = np.zeros(len(cfg.layers), dtype=bool)  # layers release() let go since the last tick
         self._tick = self._tick_releasing_from_rest if self._degenerate_layers else self._form.tick
-        # grid buffers
+        self._allocate_grid()
+        self.reset()
+
+    def _allocate_grid(self) -> None:
+        """The grid buffers of :meth:`build_grid`: cell centres, rest depths of the layer tops, fields and scratch."""
+        cfg, b = self.cfg, self.basis
+        n_l = len(cfg.layers)
+        ny, nx = cfg.grid_shape
+        sx, sy = cfg.sheet_size_m
         self.xs = -0.5 * sx + (np.arange(nx) + 0.5) * sx / nx
         self.ys = -0.5 * sy + (np.arange(ny) + 0.5) * sy / ny
         X, Y = np.meshgrid(self.xs, self.ys)
@@ -141,16 +153,14 @@ class SkinModel:
         self._heights = np.zeros((n_l, ny, nx))
         assemble_heights(self._disp, self._rest_tops, self._heights)
         self._dirty = np.zeros((n_l, 4), dtype=np.int64)  # per layer: written box ix0, ix1, iy0, iy1
-        m_max = n_max = int(self.basis.m_lim.max())
+        m_max = n_max = int(b.m_lim.max())
         self._q_dense = np.zeros((m_max, n_max))
         self._sx = np.zeros((m_max + 1, nx))
         self._sy = np.zeros((n_max + 1, ny))
         self._tmp = np.zeros((n_max + 1, nx))
-        b = self.basis
         self._used = [
             (b.m_used[b.m_used <= lim], b.n_used[b.n_used <= lim]) for lim in b.m_lim
         ]  # distinct m, n of each level's prefix
-        self.reset()
 
     @property
     def degenerate_layers(self) -> tuple[str, ...]:
