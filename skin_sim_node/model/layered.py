@@ -568,9 +568,12 @@ class LayeredForm(Form):
 
     def tick(self, x, y, z, vx, vy, vz, dt) -> int:
         """:func:`layered_step_kernel`; the velocity is kept for :meth:`tangent` (the friction's Jacobian)."""
-        self._last_velocity[:] = (vx, vy, vz)
-        vel = (float(vx), float(vy), float(vz))
-        return layered_step_kernel(float(x), float(y), float(z), *vel, float(dt), *self._args)
+        vx, vy, vz = float(vx), float(vy), float(vz)
+        v = self._last_velocity  # by item: a slice assignment from a tuple costs several times more
+        v[0] = vx
+        v[1] = vy
+        v[2] = vz
+        return layered_step_kernel(float(x), float(y), float(z), vx, vy, vz, float(dt), *self._args)
 
     def tangent(self, flags: int) -> ContactTangent:
         """Force and derivatives of the last tick (``flags``: its flags): :func:`contact_jacobians` of its force."""
