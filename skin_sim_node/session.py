@@ -97,7 +97,7 @@ class TickResult:
         Reuss compression of each layer, its rate (the normal speed shared in proportion to the
         compression), and the common Reuss stress on the engaged layers (0 on the others).
     flags : int
-        Model regime flags of the step (``model.kernels.FLAG_*``).
+        Model regime flags of the step (``skin_sim_node.model.FLAG_*``).
     events : tuple of str
         Rejection, safety and regime event kinds raised since the previous tick (each occurrence).
     stale : bool
