@@ -2,8 +2,10 @@
 
 Rules (issue 13): no import cycles among ``skin_sim_node`` modules, the contract
 (``msgs_schema``) imports nothing from the implementation, and at most 8 flat modules sit at the
-top of ``skin_sim_node/``. Run as a script to print the graph's figures (modules per folder,
-edges, cycles, upward ties).
+top of ``skin_sim_node/``. Issue 18: the session uses only the model's public API (the package
+``skin_sim_node.model``, none of its modules), and the model core (``skin_sim_node/model/``) imports
+no rclpy and nothing from the session, the server, the device side or the benchmarks. Run as a
+script to print the graph's figures (modules per folder, edges, cycles, upward ties).
 """
 
 from __future__ import annotations
@@ -38,6 +40,20 @@ def _resolve(mod: str, is_pkg: bool, node: ast.ImportFrom) -> str:
     return ".".join(base + ([node.module] if node.module else []))
 
 
+def imported_names(mod: str, path: Path) -> list[str]:
+    """Every name the file's imports bring in (function-level ones too), absolute: ``from .a import b`` gives
+    ``pkg.a.b`` and ``pkg.a``."""
+    is_pkg = path.name == "__init__.py"
+    names: list[str] = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = _resolve(mod, is_pkg, node)
+            names += [f"{base}.{a.name}" for a in node.names] + [base]
+    return names
+
+
 def import_graph() -> dict[str, set[str]]:
     """``{module: {imported project modules}}``, every import in the file (function-level ones too)."""
     mods = modules()
@@ -50,19 +66,11 @@ def import_graph() -> dict[str, set[str]]:
 
     for mod, path in mods.items():
         graph[mod]
-        is_pkg = path.name == "__init__.py"
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
-            names: list[str] = []
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                base = _resolve(mod, is_pkg, node)
-                names = [f"{base}.{a.name}" for a in node.names] + [base]
-            for n in names:
-                t = target(n)
-                # a package's own __init__ re-exports are not edges of its submodules
-                if t and t != mod and not mod.startswith(t + "."):
-                    graph[mod].add(t)
+        for n in imported_names(mod, path):
+            t = target(n)
+            # a package's own __init__ re-exports are not edges of its submodules
+            if t and t != mod and not mod.startswith(t + "."):
+                graph[mod].add(t)
     return graph
 
 
@@ -120,11 +128,40 @@ def test_flat_modules_at_most_eight():
     assert len(flat_modules()) <= MAX_FLAT_MODULES, flat_modules()
 
 
+def _within(mod: str, package: str) -> bool:
+    return mod == package or mod.startswith(package + ".")
+
+
+def test_session_uses_only_the_model_package():
+    """The session imports ``skin_sim_node.model`` (its public API) and none of the model's modules."""
+    g = import_graph()
+    session = [m for m in g if _within(m, "skin_sim_node.session")]
+    bad = {m: sorted(t for t in g[m] if t.startswith("skin_sim_node.model.")) for m in session}
+    assert {m: ts for m, ts in bad.items() if ts} == {}
+    assert any("skin_sim_node.model" in g[m] for m in session)  # the rule sees the session's real import
+
+
+MODEL_MAY_NOT_IMPORT = ("skin_sim_node.session", "skin_sim_node.server", "skin_sim_node.device", "skin_sim_node.perf")
+
+
+def test_model_core_imports_no_rclpy_and_nothing_above_it():
+    """``skin_sim_node/model/`` is the pure core: no rclpy, and none of the layers that use it."""
+    g = import_graph()
+    model = {m: p for m, p in modules().items() if _within(m, "skin_sim_node.model")}
+    assert len(model) > 5
+    ros = {m: sorted({n for n in imported_names(m, p) if _within(n, "rclpy")}) for m, p in model.items()}
+    assert {m: ns for m, ns in ros.items() if ns} == {}
+    up = {m: sorted(t for t in g[m] if any(_within(t, pkg) for pkg in MODEL_MAY_NOT_IMPORT)) for m in model}
+    assert {m: ts for m, ts in up.items() if ts} == {}
+
+
 def test_graph_reader_sees_real_edges():
     """The reader finds imports the code is known to make (else the rules above would pass vacuously)."""
     g = import_graph()
     assert "skin_sim_node.session" in g["skin_sim_node.server.node"]
     assert "msgs_schema.convert" in g["skin_sim_node.bags.offline"]
+    assert "skin_sim_node.model.layout" in g["skin_sim_node.model.paper"]
+    assert any(_within(n, "rclpy") for n in imported_names("skin_sim_node.server.node", ROOT / "skin_sim_node/server/node.py"))
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 

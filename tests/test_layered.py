@@ -10,8 +10,8 @@ from scipy.integrate import quad
 from scipy.special import j0, j1
 
 from skin_sim_node.model import SkinModel, physics, preset
-from skin_sim_node.model import kernels as kn
 from skin_sim_node.model import layered as lk
+from skin_sim_node.model import layout as lo
 from skin_sim_node.model import reference as ref
 from skin_sim_node.model.config import WALL_STRAIN
 
@@ -99,13 +99,14 @@ def test_chain_warm_start_gives_the_same_root(rng):
 def test_averaged_bounds_match_quadrature_and_derivatives(compiled, cfg):
     fn = kernel(lk.averaged_bounds, compiled)
     m = SkinModel(cfg)
-    lp = m._lp
+    lp = m._arrays.lp
     bounds, dbx, dby, dbd = np.zeros(4), np.zeros(3), np.zeros(3), np.zeros(3)
     for x0, y0, radius in [(0.0, 0.0, 2.5e-3), (1.7e-3, -0.4e-3, 2.5e-3), (2.5e-3, 0.0, 0.8e-3), (0.3e-3, 1.1e-3, 1.5e-3)]:
         fn(x0, y0, radius, 0.0, lp, 5.275e-3, bounds, dbx, dby, dbd)
         for j in range(2):
-            expect = ref.averaged_interface_ref(lp[kn.LP_IF_MEAN, j], lp[kn.LP_IF_AMP, j], lp[kn.LP_IF_KX, j],
-                                                lp[kn.LP_IF_KY, j], x0, y0, radius)  # fmt: skip
+            expect = ref.averaged_interface_ref(
+                lp[lo.LP_IF_MEAN, j], lp[lo.LP_IF_AMP, j], lp[lo.LP_IF_KX, j], lp[lo.LP_IF_KY, j], x0, y0, radius
+            )
             assert bounds[j + 1] == pytest.approx(expect, abs=2e-10)
         h = 1e-7
         plus, minus = np.zeros(4), np.zeros(4)
@@ -139,7 +140,7 @@ def test_layered_step_kernel_compiled_matches_py_func(cfg, shape):
     for pos, vel in _path():
         f1 = fast.step(pos, vel, 1e-3)
         slow.kernel_calls += 1
-        slow.flags = lk.layered_step_kernel.py_func(*map(float, pos), *map(float, vel), 1e-3, *slow._args)
+        slow.flags = lk.layered_step_kernel.py_func(*map(float, pos), *map(float, vel), 1e-3, *slow._arrays.args)
         assert f1 == pytest.approx(slow.force_n, rel=1e-12, abs=1e-15) and fast.flags == slow.flags
         np.testing.assert_allclose(fast._out, slow._out, rtol=1e-10, atol=1e-13)
         np.testing.assert_allclose(fast.q, slow.q, rtol=1e-10, atol=1e-16)
@@ -221,8 +222,8 @@ def test_wall_below_the_stack_rises_steeply_and_stays_finite(cfg):
 def test_chain_is_passive_for_any_dt(cfg, dt):
     """Over press-release cycles the tool does non-negative work beyond the stored strain energy (backward Euler)."""
     m = SkinModel(cfg)
-    ea = m._lp[kn.LP_EA]
-    nexp = m._lp[kn.LP_N]
+    ea = m._arrays.lp[lo.LP_EA]
+    nexp = m._arrays.lp[lo.LP_N]
 
     def stored(comp, thick):
         total = 0.0
@@ -241,7 +242,7 @@ def test_chain_is_passive_for_any_dt(cfg, dt):
         work += f * (d - d_prev)
         d_prev = d
     assert m.in_contact
-    assert work - stored(m.compression_m, m._thick) >= -1e-12
+    assert work - stored(m.compression_m, m._arrays.aux[lo.AUX_THICK, :3]) >= -1e-12
 
 
 def test_series_dampers_are_softer_than_the_common_velocity(cfg):

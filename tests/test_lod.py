@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from conftest import kernel
 
-from skin_sim_node.model import SkinModel
-from skin_sim_node.model import kernels as kn
+from skin_sim_node.model import FLAG_OFF_SHEET, SkinModel
+from skin_sim_node.model import grid as gk
+from skin_sim_node.model import modal_kernels as mk
 from skin_sim_node.model import reference as ref
 from skin_sim_node.model.modal import REFERENCE_MODES, level_for, shape_coefficients
 from skin_sim_node.perf.bench_model import scene_path
@@ -72,7 +73,7 @@ def test_idle_does_no_kernel_work(default_cfg):
     for i in range(1000):
         assert model.step((0.001 * (i % 7), 0.0, 0.005 + 1e-6 * i), (0, 0, 0.01), 1e-3 + 1e-7 * i) == 0.0
     assert model.kernel_calls == calls and model.idle_ticks == idle + 1000
-    assert model.step((0.2, 0.0, 0.005), (0, 0, 0), 1e-3) == 0.0 and model.flags == kn.FLAG_OFF_SHEET
+    assert model.step((0.2, 0.0, 0.005), (0, 0, 0), 1e-3) == 0.0 and model.flags == FLAG_OFF_SHEET
     assert model.step((0.0, 0.0, -1e-4), (0, 0, 0), 1e-3) > 0.0  # touching again: the kernel runs
     assert model.kernel_calls == calls + 1
 
@@ -146,7 +147,7 @@ def test_display_change_detection(default_cfg):
 
 
 def test_layer_propagator_matches_reference(compiled):
-    fn = kernel(kn.layer_propagator, compiled)
+    fn = kernel(mk.layer_propagator, compiled)
     lam = np.array([[10.0, 200.0, 3000.0], [5.0, 50.0, 500.0]])
     gamma = np.array([150.0, 50.0])
     out = np.full((4, 2, 3), np.nan)
@@ -157,8 +158,8 @@ def test_layer_propagator_matches_reference(compiled):
 
 
 def test_layer_field_box_and_assemble_box_match_reference(compiled, rng):
-    field_box = kernel(kn.layer_field_box, compiled)
-    assemble_box = kernel(kn.assemble_heights_box, compiled)
+    field_box = kernel(gk.layer_field_box, compiled)
+    assemble_box = kernel(gk.assemble_heights_box, compiled)
     xs = np.linspace(-0.05, 0.05, 41)
     ys = np.linspace(-0.04, 0.04, 33)
     mode_m = np.array([1, 1, 3, 3, 5])

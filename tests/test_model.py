@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from scipy.sparse.linalg import spsolve
 
 from msgs_schema.tissue import PAPER_MODULI_PA, TOOL_RADIUS_M, flat_punch_stiffness_n_per_m
-from skin_sim_node.model import SkinModel, classify, config_from_flat
+from skin_sim_node.model import DEGENERATE_RETURN_S, SkinModel, classify, config_from_flat
 from skin_sim_node.model.config import WALL_STRAIN, ConfigError, default_flat
 from skin_sim_node.model.layered import DT_FLOOR_S, compression_law
 from skin_sim_node.model.modal import disk_load_coefficients, shape_coefficients
@@ -160,7 +160,7 @@ def test_model_classification_agrees(paper_model, default_cfg):
 
 def test_bottom_is_flagged_and_clamped(paper_model, default_cfg):
     """Paper form: below the bottom the depth is clamped (docs/model.md; the layered form has a wall instead)."""
-    from skin_sim_node.model.kernels import FLAG_BOTTOMED
+    from skin_sim_node.model import FLAG_BOTTOMED
 
     model = paper_model
 
@@ -251,7 +251,7 @@ def test_edge_clipping(default_cfg):
 
 
 def test_tool_off_sheet_has_no_contact(model, default_cfg):
-    from skin_sim_node.model.kernels import FLAG_OFF_SHEET
+    from skin_sim_node.model import FLAG_OFF_SHEET
 
     f = model.step((default_cfg.sheet_size_m[0], 0.0, -2e-3), (0, 0, 0), 1e-3)
     assert f == 0.0 and model.flags & FLAG_OFF_SHEET
@@ -274,6 +274,40 @@ def test_paper_preset_reproduces_eq9(paper_cfg, t):
     for px, py in [(0.03, 0.03), (0.015, 0.04), (0.05, 0.01)]:
         expect = 6.11e-6 * math.cos(0.0032 * t) * math.sin(math.pi * px / 0.06) * math.sin(math.pi * py / 0.06)
         assert m.surface_displacement_at(px - 0.03, py - 0.03) == pytest.approx(expect, rel=1e-9, abs=1e-18)
+
+
+def test_degenerate_layers_and_slowest_return(paper_cfg, default_cfg):
+    """A layer whose fundamental needs more than DEGENERATE_RETURN_S for a quarter period is degenerate (eq 9's)."""
+    paper = SkinModel(paper_cfg)
+    assert paper.degenerate_layers == ("epidermis", "dermis", "fat")
+    assert paper.slowest_return_s == pytest.approx(math.pi / (2 * 0.0032)) and paper.slowest_return_s > DEGENERATE_RETURN_S
+    default = SkinModel(default_cfg)
+    assert default.degenerate_layers == () and 0 < default.slowest_return_s < DEGENERATE_RETURN_S
+    assert default._tick == default._form.tick  # no state copied per tick without a degenerate layer
+
+
+@pytest.mark.parametrize("how", ["lift", "release"])
+def test_degenerate_layer_is_released_from_rest_by_the_model(paper_cfg, how):
+    """Released moving at 0.2 m/s (by the lift or by release()), a degenerate layer restarts from its driven shape at
+    rest: its surface follows eq 9's 6.11 um cos(0.0032 t) instead of flying to v / lambda = 62 m."""
+    m = SkinModel(paper_cfg)
+    depth = 6.11e-6
+    n = 30
+    for i in range(n):
+        m.step((0.0, 0.0, -depth * (i + 1) / n), (0.0, 0.0, -0.2), depth / n / 0.2)
+    assert m.driven[0] and m.v[0, 0] != 0.0
+    q_driven = m.q.copy()
+    if how == "release":
+        m.release()
+        m.step((0.0, 0.0, -0.5 * depth), (0.0, 0.0, 0.0), 0.1)  # above the dent: no re-contact, the layer relaxes
+    else:
+        m.step((0.0, 0.0, 5e-3), (0.0, 0.0, 0.0), 0.1)
+    lam = 0.0032
+    np.testing.assert_allclose(m.q, q_driven * math.cos(lam * 0.1), rtol=1e-12)
+    np.testing.assert_allclose(m.v, -q_driven * lam * math.sin(lam * 0.1), rtol=1e-9)
+    for _ in range(99):
+        m.step((0.0, 0.0, 5e-3), (0.0, 0.0, 0.0), 0.1)
+    assert m.surface_displacement_at(0.0, 0.0) == pytest.approx(depth * math.cos(lam * 10.0), rel=1e-6)
 
 
 layer_values = st.fixed_dictionaries(

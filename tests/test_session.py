@@ -381,10 +381,9 @@ def test_session_imports_only_the_models_public_api():
     """The session (every module of skin_sim_node.session) imports the model package, none of its modules."""
     from test_architecture import import_graph
 
-    pending = {"skin_sim_node.model.contact"}  # ContactTangent, normal_tangent: until the model package exports them
     graph = import_graph()
     session = {m: ts for m, ts in graph.items() if m == "skin_sim_node.session" or m.startswith("skin_sim_node.session.")}
     assert len(session) >= 4, sorted(session)
-    model = {m: sorted(t for t in ts if t.startswith("skin_sim_node.model.") and t not in pending) for m, ts in session.items()}
+    model = {m: sorted(t for t in ts if t.startswith("skin_sim_node.model.")) for m, ts in session.items()}
     assert {m: ts for m, ts in model.items() if ts} == {}
     assert "skin_sim_node.model" in graph["skin_sim_node.session.haptic"]

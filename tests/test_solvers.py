@@ -5,7 +5,6 @@ import math
 import numpy as np
 import pytest
 
-from skin_sim_node.model import kernels as kn
 from skin_sim_node.model import preset
 from skin_sim_node.solvers import (
     ImplicitSolver,
@@ -19,6 +18,7 @@ from skin_sim_node.solvers import (
     membrane_from_layer,
     static_indentation,
 )
+from skin_sim_node.solvers import kernels as sk
 from skin_sim_node.solvers import reference as ref
 from tests.conftest import kernel
 
@@ -39,7 +39,7 @@ def test_leapfrog_kernel_matches_numpy(compiled, rng):
     for _ in range(3):
         want_u, want_prev = ref.leapfrog_step(want_u, want_prev, load, *args)
     got_u, got_prev = u.copy(), up.copy()
-    kernel(kn.leapfrog_membrane_steps, compiled)(got_u, got_prev, load, 3, *args, np.zeros_like(u))
+    kernel(sk.leapfrog_membrane_steps, compiled)(got_u, got_prev, load, 3, *args, np.zeros_like(u))
     np.testing.assert_allclose(got_u, want_u, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(got_prev, want_prev, rtol=1e-12, atol=1e-12)
 
@@ -51,7 +51,7 @@ def test_mass_spring_kernel_matches_numpy(compiled, rng):
     for _ in range(4):
         want_u, want_v = ref.mass_spring_step(want_u, want_v, load, *args)
     got_u, got_v = u.copy(), v.copy()
-    kernel(kn.mass_spring_steps, compiled)(got_u, got_v, load, 4, *args, np.zeros_like(u))
+    kernel(sk.mass_spring_steps, compiled)(got_u, got_v, load, 4, *args, np.zeros_like(u))
     np.testing.assert_allclose(got_u, want_u, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(got_v, want_v, rtol=1e-12, atol=1e-12)
 

@@ -197,7 +197,9 @@ def test_teleport_between_ticks_restarts_contact_rate_bounded(default_cfg):
     assert FORCE_RATE_LIMITED in r.events()
 
 
-def test_paper_wave_speed_is_degenerate_and_released_from_rest(paper_cfg):
+def test_paper_wave_speed_is_degenerate_and_released_from_rest(paper_cfg, monkeypatch):
+    from skin_sim_node.model import skin_model
+
     depth = 6.11e-6
     # a 0.2 m/s press to eq 9's 6.11 um, then the tool is lifted: the layer is released moving at 0.2 m/s
     samples = press(depth, 0.2, hold=0) + [(0.1, (0.0, 0.0, 5e-3), (0.0, 0.0, 0.0))] * 100
@@ -207,8 +209,15 @@ def test_paper_wave_speed_is_degenerate_and_released_from_rest(paper_cfg):
     # 10 s after the release the surface has hardly moved (lambda = 0.0032 rad/s) and is bounded by the press
     u = r.s.model.surface_displacement_at(0.0, 0.0)
     assert 0.0 < u <= depth and u == pytest.approx(depth * math.cos(0.0032 * 10.0), rel=0.05)
+    # the model owns the guard: a bare SkinModel releases the same way
+    bare = SkinModel(paper_cfg)
+    for dt, xyz, v in samples:
+        bare.step(xyz, v, dt)
+    assert bare.surface_displacement_at(0.0, 0.0) == pytest.approx(u, rel=1e-9)
     # without the guard the same release flies off: v / lambda = 0.2 / 0.0032 = 62 m of amplitude
+    monkeypatch.setattr(skin_model, "DEGENERATE_RETURN_S", math.inf)
     raw = SkinModel(paper_cfg)
+    assert raw.degenerate_layers == ()
     for dt, xyz, v in samples:
         raw.step(xyz, v, dt)
     assert abs(raw.surface_displacement_at(0.0, 0.0)) > 100 * depth

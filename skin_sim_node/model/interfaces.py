@@ -7,7 +7,7 @@ Interface ``j`` lies at depth (positive down, metres, below the rest surface z =
 with ``D_j`` the summed mean thickness of the layers above it. The interface is at its
 shallowest (a "peak", ``D_j - A_j``) at x = y = 0 and at its deepest (a "valley",
 ``D_j + A_j``) at x = wx_j / 2, y = 0. The per-tick version is
-:func:`skin_sim_node.model.kernels.layer_bounds`.
+:func:`skin_sim_node.model.paper.layer_bounds`.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Kernels of the ``layered`` form (issue 11): every layer in series from first contact.
+"""The ``layered`` form (issue 11): every layer in series from first contact.
 
 Still the paper's method - iso-stress (Reuss, eq 4) through Kelvin-Voigt layers (eq 6) and a modal
 membrane per layer (eqs 1-3) - with four changes (docs/model.md, "The layered form"):
@@ -16,21 +16,63 @@ membrane per layer (eqs 1-3) - with four changes (docs/model.md, "The layered fo
 4. Coulomb friction with a viscous regularisation along the tangent plane of the deformed surface,
    and a flat or spherical tip (Hertz-like contact radius ``a = sqrt(R d)``).
 
-All functions are ``@njit(cache=True, nogil=True)``, allocate nothing and are tested compiled and
-as ``.py_func`` against the NumPy/SciPy reference in :mod:`skin_sim_node.model.reference`.
+The kernels are ``@njit(cache=True, nogil=True)``, allocate nothing and are tested compiled and
+as ``.py_func`` against the NumPy/SciPy reference in :mod:`skin_sim_node.model.reference`;
+:class:`LayeredForm` binds them to one model's arrays.
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
-from . import kernels as kn
-
-JIT = kn.JIT
-
-AUX_C_OLD, AUX_C, AUX_G, AUX_DBX, AUX_DBY, AUX_DBD = kn.AUX_C_OLD, kn.AUX_C, kn.AUX_G, kn.AUX_DBX, kn.AUX_DBY, kn.AUX_DBD
+from .config import TissueConfig
+from .contact import ContactTangent, normal_tangent
+from .layout import (
+    AUX_BOUNDS,
+    AUX_C,
+    AUX_C_OLD,
+    AUX_DBD,
+    AUX_DBX,
+    AUX_DBY,
+    AUX_G,
+    AUX_THICK,
+    FLAG_BOTTOMED,
+    FLAG_CONTACT,
+    FLAG_LAYER_BOUND,
+    FLAG_SEPARATED,
+    IS_ACTIVE,
+    LP_B,
+    LP_EA,
+    LP_IF_AMP,
+    LP_IF_KX,
+    LP_IF_KY,
+    LP_IF_MEAN,
+    LP_N,
+    LS_COMP,
+    OUT_DFN_DX,
+    OUT_DFN_DY,
+    OUT_DFN_DZ,
+    OUT_FORCE_N,
+    OUT_FX,
+    OUT_FZ,
+    OUT_NX,
+    OUT_NY,
+    OUT_NZ,
+    OUT_RADIUS_M,
+    OUT_T,
+    SP_BOTTOM,
+    SP_MU,
+    SP_SPHERE,
+    SP_TOOL_R,
+    SP_V_SLIP,
+    SP_WALL,
+    Form,
+    KernelArrays,
+)
+from .modal_kernels import begin_tick, drive_layer, end_tick, layer_at, relax_layer
 
 RATE_CAP_M_S = 3.0
 """Largest layer rate handed to a membrane (m/s): the node's default tool speed cap (``max_tool_speed_m_s``;
@@ -50,9 +92,22 @@ _F1 = (0.79788456, 0.00000156, 0.01659667, 0.00017105, -0.00249511, 0.00113653, 
 _T1 = (-2.35619449, 0.12499612, 0.00005650, -0.00637879, 0.00074348, 0.00079824, -0.00029166)
 
 
-@njit(**JIT)
+@njit(cache=True, nogil=True)
 def _poly(c, u):
-    """``sum_i c[i] u^i`` (Horner) and its derivative in ``u``."""
+    """``sum_i c[i] u^i`` (Horner) and its derivative in ``u`` (the polynomials of :func:`jinc`).
+
+    Parameters
+    ----------
+    c : tuple of float
+        Coefficients, lowest power first.
+    u : float
+        Argument.
+
+    Returns
+    -------
+    p, dp : float
+        The polynomial and its derivative.
+    """
     p = 0.0
     dp = 0.0
     for i in range(len(c) - 1, -1, -1):
@@ -61,12 +116,22 @@ def _poly(c, u):
     return p, dp
 
 
-@njit(**JIT)
+@njit(cache=True, nogil=True)
 def jinc(x):
-    """``2 J1(x) / x`` and its derivative for ``x >= 0``.
+    """``2 J1(x) / x`` and its derivative for ``x >= 0``: the disk average of a plane wave (section II.C interfaces).
 
     Abramowitz & Stegun 9.4.4 (``x <= 3``, differentiated term by term) and 9.4.3, 9.4.6 (``x > 3``):
     absolute error below about 1e-7 (tested against SciPy).
+
+    Parameters
+    ----------
+    x : float
+        Argument, ``>= 0``.
+
+    Returns
+    -------
+    w, dw : float
+        ``2 J1(x) / x`` and its derivative in ``x``.
     """
     if x <= 3.0:
         p, dp = _poly(_J1X, (x / 3.0) ** 2)
@@ -78,13 +143,28 @@ def jinc(x):
     return 2.0 * j1 / x, 2.0 * (x * j0 - 2.0 * j1) / (x * x)
 
 
-@njit(**JIT)
+@njit(cache=True, nogil=True)
 def compression_law(eps, n, wall):
     """``phi(eps)`` and ``phi'(eps)`` of the per-layer compression law (dimensionless).
 
     ``phi = ((1 - eps)^-n - 1) / n`` (``n = 0``: ``-ln(1 - eps)``, the Hencky strain): ``phi'(0) = 1``
     so a layer's small-strain stiffness is its ``k``; ``phi -> inf`` as ``eps -> 1``; convex for any
-    ``n >= 0``. Beyond ``wall`` it continues along its tangent (a finite, steep wall).
+    ``n >= 0``. Beyond ``wall`` it continues along its tangent (a finite, steep wall). The layer's spring of
+    eq 6, made strain-stiffening: ``f_i = EA_i phi(c_i / h_i)``.
+
+    Parameters
+    ----------
+    eps : float
+        Strain ``c / h``.
+    n : float
+        Stiffening exponent (``>= 0``).
+    wall : float
+        Wall strain.
+
+    Returns
+    -------
+    phi, dphi : float
+        ``phi(eps)`` and ``phi'(eps)``.
     """
     e = eps if eps < wall else wall
     lam = 1.0 - e
@@ -100,12 +180,37 @@ def compression_law(eps, n, wall):
     return phi, dphi
 
 
-@njit(**JIT)
+@njit(cache=True, nogil=True)
 def layer_compression(target, ea, n, beta, c_old, h, wall, c0):
     """Compression ``c`` (m) with ``ea phi(c/h) + beta (c - c_old) = target`` and its slope ``G`` (N/m).
 
     The left side is convex and increasing in ``c``, so Newton converges from any start (monotone
-    after at most one step). Requires ``target >= 0`` or ``beta > 0`` (a solution exists).
+    after at most one step). Requires ``target >= 0`` or ``beta > 0`` (a solution exists). One layer of the
+    series chain (eq 6 with the layer's own rate, backward Euler: ``beta = b / dt``).
+
+    Parameters
+    ----------
+    target : float
+        Force the layer carries (N).
+    ea, n : float
+        ``EA`` (N) and stiffening exponent of :func:`compression_law`.
+    beta : float
+        ``b / dt`` (N/m).
+    c_old : float
+        Compression at the previous tick (m).
+    h : float
+        Thickness (m).
+    wall : float
+        Wall strain.
+    c0 : float
+        Newton start (m).
+
+    Returns
+    -------
+    c : float
+        The compression (m).
+    g : float
+        Its slope ``d(target)/dc`` (N/m).
     """
     c = c0
     for _ in range(80):
@@ -120,7 +225,7 @@ def layer_compression(target, ea, n, beta, c_old, h, wall, c0):
     return c, ea * dphi / h + beta
 
 
-@njit(**JIT)
+@njit(cache=True, nogil=True)
 def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, out_c, out_g):
     """Backward-Euler step of the series Kelvin-Voigt chain under the tool.
 
@@ -130,6 +235,30 @@ def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, out_c, out_g):
     converges monotonically. Returns ``T`` (N), or ``-1.0`` when the chain relaxed with ``T = 0``
     is already at least ``d`` long (the tool is above the relaxing surface: no contact); writes the
     compressions ``out_c`` and slopes ``out_g = dT/dc_i``.
+
+    Parameters
+    ----------
+    d : float
+        Tool depth (m).
+    t0 : float
+        Newton start for ``T`` (N): the previous tick's (``OUT_T``).
+    ea, n, b : ndarray, shape (L,)
+        ``EA`` (N), stiffening exponents and dampers (N s/m) of the layers.
+    dt : float
+        Step (s), floored at :data:`DT_FLOOR_S`.
+    c_old : ndarray, shape (L,)
+        Compressions at the previous tick (m).
+    h : ndarray, shape (L,)
+        Thicknesses under the tool (m).
+    wall : float
+        Wall strain.
+    out_c, out_g : ndarray, shape (L,)
+        Written: compressions (m) and slopes (N/m).
+
+    Returns
+    -------
+    float
+        ``T`` (N), or -1.0 for no contact.
     """
     nl = c_old.shape[0]
     dt_eff = max(dt, DT_FLOOR_S)
@@ -158,7 +287,7 @@ def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, out_c, out_g):
     return t
 
 
-@njit(**JIT)
+@njit(cache=True, nogil=True)
 def averaged_bounds(x, y, radius, dradius_dd, lp, bottom, bounds, dbx, dby, dbd):
     """Layer tops under a contact disk of ``radius`` centred at ``(x, y)``: egg-carton interfaces
     averaged over the disk (section II.C), and their derivatives.
@@ -167,19 +296,36 @@ def averaged_bounds(x, y, radius, dradius_dd, lp, bottom, bounds, dbx, dby, dbd)
     with ``kappa = sqrt(kx^2 + ky^2)`` (each product term is a plane wave ``cos(k . r)``, whose disk
     average is its centre value times ``jinc(|k| a)``). ``bounds[0] = 0`` (surface), ``bounds[L]``
     the bottom; ``dbx``/``dby``/``dbd`` the derivatives of interface ``j`` w.r.t. x, y and the
-    tool depth (through ``radius``, ``dradius_dd`` = da/dd). ``lp``: the interface rows ``LP_IF_*``.
+    tool depth (through ``radius``, ``dradius_dd`` = da/dd).
+
+    Parameters
+    ----------
+    x, y : float
+        Disk centre (m).
+    radius : float
+        Contact radius ``a`` (m).
+    dradius_dd : float
+        ``da/dd`` (the sphere's; 0 for a flat punch).
+    lp : ndarray, shape (LP_SIZE, L)
+        Its interface rows ``LP_IF_*`` (:mod:`.layout`).
+    bottom : float
+        Depth of the bottom (m).
+    bounds : ndarray, shape (L + 1,)
+        Written: layer tops and the bottom (m, down).
+    dbx, dby, dbd : ndarray, shape (>= L - 1,)
+        Written: derivatives of each interface's averaged depth w.r.t. x, y (dimensionless) and the tool depth.
     """
     nif = bounds.shape[0] - 2
     bounds[0] = 0.0
     for j in range(nif):
-        kx = lp[kn.LP_IF_KX, j]
-        ky = lp[kn.LP_IF_KY, j]
-        amp = lp[kn.LP_IF_AMP, j]
+        kx = lp[LP_IF_KX, j]
+        ky = lp[LP_IF_KY, j]
+        amp = lp[LP_IF_AMP, j]
         kappa = math.sqrt(kx * kx + ky * ky)
         w, dw = jinc(kappa * radius)
         cx = math.cos(kx * x)
         cy = math.cos(ky * y)
-        bounds[j + 1] = lp[kn.LP_IF_MEAN, j] - amp * cx * cy * w
+        bounds[j + 1] = lp[LP_IF_MEAN, j] - amp * cx * cy * w
         dbx[j] = amp * kx * math.sin(kx * x) * cy * w
         dby[j] = amp * ky * cx * math.sin(ky * y) * w
         dbd[j] = -amp * cx * cy * dw * kappa * dradius_dd
@@ -191,14 +337,28 @@ SPHERE_MIN_DEPTH_M = 1e-15
 test at d = 5e-324), and ``da/dd = R / 2a`` would divide by it. Far below any resolvable indentation."""
 
 
-@njit(**JIT)
+@njit(cache=True, nogil=True)
 def contact_geometry(depth, radius, sphere):
     """Contact radius ``a`` (m), load scale ``s`` and their depth derivatives for a tool ``depth`` > 0.
 
     Flat punch: ``a = R``, ``s = 1``. Sphere of radius ``R``: ``a = sqrt(R d)`` (Hertz) up to
     ``d = R``; on a Winkler (column) foundation the paraboloid's load is the flat punch's over the
     contact area at half the depth, so ``s = pi a^2 / (2 pi R^2) = d / (2 R)``, and
-    ``dF/dd = k(a)``, the column stiffness of the current contact area.
+    ``dF/dd = k(a)``, the column stiffness of the current contact area. Scales the chain force of eq 4.
+
+    Parameters
+    ----------
+    depth : float
+        Tool depth (m), ``> 0``.
+    radius : float
+        Tool radius ``R`` (m).
+    sphere : bool
+        Spherical tip (else a flat punch).
+
+    Returns
+    -------
+    a, s, ds_dd, da_dd : float
+        Contact radius (m), load scale, and their derivatives in the depth (1/m, dimensionless).
     """
     if not sphere:
         return radius, 1.0, 0.0, 0.0
@@ -208,13 +368,30 @@ def contact_geometry(depth, radius, sphere):
     return a, depth / (2.0 * radius), 1.0 / (2.0 * radius), 0.5 * radius / a
 
 
-@njit(**JIT)
+@njit(cache=True, nogil=True)
 def contact_jacobians(normal, grad, velocity, mu, slip_speed_m_s, force_n, out_k, out_d):
     """``K = dF/dx`` and ``D = dF/dv`` of ``F = F_n (n - mu g)`` into ``out_k``, ``out_d`` (3 x 3 each).
 
     ``g = v_t / r``, ``r = sqrt(|v_t|^2 + v_s^2)``, ``v_t = P v``, ``P = I - n n^T``:
     ``K = (n - mu g) grad(F_n)^T`` and ``D = -mu F_n (I / r - v_t v_t^T / r^3) P``
     (see :meth:`skin_sim_node.model.skin_model.SkinModel.tangent`).
+
+    Parameters
+    ----------
+    normal : ndarray, shape (3,)
+        Unit contact normal ``n``.
+    grad : ndarray, shape (3,)
+        Gradient of the normal force magnitude w.r.t. the tool position (N/m).
+    velocity : ndarray, shape (3,)
+        Tool velocity (m/s).
+    mu : float
+        Friction coefficient.
+    slip_speed_m_s : float
+        Regularisation speed ``v_s`` (m/s).
+    force_n : float
+        Normal force magnitude ``F_n`` (N).
+    out_k, out_d : ndarray, shape (3, 3)
+        Written: ``K`` (N/m) and ``D`` (N s/m).
     """
     vn = normal[0] * velocity[0] + normal[1] * velocity[1] + normal[2] * velocity[2]
     vt0 = velocity[0] - vn * normal[0]
@@ -237,79 +414,76 @@ def contact_jacobians(normal, grad, velocity, mu, slip_speed_m_s, force_n, out_k
             out_d[i, j] = -mu * force_n * s
 
 
-@njit(**JIT)
+@njit(cache=True, nogil=True)
 def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate,
                         istate, aux, sbuf, out):  # fmt: skip
     """One haptic tick of the layered form: series chain force, friction, tangent and modal state.
 
-    Arguments as :func:`skin_sim_node.model.kernels.step_kernel` plus the tool's lateral velocity.
-    Contact is unilateral and tested against the current deformed surface. At first contact the
+    Arguments as :func:`~.paper.paper_step_kernel` plus the tool's lateral velocity. Contact is unilateral
+    and tested against the current deformed surface (:func:`~.modal_kernels.begin_tick`). At first contact the
     chain starts from each layer's current displacement under the tool and the contact normal is
     fixed from the deformed surface's slope there (central differences over 5 um); while in contact
     every layer is driven with its own compression and rate (eq 3: ``q = c_l beta``, ``v = cdot_l
     beta``); out of contact (or when the chain relaxing with zero force is shorter than the tool
     depth) every layer relaxes freely. Writes ``out`` (``OUT_*``: force vector, normal, contact
-    radius, gradient of the normal force, and ``OUT_T``/normal carried to the next tick) and
-    returns flags.
+    radius, gradient of the normal force, and ``OUT_T``/normal carried to the next tick).
+
+    Parameters
+    ----------
+    tool_vx, tool_vy, tool_vz : float
+        Tool velocity (m/s): the friction's slip velocity and the cap of the membranes' rates.
+    tool_x, tool_y, tool_z, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, aux, sbuf, out
+        As :func:`~.paper.paper_step_kernel`, which also returns the step flags.
     """
     nl = istate.shape[1]
-    flags = 0
-    if not sp[kn.SP_SKIP_SETTLED] > 0.0:
-        kn.prepare_propagators(bmodes, bvec, blev, dt, mstate, lstate, istate)
+    flags, was_contact, surface, touching = begin_tick(
+        tool_x, tool_y, tool_z, dt, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf
+    )
     depth = -tool_z
-    was_contact = False
-    for li in range(nl):
-        if istate[kn.IS_DRIVEN, li]:
-            was_contact = True
-    surface = kn.surface_at(tool_x, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
-    on_sheet = abs(tool_x) <= sp[kn.SP_HALF_X] and abs(tool_y) <= sp[kn.SP_HALF_Y]
-    if not on_sheet:
-        flags |= kn.FLAG_OFF_SHEET
-    touching = on_sheet and depth > 0.0 and (was_contact or depth >= surface)
     force_n = 0.0
     t = 0.0
     a = 0.0
     s = 1.0
     ds = 0.0
-    bounds = aux[kn.AUX_BOUNDS]
-    thick = aux[kn.AUX_THICK, :nl]
+    bounds = aux[AUX_BOUNDS]
+    thick = aux[AUX_THICK, :nl]
     c_old = aux[AUX_C_OLD, :nl]
     c_new = aux[AUX_C, :nl]
     g = aux[AUX_G, :nl]
     if touching:
-        a, s, ds, da_dd = contact_geometry(depth, sp[kn.SP_TOOL_R], sp[kn.SP_SPHERE] > 0.0)
-        averaged_bounds(tool_x, tool_y, a, da_dd, lp, sp[kn.SP_BOTTOM], bounds, aux[AUX_DBX], aux[AUX_DBY], aux[AUX_DBD])
+        a, s, ds, da_dd = contact_geometry(depth, sp[SP_TOOL_R], sp[SP_SPHERE] > 0.0)
+        averaged_bounds(tool_x, tool_y, a, da_dd, lp, sp[SP_BOTTOM], bounds, aux[AUX_DBX], aux[AUX_DBY], aux[AUX_DBD])
         for li in range(nl):
             thick[li] = bounds[li + 1] - bounds[li]
         if was_contact:
             for li in range(nl):
-                c_old[li] = lstate[kn.LS_COMP, li]
+                c_old[li] = lstate[LS_COMP, li]
         else:  # first contact: start from the deformed state under the tool, normal from its slope
             gx = 0.0
             gy = 0.0
             hstep = 5e-6
             for li in range(nl):
                 c_old[li] = 0.0
-                if istate[kn.IS_ACTIVE, li]:
-                    c_old[li] = kn.layer_at(li, tool_x, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
-                    gx += kn.layer_at(li, tool_x + hstep, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
-                    gx -= kn.layer_at(li, tool_x - hstep, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
-                    gy += kn.layer_at(li, tool_x, tool_y + hstep, sp, blev, bk, mstate, lstate, istate, sbuf)
-                    gy -= kn.layer_at(li, tool_x, tool_y - hstep, sp, blev, bk, mstate, lstate, istate, sbuf)
+                if istate[IS_ACTIVE, li]:
+                    c_old[li] = layer_at(li, tool_x, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gx += layer_at(li, tool_x + hstep, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gx -= layer_at(li, tool_x - hstep, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gy += layer_at(li, tool_x, tool_y + hstep, sp, blev, bk, mstate, lstate, istate, sbuf)
+                    gy -= layer_at(li, tool_x, tool_y - hstep, sp, blev, bk, mstate, lstate, istate, sbuf)
             gx /= 2.0 * hstep
             gy /= 2.0 * hstep
             # surface height -U(x, y) (z up): outward normal ~ (dU/dx, dU/dy, 1)
             norm = math.sqrt(gx * gx + gy * gy + 1.0)
-            out[kn.OUT_NX] = gx / norm
-            out[kn.OUT_NY] = gy / norm
-            out[kn.OUT_NZ] = 1.0 / norm
-            out[kn.OUT_T] = 0.0
-        wall = sp[kn.SP_WALL]
-        t = chain_solve(depth, out[kn.OUT_T], lp[kn.LP_EA], lp[kn.LP_N], lp[kn.LP_B], dt, c_old, thick, wall, c_new, g)
+            out[OUT_NX] = gx / norm
+            out[OUT_NY] = gy / norm
+            out[OUT_NZ] = 1.0 / norm
+            out[OUT_T] = 0.0
+        wall = sp[SP_WALL]
+        t = chain_solve(depth, out[OUT_T], lp[LP_EA], lp[LP_N], lp[LP_B], dt, c_old, thick, wall, c_new, g)
         if t <= 0.0:
             touching = False
             t = 0.0
-            flags |= kn.FLAG_SEPARATED
+            flags |= FLAG_SEPARATED
     nx = 0.0
     ny = 0.0
     nz = 1.0
@@ -320,9 +494,9 @@ def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, l
     dfy = 0.0
     dfz = 0.0
     if touching:
-        flags |= kn.FLAG_CONTACT
-        if depth > sp[kn.SP_BOTTOM]:
-            flags |= kn.FLAG_BOTTOMED
+        flags |= FLAG_CONTACT
+        if depth > sp[SP_BOTTOM]:
+            flags |= FLAG_BOTTOMED
         force_n = s * t
         # gradient of the normal force: dT = (dd + sum_i H_i dh_i / G_i) / S  (implicit function theorem)
         s_inv = 0.0
@@ -333,9 +507,9 @@ def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, l
             h = thick[li]
             eps = c_new[li] / h
             if eps > wall:
-                flags |= kn.FLAG_LAYER_BOUND
-            phi, dphi = compression_law(eps, lp[kn.LP_N, li], wall)
-            hh = -lp[kn.LP_EA, li] * dphi * eps / h  # d(residual)/dh at fixed c
+                flags |= FLAG_LAYER_BOUND
+            phi, dphi = compression_law(eps, lp[LP_N, li], wall)
+            hh = -lp[LP_EA, li] * dphi * eps / h  # d(residual)/dh at fixed c
             dhx = (aux[AUX_DBX, li] if li < nl - 1 else 0.0) - (aux[AUX_DBX, li - 1] if li > 0 else 0.0)
             dhy = (aux[AUX_DBY, li] if li < nl - 1 else 0.0) - (aux[AUX_DBY, li - 1] if li > 0 else 0.0)
             dhd = (aux[AUX_DBD, li] if li < nl - 1 else 0.0) - (aux[AUX_DBD, li - 1] if li > 0 else 0.0)
@@ -346,45 +520,83 @@ def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, l
         dfx = s * sx / s_inv
         dfy = s * sy / s_inv
         dfz = -(ds * t + s * (1.0 + sd) / s_inv)
-        nx = out[kn.OUT_NX]
-        ny = out[kn.OUT_NY]
-        nz = out[kn.OUT_NZ]
+        nx = out[OUT_NX]
+        ny = out[OUT_NY]
+        nz = out[OUT_NZ]
         vn = tool_vx * nx + tool_vy * ny + tool_vz * nz
         vtx = tool_vx - vn * nx
         vty = tool_vy - vn * ny
         vtz = tool_vz - vn * nz
-        vs = sp[kn.SP_V_SLIP]
+        vs = sp[SP_V_SLIP]
         r = math.sqrt(vtx * vtx + vty * vty + vtz * vtz + vs * vs)
-        mu = sp[kn.SP_MU]
+        mu = sp[SP_MU]
         fx = force_n * (nx - mu * vtx / r)
         fy = force_n * (ny - mu * vty / r)
         fz = force_n * (nz - mu * vtz / r)
-        out[kn.OUT_T] = t
+        out[OUT_T] = t
         dt_eff = max(dt, DT_FLOOR_S)
         cap = max(RATE_CAP_M_S, math.sqrt(tool_vx * tool_vx + tool_vy * tool_vy + tool_vz * tool_vz))
         for li in range(nl):
             rate = min(cap, max(-cap, (c_new[li] - c_old[li]) / dt_eff))  # each layer its own rate (series chain)
-            kn.drive_layer(li, c_new[li], rate, tool_x, tool_y, sp, bmodes, bvec, blev, mstate, lstate, istate)
+            drive_layer(li, c_new[li], rate, tool_x, tool_y, sp, bmodes, bvec, blev, mstate, lstate, istate)
     else:
-        out[kn.OUT_T] = 0.0
+        out[OUT_T] = 0.0
         a = 0.0
         for li in range(nl):
-            lstate[kn.LS_COMP, li] = 0.0
-            kn.relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate)
-    out[kn.OUT_FORCE_N] = force_n
-    out[kn.OUT_STRESS_PA] = force_n / (math.pi * a * a) if a > 0.0 else 0.0
-    out[kn.OUT_DEPTH_M] = depth if touching else 0.0
-    out[kn.OUT_N_AFFECTED] = nl if touching else 0
-    out[kn.OUT_SURFACE_M] = surface
-    out[kn.OUT_SETTLED] = kn.settled_flag(sp, lstate, istate)
-    out[kn.OUT_FX] = fx
-    out[kn.OUT_FY] = fy
-    out[kn.OUT_FZ] = fz
-    out[kn.OUT_NX] = nx
-    out[kn.OUT_NY] = ny
-    out[kn.OUT_NZ] = nz
-    out[kn.OUT_RADIUS_M] = a
-    out[kn.OUT_DFN_DX] = dfx
-    out[kn.OUT_DFN_DY] = dfy
-    out[kn.OUT_DFN_DZ] = dfz
+            lstate[LS_COMP, li] = 0.0
+            relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate)
+    stress = force_n / (math.pi * a * a) if a > 0.0 else 0.0
+    d_out = depth if touching else 0.0
+    n_out = nl if touching else 0
+    end_tick(force_n, stress, d_out, n_out, surface, fx, fy, fz, nx, ny, nz, a, sp, lstate, istate, out)
+    out[OUT_DFN_DX] = dfx
+    out[OUT_DFN_DY] = dfy
+    out[OUT_DFN_DZ] = dfz
     return flags
+
+
+class LayeredForm(Form):
+    """The layered form bound to one model's kernel arrays (:class:`~.layout.Form`)."""
+
+    name = "layered"
+
+    def __init__(self, arrays: KernelArrays, cfg: TissueConfig):
+        super().__init__(arrays, cfg)
+        self._last_velocity = np.zeros(3)  # the tick's tool velocity, for the friction's Jacobian
+        self._mu = cfg.friction_coefficient
+        self._slip = cfg.slip_speed_m_s
+
+    def tick(self, x, y, z, vx, vy, vz, dt) -> int:
+        """:func:`layered_step_kernel`; the velocity is kept for :meth:`tangent` (the friction's Jacobian)."""
+        vx, vy, vz = float(vx), float(vy), float(vz)
+        v = self._last_velocity  # by item: a slice assignment from a tuple costs several times more
+        v[0] = vx
+        v[1] = vy
+        v[2] = vz
+        return layered_step_kernel(float(x), float(y), float(z), vx, vy, vz, float(dt), *self._args)
+
+    def tangent(self, flags: int) -> ContactTangent:
+        """Force and derivatives of the last tick (``flags``: its flags): :func:`contact_jacobians` of its force."""
+        if not flags & FLAG_CONTACT:
+            return normal_tangent(0.0, 0.0, 0.0, 0.0)
+        o = self._out
+        stiffness = np.empty((3, 3))
+        damping = np.empty((3, 3))
+        normal = o[OUT_NX : OUT_NZ + 1].copy()
+        contact_jacobians(
+            normal,
+            o[OUT_DFN_DX : OUT_DFN_DZ + 1],
+            self._last_velocity,
+            self._mu,
+            self._slip,
+            float(o[OUT_FORCE_N]),
+            stiffness,
+            damping,
+        )
+        return ContactTangent(
+            force_n=o[OUT_FX : OUT_FZ + 1].copy(),
+            stiffness_n_per_m=stiffness,
+            damping_n_s_per_m=damping,
+            normal=normal,
+            contact_radius_m=float(o[OUT_RADIUS_M]),
+        )

@@ -1,5 +1,9 @@
 """``SkinModel``: the stateful layered skin model (section II.D.4) over the numba kernels.
 
+It packs its configuration into the kernels' arrays (:mod:`.layout`) and chooses its form once
+(:class:`~.paper.PaperForm` or :class:`~.layered.LayeredForm`: a tick kernel and a tangent). A layer
+with a degenerate wave speed (:data:`DEGENERATE_RETURN_S`) is released from rest by the model itself.
+
 The force path (:meth:`SkinModel.step`) never touches the grid; the per-layer grids
 and the assembled surface/interface heights are built only when
 :meth:`SkinModel.build_grid` is called (the first "no more than a scene needs" lever).
@@ -14,12 +18,55 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import kernels as kn
-from . import layered as lk
-from .config import WALL_STRAIN, TissueConfig
-from .contact import ContactTangent, normal_tangent
+from .config import TissueConfig
+from .contact import ContactTangent
+from .grid import assemble_heights, assemble_heights_box, layer_field_box, patch_range
 from .interfaces import interface_depths_m
+from .layered import LayeredForm
+from .layout import (
+    FLAG_CONTACT,
+    FLAG_OFF_SHEET,
+    IS_ACTIVE,
+    IS_DRIVEN,
+    IS_LEVEL,
+    LS_AMP,
+    LS_COMP,
+    LS_CX,
+    LS_CY,
+    LS_DROPPED,
+    OUT_DEPTH_M,
+    OUT_FORCE_N,
+    OUT_FX,
+    OUT_FZ,
+    OUT_N_AFFECTED,
+    OUT_NX,
+    OUT_NZ,
+    OUT_RADIUS_M,
+    OUT_SETTLED,
+    OUT_STRESS_PA,
+    OUT_T,
+    Form,
+    pack,
+    settle_tolerance_m,
+)
 from .modal import ModalBasis, modal_basis
+from .modal_kernels import layer_point_displacement, modal_energy
+from .paper import PaperForm
+
+DEGENERATE_RETURN_S = 1.0
+"""A layer whose fundamental mode needs longer than this for a quarter period (``pi / (2 lambda_11)``)
+to return has a degenerate wave speed: skin visibly recovers from an indent well within a second,
+while the paper's eq 9 (``lambda_11 = 0.0032 rad/s``) takes 490 s. Such a layer is released from
+rest (``B*_mn = 0``, as eq 9 itself), since with no restoring force in human time a release velocity
+``v`` would carry it ``v / lambda_11`` (31 m at 0.1 m/s) away."""
+
+
+def quarter_periods_s(basis: ModalBasis) -> np.ndarray:
+    """Each layer's return time: the quarter period ``pi / (2 lambda_11)`` of its fundamental (s); inf for
+    ``lambda_11 = 0``."""
+    lam11 = basis.lam.min(axis=1)  # each layer's fundamental, rad/s
+    with np.errstate(divide="ignore"):
+        return np.where(lam11 > 0, 0.5 * math.pi / lam11, math.inf)
 
 
 @dataclass(frozen=True)
@@ -54,130 +101,108 @@ class SkinModel:
     def __init__(self, cfg: TissueConfig):
         self.cfg = cfg
         self.basis: ModalBasis = modal_basis(cfg)
-        layers = cfg.layers
-        n_l = len(layers)
-        k_modes = self.basis.n_modes
-        m_max = n_max = int(self.basis.m_lim.max())
-        ny, nx = cfg.grid_shape
         lod = cfg.lod
         self._skip_settled = lod.affected_layers
-        self._mode_tol = lod.tolerance_m
-        self._settle_tol = lod.tolerance_m if (lod.affected_layers or lod.idle) else 0.0
+        self._settle_tol = settle_tolerance_m(cfg)
         self._idle_ok = lod.idle
         self._patch_only = lod.patch_only
-        self.kernel_calls = 0  # step_kernel invocations (idle ticks make none)
+        self.kernel_calls = 0  # tick kernel invocations (idle ticks make none)
         self.idle_ticks = 0
         self.last_tick_idle = False
         self.version = 0  # changes whenever the state may have changed (a kernel call or a reset)
         self.grid_builds = 0
         sx, sy = cfg.sheet_size_m
-        self.layered = cfg.form == "layered"
-        # grouped kernel arguments (see kernels, "Kernel arguments are grouped"): per-layer rows (and interfaces)
-        self._lp = np.zeros((kn.LP_SIZE, n_l))
-        self._lp[kn.LP_K] = [la.stiffness_n_per_m for la in layers]
-        self._lp[kn.LP_B] = [la.damping_n_s_per_m for la in layers]
-        self._lp[kn.LP_AREA] = [la.area_m2 for la in layers]
-        self._lp[kn.LP_EA] = [la.stiffness_n_per_m * la.thickness_m for la in layers]
-        self._lp[kn.LP_N] = [la.stiffening for la in layers]
-        n_i = len(cfg.interfaces)
-        self._lp[kn.LP_IF_MEAN, :n_i] = [i.mean_depth_m for i in cfg.interfaces]
-        self._lp[kn.LP_IF_AMP, :n_i] = [i.amplitude_m for i in cfg.interfaces]
-        self._lp[kn.LP_IF_KX, :n_i] = [2 * math.pi / i.wavelength_x_m for i in cfg.interfaces]
-        self._lp[kn.LP_IF_KY, :n_i] = [2 * math.pi / i.wavelength_y_m for i in cfg.interfaces]
-        self._k, self._b, self._area = self._lp[kn.LP_K], self._lp[kn.LP_B], self._lp[kn.LP_AREA]
-        self._bottom = cfg.total_thickness_m
         self._half = (0.5 * sx, 0.5 * sy)
         self._patch = cfg.patch_size_m
-        self._sp = np.zeros(kn.SP_SIZE)
-        self._sp[kn.SP_BOTTOM] = self._bottom
-        self._sp[kn.SP_HALF_X], self._sp[kn.SP_HALF_Y] = self._half
-        self._sp[kn.SP_PATCH_A], self._sp[kn.SP_PATCH_B] = self._patch
-        self._sp[kn.SP_MODE_TOL] = self._mode_tol
-        self._sp[kn.SP_SETTLE_TOL] = self._settle_tol
-        self._sp[kn.SP_SKIP_SETTLED] = 1.0 if self._skip_settled else 0.0
-        self._sp[kn.SP_TOOL_R] = cfg.tool_radius_m
-        self._sp[kn.SP_SPHERE] = 1.0 if cfg.tool_shape == "sphere" else 0.0
-        self._sp[kn.SP_MU] = cfg.friction_coefficient
-        self._sp[kn.SP_V_SLIP] = cfg.slip_speed_m_s
-        self._sp[kn.SP_WALL] = WALL_STRAIN
-        # state: a few arrays for the kernels, with named views
-        self._mstate = np.zeros((6, n_l, k_modes))
-        self.q, self.v, self._prop = self._mstate[0], self._mstate[1], self._mstate[2:6]
-        self._lstate = np.zeros((kn.LS_SIZE, n_l))
-        self.compression_m = self._lstate[kn.LS_COMP]
-        self.dropped_m = self._lstate[kn.LS_DROPPED]  # displacement bound shed with outer modes since last driven
-        self.amplitude_bound_m = self._lstate[kn.LS_AMP]  # bound on a free layer's future displacement; inf when driven
-        self._prop_dt = self._lstate[kn.LS_PROP_DT]
-        self._prop_dt[:] = np.nan
-        self.centre = self._lstate[kn.LS_CX : kn.LS_CY + 1].T  # (L, 2) view
-        self._istate = np.zeros((kn.IS_SIZE, n_l), dtype=np.int64)
-        self.driven = self._istate[kn.IS_DRIVEN]
-        self.level = self._istate[kn.IS_LEVEL]  # index into basis levels (mode count) per layer
-        self.active = self._istate[kn.IS_ACTIVE]
-        self._prop_k = self._istate[kn.IS_PROP_K]
-        self._aux = np.zeros((kn.AUX_SIZE, n_l + 1))
-        self._bounds = self._aux[kn.AUX_BOUNDS]
-        self._thick = self._aux[kn.AUX_THICK, :n_l]
-        self._sbuf = np.zeros((2, m_max + 1))
-        self._sx_buf, self._sy_buf = self._sbuf[0], self._sbuf[1]
-        self._out = np.zeros(kn.OUT_SIZE)
-        self._last_velocity = np.zeros(3)
+        # the kernels' grouped arguments (.layout), with named views of the state
+        self._arrays = arrays = pack(cfg, self.basis)
+        self.q, self.v, self._prop = arrays.mstate[0], arrays.mstate[1], arrays.mstate[2:6]
+        self.compression_m = arrays.lstate[LS_COMP]
+        self.dropped_m = arrays.lstate[LS_DROPPED]  # displacement bound shed with outer modes since last driven
+        self.amplitude_bound_m = arrays.lstate[LS_AMP]  # bound on a free layer's future displacement; inf when driven
+        self.centre = arrays.lstate[LS_CX : LS_CY + 1].T  # (L, 2) view
+        self.driven = arrays.istate[IS_DRIVEN]
+        self.level = arrays.istate[IS_LEVEL]  # index into basis levels (mode count) per layer
+        self.active = arrays.istate[IS_ACTIVE]
+        self._sx_buf, self._sy_buf = arrays.sbuf[0], arrays.sbuf[1]
+        self._out = arrays.out
         self.flags = 0
-        b = self.basis
-        nv = b.level_modes.size
-        bmodes = np.ascontiguousarray(np.vstack([b.beta_table, b.lam]))
-        bvec = np.concatenate([b.trunc_err, b.gamma])
-        blev = np.ascontiguousarray(np.vstack([b.k_prefix, b.m_lim]).astype(np.int64))
-        bk = np.ascontiguousarray(np.vstack([b.mode_m, b.mode_n]).astype(np.int64))
-        assert bmodes.shape[0] == nv + n_l
-        self._args = (
-            self._lp, self._sp, bmodes, bvec, blev, bk, self._mstate, self._lstate, self._istate, self._aux, self._sbuf,
-            self._out,
-        )  # fmt: skip
-        # grid buffers
+        # the form, chosen once: its tick kernel and its tangent
+        self._form: Form = LayeredForm(arrays, cfg) if cfg.form == "layered" else PaperForm(arrays, cfg)
+        # degenerate layers (DEGENERATE_RETURN_S) are released from rest: only then does a tick copy the state
+        quarter_s = quarter_periods_s(self.basis)
+        self._degenerate = quarter_s > DEGENERATE_RETURN_S
+        self._degenerate_layers = tuple(la.name for la, d in zip(cfg.layers, self._degenerate) if d)
+        self._slowest_return_s = float(quarter_s.max())
+        self._released = np.zeros(len(cfg.layers), dtype=bool)  # layers release() let go since the last tick
+        self._tick = self._tick_releasing_from_rest if self._degenerate_layers else self._form.tick
+        self._allocate_grid()
+        self.reset()
+
+    def _allocate_grid(self) -> None:
+        """The grid buffers of :meth:`build_grid`: cell centres, rest depths of the layer tops, fields and scratch."""
+        cfg, b = self.cfg, self.basis
+        n_l = len(cfg.layers)
+        ny, nx = cfg.grid_shape
+        sx, sy = cfg.sheet_size_m
         self.xs = -0.5 * sx + (np.arange(nx) + 0.5) * sx / nx
         self.ys = -0.5 * sy + (np.arange(ny) + 0.5) * sy / ny
         X, Y = np.meshgrid(self.xs, self.ys)
         self._rest_tops = np.concatenate([np.zeros((1, ny, nx)), interface_depths_m(cfg, X, Y)])
         self._disp = np.zeros((n_l, ny, nx))
         self._heights = np.zeros((n_l, ny, nx))
-        kn.assemble_heights(self._disp, self._rest_tops, self._heights)
+        assemble_heights(self._disp, self._rest_tops, self._heights)
         self._dirty = np.zeros((n_l, 4), dtype=np.int64)  # per layer: written box ix0, ix1, iy0, iy1
+        m_max = n_max = int(b.m_lim.max())
         self._q_dense = np.zeros((m_max, n_max))
         self._sx = np.zeros((m_max + 1, nx))
         self._sy = np.zeros((n_max + 1, ny))
         self._tmp = np.zeros((n_max + 1, nx))
-        b = self.basis
         self._used = [
             (b.m_used[b.m_used <= lim], b.n_used[b.n_used <= lim]) for lim in b.m_lim
         ]  # distinct m, n of each level's prefix
-        self.reset()
+
+    @property
+    def degenerate_layers(self) -> tuple[str, ...]:
+        """Names of the layers with a degenerate wave speed (:data:`DEGENERATE_RETURN_S`), released from rest;
+        empty if none."""
+        return self._degenerate_layers
+
+    @property
+    def slowest_return_s(self) -> float:
+        """The largest quarter period ``pi / (2 lambda_11)`` of the layers' fundamentals (s); inf for a layer with
+        ``lambda_11 = 0``."""
+        return self._slowest_return_s
 
     def reset(self) -> None:
         """Return to rest: no contact, no deformation."""
         for a in (self.q, self.v, self.centre, self.compression_m, self._out, self.amplitude_bound_m, self.dropped_m):
             a[...] = 0.0
-        self._out[kn.OUT_NZ] = 1.0
+        self._out[OUT_NZ] = 1.0
         self.driven[:] = 0
         self.level[:] = 0
         self.active[:] = 0 if self._skip_settled else 1
+        self._released[:] = False
         self.flags = 0
-        self._out[kn.OUT_SETTLED] = 1.0 if self._settle_tol > 0.0 else 0.0
+        self._out[OUT_SETTLED] = 1.0 if self._settle_tol > 0.0 else 0.0
         self.version = getattr(self, "version", 0) + 1
 
     @property
     def settled(self) -> bool:
         """No layer driven and every layer's displacement bound below ``lod.tolerance_m`` (as of the last kernel call)."""
-        return bool(self._out[kn.OUT_SETTLED])
+        return bool(self._out[OUT_SETTLED])
 
     def modes_per_axis(self) -> np.ndarray:
         """Modes per axis each layer currently uses (its level)."""
         return self.basis.level_modes[self.level]
 
     def release(self) -> None:
-        """End contact now: every layer relaxes freely from its current shape and velocity."""
+        """End contact now: every layer relaxes freely from its current shape and velocity (a degenerate layer
+        from its shape at rest, on the next :meth:`step`)."""
+        if self._degenerate_layers:
+            self._released |= self.driven.astype(bool)
         self.driven[:] = 0
-        self._out[kn.OUT_T] = 0.0
+        self._out[OUT_T] = 0.0
 
     def step(self, tool_xyz, tool_velocity, dt: float) -> float:
         """Advance one tick with the tool at ``tool_xyz`` (m) moving at ``tool_velocity`` (m/s).
@@ -188,74 +213,82 @@ class SkinModel:
         are exact for any ``dt >= 0`` and the layered form's chain is implicit (passive for any ``dt``).
         """
         x, y, z = tool_xyz
-        if self._idle_ok and z >= 0.0 and self._out[kn.OUT_SETTLED]:
+        if self._idle_ok and z >= 0.0 and self._out[OUT_SETTLED]:
             # idle: the tool is off the tissue and every layer has settled: no kernel work
             self.idle_ticks += 1
             self.last_tick_idle = True
-            if self.flags & ~kn.FLAG_OFF_SHEET:
-                self._out[: kn.OUT_SETTLED] = 0.0
-                self._out[kn.OUT_FX :] = 0.0
-                self._out[kn.OUT_NZ] = 1.0
+            if self.flags & ~FLAG_OFF_SHEET:
+                self._out[:OUT_SETTLED] = 0.0
+                self._out[OUT_FX:] = 0.0
+                self._out[OUT_NZ] = 1.0
                 self.compression_m[:] = 0.0
-            self.flags = 0 if abs(x) <= self._half[0] and abs(y) <= self._half[1] else kn.FLAG_OFF_SHEET
+            self.flags = 0 if abs(x) <= self._half[0] and abs(y) <= self._half[1] else FLAG_OFF_SHEET
             return 0.0
         vx, vy, vz = tool_velocity
         self.kernel_calls += 1
         self.version += 1
         self.last_tick_idle = False
-        if self.layered:
-            self._last_velocity[:] = (vx, vy, vz)
-            vel = (float(vx), float(vy), float(vz))
-            self.flags = lk.layered_step_kernel(float(x), float(y), float(z), *vel, float(dt), *self._args)
-        else:
-            self.flags = kn.step_kernel(float(x), float(y), float(z), float(vz), float(dt), *self._args)
-        return float(self._out[kn.OUT_FORCE_N])
+        self.flags = self._tick(x, y, z, vx, vy, vz, dt)
+        return float(self._out[OUT_FORCE_N])
+
+    def _tick_releasing_from_rest(self, x, y, z, vx, vy, vz, dt) -> int:
+        """The form's tick, for a tissue with degenerate layers: one released this tick (by the tick or by
+        :meth:`release` since the last one) restarts from its last driven shape at rest (eq 9's ``B* = 0``),
+        advanced over the tick with its exact modal propagator."""
+        driven_before = self.driven.astype(bool) | self._released
+        q_before = self.q.copy()
+        flags = self._form.tick(x, y, z, vx, vy, vz, dt)
+        self._released[:] = False
+        for li in np.flatnonzero(driven_before & ~self.driven.astype(bool) & self._degenerate):
+            self.q[li] = self._prop[0, li] * q_before[li]
+            self.v[li] = self._prop[2, li] * q_before[li]
+        return flags
 
     # --- state read-outs -------------------------------------------------------------
     @property
     def force_n(self) -> float:
         """Normal force magnitude (N) of the last step (what :meth:`step` returns)."""
-        return float(self._out[kn.OUT_FORCE_N])
+        return float(self._out[OUT_FORCE_N])
 
     @property
     def force_vector_n(self) -> np.ndarray:
         """Reaction force vector on the tool (N, tissue frame) of the last step: along the contact
         normal plus friction in the layered form, ``(0, 0, force_n)`` in the paper form."""
-        return self._out[kn.OUT_FX : kn.OUT_FZ + 1].copy()
+        return self._out[OUT_FX : OUT_FZ + 1].copy()
 
     @property
     def contact_normal(self) -> np.ndarray:
         """Unit contact normal of the last step (``+z`` out of contact)."""
-        return self._out[kn.OUT_NX : kn.OUT_NZ + 1].copy()
+        return self._out[OUT_NX : OUT_NZ + 1].copy()
 
     @property
     def contact_radius_m(self) -> float:
         """Contact radius (m) of the last step; 0 out of contact."""
-        return float(self._out[kn.OUT_RADIUS_M])
+        return float(self._out[OUT_RADIUS_M])
 
     @property
     def stress_pa(self) -> float:
-        return float(self._out[kn.OUT_STRESS_PA])
+        return float(self._out[OUT_STRESS_PA])
 
     @property
     def depth_m(self) -> float:
         """Tool depth used by the Reuss split (clamped at the bottom), 0 out of contact."""
-        return float(self._out[kn.OUT_DEPTH_M])
+        return float(self._out[OUT_DEPTH_M])
 
     @property
     def n_affected(self) -> int:
-        return int(self._out[kn.OUT_N_AFFECTED])
+        return int(self._out[OUT_N_AFFECTED])
 
     @property
     def in_contact(self) -> bool:
-        return bool(self.flags & kn.FLAG_CONTACT)
+        return bool(self.flags & FLAG_CONTACT)
 
     def tangent(self) -> ContactTangent:
         """The force of the last step and its local derivatives (see :mod:`.contact`).
 
         Paper form: the engaged layers are springs and dampers in series under the common
         velocity of eq 6, so ``dF/dz = -A_0 / sum(A_i / k_i)`` and
-        ``dF/dv_z = -A_0 sum(b_i / k_i) / sum(A_i / k_i)`` (from ``sigma`` in :func:`kernels.reuss_split`).
+        ``dF/dv_z = -A_0 sum(b_i / k_i) / sum(A_i / k_i)`` (from ``sigma`` in :func:`.paper.reuss_split`).
 
         Layered form: ``F = F_n (n - mu g)`` with ``g = v_t / sqrt(|v_t|^2 + v_s^2)`` and ``v_t`` the
         tool velocity in the tangent plane, so ``K = dF/dx = (n - mu g) grad(F_n)^T``, with ``grad F_n``
@@ -264,37 +297,13 @@ class SkinModel:
         ``D = dF/dv = -mu F_n (I / r - v_t v_t^T / r^3) (I - n n^T)``; the normal force does not depend
         on the velocity argument (the chain's rates come from positions).
         """
-        if not self.layered:
-            n = self.n_affected if self.in_contact else 0
-            if n == 0:
-                return normal_tangent(0.0, 0.0, 0.0, 0.0)
-            s_a = float(np.sum(self._area[:n] / self._k[:n]))
-            s_b = float(np.sum(self._b[:n] / self._k[:n]))
-            a0 = float(self._area[0])
-            return normal_tangent(self.force_n, a0 / s_a, a0 * s_b / s_a, self.cfg.tool_radius_m)
-        if not self.in_contact:
-            return normal_tangent(0.0, 0.0, 0.0, 0.0)
-        o = self._out
-        stiffness = np.empty((3, 3))
-        damping = np.empty((3, 3))
-        normal = o[kn.OUT_NX : kn.OUT_NZ + 1].copy()
-        lk.contact_jacobians(
-            normal, o[kn.OUT_DFN_DX : kn.OUT_DFN_DZ + 1], self._last_velocity, self.cfg.friction_coefficient,
-            self.cfg.slip_speed_m_s, float(o[kn.OUT_FORCE_N]), stiffness, damping,
-        )  # fmt: skip
-        return ContactTangent(
-            force_n=o[kn.OUT_FX : kn.OUT_FZ + 1].copy(),
-            stiffness_n_per_m=stiffness,
-            damping_n_s_per_m=damping,
-            normal=normal,
-            contact_radius_m=float(o[kn.OUT_RADIUS_M]),
-        )
+        return self._form.tangent(self.flags)
 
     def layer_displacement_at(self, layer: int, x: float, y: float) -> float:
         """Current downward displacement (m) of one layer at ``(x, y)`` (eq 2 at a point)."""
         b = self.basis
         nk = b.k_prefix[self.level[layer]]
-        return kn.layer_point_displacement(
+        return layer_point_displacement(
             self.q[layer, :nk], self.centre[layer, 0], self.centre[layer, 1], b.mode_m[:nk], b.mode_n[:nk],
             self._patch[0], self._patch[1], float(x), float(y), self._sx_buf, self._sy_buf,
         )  # fmt: skip
@@ -316,7 +325,7 @@ class SkinModel:
 
     def energy(self) -> float:
         """Modal energy per unit modal mass, summed over layers (m^2/s^2)."""
-        return float(kn.modal_energy(self.q, self.v, self.basis.lam))
+        return float(modal_energy(self.q, self.v, self.basis.lam))
 
     def build_grid(self, layers=None) -> Grid:
         """Evaluate the per-layer displacement fields and assemble surface/interface heights.
@@ -347,8 +356,8 @@ class SkinModel:
                 d[:] = 0
                 if not wanted or at_rest:
                     continue
-                ix0, ix1 = kn.patch_range(self.xs, self.centre[li, 0], self._patch[0])
-                iy0, iy1 = kn.patch_range(self.ys, self.centre[li, 1], self._patch[1])
+                ix0, ix1 = patch_range(self.xs, self.centre[li, 0], self._patch[0])
+                iy0, iy1 = patch_range(self.ys, self.centre[li, 1], self._patch[1])
             else:
                 if not wanted or at_rest:
                     self._disp[li] = 0.0
@@ -357,7 +366,7 @@ class SkinModel:
             lv = self.level[li]
             nk = b.k_prefix[lv]
             m_used, n_used = self._used[lv]
-            kn.layer_field_box(
+            layer_field_box(
                 self.q[li, :nk], self.centre[li, 0], self.centre[li, 1], b.mode_m[:nk], b.mode_n[:nk], m_used, n_used,
                 self._patch[0], self._patch[1], self.xs, self.ys, ix0, ix1, iy0, iy1,
                 self._q_dense, self._sx, self._sy, self._tmp, self._disp[li],
@@ -365,9 +374,9 @@ class SkinModel:
             d[:] = (ix0, ix1, iy0, iy1)
             _grow(box, d)
         if not self._patch_only:
-            kn.assemble_heights(self._disp, self._rest_tops, self._heights)
+            assemble_heights(self._disp, self._rest_tops, self._heights)
         elif box[1] > box[0] and box[3] > box[2]:
-            kn.assemble_heights_box(self._disp, self._rest_tops, box[0], box[1], box[2], box[3], self._heights)
+            assemble_heights_box(self._disp, self._rest_tops, box[0], box[1], box[2], box[3], self._heights)
         return Grid(self.xs, self.ys, self._disp, self._heights)
 
     # --- state hand-over (the session; the replay report's model at peak) -------------------
@@ -381,15 +390,9 @@ class SkinModel:
         """Restore a :meth:`state` copy of a model of the same configuration."""
         for k in self._STATE:
             getattr(self, k)[...] = state[k]
+        self._released[:] = False
         self.flags = state["flags"]
         self.version += 1
-
-    def restart_from_rest(self, layers, q_before) -> None:
-        """Restart ``layers``, released this step, from their shape ``q_before`` at rest (eq 9's ``B* = 0``),
-        advanced over the step with its exact modal propagator."""
-        for li in layers:
-            self.q[li] = self._prop[0, li] * q_before[li]
-            self.v[li] = self._prop[2, li] * q_before[li]
 
 
 def _grow(box: list, d) -> None:

@@ -7,10 +7,10 @@ so "1x1" is one mode per axis) through the numba model and the pure-NumPy paper-
 (:class:`~skin_sim_node.model.reference.NumpySkinModel`). Prints median, p99 and max per tick, a
 row as soon as it is measured, with ratios. Usage: ``skin-sim bench-model [--ticks N]``.
 
-``skin-sim bench-model --physics`` prints the issue-11 physics figures (:mod:`skin_sim_node.model.physics`).
-``skin-sim bench-model --against /work/main`` times the force path of the paper form on the same
+``skin-sim bench-model --physics`` prints the issue-11 physics figures (:mod:`skin_sim_node.perf.bench_physics`).
+``skin-sim bench-model --against /work/main`` times the force path of each form on the same
 tissue in another checkout (its own ``.venv``) and in this one, alternating in one run, and prints
-the ratio: the before/after of a kernel change.
+the ratios: the before/after of a kernel change.
 
 ``skin-sim bench-model --lod`` instead measures each level-of-detail lever (issue 7): the four
 scene trajectories (idle hover, light touch, deep press, drag) at 1 kHz with jittered tick
@@ -123,22 +123,31 @@ from skin_sim_node.model import SkinModel, preset
 from skin_sim_node.perf.bench_model import scripted_path, time_path
 cfg = preset("default")
 flat = cfg.as_flat()
+forms = {"paper": cfg}
 if "form" in flat:  # this checkout has the layered form: the paper form with the tissue the other one had
     r = cfg.tool_radius_m
     moduli = {"epidermis": 1.5e6, "dermis": 20e3, "fat": 2.5e3}
-    cfg = cfg.replace(form="paper", **{f"layers.{n}.stiffness_n_per_m": 2 * e * r / (1 - 0.48**2) for n, e in moduli.items()})
+    k = {f"layers.{n}.stiffness_n_per_m": 2 * e * r / (1 - 0.48**2) for n, e in moduli.items()}
+    forms = {"paper": cfg.replace(form="paper", **k), "layered": cfg.replace(form="layered")}
 ticks = int(sys.argv[1])
 path, dt = scripted_path(ticks)
-m = SkinModel(cfg)
-time_path(m, path[:200], dt, False)
-m.reset()
-t = time_path(m, path, dt, False)
-print(json.dumps({"median": float(np.median(t)), "p99": float(np.percentile(t, 99))}))
+res = {}
+for form, c in forms.items():
+    m = SkinModel(c)
+    time_path(m, path[:200], dt, False)
+    m.reset()
+    t = time_path(m, path, dt, False)
+    res[form] = {"median": float(np.median(t)), "p99": float(np.percentile(t, 99))}
+print(json.dumps(res))
 """
 
 
 def run_against(other: str, ticks: int, rounds: int = 5) -> None:
-    """Paper-form force path in ``other`` (a checkout with its own .venv) and here, alternating; prints each round."""
+    """Force path of each form in ``other`` (a checkout with its own .venv) and here, alternating; prints each round.
+
+    The paper form runs on the tissue both checkouts share (checkouts before the layered form have only it);
+    the layered form (the default) where both have it.
+    """
     import json
     import subprocess
     import sys
@@ -147,9 +156,9 @@ def run_against(other: str, ticks: int, rounds: int = 5) -> None:
     here = Path(__file__).resolve().parents[2]
     exe = {"other": str(Path(other) / ".venv" / "bin" / "python"), "this": sys.executable}
     cwd = {"other": str(other), "this": str(here)}
-    print(f"paper-form force path, default tissue, {ticks} ticks at 1 kHz; 'other' = {other}, 'this' = {here}", flush=True)
-    print(f"{'round':>5} | {'other med':>9} {'p99':>7} | {'this med':>8} {'p99':>7} | this/other median", flush=True)
-    ratios = []
+    print(f"force path (SkinModel.step), default tissue, {ticks} ticks at 1 kHz; 'other' = {other}, 'this' = {here}", flush=True)
+    print(f"{'round':>5} {'form':>8} | {'other med':>9} {'p99':>7} | {'this med':>8} {'p99':>7} | this/other median", flush=True)
+    ratios: dict[str, list[float]] = {}
     for i in range(rounds):
         res = {}
         for who in ("other", "this"):
@@ -158,10 +167,18 @@ def run_against(other: str, ticks: int, rounds: int = 5) -> None:
                 print(f"{who}: failed: {out.stderr.strip().splitlines()[-1] if out.stderr.strip() else out.returncode}")
                 return
             res[who] = json.loads(out.stdout.strip().splitlines()[-1])
-        ratios.append(res["this"]["median"] / res["other"]["median"])
-        print(f"{i:>5} | {res['other']['median']:9.2f} {res['other']['p99']:7.2f} | {res['this']['median']:8.2f} "
-              f"{res['this']['p99']:7.2f} | {ratios[-1]:.3f}", flush=True)  # fmt: skip
-    print(f"median of the per-round ratios this/other: {float(np.median(ratios)):.3f} (machine shared: ratios, not absolutes)")
+        for form in [f for f in res["this"] if f in res["other"]]:
+            o, t = res["other"][form], res["this"][form]
+            ratios.setdefault(form, []).append(t["median"] / o["median"])
+            print(
+                f"{i:>5} {form:>8} | {o['median']:9.2f} {o['p99']:7.2f} | {t['median']:8.2f} {t['p99']:7.2f} | "
+                f"{ratios[form][-1]:.3f}",
+                flush=True,
+            )
+    for form, r in ratios.items():
+        print(
+            f"{form}: median of the per-round ratios this/other {float(np.median(r)):.3f} (machine shared: ratios, not absolutes)"
+        )
 
 
 LOD_OFF = {"lod.adaptive_modes": False, "lod.affected_layers": False, "lod.patch_only": False, "lod.idle": False}
@@ -303,10 +320,10 @@ def main(argv=None) -> int:
     ap.add_argument("--numpy-ticks", type=int, default=600, help="NumPy baseline ticks per case (default 600)")
     ap.add_argument("--lod", action="store_true", help="measure the level-of-detail levers instead (issue 7)")
     ap.add_argument("--physics", action="store_true", help="print the physics figures of the tissue forms (issue 11)")
-    ap.add_argument("--against", metavar="CHECKOUT", help="paper-form force path here vs another checkout (its .venv)")
+    ap.add_argument("--against", metavar="CHECKOUT", help="force path here vs another checkout (its .venv), each form")
     args = ap.parse_args(argv)
     if args.physics:
-        from ..model.physics import main as physics_main
+        from .bench_physics import main as physics_main
 
         return physics_main()
     if args.against:

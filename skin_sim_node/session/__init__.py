@@ -34,13 +34,12 @@ from .events import (
     WATCHDOG,
     EventLog,
 )
-from .haptic import DEGENERATE_RETURN_S, NO_CONTACT, HapticSession, TickResult
+from .haptic import NO_CONTACT, HapticSession, TickResult
 from .inputs import InputPolicy, TickInput, velocity_estimate
 from .limits import RATE_ALLOWANCE_S, ForceLimits
 
 __all__ = [
     "CONTACT_SEPARATED",
-    "DEGENERATE_RETURN_S",
     "DEGENERATE_WAVE_SPEED",
     "FORCE_CLAMPED",
     "FORCE_NON_FINITE",

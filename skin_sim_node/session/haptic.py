@@ -11,12 +11,18 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-import numpy as np
-
 from msgs_schema.parameters import SessionParams
 
-from ..model import FLAG_BOTTOMED, FLAG_CONTACT, FLAG_LAYER_BOUND, FLAG_OFF_SHEET, FLAG_SEPARATED, SkinModel
-from ..model.contact import ContactTangent, normal_tangent  # not exported by skin_sim_node.model yet
+from ..model import (
+    FLAG_BOTTOMED,
+    FLAG_CONTACT,
+    FLAG_LAYER_BOUND,
+    FLAG_OFF_SHEET,
+    FLAG_SEPARATED,
+    ContactTangent,
+    SkinModel,
+    normal_tangent,
+)
 from .events import (
     CONTACT_SEPARATED,
     DEGENERATE_WAVE_SPEED,
@@ -32,13 +38,6 @@ from .limits import ForceLimits
 NO_CONTACT = normal_tangent(0.0, 0.0, 0.0, 0.0)
 """The tangent out of contact (no force, no stiffness), shared: :meth:`SkinModel.tangent` builds its arrays
 anew on each call (8 us of a 1 ms tick), so it is called only while the tool is in contact."""
-
-DEGENERATE_RETURN_S = 1.0
-"""A layer whose fundamental mode needs longer than this for a quarter period (``pi / (2 lambda_11)``)
-to return has a degenerate wave speed: skin visibly recovers from an indent well within a second,
-while the paper's eq 9 (``lambda_11 = 0.0032 rad/s``) takes 490 s. Such a layer is released from
-rest (``B*_mn = 0``, as eq 9 itself), since with no restoring force in human time a release velocity
-``v`` would carry it ``v / lambda_11`` (31 m at 0.1 m/s) away."""
 
 STATE_CHECK_TICKS = 64
 """Every this many ticks the force limits also ask whether the model's energy is finite (a NaN can hide in
@@ -195,19 +194,12 @@ class HapticSession:
         model : SkinModel
         """
         self.model = model
-        # degenerate-layer release, moving into SkinModel: which layers
-        lam11 = model.basis.lam.min(axis=1)  # each layer's fundamental, rad/s
-        with np.errstate(divide="ignore"):
-            quarter_s = np.where(lam11 > 0, 0.5 * math.pi / lam11, math.inf)
-        self._degenerate = quarter_s > DEGENERATE_RETURN_S
-        if self._degenerate.any():
-            names = ", ".join(la.name for la, d in zip(model.cfg.layers, self._degenerate) if d)
+        if model.degenerate_layers:  # the model releases them from rest itself
             self._event(
                 DEGENERATE_WAVE_SPEED,
-                f"degenerate wave speed: {names} take {quarter_s.max():.3g} s to return (c = "
-                f"{min(la.wave_speed_m_per_s for la in model.cfg.layers):.3g} m/s); released from rest",
+                f"degenerate wave speed: {', '.join(model.degenerate_layers)} take {model.slowest_return_s:.3g} s to "
+                f"return (c = {min(la.wave_speed_m_per_s for la in model.cfg.layers):.3g} m/s); released from rest",
             )
-        # ---
         cfg = model.cfg
         self._patch_free = (0.5 * (cfg.sheet_size_m[0] - cfg.patch_size_m[0]), 0.5 * (cfg.sheet_size_m[1] - cfg.patch_size_m[1]))
 
@@ -259,15 +251,9 @@ class HapticSession:
             self.last = replace(self.last, seq=self._seq, answered=False, events=self._event.take())
             return self.last
         self.velocity = ti.velocity
-        # degenerate-layer release, moving into SkinModel: the copies and the restart go, release and step stay
-        driven_before = model.driven.copy() if self._degenerate.any() else None
-        q_before = model.q.copy() if driven_before is not None else None
         if ti.release:
             model.release()
         force = model.step(ti.pos, ti.velocity, ti.dt_s)
-        if driven_before is not None:
-            self._release_degenerate_from_rest(driven_before, q_before)
-        # ---
         self._ticks += 1
         self._regime_events(ti.pos)
         check = self._state_finite if self._ticks % STATE_CHECK_TICKS == 0 else None
@@ -275,16 +261,6 @@ class HapticSession:
         if reset:
             model.reset()
         return self._result(ti.answered, ti.pos, ti.velocity, force, ti.stale)
-
-    def _release_degenerate_from_rest(self, driven_before, q_before) -> None:
-        """A degenerate layer released this tick restarts from its last driven shape at rest (eq 9's ``B* = 0``).
-
-        Part of the degenerate-layer release block of :meth:`tick` (it moves into :class:`SkinModel`).
-        """
-        m = self.model
-        released = np.flatnonzero(driven_before.astype(bool) & ~m.driven.astype(bool) & self._degenerate)
-        if released.size:
-            m.restart_from_rest(released, q_before)
 
     def _state_finite(self) -> bool:
         """Whether the model's energy (hence its whole state) is finite."""

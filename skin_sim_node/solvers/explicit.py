@@ -2,15 +2,15 @@
 
 Both are conditionally stable (:func:`.membrane.leapfrog_dt_limit_s`,
 :func:`.membrane.mass_spring_dt_limit_s`); their numba loops live in
-:mod:`skin_sim_node.model.kernels`.
+:mod:`.kernels`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..model import kernels as kn
 from .base import MembraneSolver
+from .kernels import leapfrog_membrane_steps, mass_spring_steps
 from .membrane import Membrane, stiffness_per_area, strain_energy_j
 
 
@@ -49,7 +49,7 @@ class LeapfrogSolver(MembraneSolver):
         dt = float(dt_s)
         self._prepare(dt, load)
         m = self.mem
-        kn.leapfrog_membrane_steps(
+        leapfrog_membrane_steps(
             self.u_m, self._u_prev, load, int(n_steps), dt, m.areal_density_kg_per_m2, m.tension_n_per_m,
             m.damping_n_s_per_m3, m.foundation_n_per_m3, self.dx_m, self.dy_m, self._tmp,
         )  # fmt: skip
@@ -90,7 +90,7 @@ class MassSpringSolver(MembraneSolver):
         load = self._load(load_pa)
         m, g = self.mem, self.grid
         area = g.dx_m * g.dy_m
-        kn.mass_spring_steps(
+        mass_spring_steps(
             self.u_m, self.v_m_s, load * area, int(n_steps), float(dt_s), m.areal_density_kg_per_m2 * area,
             m.tension_n_per_m * g.dy_m / g.dx_m, m.tension_n_per_m * g.dx_m / g.dy_m,
             m.foundation_n_per_m3 * area, m.damping_n_s_per_m3 * area, self.edge_damping_n_s_per_m, self._acc,

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..model.config import TissueConfig
+from ..model import TissueConfig
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 The grid state is projected on the continuum sine modes ``sin(m pi (x + a/2) / a) sin(n pi (y + b/2) / b)``
 by a DST-I (exact for the modes the grid carries), each mode is advanced by the closed-form damped
-propagator (:func:`skin_sim_node.model.kernels.modal_propagator`), and the field is synthesised
+propagator (:func:`skin_sim_node.model.modal_kernels.modal_propagator`), and the field is synthesised
 back. Exact in time for any ``dt``; with all ``nx x ny`` modes it is the exact solution of the
 same PDE for the grid's trigonometric interpolant, the reference for the release charts.
 """
@@ -14,7 +14,7 @@ import math
 import numpy as np
 from scipy.fft import dstn, idstn
 
-from ..model import kernels as kn
+from ..model.modal_kernels import modal_propagator
 from .base import MembraneSolver
 from .membrane import Membrane
 
@@ -51,7 +51,7 @@ class ModalSolver(MembraneSolver):
 
     def _advance_coeffs(self, dt: float, n_steps: int, load_pa) -> None:
         if self._prop_dt != dt:
-            kn.modal_propagator(self._lam, self._gamma, dt, self._prop)
+            modal_propagator(self._lam, self._gamma, dt, self._prop)
             self._prop_dt = dt
         shape = self._qu.shape
         p11, p12, p21, p22 = (self._prop[i, 0].reshape(shape) for i in range(4))

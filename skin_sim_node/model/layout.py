@@ -1,0 +1,348 @@
+"""The kernels' argument layout: what each slot of the grouped arrays holds, and their packing.
+
+A tick kernel takes a few arrays instead of some forty scalars and vectors (the numba dispatcher
+pays about 0.1 us per argument). Their row and slot indices are defined here once, as
+compile-time constants of the kernels; :func:`pack` builds every array for one
+:class:`~skin_sim_node.model.config.TissueConfig` and its :class:`~skin_sim_node.model.modal.ModalBasis`.
+Units are SI; depths and displacements are positive downward (into the tissue). ``L`` is the
+number of layers, ``K`` of modes in the basis, ``V`` of its levels, ``M`` the largest mode index.
+
+numba compiles these constants into every kernel that reads them, and its cache is checked against the
+kernel's own file only: after changing one here, clear the ``__pycache__`` folders of ``model/``.
+
+=========  ===================  ==================================================================
+array      shape                holds
+=========  ===================  ==================================================================
+``lp``     (LP_SIZE, L)         per-layer properties and the interfaces (``LP_*``)
+``sp``     (SP_SIZE,)           scalars of the tissue, the tool and the level of detail (``SP_*``)
+``bmodes`` (V + L, K)           rows [0, V): ``beta`` of each level; rows [V, V + L): ``lambda``
+``bvec``   (V + L,)             [0, V): truncation bound per level; [V, V + L): damping rate gamma
+``blev``   (2, V) int64         modes in each level's prefix, largest m or n of each level
+``bk``     (2, K) int64         ``mode_m``, ``mode_n`` (1-based)
+``mstate`` (6, L, K)            modal amplitudes q, velocities v, cached propagator P11, P12, P21, P22
+``lstate`` (LS_SIZE, L)         per-layer float state (``LS_*``)
+``istate`` (IS_SIZE, L) int64   per-layer int state (``IS_*``)
+``aux``    (AUX_SIZE, L + 1)    per-layer scratch of a tick (``AUX_*``)
+``sbuf``   (2, M + 1)           sine tables in x and y
+``out``    (OUT_SIZE,)          results of a tick (``OUT_*``), also the contact state the layered form carries
+=========  ===================  ==================================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import WALL_STRAIN, TissueConfig
+from .modal import ModalBasis
+
+FLAG_CONTACT = 1
+"""Step flag: the tool is in contact with the tissue."""
+FLAG_BOTTOMED = 2
+"""Step flag: the tool is below the tissue bottom (paper form: its depth is clamped there)."""
+FLAG_LAYER_BOUND = 4
+"""Step flag: a layer's compression left ``[0, thickness]`` (paper form) or passed the wall strain (layered form)."""
+FLAG_SEPARATED = 8
+"""Step flag: the tool retracted faster than the tissue follows; the unilateral contact is released."""
+FLAG_OFF_SHEET = 16
+"""Step flag: the tool tip is outside the sheet's x-y extent."""
+
+OUT_FORCE_N = 0
+OUT_STRESS_PA = 1
+OUT_DEPTH_M = 2
+OUT_N_AFFECTED = 3
+OUT_SURFACE_M = 4
+OUT_SETTLED = 5
+OUT_FX = 6
+OUT_FY = 7
+OUT_FZ = 8
+OUT_NX = 9
+OUT_NY = 10
+OUT_NZ = 11
+OUT_RADIUS_M = 12
+OUT_DFN_DX = 13
+OUT_DFN_DY = 14
+OUT_DFN_DZ = 15
+OUT_T = 16
+OUT_SIZE = 17
+"""Slots of ``out``, shape (OUT_SIZE,), float64: what a tick kernel writes.
+
+==================  ======  ===================================================================
+slot                unit    holds
+==================  ======  ===================================================================
+OUT_FORCE_N         N       normal reaction force magnitude (what ``SkinModel.step`` returns)
+OUT_STRESS_PA       Pa      Reuss stress (paper form, eq 6); normal force over the contact area (layered)
+OUT_DEPTH_M         m       tool depth of the force law (paper form: clamped at the bottom); 0 out of contact
+OUT_N_AFFECTED      -       layers engaged (Fig 3 in the paper form; all in the layered form), 0 out of contact
+OUT_SURFACE_M       m       surface displacement under the tool before this tick
+OUT_SETTLED         -       1.0: no layer driven and every layer's displacement bound below ``settle_tol``
+OUT_FX .. OUT_FZ    N       reaction force vector on the tool, tissue frame
+OUT_NX .. OUT_NZ    -       unit contact normal (``+z`` out of contact); the layered form keeps it over a contact
+OUT_RADIUS_M        m       contact radius, 0 out of contact
+OUT_DFN_DX .. _DZ   N/m     gradient of the normal force magnitude w.r.t. the tool position (layered form)
+OUT_T               N       layered form: chain force per unit load scale, the Newton warm start of the next tick
+==================  ======  ===================================================================
+"""
+
+LP_K = 0
+LP_B = 1
+LP_AREA = 2
+LP_EA = 3
+LP_N = 4
+LP_IF_MEAN = 5
+LP_IF_AMP = 6
+LP_IF_KX = 7
+LP_IF_KY = 8
+LP_SIZE = 9
+"""Rows of ``lp``, shape (LP_SIZE, L), float64: per-layer properties; the ``LP_IF_*`` rows hold interface ``j``
+(the top of layer ``j + 1``, section II.C) in column ``j``, and column ``L - 1`` is unused there.
+
+============  ======  =====================================================================
+row           unit    holds
+============  ======  =====================================================================
+LP_K          N/m     Kelvin-Voigt spring ``k`` (eq 6)
+LP_B          N s/m   Kelvin-Voigt damper ``b`` (eq 6)
+LP_AREA       m^2     loaded area ``A`` (eq 6, paper form)
+LP_EA         N       ``k`` times the layer's mean thickness: its modulus times the tool area (layered form)
+LP_N          -       stiffening exponent ``n`` of the compression law (layered form)
+LP_IF_MEAN    m       interface mean depth ``D_j``
+LP_IF_AMP     m       interface egg-carton amplitude ``A_j``
+LP_IF_KX      1/m     ``2 pi / wavelength_x`` of the interface
+LP_IF_KY      1/m     ``2 pi / wavelength_y`` of the interface
+============  ======  =====================================================================
+"""
+
+SP_BOTTOM = 0
+SP_HALF_X = 1
+SP_HALF_Y = 2
+SP_PATCH_A = 3
+SP_PATCH_B = 4
+SP_MODE_TOL = 5
+SP_SETTLE_TOL = 6
+SP_SKIP_SETTLED = 7
+SP_TOOL_R = 8
+SP_SPHERE = 9
+SP_MU = 10
+SP_V_SLIP = 11
+SP_WALL = 12
+SP_SIZE = 13
+"""Slots of ``sp``, shape (SP_SIZE,), float64: scalars of the tissue, the tool and the level of detail.
+
+===============  ======  ==================================================================
+slot             unit    holds
+===============  ======  ==================================================================
+SP_BOTTOM        m       depth of the tissue bottom (the sum of the layer thicknesses)
+SP_HALF_X        m       half the sheet's extent in x
+SP_HALF_Y        m       half the sheet's extent in y
+SP_PATCH_A       m       modal patch side ``a`` in x (eq 2)
+SP_PATCH_B       m       modal patch side ``b`` in y
+SP_MODE_TOL      m       ``lod.tolerance_m``: truncation allowed when choosing or shedding modes
+SP_SETTLE_TOL    m       displacement bound below which a free layer is settled; 0: not tracked
+SP_SKIP_SETTLED  -       1.0: settled layers are set to rest and skipped (``lod.affected_layers``)
+SP_TOOL_R        m       tool radius: flat punch radius or sphere radius
+SP_SPHERE        -       1.0: spherical tip, 0.0: flat punch
+SP_MU            -       Coulomb friction coefficient
+SP_V_SLIP        m/s     viscous regularisation speed of the friction
+SP_WALL          -       strain beyond which the compression law continues along its tangent (the wall)
+===============  ======  ==================================================================
+"""
+
+LS_COMP = 0
+LS_DROPPED = 1
+LS_AMP = 2
+LS_PROP_DT = 3
+LS_CX = 4
+LS_CY = 5
+LS_SIZE = 6
+"""Rows of ``lstate``, shape (LS_SIZE, L), float64: per-layer float state carried between ticks.
+
+===========  ======  ========================================================================
+row          unit    holds
+===========  ======  ========================================================================
+LS_COMP      m       compression of the layer under the tool (0 when free)
+LS_DROPPED   m       displacement bound shed with outer modes since the layer was last driven
+LS_AMP       m       bound on a free layer's future displacement; inf while driven
+LS_PROP_DT   s       ``dt`` of the cached propagator (NaN: none yet)
+LS_CX        m       patch centre x (where the layer was last driven)
+LS_CY        m       patch centre y
+===========  ======  ========================================================================
+"""
+
+IS_DRIVEN = 0
+IS_LEVEL = 1
+IS_ACTIVE = 2
+IS_PROP_K = 3
+IS_SIZE = 4
+"""Rows of ``istate``, shape (IS_SIZE, L), int64: per-layer integer state carried between ticks.
+
+==========  =====================================================================================
+row         holds
+==========  =====================================================================================
+IS_DRIVEN   1: the layer is driven by the tool this tick (quasi-static, eq 3); 0: it relaxes freely
+IS_LEVEL    index into the basis levels: the layer uses the first ``blev[0, level]`` modes
+IS_ACTIVE   1: the layer is evolved; 0: at rest and skipped (``lod.affected_layers``)
+IS_PROP_K   modes the cached propagator covers
+==========  =====================================================================================
+"""
+
+AUX_BOUNDS = 0
+AUX_THICK = 1
+AUX_SPLIT = 2
+AUX_C_OLD = 3
+AUX_C = 4
+AUX_G = 5
+AUX_DBX = 6
+AUX_DBY = 7
+AUX_DBD = 8
+AUX_SIZE = 9
+"""Rows of ``aux``, shape (AUX_SIZE, L + 1), float64: scratch of one tick (only ``AUX_BOUNDS`` uses column L).
+
+==========  =====  ===========================================================================
+row         unit   holds
+==========  =====  ===========================================================================
+AUX_BOUNDS  m      depths of the layer tops under the tool, then the bottom (L + 1 values)
+AUX_THICK   m      layer thicknesses under the tool
+AUX_SPLIT   m      Reuss compressions (paper form, eq 6)
+AUX_C_OLD   m      chain compressions at the previous tick (layered form)
+AUX_C       m      chain compressions now (layered form)
+AUX_G       N/m    slope ``dT/dc_i`` of each layer's backward-Euler residual (layered form)
+AUX_DBX     -      d(interface depth)/dx of the disk-averaged interfaces (layered form)
+AUX_DBY     -      d(interface depth)/dy
+AUX_DBD     -      d(interface depth)/d(tool depth) through the contact radius (sphere)
+==========  =====  ===========================================================================
+"""
+
+
+def settle_tolerance_m(cfg: TissueConfig) -> float:
+    """``SP_SETTLE_TOL``: ``lod.tolerance_m`` when a lever needs the settled state (affected layers, idle), else 0."""
+    lod = cfg.lod
+    return lod.tolerance_m if (lod.affected_layers or lod.idle) else 0.0
+
+
+def pack_layers(cfg: TissueConfig) -> np.ndarray:
+    """``lp`` (see :data:`LP_SIZE`) of ``cfg``."""
+    layers = cfg.layers
+    lp = np.zeros((LP_SIZE, len(layers)))
+    lp[LP_K] = [la.stiffness_n_per_m for la in layers]
+    lp[LP_B] = [la.damping_n_s_per_m for la in layers]
+    lp[LP_AREA] = [la.area_m2 for la in layers]
+    lp[LP_EA] = [la.stiffness_n_per_m * la.thickness_m for la in layers]
+    lp[LP_N] = [la.stiffening for la in layers]
+    n_i = len(cfg.interfaces)
+    lp[LP_IF_MEAN, :n_i] = [i.mean_depth_m for i in cfg.interfaces]
+    lp[LP_IF_AMP, :n_i] = [i.amplitude_m for i in cfg.interfaces]
+    lp[LP_IF_KX, :n_i] = [2 * math.pi / i.wavelength_x_m for i in cfg.interfaces]
+    lp[LP_IF_KY, :n_i] = [2 * math.pi / i.wavelength_y_m for i in cfg.interfaces]
+    return lp
+
+
+def pack_scalars(cfg: TissueConfig) -> np.ndarray:
+    """``sp`` (see :data:`SP_SIZE`) of ``cfg``."""
+    sp = np.zeros(SP_SIZE)
+    sx, sy = cfg.sheet_size_m
+    sp[SP_BOTTOM] = cfg.total_thickness_m
+    sp[SP_HALF_X], sp[SP_HALF_Y] = 0.5 * sx, 0.5 * sy
+    sp[SP_PATCH_A], sp[SP_PATCH_B] = cfg.patch_size_m
+    sp[SP_MODE_TOL] = cfg.lod.tolerance_m
+    sp[SP_SETTLE_TOL] = settle_tolerance_m(cfg)
+    sp[SP_SKIP_SETTLED] = 1.0 if cfg.lod.affected_layers else 0.0
+    sp[SP_TOOL_R] = cfg.tool_radius_m
+    sp[SP_SPHERE] = 1.0 if cfg.tool_shape == "sphere" else 0.0
+    sp[SP_MU] = cfg.friction_coefficient
+    sp[SP_V_SLIP] = cfg.slip_speed_m_s
+    sp[SP_WALL] = WALL_STRAIN
+    return sp
+
+
+@dataclass(frozen=True)
+class KernelArrays:
+    """Every array a tick kernel takes, for one configuration (module docstring for shapes and contents).
+
+    The state arrays (``mstate``, ``lstate``, ``istate``, ``out``) are the model's state; :class:`SkinModel`
+    keeps named views of their rows. :attr:`args` is the tail of a tick kernel's arguments, in order.
+    """
+
+    lp: np.ndarray
+    sp: np.ndarray
+    bmodes: np.ndarray
+    bvec: np.ndarray
+    blev: np.ndarray
+    bk: np.ndarray
+    mstate: np.ndarray
+    lstate: np.ndarray
+    istate: np.ndarray
+    aux: np.ndarray
+    sbuf: np.ndarray
+    out: np.ndarray
+
+    @property
+    def args(self) -> tuple:
+        """``(lp, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, aux, sbuf, out)``."""
+        return (
+            self.lp,
+            self.sp,
+            self.bmodes,
+            self.bvec,
+            self.blev,
+            self.bk,
+            self.mstate,
+            self.lstate,
+            self.istate,
+            self.aux,
+            self.sbuf,
+            self.out,
+        )
+
+
+class Form:
+    """A tissue form bound to one model's kernel arrays: :class:`SkinModel` chooses its form once, at construction.
+
+    Subclasses (:class:`~.paper.PaperForm`, :class:`~.layered.LayeredForm`) give :meth:`tick` and :meth:`tangent`.
+
+    Parameters
+    ----------
+    arrays : KernelArrays
+        The model's arrays (:func:`pack`).
+    cfg : TissueConfig
+        Its configuration.
+    """
+
+    name = ""
+
+    def __init__(self, arrays: KernelArrays, cfg: TissueConfig):
+        self._args = arrays.args
+        self._out = arrays.out
+
+    def tick(self, x, y, z, vx, vy, vz, dt) -> int:
+        """The form's tick kernel at the tool position ``(x, y, z)`` (m) and velocity (m/s); returns the flags."""
+        raise NotImplementedError
+
+    def tangent(self, flags: int):
+        """The :class:`~.contact.ContactTangent` of the last tick (``flags``: its flags)."""
+        raise NotImplementedError
+
+
+def pack(cfg: TissueConfig, basis: ModalBasis) -> KernelArrays:
+    """The kernel arrays of ``cfg`` with its modal ``basis``; the state is zero (no cached propagator)."""
+    n_l = len(cfg.layers)
+    nv = basis.level_modes.size
+    bmodes = np.ascontiguousarray(np.vstack([basis.beta_table, basis.lam]))
+    assert bmodes.shape[0] == nv + n_l
+    lstate = np.zeros((LS_SIZE, n_l))
+    lstate[LS_PROP_DT] = np.nan
+    return KernelArrays(
+        lp=pack_layers(cfg),
+        sp=pack_scalars(cfg),
+        bmodes=bmodes,
+        bvec=np.concatenate([basis.trunc_err, basis.gamma]),
+        blev=np.ascontiguousarray(np.vstack([basis.k_prefix, basis.m_lim]).astype(np.int64)),
+        bk=np.ascontiguousarray(np.vstack([basis.mode_m, basis.mode_n]).astype(np.int64)),
+        mstate=np.zeros((6, n_l, basis.n_modes)),
+        lstate=lstate,
+        istate=np.zeros((IS_SIZE, n_l), dtype=np.int64),
+        aux=np.zeros((AUX_SIZE, n_l + 1)),
+        sbuf=np.zeros((2, int(basis.m_lim.max()) + 1)),
+        out=np.zeros(OUT_SIZE),
+    )

@@ -1,0 +1,478 @@
+"""The modal kernels both tissue forms share: each layer's membrane as a modal series (eqs 1-3, 9).
+
+A layer's displacement is ``u(x, y, t) = sum_k q_k(t) sin(m_k pi xi / a) sin(n_k pi eta / b)`` on its
+patch (eq 2); a driven layer takes the indentation shape (eq 3, ``q = c beta``), a free one returns
+by the exact damped propagator of each mode (eq 2 with damping; eq 9 is its one-mode example).
+Also the opening of a haptic tick, which both forms' tick kernels share (:func:`begin_tick`).
+
+Kernel style as emg3d's ``core.py``: ``@njit(cache=True, nogil=True)``, plain arrays and scalars,
+outputs preallocated by the caller, so a haptic tick allocates nothing. Each kernel is tested compiled
+and as ``.py_func`` against :mod:`skin_sim_node.model.reference`. The grouped arrays (``sp``,
+``bmodes``, ``mstate``, ...) are described in :mod:`.layout`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from .layout import (
+    FLAG_OFF_SHEET,
+    IS_ACTIVE,
+    IS_DRIVEN,
+    IS_LEVEL,
+    IS_PROP_K,
+    LS_AMP,
+    LS_COMP,
+    LS_CX,
+    LS_CY,
+    LS_DROPPED,
+    LS_PROP_DT,
+    OUT_DEPTH_M,
+    OUT_FORCE_N,
+    OUT_FX,
+    OUT_FY,
+    OUT_FZ,
+    OUT_N_AFFECTED,
+    OUT_NX,
+    OUT_NY,
+    OUT_NZ,
+    OUT_RADIUS_M,
+    OUT_SETTLED,
+    OUT_STRESS_PA,
+    OUT_SURFACE_M,
+    SP_HALF_X,
+    SP_HALF_Y,
+    SP_MODE_TOL,
+    SP_PATCH_A,
+    SP_PATCH_B,
+    SP_SETTLE_TOL,
+    SP_SKIP_SETTLED,
+)
+
+
+@njit(cache=True, nogil=True)
+def modal_propagator(lam, gamma, dt, out_prop):
+    """Exact one-step transition of ``q'' + 2 gamma q' + lam^2 q = 0`` for every mode (eq 2, damped).
+
+    Parameters
+    ----------
+    lam : ndarray, shape (L, K)
+        Modal angular frequencies ``lambda_mn`` (rad/s, eq 3).
+    gamma : ndarray, shape (L,)
+        Modal damping rate of each layer (1/s).
+    dt : float
+        Step (s), any ``dt >= 0``: closed form for under-, critically and over-damped modes.
+    out_prop : ndarray, shape (4, L, K)
+        Written: P11, P12, P21, P22 with ``q1 = P11 q0 + P12 v0``, ``v1 = P21 q0 + P22 v0``.
+    """
+    for li in range(lam.shape[0]):
+        layer_propagator(lam, gamma, dt, li, lam.shape[1], out_prop)
+
+
+@njit(cache=True, nogil=True)
+def layer_propagator(lam, gamma, dt, li, n_modes, out_prop):
+    """:func:`modal_propagator` for layer ``li`` and its first ``n_modes`` modes only (eq 2, damped).
+
+    Parameters
+    ----------
+    lam, gamma, dt, out_prop
+        As :func:`modal_propagator`; only ``out_prop[:, li, :n_modes]`` is written.
+    li : int
+        Layer.
+    n_modes : int
+        Modes to propagate (a level's prefix).
+    """
+    g = gamma[li]
+    for kk in range(n_modes):
+        w2 = lam[li, kk] ** 2
+        disc = w2 - g * g
+        if disc > 0.0:
+            w = math.sqrt(disc)
+            e = math.exp(-g * dt)
+            ec = e * math.cos(w * dt)
+            es = e * (math.sin(w * dt) / w)
+        else:
+            s = math.sqrt(-disc)
+            e1 = math.exp(-(g - s) * dt)
+            e2 = math.exp(-(g + s) * dt)
+            ec = 0.5 * (e1 + e2)
+            es = 0.5 * (e1 - e2) / s if s * dt > 1e-8 else dt * math.exp(-g * dt)
+        out_prop[0, li, kk] = ec + g * es
+        out_prop[1, li, kk] = es
+        out_prop[2, li, kk] = -w2 * es
+        out_prop[3, li, kk] = ec - g * es
+
+
+@njit(cache=True, nogil=True)
+def sine_table(theta, n_max, out):
+    """``out[j] = sin(j theta)`` for ``j = 0..n_max`` by the Chebyshev recurrence (the sines of eq 2).
+
+    Parameters
+    ----------
+    theta : float
+        Angle (rad): ``pi xi / a`` for the x sines of eq 2.
+    n_max : int
+        Largest multiple.
+    out : ndarray, shape (>= n_max + 1,)
+        Written.
+    """
+    out[0] = 0.0
+    if n_max >= 1:
+        out[1] = math.sin(theta)
+    two_c = 2.0 * math.cos(theta)
+    for j in range(2, n_max + 1):
+        out[j] = two_c * out[j - 1] - out[j - 2]
+
+
+@njit(cache=True, nogil=True)
+def layer_point_displacement(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y, sx_buf, sy_buf):
+    """One layer's downward displacement (m) at ``(x, y)``: eq 2 summed over its modes.
+
+    Parameters
+    ----------
+    q_l : ndarray, shape (K,)
+        The layer's modal amplitudes (m).
+    cx, cy : float
+        Patch centre (m); the patch is ``[cx - a/2, cx + a/2] x [cy - b/2, cy + b/2]``.
+    mode_m, mode_n : ndarray of int64, shape (K,)
+        1-based mode indices.
+    patch_a, patch_b : float
+        Patch sides (m).
+    x, y : float
+        Point (m).
+    sx_buf, sy_buf : ndarray, shape (M + 1,)
+        Scratch for the sine tables.
+
+    Returns
+    -------
+    float
+        The displacement (m, down); 0 outside the patch.
+    """
+    xi = x - cx + 0.5 * patch_a
+    eta = y - cy + 0.5 * patch_b
+    if xi <= 0.0 or xi >= patch_a or eta <= 0.0 or eta >= patch_b:
+        return 0.0
+    sine_table(math.pi * xi / patch_a, sx_buf.shape[0] - 1, sx_buf)
+    sine_table(math.pi * eta / patch_b, sy_buf.shape[0] - 1, sy_buf)
+    u = 0.0
+    for kk in range(q_l.shape[0]):
+        u += q_l[kk] * sx_buf[mode_m[kk]] * sy_buf[mode_n[kk]]
+    return u
+
+
+@njit(cache=True, nogil=True)
+def prepare_propagators(bmodes, bvec, blev, dt, mstate, lstate, istate):
+    """Every layer's propagator (eq 2, damped) for ``dt`` at its current level, into ``mstate[2:6]``.
+
+    Cached: a layer whose ``LS_PROP_DT`` is ``dt`` and whose ``IS_PROP_K`` covers its level is skipped.
+
+    Parameters
+    ----------
+    bmodes, bvec, blev : ndarray
+        The modal basis (:mod:`.layout`).
+    dt : float
+        Step (s).
+    mstate, lstate, istate : ndarray
+        The state; the propagator rows and the cache slots are written.
+    """
+    nv = blev.shape[1]
+    for li in range(istate.shape[1]):
+        nk = blev[0, istate[IS_LEVEL, li]]
+        if lstate[LS_PROP_DT, li] != dt or istate[IS_PROP_K, li] < nk:
+            layer_propagator(bmodes[nv:], bvec[nv:], dt, li, nk, mstate[2:6])
+            lstate[LS_PROP_DT, li] = dt
+            istate[IS_PROP_K, li] = nk
+
+
+@njit(cache=True, nogil=True)
+def layer_at(li, x, y, sp, blev, bk, mstate, lstate, istate, sbuf):
+    """Layer ``li``'s downward displacement (m) at ``(x, y)`` at its current level (eq 2).
+
+    Parameters
+    ----------
+    li : int
+        Layer.
+    x, y : float
+        Point (m).
+    sp, blev, bk, mstate, lstate, istate, sbuf : ndarray
+        The grouped arrays (:mod:`.layout`); ``sbuf`` is scratch.
+
+    Returns
+    -------
+    float
+        :func:`layer_point_displacement` with the layer's modes, amplitudes and patch.
+    """
+    lv = istate[IS_LEVEL, li]
+    nk = blev[0, lv]
+    ml = blev[1, lv] + 1
+    return layer_point_displacement(
+        mstate[0, li, :nk],
+        lstate[LS_CX, li],
+        lstate[LS_CY, li],
+        bk[0, :nk],
+        bk[1, :nk],
+        sp[SP_PATCH_A],
+        sp[SP_PATCH_B],
+        x,
+        y,
+        sbuf[0, :ml],
+        sbuf[1, :ml],
+    )
+
+
+@njit(cache=True, nogil=True)
+def surface_at(x, y, sp, blev, bk, mstate, lstate, istate, sbuf):
+    """Downward surface displacement (m) at ``(x, y)``: eq 2 summed over the active layers (section II.D.4, step 6).
+
+    Parameters
+    ----------
+    x, y : float
+        Point (m).
+    sp, blev, bk, mstate, lstate, istate, sbuf : ndarray
+        As :func:`layer_at`.
+
+    Returns
+    -------
+    float
+        The sum of the active layers' displacements (m, down).
+    """
+    surface = 0.0
+    for li in range(istate.shape[1]):
+        if istate[IS_ACTIVE, li]:
+            surface += layer_at(li, x, y, sp, blev, bk, mstate, lstate, istate, sbuf)
+    return surface
+
+
+@njit(cache=True, nogil=True)
+def begin_tick(tool_x, tool_y, tool_z, dt, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf):
+    """The opening both tick kernels share (section II.D.4, steps 1-2): propagators, surface and contact test.
+
+    Without ``lod.affected_layers`` every layer's propagator is prepared for ``dt``, driven or not.
+    Contact is unilateral and tested against the current deformed surface: the tool touches when it is
+    on the sheet, below the rest surface and either was in contact (a layer is driven) or reaches the
+    surface displacement under it.
+
+    Parameters
+    ----------
+    tool_x, tool_y, tool_z : float
+        Tool tip (m, tissue frame, z up).
+    dt : float
+        Step (s).
+    sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf : ndarray
+        The grouped arrays (:mod:`.layout`).
+
+    Returns
+    -------
+    flags : int
+        ``FLAG_OFF_SHEET`` when the tool is off the sheet, else 0.
+    was_contact : bool
+        A layer was driven (the previous tick ended in contact).
+    surface : float
+        Surface displacement under the tool before this tick (m, down).
+    touching : bool
+        The tool touches the tissue.
+    """
+    flags = 0
+    if not sp[SP_SKIP_SETTLED] > 0.0:  # every layer's propagator, driven or not, as without the lever
+        prepare_propagators(bmodes, bvec, blev, dt, mstate, lstate, istate)
+    was_contact = False
+    for li in range(istate.shape[1]):
+        if istate[IS_DRIVEN, li]:
+            was_contact = True
+    surface = surface_at(tool_x, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
+    on_sheet = abs(tool_x) <= sp[SP_HALF_X] and abs(tool_y) <= sp[SP_HALF_Y]
+    if not on_sheet:
+        flags |= FLAG_OFF_SHEET
+    depth = -tool_z
+    touching = on_sheet and depth > 0.0 and (was_contact or depth >= surface)
+    return flags, was_contact, surface, touching
+
+
+@njit(cache=True, nogil=True)
+def end_tick(force_n, stress_pa, depth_m, n_affected, surface_m, fx, fy, fz, nx, ny, nz, radius_m, sp, lstate, istate, out):
+    """The results both tick kernels write (section II.D.4, step 5), and the settled flag of the new state.
+
+    Parameters
+    ----------
+    force_n, stress_pa, depth_m, n_affected, surface_m : float
+        ``OUT_FORCE_N`` .. ``OUT_SURFACE_M`` (:mod:`.layout`).
+    fx, fy, fz, nx, ny, nz : float
+        The force vector (N) and the unit contact normal.
+    radius_m : float
+        Contact radius (m).
+    sp, lstate, istate : ndarray
+        The grouped arrays, for :func:`settled_flag`.
+    out : ndarray, shape (OUT_SIZE,)
+        Written: the slots above and ``OUT_SETTLED``.
+    """
+    out[OUT_FORCE_N] = force_n
+    out[OUT_STRESS_PA] = stress_pa
+    out[OUT_DEPTH_M] = depth_m
+    out[OUT_N_AFFECTED] = n_affected
+    out[OUT_SURFACE_M] = surface_m
+    out[OUT_SETTLED] = settled_flag(sp, lstate, istate)
+    out[OUT_FX] = fx
+    out[OUT_FY] = fy
+    out[OUT_FZ] = fz
+    out[OUT_NX] = nx
+    out[OUT_NY] = ny
+    out[OUT_NZ] = nz
+    out[OUT_RADIUS_M] = radius_m
+
+
+@njit(cache=True, nogil=True)
+def drive_layer(li, comp_m, rate_m_s, x, y, sp, bmodes, bvec, blev, mstate, lstate, istate):
+    """Drive layer ``li`` quasi-statically, centred on the tool: ``q = dx_l beta``, ``v = dxdot_l beta`` (eq 3).
+
+    With several levels (adaptive modes) the layer takes the smallest level whose truncation
+    bound ``|dx_l| trunc_err`` is within ``sp[SP_MODE_TOL]``.
+
+    Parameters
+    ----------
+    li : int
+        Layer.
+    comp_m : float
+        Its compression ``dx_l`` (m): ``B_mn = dx_l beta_mn``.
+    rate_m_s : float
+        Its compression rate (m/s): ``B*_mn lambda_mn = dxdot_l beta_mn``.
+    x, y : float
+        Tool position (m): the new patch centre.
+    sp, bmodes, bvec, blev, mstate, lstate, istate : ndarray
+        The grouped arrays (:mod:`.layout`); the layer's state is written.
+    """
+    n_levels = blev.shape[1]
+    lv = 0
+    if n_levels > 1:
+        lv = n_levels - 1
+        for i in range(n_levels):
+            if abs(comp_m) * bvec[i] <= sp[SP_MODE_TOL]:
+                lv = i
+                break
+    nk = blev[0, lv]
+    for kk in range(nk):
+        mstate[0, li, kk] = comp_m * bmodes[lv, kk]
+        mstate[1, li, kk] = rate_m_s * bmodes[lv, kk]
+    for kk in range(nk, blev[0, istate[IS_LEVEL, li]]):  # fewer modes than last tick
+        mstate[0, li, kk] = 0.0
+        mstate[1, li, kk] = 0.0
+    lstate[LS_COMP, li] = comp_m
+    istate[IS_LEVEL, li] = lv
+    lstate[LS_DROPPED, li] = 0.0
+    lstate[LS_CX, li] = x
+    lstate[LS_CY, li] = y
+    istate[IS_DRIVEN, li] = 1
+    istate[IS_ACTIVE, li] = 1
+    lstate[LS_AMP, li] = math.inf
+
+
+@njit(cache=True, nogil=True)
+def relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate):
+    """Advance a free layer by the exact damped modal propagator: release and return (eq 2, eq 9).
+
+    Keeps the displacement bound ``amp[l] = sum_k sqrt(q_k^2 + (v_k/lam_k)^2)`` when
+    ``settle_tol > 0``; sheds the outermost shell of modes once its bound, added to what the layer
+    already shed since it was last driven, is within the mode tolerance; with ``skip_settled`` a
+    layer below ``settle_tol`` is set to rest (``active = 0``).
+
+    Parameters
+    ----------
+    li : int
+        Layer.
+    dt : float
+        Step (s); the propagator in ``mstate[2:6]`` is for this ``dt`` (prepared here with ``skip_settled``).
+    sp, bmodes, bvec, blev, mstate, lstate, istate : ndarray
+        The grouped arrays (:mod:`.layout`); the layer's state is written.
+    """
+    nv = blev.shape[1]
+    lam = bmodes[nv:]
+    settle_tol = sp[SP_SETTLE_TOL]
+    skip_settled = sp[SP_SKIP_SETTLED] > 0.0
+    q = mstate[0]
+    v = mstate[1]
+    istate[IS_DRIVEN, li] = 0
+    if not istate[IS_ACTIVE, li]:
+        return
+    nk = blev[0, istate[IS_LEVEL, li]]
+    if skip_settled and (lstate[LS_PROP_DT, li] != dt or istate[IS_PROP_K, li] < nk):
+        layer_propagator(lam, bvec[nv:], dt, li, nk, mstate[2:6])
+        lstate[LS_PROP_DT, li] = dt
+        istate[IS_PROP_K, li] = nk
+    bound = 0.0
+    for kk in range(nk):
+        q0 = q[li, kk]
+        v0 = v[li, kk]
+        q1 = mstate[2, li, kk] * q0 + mstate[3, li, kk] * v0
+        v1 = mstate[4, li, kk] * q0 + mstate[5, li, kk] * v0
+        q[li, kk] = q1
+        v[li, kk] = v1
+        if settle_tol > 0.0:
+            r = v1 / lam[li, kk]
+            bound += math.sqrt(q1 * q1 + r * r)
+    lstate[LS_AMP, li] = bound if settle_tol > 0.0 else math.inf
+    lv = istate[IS_LEVEL, li]
+    if nv > 1 and lv > 0:  # shed the outer shell once it is negligible
+        k0 = blev[0, lv - 1]
+        tail = 0.0
+        for kk in range(k0, nk):
+            r = v[li, kk] / lam[li, kk]
+            tail += math.sqrt(q[li, kk] * q[li, kk] + r * r)
+        if lstate[LS_DROPPED, li] + tail <= sp[SP_MODE_TOL]:
+            for kk in range(k0, nk):
+                q[li, kk] = 0.0
+                v[li, kk] = 0.0
+            istate[IS_LEVEL, li] = lv - 1
+            lstate[LS_DROPPED, li] += tail
+    if skip_settled and bound < settle_tol:
+        for kk in range(nk):
+            q[li, kk] = 0.0
+            v[li, kk] = 0.0
+        istate[IS_ACTIVE, li] = 0
+        lstate[LS_AMP, li] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def settled_flag(sp, lstate, istate):
+    """1.0 when no layer is driven and every layer's displacement bound (from eq 2) is below ``settle_tol``.
+
+    Parameters
+    ----------
+    sp, lstate, istate : ndarray
+        The grouped arrays (:mod:`.layout`).
+
+    Returns
+    -------
+    float
+        1.0 or 0.0 (always 0.0 when ``settle_tol`` is 0: not tracked).
+    """
+    settle_tol = sp[SP_SETTLE_TOL]
+    if settle_tol <= 0.0:
+        return 0.0
+    for li in range(istate.shape[1]):
+        if istate[IS_DRIVEN, li] or not lstate[LS_AMP, li] < settle_tol:
+            return 0.0
+    return 1.0
+
+
+@njit(cache=True, nogil=True)
+def modal_energy(q, v, lam):
+    """Modal energy per unit modal mass, summed over layers and modes (eq 2): ``sum(v^2 + lam^2 q^2) / 2``.
+
+    Parameters
+    ----------
+    q, v : ndarray, shape (L, K)
+        Modal amplitudes (m) and velocities (m/s).
+    lam : ndarray, shape (L, K)
+        Modal angular frequencies (rad/s).
+
+    Returns
+    -------
+    float
+        The energy (m^2/s^2).
+    """
+    total = 0.0
+    for li in range(q.shape[0]):
+        for kk in range(q.shape[1]):
+            total += 0.5 * (v[li, kk] ** 2 + (lam[li, kk] * q[li, kk]) ** 2)
+    return total
