@@ -29,6 +29,14 @@ TOUCH_MAX_STIFFNESS_N_PER_M = 1020.0
 """Largest stiffness rendered on a Touch (N/m): the spec sheet's lowest axis figure (3D Systems Touch:
 stiffness X > 1.26 N/mm, Y > 2.31 N/mm, Z > 1.02 N/mm), so the cap holds in every direction."""
 
+TOUCH_MAX_DAMPING_N_S_PER_M = 5.0
+"""Largest damping rendered on a Touch (N s/m, spectral norm, so in every direction). The 3D Systems spec sheet
+gives no damping figure; this is the largest damping jhu-saw sawSensablePhantom runs on the device: its position
+servo's ``servo_cp_d_gain`` is 3 N s/m by default and 5 N s/m in ``share/sawSensablePhantomDefault.json``
+(``core/components/code/mtsSensableHD.cpp``), and its ``ros/scripts/cartesian_impedance.py`` example renders
+5 N s/m beside 200 N/m. Check: a sampled damper acting two 1 ms ticks late on the 45 g stylus
+(:data:`skin_sim_node.device.render.PASSIVITY_DELAY_TICKS`) is stable below ``m / (3 dt)`` = 15 N s/m, 3x above."""
+
 DEFAULT_OFFSET_M: Vec3 = (0.0, 0.0, 0.05)
 """Tissue-frame position of the device origin (m). Matches :mod:`skin_sim_node.device.stylus`,
 whose origin sits 50 mm above the rest surface: about a Touch's usable workspace half-height
