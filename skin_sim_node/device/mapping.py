@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from dataclasses import dataclass
 
 Vec3 = tuple[float, float, float]
@@ -220,6 +221,7 @@ def clamp_magnitude(f, max_n: float) -> Vec3:
 DEFAULTS = {
     "convention": "crtk",
     "device_ns": "device",
+    "node_ns": "",  # namespace of the node's topics (tool/pose, tool/contact_model, ...); '': the process's
     "offset_m": list(DEFAULT_OFFSET_M),
     "scale": 1.0,
     "axes": "xyz",  # the simulated device's axes; a real Touch in its base frame: "x-zy"
@@ -237,6 +239,46 @@ CONVENTIONS = {
     "crtk": ("crtk_measured_cp", "crtk_measured_cv", "crtk_servo_cf"),
     "omni": ("omni_pose", None, "omni_force"),
 }
+
+
+_NS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_NS_REMAP = re.compile(r"^([A-Za-z0-9_/]*:)?__ns:=")
+
+
+def normalize_namespace(ns: str) -> str:
+    """A ROS namespace as given on the command line -> absolute (``skin1`` -> ``/skin1``); ``''`` stays ``''``.
+
+    Raises
+    ------
+    ValueError
+        One line naming the token that is not a ROS name (letters, digits, ``_``; not starting with a digit).
+    """
+    text = ns.strip()
+    if text in ("", "/"):
+        return ""
+    tokens = text.strip("/").split("/")
+    for tok in tokens:
+        if not _NS_TOKEN.fullmatch(tok):
+            raise ValueError(f"namespace {ns!r}: {tok!r} is not a ROS name (letters, digits and '_', not starting with a digit)")
+    return "/" + "/".join(tokens)
+
+
+def without_namespace_remap(ros_args: list[str]) -> list[str]:
+    """``ros_args`` without its ``-r __ns:=...`` / ``--remap node:__ns:=...`` remaps (the rest kept in order).
+
+    The bridge's node-side participant takes its namespace from ``node_ns`` when that is given, so a process-wide
+    ``__ns`` remap (which moves the device topics too) must not override it there.
+    """
+    out: list[str] = []
+    i = 0
+    while i < len(ros_args):
+        a = ros_args[i]
+        if a in ("-r", "--remap") and i + 1 < len(ros_args) and _NS_REMAP.match(ros_args[i + 1]):
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
 
 
 def parse_vec3(text: str) -> list[float]:
