@@ -206,7 +206,8 @@ class ContactRenderer:
         self._last_x: np.ndarray | None = None
         self._last_v: np.ndarray | None = None
         self._last_t: float | None = None  # stamp of the last tick with a finite pose (passivity's dt)
-        self._s_last: float | None = None  # device time of the last tick: the largest stamp seen (s)
+        self._stamp_last: float | None = None  # the last tick's stamp (s)
+        self._s_last: float | None = None  # device time at the last tick: the stamps' forward steps summed (s)
         self._d_last: float | None = None  # the smooth clock of the crossfade and fade at the last tick (s)
         self._sent: deque = deque(
             [(np.zeros(3), np.zeros(3))] * max(int(passivity_delay_ticks), 1), maxlen=max(int(passivity_delay_ticks), 1)
@@ -215,11 +216,13 @@ class ContactRenderer:
         self.outside_reason: str | None = None  # why the last tick had no valid model: "ttl", "radius" or None
 
     # --- the device clock -------------------------------------------------------------------
-    def _smooth(self, now_s: float) -> float:
-        """The smooth clock at stamp ``now_s``: the last tick's plus the stamp step, clamped to [0, max_tick_s]."""
-        if self._s_last is None:
-            return now_s
-        return self._d_last + min(max(now_s - self._s_last, 0.0), self.max_tick_s)
+    def _clocks(self, now_s: float) -> tuple[float, float]:
+        """Device time and smooth clock at stamp ``now_s``: the last tick's plus the stamp's step, a step back
+        counting 0 (a restarted driver: time goes on from its new stamps), the smooth one at most ``max_tick_s``."""
+        if self._stamp_last is None:
+            return now_s, now_s
+        step = max(now_s - self._stamp_last, 0.0)
+        return self._s_last + step, self._d_last + min(step, self.max_tick_s)
 
     # --- models -------------------------------------------------------------------------
     def model_age_s(self, now_s: float | None = None) -> float:
@@ -247,7 +250,7 @@ class ContactRenderer:
         if not m.finite:
             self.counts["rejected_non_finite"] += 1
             return "non-finite model"
-        rx = self._s_last if now_s is None else float(now_s)
+        rx, smooth_now = (self._s_last, self._d_last) if now_s is None else self._clocks(float(now_s))
         cur = self._model
         age = rx - cur.rx_s if cur is not None and cur.rx_s is not None and rx is not None else 0.0
         if cur is not None and m.sequence <= cur.m.sequence and age <= cur.m.time_to_live_s:
@@ -265,7 +268,6 @@ class ContactRenderer:
         K, D = self.bounded(m)
         slot = _Slot(m, rx, K, D, fn0, max(ratio0, self.cone_floor))
         interval = age if cur is not None else self.cf_max
-        smooth_now = self._smooth(now_s) if now_s is not None else self._d_last
         self._begin_blend(smooth_now, min(max(interval, self.cf_min), self.cf_max), keep_from=self._fade_t0 is None)
         self._model = slot
         self.counts["models"] += 1
@@ -296,9 +298,8 @@ class ContactRenderer:
         """
         now_s = float(now_s)
         if not math.isfinite(now_s):
-            now_s = self._s_last if self._s_last is not None else 0.0
-        raw = now_s if self._s_last is None else max(now_s, self._s_last)  # stamps going back do not turn time back
-        d = self._smooth(now_s)
+            now_s = self._stamp_last if self._stamp_last is not None else 0.0
+        raw, d = self._clocks(now_s)  # stamps going back do not turn time back
         x = np.asarray(x, dtype=float)
         v = None if v is None else np.asarray(v, dtype=float)
         finite_x = _finite(x) and (v is None or _finite(v))
@@ -364,7 +365,7 @@ class ContactRenderer:
         if finite_x:
             self._sent.append((applied, f))
             self._last_x, self._last_v, self._last_t = x, v, raw
-        self._s_last, self._d_last = raw, d
+        self._stamp_last, self._s_last, self._d_last = now_s, raw, d
         return applied
 
 
