@@ -131,9 +131,19 @@ def test_no_command_above_the_device_limit_in_any_direction(seed):
     r = ContactRenderer(max_force_n=TOUCH_PEAK_FORCE_N / 2.0, passivity_mass_kg=0.045)
     for k in range(400):
         if k % 4 == 0:
-            m = LocalModel(k + 1, 0, "tissue", rng.normal(scale=1e-3, size=3), rng.normal(scale=0.1, size=3),
-                           rng.normal(scale=10.0, size=3), rng.normal(scale=1e5, size=(3, 3)),
-                           rng.normal(scale=1e4, size=(3, 3)), rng.normal(size=3), 1.0, 1.0)  # fmt: skip
+            m = LocalModel(
+                k + 1,
+                0,
+                "tissue",
+                rng.normal(scale=1e-3, size=3),
+                rng.normal(scale=0.1, size=3),
+                rng.normal(scale=10.0, size=3),
+                rng.normal(scale=1e5, size=(3, 3)),
+                rng.normal(scale=1e4, size=(3, 3)),
+                rng.normal(size=3),
+                1.0,
+                1.0,
+            )
             r.set_model(m)
         f = r.render(k * DT, rng.normal(scale=2e-3, size=3), rng.normal(scale=0.2, size=3))
         cmd = np.array(mapping.force_to_device(tuple(f)))

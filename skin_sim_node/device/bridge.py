@@ -281,9 +281,13 @@ class BridgeNode(DeviceNode):
         self._cf_stamp_ns = -1
         self.node_ns = normalize_namespace(p.node_ns)
         self.server = ServerLink(
-            self, self.ROS_ARGS, self._on_model if self.model_source else self._on_wrench, bool(twist_key), self.node_ns,
+            self,
+            self.ROS_ARGS,
+            self._on_model if self.model_source else self._on_wrench,
+            bool(twist_key),
+            self.node_ns,
             p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0,
-        )  # fmt: skip
+        )
         self._v_tissue: np.ndarray | None = None
         self._v_stamp_ns = 0
         self._wrench_seq = 0
