@@ -49,6 +49,7 @@ from .mapping import (
     TOUCH_MAX_STIFFNESS_N_PER_M,
     DeviceMapping,
     axes_matrix,
+    device_path_transport_env,
     force_to_tissue,
     normalize_namespace,
     without_namespace_remap,
@@ -223,10 +224,18 @@ class BridgeNode(DeviceNode):
         Param("diagnostics_period_s", 1.0, "period of the bridge's diagnostics (s)", 0.05, 60.0),
     )
 
+    TRANSPORT_NOTE = ""  # what device_path_transport_env decided before rclpy started (logged at start)
+
     @classmethod
     def add_arguments(cls, ap) -> None:
         ap.add_argument("--restamp", dest="restamp", action="store_true", default=None,
                         help="stamp tool poses with the bridge clock instead of the driver's")  # fmt: skip
+        ap.add_argument(
+            "--localhost-shm",
+            action="store_true",
+            help="under ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST keep rmw_fastrtps's shared memory (default: UDPv4 on "
+            "this host, device/fastdds_localhost_udp.xml: a joining reader cannot freeze the device path)",
+        )
 
     @classmethod
     def before_start(cls, opts) -> int | None:
@@ -238,6 +247,8 @@ class BridgeNode(DeviceNode):
         except ValueError as exc:
             print(f"skin-sim bridge: {exc}")
             return 2
+        updates, cls.TRANSPORT_NOTE = device_path_transport_env(os.environ, keep_shm=opts.localhost_shm)
+        os.environ.update(updates)  # before rclpy creates a participant: both of the bridge's participants
         return None
 
     def __init__(self, overrides: dict | None = None, **kwargs):
@@ -316,6 +327,8 @@ class BridgeNode(DeviceNode):
             f"stabiliser {p.stabiliser}"
         )
         (self.get_logger().info if self.rt_message.startswith("device path") else self.get_logger().warning)(self.rt_message)
+        if self.TRANSPORT_NOTE:
+            self.get_logger().info(f"transports: {self.TRANSPORT_NOTE}")
 
     def _device_path_realtime(self, priority: int) -> str:
         """SCHED_FIFO for every thread that exists now: the executor thread (it renders each device pose) and the

@@ -47,7 +47,7 @@ import numpy as np
 
 from msgs_schema.contact_model import DEFAULT_TTL_S
 
-from ..device.mapping import DEFAULT_OFFSET_M, TOUCH_PEAK_FORCE_N
+from ..device.mapping import DEFAULT_OFFSET_M, TOUCH_PEAK_FORCE_N, device_path_transport_env
 from ..device.render import FADE_S
 from ..scenes import REPO, Scene
 
@@ -131,7 +131,7 @@ def emulate(phase_s: float, out: Path) -> int:
     from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_wrench, stamp_ns
     from msgs_schema.qos import PROFILES, publisher, subscription
 
-    from ..ros_util import make_executor, set_realtime, sleep_until_ns, spin_context
+    from ..ros_util import make_executor, set_process_realtime, set_realtime, sleep_until_ns, spin_context
 
     rt = set_realtime(EMULATOR_RT_PRIORITY)
     rclpy.init()
@@ -166,6 +166,9 @@ def emulate(phase_s: float, out: Path) -> int:
 
     th = threading.Thread(target=spin, name="emulator-rx", daemon=True)
     th.start()
+    if rt is None:  # the DDS threads too (started by rclpy.init at normal priority): a driver's receive path
+        set_process_realtime(EMULATOR_RT_PRIORITY - 1)
+        set_realtime(EMULATOR_RT_PRIORITY)
     time.sleep(1.0)  # discovery of the bridge (already running)
     total_s = phase_windows(phase_s)["kill"][1]
     n = int(total_s * 1e9 / PERIOD_NS)
@@ -281,6 +284,7 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
         peak = float(tmag[sel_pre].max()) if sel_pre.any() else float("nan")
         err = np.linalg.norm(ans_f - truth, axis=1)[a_pre]
         herr = np.linalg.norm(hold - truth, axis=1)[a_pre]
+        nerr, hnerr = np.abs(ans_f[a_pre, 2] - truth[a_pre, 2]), np.abs(hold[a_pre, 2] - truth[a_pre, 2])
         big = a_pre & (tmag > TRUE_FORCE_SLACK_N)
         ph = {
             "poses": int(sel.sum()),
@@ -300,6 +304,8 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
             "render_p99_pct": 100 * float(np.percentile(err, 99)) / peak if err.size else float("nan"),
             "hold_p50_pct": 100 * float(np.percentile(herr, 50)) / peak if herr.size else float("nan"),
             "hold_p99_pct": 100 * float(np.percentile(herr, 99)) / peak if herr.size else float("nan"),
+            "render_normal_p99_pct": 100 * float(np.percentile(nerr, 99)) / peak if nerr.size else float("nan"),
+            "hold_normal_p99_pct": 100 * float(np.percentile(hnerr, 99)) / peak if hnerr.size else float("nan"),
         }
         if name == "kill" and kill_ns is not None:
             ph.update(kill_fade(cmds, kill_ns))
@@ -356,17 +362,18 @@ def missed_aims(ph: dict) -> list[str]:
 def print_table(ph: dict) -> None:
     print(
         f"{'phase':<9} {'cmd/s':>6} {'poses/s':>7} {'x':>5} {'answered':>8} {'own late':>8} {'gaps>2':>6} {'gaps>5':>6} "
-        f"{'max gap':>8} {'>1.2F':>5} {'>lim':>4} {'max/F':>5} | {'render p50/p99 %':>16} {'hold p50/p99 %':>15} {'x p99':>6}"
+        f"{'max gap':>8} {'>1.2F':>5} {'>lim':>4} {'max/F':>5} | {'render p50/p99 %':>16} {'hold p50/p99 %':>15} {'x p99':>6} "
+        f"| {'F_z p99 render/hold %':>21}"
     )
     for name, p in ph.items():
-        ratio = p["render_p99_pct"] / p["hold_p99_pct"] if p["hold_p99_pct"] > 0 else float("nan")
+        ratio = p["render_p99_pct"] / p["hold_p99_pct"] if p["hold_p99_pct"] > 0.01 else float("nan")
         per_pose = p["commands_per_s"] / max(p["poses_per_s"], 1)
         print(
             f"{name:<9} {p['commands_per_s']:6.0f} {p['poses_per_s']:7.0f} {per_pose:5.3f} {p['answered']:8.2%} "
             f"{p['emulator_late_slots']:8d} {p['gaps_2ms']:6d} {p['gaps_5ms']:6d} {p['gap_max_ms']:6.1f}ms "
             f"{p['over_true']:5d} {p['over_limit']:4d} {p['max_over_true']:5.2f} | "
             f"{p['render_p50_pct']:7.2f} / {p['render_p99_pct']:6.2f} {p['hold_p50_pct']:6.2f} / {p['hold_p99_pct']:6.2f} "
-            f"{ratio:5.2f}x"
+            f"{ratio:5.2f}x | {p['render_normal_p99_pct']:9.2f} / {p['hold_normal_p99_pct']:9.2f}"
         )
     k = ph["kill"]
     if "kill_zero_ms" in k:
@@ -382,7 +389,9 @@ def _machine() -> str:
     return f"{os.cpu_count()} cores, load average {la[0]:.2f} {la[1]:.2f} {la[2]:.2f}"
 
 
-def run(phase_s: float, hog: bool, log_dir: Path) -> dict:
+def run(
+    phase_s: float, hog: bool, log_dir: Path, bridge_shm: bool = False, driver_shm: bool = False, node_args: tuple = ()
+) -> dict:
     """Start node, bridge and emulator, drive the phases, return the records and the kill time."""
     import psutil
 
@@ -393,12 +402,17 @@ def run(phase_s: float, hog: bool, log_dir: Path) -> dict:
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
-        node = scene.node()
+        node = scene.node(*node_args)
         scene.wait_for_log(node, "live:")
-        bridge = scene.start("bridge", "bridge")
+        bridge = scene.start("bridge", "bridge", *(["--localhost-shm"] if bridge_shm else []))
         scene.wait_for_log(bridge, "bridge crtk")
         rt_line = next((ln for ln in bridge.log().splitlines() if "device path" in ln or "SCHED_FIFO refused" in ln), "")
-        print(f"  bridge: {rt_line.split(']: ')[-1]}", flush=True)
+        tr_line = next((ln for ln in bridge.log().splitlines() if "transports:" in ln), "")
+        print(f"  bridge: {rt_line.split(']: ')[-1]}; {tr_line.split(']: ')[-1]}", flush=True)
+        emu_env = dict(scene.env)
+        updates, why = device_path_transport_env(emu_env, keep_shm=driver_shm)
+        emu_env.update(updates)
+        print(f"  emulator transports: {why}", flush=True)
         if hog:
             code = "while True: pass"
             hogs = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(os.cpu_count() or 1)]
@@ -409,7 +423,7 @@ def run(phase_s: float, hog: bool, log_dir: Path) -> dict:
             [sys.executable, "-m", "skin_sim_node.perf.device_bench", "--emulate", str(rec_path), "--phase-s", str(phase_s)],
             stdout=emu_log,
             stderr=subprocess.STDOUT,
-            env=scene.env,
+            env=emu_env,
             cwd=REPO,
         )
         t0 = None
@@ -490,6 +504,9 @@ def main(argv=None) -> int:
     ap.add_argument("--hog", action="store_true", help="a busy process per core, at normal priority, for the whole run")
     ap.add_argument("--log-dir", type=Path, default=None, help="logs and the emulator's records (default: a temporary dir)")
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
+    ap.add_argument("--bridge-shm", action="store_true", help="bridge with --localhost-shm (rmw's shared memory under LOCALHOST)")
+    ap.add_argument("--driver-shm", action="store_true", help="the emulated driver on rmw's LOCALHOST transports (shared memory)")
+    ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE (repeatable)")
     ap.add_argument("--emulate", type=Path, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.emulate is not None:
@@ -497,8 +514,11 @@ def main(argv=None) -> int:
     log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="skin_sim_device_bench_"))
     log_dir.mkdir(parents=True, exist_ok=True)
     print(f"skin-sim bench-device: CRTK emulator at 1 kHz vs node + bridge; {args.phase_s:g} s per phase; logs {log_dir}")
-    print(f"  machine (assumed nothing, found): {_machine()}; hog {'on' if args.hog else 'off'}", flush=True)
-    res = run(args.phase_s, args.hog, log_dir)
+    print(
+        f"  machine (assumed nothing, found): {_machine()}; hog {'on' if args.hog else 'off'}; node {args.node_param}", flush=True
+    )
+    node_args = tuple(a for p in args.node_param for a in ("-p", p))
+    res = run(args.phase_s, args.hog, log_dir, args.bridge_shm, args.driver_shm, node_args)
     print(f"  analysing (offline ground truth on {int((res['rec']['slots'][:, 2] > 0).sum())} poses) ...", flush=True)
     ph = analyse(res["rec"], res["phase_s"], res["kill_ns"])
     print(f"  machine after: {_machine()}")
@@ -506,7 +526,8 @@ def main(argv=None) -> int:
     print(
         "columns: x = commands per device pose; own late = the emulator's late slots (the scheduling baseline; gaps>5 "
         "excludes gaps that contain one); max/F = largest |command| / |F_true| where |F_true| > 0.05 N; x p99 = render "
-        "p99 / hold-last p99 (same run)"
+        "p99 / hold-last p99 (same run); F_z p99: the normal component's error alone (the vector's error less what "
+        "the server leaves out of f0; the whole vector is issue 19's server half); kill: render error before the kill"
     )
     if args.json:
         args.json.write_text(json.dumps(ph, indent=2))
