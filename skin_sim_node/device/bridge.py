@@ -11,10 +11,15 @@ Device side, under ``device_ns`` (relative, default ``device``):
 Node side: publishes ``tool/pose`` and ``tool/twist`` in the tissue frame. With ``force_source:=model``
 (default) it subscribes ``tool/contact_model`` and, for every device pose, renders the force from the
 newest model at that pose (:class:`skin_sim_node.device.render.ContactRenderer`: crossfade, TTL and
-radius fade, one-sided normal, force and stiffness caps, optional passivity controller) and sends it
+radius fade on the device's clock, one-sided normal, friction cone, force, stiffness and damping caps, optional
+passivity controller) and sends it
 at once: the device gets a force every tick, never a stale one. ``force_source:=wrench`` holds the last
 ``tool/wrench`` instead (the hold-last bridge, for servers without a contact model), through the same
 renderer (a model with no stiffness: held, faded once older than ``watchdog_s``) and passivity controller.
+
+The servo path (device pose in, render, command out) runs at SCHED_FIFO :data:`RT_PRIORITY` where the OS allows it,
+answers every queued pose (:data:`DEVICE_QUEUE_DEPTH`), and under ``LOCALHOST`` discovery keeps off shared memory
+(:func:`skin_sim_node.device.mapping.device_path_transport_env`). ``node_ns`` moves only the node's topics.
 
 A watchdog sends one zero force when the device pose is older than ``watchdog_s`` (the device has
 stopped reporting; no tick to render on). Diagnostics (``diagnostics``, 1 Hz) report the render rate,

@@ -10,8 +10,8 @@ Device side, under the ``device_ns`` parameter (relative, default ``device``):
   ``phantom/pose`` (PoseStamped), writes ``phantom/force_feedback`` (WrenchStamped). No twist:
   the node differentiates the poses. Remap the names to match a given driver.
 
-Node side: publishes ``tool/pose`` and ``tool/twist`` in the tissue frame; renders the node's
-``tool/contact_model`` every device tick (:mod:`skin_sim_node.device.render`).
+Node side (under ``node_ns`` if given, else the process namespace): publishes ``tool/pose`` and ``tool/twist`` in
+the tissue frame; renders the node's ``tool/contact_model`` every device tick (:mod:`skin_sim_node.device.render`).
 """
 
 from __future__ import annotations

@@ -18,8 +18,9 @@ gaps between commands over 2 and 5 ms, not counting gaps that contain one of the
 baseline: its own scheduling); the largest command over the true force; the render error p50/p99 against the offline
 ground truth (:class:`skin_sim_node.session.HapticSession` stepped on the same poses, every pose, the full vector;
 :func:`truth_vector`) beside hold-last from the same run (the newest ``tool/wrench`` that had arrived when the
-command did: what a forwarding bridge would have sent); and the kill fade. It prints medians and percentiles, each
-ratio against its same-run baseline, and exits 1 naming every missed aim (:data:`AIMS`).
+command did, zero once 50 ms old: what ``skin-sim bridge --force-source wrench`` would have sent); and the kill
+fade. It prints medians and percentiles, each ratio against its same-run baseline, and exits 1 naming every missed
+aim (:data:`AIMS`).
 
 It is a benchmark, not a CI test: its figures depend on the machine. It assumes nothing about the machine's state and
 prints what it found (cores, load average before and after, whether real-time priority was granted); ``--hog`` adds
@@ -47,7 +48,7 @@ import numpy as np
 
 from msgs_schema.contact_model import DEFAULT_TTL_S
 
-from ..device.mapping import DEFAULT_OFFSET_M, TOUCH_PEAK_FORCE_N, device_path_transport_env
+from ..device.mapping import DEFAULT_OFFSET_M, DEFAULTS, TOUCH_PEAK_FORCE_N, device_path_transport_env
 from ..device.render import FADE_S
 from ..scenes import REPO, Scene
 
@@ -67,6 +68,8 @@ DRAG_AMPLITUDE_M = 0.01
 DRAG_PERIOD_S = 2.0
 """x = A (1 - cos(2 pi t / P)) / 2: 10 mm back and forth, at most 15.7 mm/s; phases are whole periods, so the
 kill phase starts at rest."""
+HOLD_LAST_TTL_S = DEFAULTS["watchdog_s"]
+"""The hold-last baseline holds a wrench this long, as ``skin-sim bridge --force-source wrench`` (its ``watchdog_s``)."""
 N_READERS = 10
 THROTTLE = (("loop_mode", "timer"), ("rate_hz", 250.0))
 KILL_AFTER_S = 0.5
@@ -258,11 +261,13 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
         i = idx.get(int(row[1]))
         if i is not None and math.isnan(ans_t[i]):
             ans_t[i], ans_f[i] = row[0], row[2:5]
-    # hold-last: the newest tool/wrench that had arrived when the command did
+    # hold-last: the newest tool/wrench that had arrived when the command did, zero once older than the wrench
+    # bridge's watchdog (skin-sim bridge --force-source wrench)
     hold = np.zeros((len(slots), 3))
     if len(wr):
-        j = np.searchsorted(wr[:, 0], np.nan_to_num(ans_t, nan=-1.0), side="right") - 1
-        ok = j >= 0
+        at = np.nan_to_num(ans_t, nan=-1.0)
+        j = np.searchsorted(wr[:, 0], at, side="right") - 1
+        ok = (j >= 0) & (at - wr[np.maximum(j, 0), 0] <= HOLD_LAST_TTL_S * 1e9)
         hold[ok] = wr[j[ok], 1:4]
     out = {}
     late_slot_t = slots[slots[:, 9] > 0, 0]
@@ -471,6 +476,7 @@ def run(
         for h in hogs:
             h.kill()
             h.wait()
+    (log_dir / "kill_ns.txt").write_text(f"{kill_ns}\n")  # with emulator.npz: enough to analyse the run again
     rec = dict(np.load(rec_path))
     return {"rec": rec, "kill_ns": kill_ns, "phase_s": phase_s}
 
