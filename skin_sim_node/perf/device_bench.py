@@ -395,7 +395,13 @@ def _machine() -> str:
 
 
 def run(
-    phase_s: float, hog: bool, log_dir: Path, bridge_shm: bool = False, driver_shm: bool = False, node_args: tuple = ()
+    phase_s: float,
+    hog: bool,
+    log_dir: Path,
+    bridge_shm: bool = False,
+    driver_shm: bool = False,
+    node_args: tuple = (),
+    node_udp: bool = False,
 ) -> dict:
     """Start node, bridge and emulator, drive the phases, return the records and the kill time."""
     import psutil
@@ -407,7 +413,11 @@ def run(
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
+        lan = scene.env
+        if node_udp:  # the node (a server-side choice) on the device path's profile too, to show what it would gain
+            scene.env = {**lan, **device_path_transport_env(lan)[0]}
         node = scene.node(*node_args)
+        scene.env = lan
         scene.wait_for_log(node, "live:")
         bridge = scene.start("bridge", "bridge", *(["--localhost-shm"] if bridge_shm else []))
         scene.wait_for_log(bridge, "bridge crtk")
@@ -512,6 +522,9 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
     ap.add_argument("--bridge-shm", action="store_true", help="bridge with --localhost-shm (rmw's shared memory under LOCALHOST)")
     ap.add_argument("--driver-shm", action="store_true", help="the emulated driver on rmw's LOCALHOST transports (shared memory)")
+    ap.add_argument(
+        "--node-udp", action="store_true", help="the node on the device path's UDP profile too (a server-side choice)"
+    )
     ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE (repeatable)")
     ap.add_argument("--emulate", type=Path, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -521,10 +534,11 @@ def main(argv=None) -> int:
     log_dir.mkdir(parents=True, exist_ok=True)
     print(f"skin-sim bench-device: CRTK emulator at 1 kHz vs node + bridge; {args.phase_s:g} s per phase; logs {log_dir}")
     print(
-        f"  machine (assumed nothing, found): {_machine()}; hog {'on' if args.hog else 'off'}; node {args.node_param}", flush=True
+        f"  machine (assumed nothing, found): {_machine()}; hog {'on' if args.hog else 'off'}; node {args.node_param}{' on UDP' if args.node_udp else ''}",
+        flush=True,
     )
     node_args = tuple(a for p in args.node_param for a in ("-p", p))
-    res = run(args.phase_s, args.hog, log_dir, args.bridge_shm, args.driver_shm, node_args)
+    res = run(args.phase_s, args.hog, log_dir, args.bridge_shm, args.driver_shm, node_args, args.node_udp)
     print(f"  analysing (offline ground truth on {int((res['rec']['slots'][:, 2] > 0).sum())} poses) ...", flush=True)
     ph = analyse(res["rec"], res["phase_s"], res["kill_ns"])
     print(f"  machine after: {_machine()}")
