@@ -1,6 +1,7 @@
 """Pure, deterministic tests of the bridge's force safety (issue 19, device side): the damping and stiffness caps,
 the friction cone, the vector clamp, the device-clock fade and the namespace option's helpers. No ROS, no wall
-clock: the test steps the device (its pose stamps) itself."""
+clock: the test steps the device (its pose stamps) itself. Also the device path's transport choice under LOCALHOST
+(an environment and a profile file, read, not run)."""
 
 import math
 
@@ -12,7 +13,9 @@ from skin_sim_node.device.mapping import (
     TOUCH_MAX_DAMPING_N_S_PER_M,
     TOUCH_MAX_STIFFNESS_N_PER_M,
     TOUCH_PEAK_FORCE_N,
+    UDP_LOOPBACK_PROFILE,
     DeviceMapping,
+    device_path_transport_env,
     normalize_namespace,
     without_namespace_remap,
 )
@@ -228,3 +231,47 @@ def test_namespace_remap_is_dropped_only_for_the_node_side():
     args = ["--ros-args", "-r", "__ns:=/x", "-p", "scale:=2.0", "--remap", "skin_sim_bridge:__ns:=/y", "-r", "a:=b"]
     assert without_namespace_remap(args) == ["--ros-args", "-p", "scale:=2.0", "-r", "a:=b"]
     assert without_namespace_remap([]) == []
+
+
+# --- the device path's transports under LOCALHOST -----------------------------------------------
+def test_localhost_device_path_goes_off_shared_memory():
+    updates, why = device_path_transport_env({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
+    assert updates == {
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "SYSTEM_DEFAULT",
+        "FASTRTPS_DEFAULT_PROFILES_FILE": str(UDP_LOOPBACK_PROFILE),
+    }
+    assert "no shared memory" in why
+
+
+@pytest.mark.parametrize(
+    ("env", "keep", "reason"),
+    [
+        ({"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}, False, "SUBNET"),
+        ({}, False, "unset"),
+        ({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}, True, "asked for"),
+        ({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "FASTRTPS_DEFAULT_PROFILES_FILE": "/x.xml"}, False, "user's"),
+        ({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_STATIC_PEERS": "10.0.0.2"}, False, "STATIC_PEERS"),
+        ({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp"}, False, "cyclone"),
+    ],
+)
+def test_the_users_transport_choices_are_kept(env, keep, reason):
+    updates, why = device_path_transport_env(env, keep_shm=keep)
+    assert updates == {} and reason in why and "\n" not in why
+
+
+def test_the_profile_keeps_discovery_on_this_host_without_multicast():
+    """SYSTEM_DEFAULT hands the transports to the profile: it must leave no route to multicast discovery."""
+    import xml.etree.ElementTree as ET
+
+    ns = {"p": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+    root = ET.parse(UDP_LOOPBACK_PROFILE).getroot()
+    part = root.find("p:participant", ns)
+    assert part.get("is_default_profile") == "true"
+    rtps = part.find("p:rtps", ns)
+    assert rtps.find("p:useBuiltinTransports", ns).text == "false"
+    assert rtps.find("p:builtin/p:metatrafficMulticastLocatorList", ns) is None
+    assert rtps.find("p:builtin/p:metatrafficUnicastLocatorList/p:locator/p:udpv4", ns) is not None  # no default multicast
+    peers = [a.text for a in rtps.findall("p:builtin/p:initialPeersList/p:locator/p:udpv4/p:address", ns)]
+    assert peers == ["127.0.0.1"]
+    kinds = [t.find("p:type", ns).text for t in root.findall("p:transport_descriptors/p:transport_descriptor", ns)]
+    assert kinds == ["UDPv4"]
