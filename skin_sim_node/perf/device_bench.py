@@ -533,10 +533,8 @@ def main(argv=None) -> int:
     log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="skin_sim_device_bench_"))
     log_dir.mkdir(parents=True, exist_ok=True)
     print(f"skin-sim bench-device: CRTK emulator at 1 kHz vs node + bridge; {args.phase_s:g} s per phase; logs {log_dir}")
-    print(
-        f"  machine (assumed nothing, found): {_machine()}; hog {'on' if args.hog else 'off'}; node {args.node_param}{' on UDP' if args.node_udp else ''}",
-        flush=True,
-    )
+    node_note = f"node {args.node_param}{' on UDP' if args.node_udp else ''}"
+    print(f"  machine (assumed nothing, found): {_machine()}; hog {'on' if args.hog else 'off'}; {node_note}", flush=True)
     node_args = tuple(a for p in args.node_param for a in ("-p", p))
     res = run(args.phase_s, args.hog, log_dir, args.bridge_shm, args.driver_shm, node_args, args.node_udp)
     print(f"  analysing (offline ground truth on {int((res['rec']['slots'][:, 2] > 0).sum())} poses) ...", flush=True)
