@@ -69,3 +69,32 @@ def test_contact_model_message_round_trip_and_stale_tick():
         fill_contact_model_from_tick(ContactModel(), SimpleNamespace(**{**vars(tick), "stale": True}), 0, "tissue")
     )
     assert stale.validity_radius_m == STALE_RADIUS_M and not stale.stiffness_n_per_m.any() and not stale.f0_n.any()
+
+
+def test_bad_node_ns_is_a_one_line_error(capsys):
+    assert BridgeNode.main(["--node-ns", "1skin"]) == 2
+    out = capsys.readouterr().out
+    assert "is not a ROS name" in out and out.count("\n") == 1
+
+
+def test_node_ns_moves_only_the_node_topics():
+    """``--node-ns /skin1`` with a process-wide ``-r __ns:=/rig``: the device topics follow the process namespace, the
+    node's topics the option (before, ``-r __ns:=`` moved both). Builds the node only: no DDS traffic, no timing."""
+    import rclpy
+
+    ros_args = ["--ros-args", "-r", "__ns:=/rig"]
+    ctx = rclpy.Context()
+    rclpy.init(args=ros_args, context=ctx)
+    BridgeNode.ROS_ARGS = ros_args
+    bridge = BridgeNode({"node_ns": "skin1", "rt_priority": 0}, context=ctx)
+    try:
+        device_topics = {name for name, _ in bridge.get_topic_names_and_types()} | {s.topic_name for s in bridge.subscriptions}
+        assert "/rig/device/measured_cp" in device_topics
+        assert bridge.server.node.get_namespace() == "/skin1"
+        link = {s.topic_name for s in bridge.server.node.subscriptions} | {p.topic_name for p in bridge.server.node.publishers}
+        assert {"/skin1/tool/contact_model", "/skin1/tool/pose"} <= link
+    finally:
+        bridge.stop()
+        bridge.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        BridgeNode.ROS_ARGS = []

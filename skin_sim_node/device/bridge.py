@@ -11,10 +11,15 @@ Device side, under ``device_ns`` (relative, default ``device``):
 Node side: publishes ``tool/pose`` and ``tool/twist`` in the tissue frame. With ``force_source:=model``
 (default) it subscribes ``tool/contact_model`` and, for every device pose, renders the force from the
 newest model at that pose (:class:`skin_sim_node.device.render.ContactRenderer`: crossfade, TTL and
-radius fade, one-sided normal, force and stiffness caps, optional passivity controller) and sends it
+radius fade on the device's clock, one-sided normal, friction cone, force, stiffness and damping caps, optional
+passivity controller) and sends it
 at once: the device gets a force every tick, never a stale one. ``force_source:=wrench`` holds the last
 ``tool/wrench`` instead (the hold-last bridge, for servers without a contact model), through the same
 renderer (a model with no stiffness: held, faded once older than ``watchdog_s``) and passivity controller.
+
+The servo path (device pose in, render, command out) runs at SCHED_FIFO :data:`RT_PRIORITY` where the OS allows it,
+answers every queued pose (:data:`DEVICE_QUEUE_DEPTH`), and under ``LOCALHOST`` discovery keeps off shared memory
+(:func:`skin_sim_node.device.mapping.device_path_transport_env`). ``node_ns`` moves only the node's topics.
 
 A watchdog sends one zero force when the device pose is older than ``watchdog_s`` (the device has
 stopped reporting; no tick to render on). Diagnostics (``diagnostics``, 1 Hz) report the render rate,
@@ -24,6 +29,8 @@ ticks without a fresh model and the model ages. See ``docs/devices.md``.
 from __future__ import annotations
 
 import math
+import os
+import sys
 import threading
 import time
 
@@ -37,16 +44,20 @@ from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_pose, r
 from msgs_schema.qos import PROFILES, publisher, subscription
 from msgs_schema.topics import FRAMES, TOPICS
 
-from ..ros_util import make_executor, ros_now_ns, spin_context
+from ..ros_util import make_executor, ros_now_ns, set_pid_realtime, set_realtime, spin_context
 from .base import DeviceNode, Param, publish_while_ok
 from .mapping import (
     CONVENTIONS,
     DEFAULTS,
     MEASURED_FORCE,
+    TOUCH_MAX_DAMPING_N_S_PER_M,
     TOUCH_MAX_STIFFNESS_N_PER_M,
     DeviceMapping,
     axes_matrix,
+    device_path_transport_env,
     force_to_tissue,
+    normalize_namespace,
+    without_namespace_remap,
 )
 from .render import FADE_S, ContactRenderer
 from .stylus import DeviceParams
@@ -56,6 +67,17 @@ STABILISERS = ("none", "passivity")
 TWIST_MAX_SKEW_NS = 5_000_000  # a device twist this close to the pose's stamp is the pose's velocity (as the node's 5 ms)
 HOLD_RADIUS_M = 1.0  # wrench source: a held force does not depend on the pose (any pose on a Touch's workspace)
 AGE_RING = 4096  # model ages kept for the diagnostics window (4 s at 1 kHz)
+DEVICE_QUEUE_DEPTH = 10
+"""History depth of the device pose, twist and measured-force subscriptions: device poses that arrive while the
+servo thread is busy (a burst after a scheduling hiccup) are each answered, in order, with their own stamp, instead
+of all but the newest being overwritten (issue 19: depth 1 answered 85 % of the poses). 10 ms at 1 kHz."""
+RT_PRIORITY = 80
+"""SCHED_FIFO priority of the device path (the executor thread that renders each device pose and the device-side
+DDS threads); the node link's threads run one below. 80 sits above the kernel's threaded IRQs (50 on PREEMPT_RT),
+as the node's ``rt_priority`` documents for servo loops."""
+SWITCH_INTERVAL_S = 2e-4
+"""``sys.setswitchinterval`` of the bridge (Python's default 5 ms): a servo thread waiting for the GIL gets it
+within 0.2 ms of the link thread holding it (the node uses the same)."""
 
 
 class ServerLink:
@@ -68,10 +90,12 @@ class ServerLink:
     pose goes out from this link's thread (a latest-value hand-off), so a dead node cannot stall the servo path.
     """
 
-    def __init__(self, bridge: BridgeNode, ros_args: list[str], on_model, twist: bool):
+    def __init__(self, bridge: BridgeNode, ros_args: list[str], on_model, twist: bool, node_ns: str = "", rt_priority: int = 0):
         self.ctx = rclpy.Context()
-        rclpy.init(args=ros_args, context=self.ctx)
-        self.node = rclpy.create_node(f"{bridge.get_name()}_server", context=self.ctx)
+        rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
+        ns_kw = {"namespace": node_ns} if node_ns else {}
+        self.node = rclpy.create_node(f"{bridge.get_name()}_server", context=self.ctx, **ns_kw)
+        self.rt_priority = rt_priority
         self.frame = bridge.tissue_frame
         self._pose_pub = publisher(self.node, "tool_pose")
         self._twist_pub = publisher(self.node, "tool_twist") if twist else None
@@ -85,7 +109,7 @@ class ServerLink:
         self._executor = make_executor("events", self.ctx)
         self._executor.add_node(self.node)
         self._threads = [
-            threading.Thread(target=spin_context, args=(self._executor, self.ctx, self._stop), name="server-spin", daemon=True),
+            threading.Thread(target=self._spin, name="server-spin", daemon=True),
             threading.Thread(target=self._publish_loop, name="server-publish", daemon=True),
         ]
         for t in self._threads:
@@ -97,7 +121,18 @@ class ServerLink:
             self._latest[kind] = values
         self._wake.set()
 
+    def _realtime(self) -> None:
+        """This link thread one priority below the device path: a link thread holding the GIL is not preempted by
+        the node or other processes while the servo thread waits for it (no priority inversion through the GIL)."""
+        if self.rt_priority > 1:
+            set_realtime(self.rt_priority - 1)
+
+    def _spin(self) -> None:
+        self._realtime()
+        spin_context(self._executor, self.ctx, self._stop)
+
     def _publish_loop(self) -> None:
+        self._realtime()
         while not self._stop.is_set():
             if not self._wake.wait(0.05):
                 continue
@@ -148,6 +183,26 @@ class BridgeNode(DeviceNode):
             1e6,
         ),  # fmt: skip
         Param(
+            "max_damping_n_s_per_m",
+            TOUCH_MAX_DAMPING_N_S_PER_M,
+            "cap of the rendered damping at the device (N*s/m); sawSensablePhantom's largest servo damping on a Touch",
+            0.0,
+            1e4,
+        ),  # fmt: skip
+        Param(
+            "node_ns",
+            DEFAULTS["node_ns"],
+            "namespace of the node's topics (tool/pose, tool/twist, tool/contact_model, tool/wrench), e.g. /skin1; "
+            "'' : the process's. Unlike -r __ns:=, it leaves the device topics where they are",
+        ),  # fmt: skip
+        Param(
+            "rt_priority",
+            RT_PRIORITY,
+            "SCHED_FIFO priority of the device path, 1-99 (0: normal scheduling); refused without root/CAP_SYS_NICE",
+            0,
+            99,
+        ),  # fmt: skip
+        Param(
             "force_source",
             "model",
             "model: render tool/contact_model per device tick; wrench: forward tool/wrench",
@@ -174,19 +229,31 @@ class BridgeNode(DeviceNode):
         Param("diagnostics_period_s", 1.0, "period of the bridge's diagnostics (s)", 0.05, 60.0),
     )
 
+    TRANSPORT_NOTE = ""  # what device_path_transport_env decided before rclpy started (logged at start)
+
     @classmethod
     def add_arguments(cls, ap) -> None:
         ap.add_argument("--restamp", dest="restamp", action="store_true", default=None,
                         help="stamp tool poses with the bridge clock instead of the driver's")  # fmt: skip
+        ap.add_argument(
+            "--localhost-shm",
+            action="store_true",
+            help="under ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST keep rmw_fastrtps's shared memory (default: UDPv4 on "
+            "this host, device/fastdds_localhost_udp.xml: a joining reader cannot freeze the device path)",
+        )
 
     @classmethod
     def before_start(cls, opts) -> int | None:
-        if opts.axes is not None:
-            try:
+        try:
+            if opts.axes is not None:
                 axes_matrix(opts.axes)
-            except ValueError as exc:
-                print(f"skin-sim bridge: {exc}")
-                return 2
+            if opts.node_ns is not None:
+                normalize_namespace(opts.node_ns)
+        except ValueError as exc:
+            print(f"skin-sim bridge: {exc}")
+            return 2
+        updates, cls.TRANSPORT_NOTE = device_path_transport_env(os.environ, keep_shm=opts.localhost_shm)
+        os.environ.update(updates)  # before rclpy creates a participant: both of the bridge's participants
         return None
 
     def __init__(self, overrides: dict | None = None, **kwargs):
@@ -199,6 +266,7 @@ class BridgeNode(DeviceNode):
         self.renderer = ContactRenderer(
             max_force_n=p.max_force_n / p.force_scale if p.force_scale > 0 else math.inf,
             max_stiffness_n_per_m=p.max_stiffness_n_per_m / gain if gain > 0 else math.inf,
+            max_damping_n_s_per_m=p.max_damping_n_s_per_m / gain if gain > 0 else math.inf,  # F_dev / v_dev: the same gain
             fade_s=p.fade_s,
             passivity_mass_kg=p.device_mass_kg / gain if p.stabiliser == "passivity" and gain > 0 else None,
         )
@@ -217,15 +285,25 @@ class BridgeNode(DeviceNode):
         self._force_pub = self.create_publisher(WrenchStamped, dev(force_key), PROFILES["driver"])
         self._diag_pub = publisher(self, "diagnostics")
         self._diag = DiagnosticArray()
-        subscription(self, pose_key, self._on_device_pose, name=dev(pose_key))
+        depth = DEVICE_QUEUE_DEPTH
+        subscription(self, pose_key, self._on_device_pose, name=dev(pose_key), depth=depth)
         if twist_key:
-            subscription(self, twist_key, self._on_device_twist, name=dev(twist_key))
+            subscription(self, twist_key, self._on_device_twist, name=dev(twist_key), depth=depth)
         cf_key = MEASURED_FORCE[p.convention]
         if cf_key:
-            subscription(self, cf_key, self._on_device_force, name=dev(cf_key))
+            subscription(self, cf_key, self._on_device_force, name=dev(cf_key), depth=depth)
+        self.rt_message = self._device_path_realtime(p.rt_priority)
         self._cf_tissue: np.ndarray | None = None
         self._cf_stamp_ns = -1
-        self.server = ServerLink(self, self.ROS_ARGS, self._on_model if self.model_source else self._on_wrench, bool(twist_key))
+        self.node_ns = normalize_namespace(p.node_ns)
+        self.server = ServerLink(
+            self,
+            self.ROS_ARGS,
+            self._on_model if self.model_source else self._on_wrench,
+            bool(twist_key),
+            self.node_ns,
+            p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0,
+        )
         self._v_tissue: np.ndarray | None = None
         self._v_stamp_ns = 0
         self._wrench_seq = 0
@@ -243,11 +321,33 @@ class BridgeNode(DeviceNode):
         self._rejected_logged: set[str] = set()
         self.create_timer(1.0 / p.watchdog_rate_hz, self._watchdog)
         self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)
-        src = f"{TOPICS['contact_model'].name} rendered per device tick" if self.model_source else TOPICS["tool_wrench"].name
+        src = self.server.node.resolve_topic_name(TOPICS["contact_model" if self.model_source else "tool_wrench"].name)
+        src = f"{src} rendered per device tick" if self.model_source else src
+        tool_pose = self.server.node.resolve_topic_name(TOPICS["tool_pose"].name)
         self.get_logger().info(
-            f"bridge {p.convention}: {dev(pose_key)} -> {TOPICS['tool_pose'].name}; {src} -> {dev(force_key)}; "
+            f"bridge {p.convention}: {self.resolve_topic_name(dev(pose_key))} -> {tool_pose}; {src} -> "
+            f"{self.resolve_topic_name(dev(force_key))}; "
             f"offset {self.mapping.offset_m} m, scale {self.mapping.scale}, axes {self.mapping.axes}, clamp {p.max_force_n} N, "
-            f"stiffness cap {p.max_stiffness_n_per_m:g} N/m, stabiliser {p.stabiliser}"
+            f"stiffness cap {p.max_stiffness_n_per_m:g} N/m, damping cap {p.max_damping_n_s_per_m:g} N s/m, "
+            f"stabiliser {p.stabiliser}"
+        )
+        (self.get_logger().info if self.rt_message.startswith("device path") else self.get_logger().warning)(self.rt_message)
+        if self.TRANSPORT_NOTE:
+            self.get_logger().info(f"transports: {self.TRANSPORT_NOTE}")
+
+    def _device_path_realtime(self, priority: int) -> str:
+        """SCHED_FIFO for every thread that exists now: the executor thread (it renders each device pose) and the
+        device-side participant's DDS threads. With SCHED_RESET_ON_FORK, the node link's threads, started after this,
+        do not inherit it (they set one priority less themselves). Returns the message to log."""
+        if priority <= 0:
+            return "device path at normal priority (rt_priority 0)"
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
+        why = set_pid_realtime(os.getpid(), priority)
+        if why is None:
+            return f"device path at SCHED_FIFO {priority} (servo executor, device-side DDS threads; node link {priority - 1})"
+        return (
+            f"SCHED_FIFO refused for the device path ({why}): it shares the CPU with the node, the display and joining "
+            "readers at normal priority; run as root, or grant CAP_SYS_NICE or an rtprio limit, or pass --rt-priority 0"
         )
 
     # --- device side --------------------------------------------------------------------
@@ -290,15 +390,15 @@ class BridgeNode(DeviceNode):
         v = self._v_tissue if self._v_tissue is not None and abs(self._v_stamp_ns - t_ns) <= TWIST_MAX_SKEW_NS else None
         cf = self._cf_tissue if self._cf_stamp_ns == t_ns else None  # applied over the tick that ended here
         n_radius = self.renderer.counts["fades_radius"]
-        with self._render_lock:
-            f = self.renderer.render(now * 1e-9, x, v, cf)
+        with self._render_lock:  # on the device's clock: the pose's stamp
+            f = self.renderer.render(stamp * 1e-9, x, v, cf)
         if self.renderer.counts["fades_radius"] > n_radius and "radius" not in self._rejected_logged:
             self._rejected_logged.add("radius")
             m = self.renderer.model
             self.get_logger().warning(
                 f"tool left the contact model's validity radius: |x - x0| = {np.linalg.norm(np.subtract(x, m.x0_m)) * 1e3:.2f} mm"
                 f" > {m.validity_radius_m * 1e3:.1f} mm (model {m.sequence}, x0 z {m.x0_m[2] * 1e3:.2f} mm, x z "
-                f"{x[2] * 1e3:.2f} mm, age {self.renderer.model_age_s(now * 1e-9) * 1e3:.1f} ms): fading (logged once)"
+                f"{x[2] * 1e3:.2f} mm, age {self.renderer.model_age_s() * 1e3:.1f} ms): fading (logged once)"
             )
         self._publish_force(stamp, self.mapping.force_to_device(tuple(f)))
         self._count_render(now)
@@ -311,7 +411,7 @@ class BridgeNode(DeviceNode):
         r = self.renderer
         if r.state in ("model", "crossfade"):
             c["rendered_fresh"] += 1
-            age = r.model_age_s(now_ns * 1e-9) * 1e3
+            age = r.model_age_s() * 1e3
             self._ages_ms[self._n_age % AGE_RING] = age
             self._n_age += 1
             self.max_model_age_ms = max(self.max_model_age_ms, age)
@@ -326,7 +426,7 @@ class BridgeNode(DeviceNode):
             why = f"frame '{m.frame_id}', expected '{self.tissue_frame}'"
         else:
             with self._render_lock:
-                why = self.renderer.set_model(m, time.monotonic_ns() * 1e-9)
+                why = self.renderer.set_model(m)  # at the latest device tick: the renderer's clock is the device's
         if why is None:
             self.counts["models"] += 1
             self._win["models"] += 1
@@ -340,14 +440,13 @@ class BridgeNode(DeviceNode):
 
     def _on_wrench(self, msg) -> None:
         """Wrench source: the node's force as a model with no stiffness (held until the next, faded after watchdog_s)."""
-        now = time.monotonic_ns()
         self.counts["wrenches"] += 1
         t_ns, _, f = read_wrench(msg)
         self._wrench_seq += 1
         m = LocalModel(self._wrench_seq, t_ns, self.tissue_frame, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), f, np.zeros((3, 3)),
                        np.zeros((3, 3)), (0.0, 0.0, 1.0), HOLD_RADIUS_M, self.p.watchdog_s)  # fmt: skip
         with self._render_lock:
-            held = self.renderer.set_model(m, now * 1e-9) is None
+            held = self.renderer.set_model(m) is None
         if held:
             self.counts["forwarded"] += 1
             self._first_model = True

@@ -10,15 +10,17 @@ Device side, under the ``device_ns`` parameter (relative, default ``device``):
   ``phantom/pose`` (PoseStamped), writes ``phantom/force_feedback`` (WrenchStamped). No twist:
   the node differentiates the poses. Remap the names to match a given driver.
 
-Node side: publishes ``tool/pose`` and ``tool/twist`` in the tissue frame; renders the node's
-``tool/contact_model`` every device tick (:mod:`skin_sim_node.device.render`).
+Node side (under ``node_ns`` if given, else the process namespace): publishes ``tool/pose`` and ``tool/twist`` in
+the tissue frame; renders the node's ``tool/contact_model`` every device tick (:mod:`skin_sim_node.device.render`).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import re
 from dataclasses import dataclass
+from pathlib import Path
 
 Vec3 = tuple[float, float, float]
 
@@ -28,6 +30,14 @@ TOUCH_PEAK_FORCE_N = 3.3
 TOUCH_MAX_STIFFNESS_N_PER_M = 1020.0
 """Largest stiffness rendered on a Touch (N/m): the spec sheet's lowest axis figure (3D Systems Touch:
 stiffness X > 1.26 N/mm, Y > 2.31 N/mm, Z > 1.02 N/mm), so the cap holds in every direction."""
+
+TOUCH_MAX_DAMPING_N_S_PER_M = 5.0
+"""Largest damping rendered on a Touch (N s/m, spectral norm, so in every direction). The 3D Systems spec sheet
+gives no damping figure; this is the largest damping jhu-saw sawSensablePhantom runs on the device: its position
+servo's ``servo_cp_d_gain`` is 3 N s/m by default and 5 N s/m in ``share/sawSensablePhantomDefault.json``
+(``core/components/code/mtsSensableHD.cpp``), and its ``ros/scripts/cartesian_impedance.py`` example renders
+5 N s/m beside 200 N/m. Check: a sampled damper acting two 1 ms ticks late on the 45 g stylus
+(:data:`skin_sim_node.device.render.PASSIVITY_DELAY_TICKS`) is stable below ``m / (3 dt)`` = 15 N s/m, 3x above."""
 
 DEFAULT_OFFSET_M: Vec3 = (0.0, 0.0, 0.05)
 """Tissue-frame position of the device origin (m). Matches :mod:`skin_sim_node.device.stylus`,
@@ -212,6 +222,7 @@ def clamp_magnitude(f, max_n: float) -> Vec3:
 DEFAULTS = {
     "convention": "crtk",
     "device_ns": "device",
+    "node_ns": "",  # namespace of the node's topics (tool/pose, tool/contact_model, ...); '': the process's
     "offset_m": list(DEFAULT_OFFSET_M),
     "scale": 1.0,
     "axes": "xyz",  # the simulated device's axes; a real Touch in its base frame: "x-zy"
@@ -229,6 +240,83 @@ CONVENTIONS = {
     "crtk": ("crtk_measured_cp", "crtk_measured_cv", "crtk_servo_cf"),
     "omni": ("omni_pose", None, "omni_force"),
 }
+
+
+_NS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_NS_REMAP = re.compile(r"^([A-Za-z0-9_/]*:)?__ns:=")
+
+
+def normalize_namespace(ns: str) -> str:
+    """A ROS namespace as given on the command line -> absolute (``skin1`` -> ``/skin1``); ``''`` stays ``''``.
+
+    Raises
+    ------
+    ValueError
+        One line naming the token that is not a ROS name (letters, digits, ``_``; not starting with a digit).
+    """
+    text = ns.strip()
+    if text in ("", "/"):
+        return ""
+    tokens = text.strip("/").split("/")
+    for tok in tokens:
+        if not _NS_TOKEN.fullmatch(tok):
+            raise ValueError(f"namespace {ns!r}: {tok!r} is not a ROS name (letters, digits and '_', not starting with a digit)")
+    return "/" + "/".join(tokens)
+
+
+def without_namespace_remap(ros_args: list[str]) -> list[str]:
+    """``ros_args`` without its ``-r __ns:=...`` / ``--remap node:__ns:=...`` remaps (the rest kept in order).
+
+    The bridge's node-side participant takes its namespace from ``node_ns`` when that is given, so a process-wide
+    ``__ns`` remap (which moves the device topics too) must not override it there.
+    """
+    out: list[str] = []
+    i = 0
+    while i < len(ros_args):
+        a = ros_args[i]
+        if a in ("-r", "--remap") and i + 1 < len(ros_args) and _NS_REMAP.match(ros_args[i + 1]):
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
+UDP_LOOPBACK_PROFILE = Path(__file__).with_name("fastdds_localhost_udp.xml")
+"""Fast DDS profile of the device path under ``LOCALHOST`` discovery: UDPv4 only, unicast discovery to 127.0.0.1,
+no multicast (the file says why)."""
+
+
+def device_path_transport_env(env, keep_shm: bool = False) -> tuple[dict[str, str], str]:
+    """Environment changes that keep a device-path process off shared memory under ``LOCALHOST`` discovery.
+
+    Under ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` rmw_fastrtps installs shared memory + UDPv4 itself, and a
+    joining participant's shared-memory port freezes the receive path for ~333 ms (eProsima/Fast-DDS#6535). With
+    ``SYSTEM_DEFAULT`` rmw leaves the transports to the profile, :data:`UDP_LOOPBACK_PROFILE`, which keeps the
+    discovery on this host (unicast to 127.0.0.1, no multicast) without shared memory.
+
+    Returns the variables to set (empty: leave the process as it is) and a one-line reason. Nothing changes unless
+    the range is ``LOCALHOST``, the RMW is Fast DDS, and neither a profile file nor static peers are set (the user's
+    own configuration wins); never ``SYSTEM_DEFAULT`` without the profile (that would be multicast discovery).
+    """
+    rng = env.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip().upper()
+    why = None
+    if rng != "LOCALHOST":
+        why = f"discovery range {rng or 'unset'}: rmw_fastrtps's transports as configured"
+    elif keep_shm:
+        why = "LOCALHOST with rmw_fastrtps's shared memory (asked for)"
+    elif env.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") not in ("rmw_fastrtps_cpp", "rmw_fastrtps_dynamic_cpp"):
+        why = f"RMW {env['RMW_IMPLEMENTATION']}: transports left to it"
+    elif env.get("FASTRTPS_DEFAULT_PROFILES_FILE") or env.get("FASTDDS_DEFAULT_PROFILES_FILE"):
+        why = "LOCALHOST with the user's Fast DDS profile file"
+    elif env.get("ROS_STATIC_PEERS"):
+        why = "LOCALHOST with ROS_STATIC_PEERS (rmw applies them only with its own transports)"
+    elif not UDP_LOOPBACK_PROFILE.is_file():
+        why = f"LOCALHOST with shared memory: {UDP_LOOPBACK_PROFILE} is missing"
+    if why is not None:
+        return {}, why
+    updates = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SYSTEM_DEFAULT", "FASTRTPS_DEFAULT_PROFILES_FILE": str(UDP_LOOPBACK_PROFILE)}
+    return updates, f"LOCALHOST discovery over UDPv4 on this host, no shared memory ({UDP_LOOPBACK_PROFILE.name})"
 
 
 def parse_vec3(text: str) -> list[float]:

@@ -14,6 +14,8 @@ force commands; it says so (start ``skin-sim node`` and ``skin-sim bridge`` firs
 
 from __future__ import annotations
 
+import os
+
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 
 from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_wrench
@@ -22,7 +24,7 @@ from msgs_schema.topics import TOPICS
 
 from ..ros_util import ros_now_ns
 from .base import Param, ScriptedNode, publish_while_ok
-from .mapping import CONVENTIONS, MEASURED_FORCE, DeviceMapping
+from .mapping import CONVENTIONS, MEASURED_FORCE, DeviceMapping, device_path_transport_env
 from .stylus import DeviceParams, SimulatedDevice
 from .trajectories import TRAJECTORIES
 
@@ -66,6 +68,15 @@ class SimDeviceNode(ScriptedNode):
         Param("substep_s", DeviceParams.substep_s, "longest stylus integration substep (s); 0: one per tick"),
     )
 
+    TRANSPORT_NOTE = ""
+
+    @classmethod
+    def before_start(cls, opts) -> int | None:
+        """A driver on the device path: off shared memory under LOCALHOST, as the bridge (docs/devices.md)."""
+        updates, cls.TRANSPORT_NOTE = device_path_transport_env(os.environ)
+        os.environ.update(updates)
+        return None
+
     def __init__(self, overrides: dict | None = None, **kwargs):
         super().__init__(overrides, **kwargs)
         p = self.p
@@ -95,6 +106,8 @@ class SimDeviceNode(ScriptedNode):
             f"simulated Touch ({p.convention}) on {dev(pose_key)}, hand path {p.hand_path}, {p.rate_hz} Hz, "
             f"origin at tissue {self.device.mapping.offset_m} m; applies the force commands on {dev(cmd_key)}"
         )
+        if self.TRANSPORT_NOTE:
+            self.get_logger().info(f"transports: {self.TRANSPORT_NOTE}")
         self.start_loop(self._period_ns, self._tick, name="sim-device")
 
     def housekeeping(self) -> None:
