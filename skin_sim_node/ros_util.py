@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -51,6 +52,43 @@ def make_executor(kind: str = "events", context=None):
     if kind == "events" and EventsExecutor is not None:
         return EventsExecutor(context=context)
     return SingleThreadedExecutor(context=context)
+
+
+UDP_LOOPBACK_PROFILE = Path(__file__).with_name("fastdds_localhost_udp.xml")
+"""Fast DDS profile of the haptic processes under ``LOCALHOST`` discovery: UDPv4 only, unicast discovery to 127.0.0.1,
+no multicast (the file says why)."""
+
+
+def localhost_udp_env(env, keep_shm: bool = False) -> tuple[dict[str, str], str]:
+    """Environment changes that keep a haptic process (node, bridge, device) off shared memory under ``LOCALHOST``.
+
+    Under ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` rmw_fastrtps installs shared memory + UDPv4 itself, and a
+    joining participant's shared-memory port freezes the receive path for ~333 ms (eProsima/Fast-DDS#6535). With
+    ``SYSTEM_DEFAULT`` rmw leaves the transports to the profile, :data:`UDP_LOOPBACK_PROFILE`, which keeps the
+    discovery on this host (unicast to 127.0.0.1, no multicast) without shared memory.
+
+    Returns the variables to set (empty: leave the process as it is) and a one-line reason. Nothing changes unless
+    the range is ``LOCALHOST``, the RMW is Fast DDS, and neither a profile file nor static peers are set (the user's
+    own configuration wins); never ``SYSTEM_DEFAULT`` without the profile (that would be multicast discovery).
+    """
+    rng = env.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip().upper()
+    why = None
+    if rng != "LOCALHOST":
+        why = f"discovery range {rng or 'unset'}: rmw_fastrtps's transports as configured"
+    elif keep_shm:
+        why = "LOCALHOST with rmw_fastrtps's shared memory (asked for)"
+    elif env.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") not in ("rmw_fastrtps_cpp", "rmw_fastrtps_dynamic_cpp"):
+        why = f"RMW {env['RMW_IMPLEMENTATION']}: transports left to it"
+    elif env.get("FASTRTPS_DEFAULT_PROFILES_FILE") or env.get("FASTDDS_DEFAULT_PROFILES_FILE"):
+        why = "LOCALHOST with the user's Fast DDS profile file"
+    elif env.get("ROS_STATIC_PEERS"):
+        why = "LOCALHOST with ROS_STATIC_PEERS (rmw applies them only with its own transports)"
+    elif not UDP_LOOPBACK_PROFILE.is_file():
+        why = f"LOCALHOST with shared memory: {UDP_LOOPBACK_PROFILE} is missing"
+    if why is not None:
+        return {}, why
+    updates = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SYSTEM_DEFAULT", "FASTRTPS_DEFAULT_PROFILES_FILE": str(UDP_LOOPBACK_PROFILE)}
+    return updates, f"LOCALHOST discovery over UDPv4 on this host, no shared memory ({UDP_LOOPBACK_PROFILE.name})"
 
 
 def run_nodes(factories: list[Callable[[], object]], args=None, executor: str = "events") -> int:

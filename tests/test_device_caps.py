@@ -13,9 +13,7 @@ from skin_sim_node.device.mapping import (
     TOUCH_MAX_DAMPING_N_S_PER_M,
     TOUCH_MAX_STIFFNESS_N_PER_M,
     TOUCH_PEAK_FORCE_N,
-    UDP_LOOPBACK_PROFILE,
     DeviceMapping,
-    device_path_transport_env,
     normalize_namespace,
     without_namespace_remap,
 )
@@ -27,6 +25,7 @@ from skin_sim_node.device.render import (
     cap_spectral_norm,
     clamp_vec,
 )
+from skin_sim_node.ros_util import UDP_LOOPBACK_PROFILE, localhost_udp_env
 
 Z = np.array([0.0, 0.0, 1.0])
 TANGENT = np.eye(3) - np.outer(Z, Z)
@@ -235,7 +234,7 @@ def test_namespace_remap_is_dropped_only_for_the_node_side():
 
 # --- the device path's transports under LOCALHOST -----------------------------------------------
 def test_localhost_device_path_goes_off_shared_memory():
-    updates, why = device_path_transport_env({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
+    updates, why = localhost_udp_env({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
     assert updates == {
         "ROS_AUTOMATIC_DISCOVERY_RANGE": "SYSTEM_DEFAULT",
         "FASTRTPS_DEFAULT_PROFILES_FILE": str(UDP_LOOPBACK_PROFILE),
@@ -255,7 +254,7 @@ def test_localhost_device_path_goes_off_shared_memory():
     ],
 )
 def test_the_users_transport_choices_are_kept(env, keep, reason):
-    updates, why = device_path_transport_env(env, keep_shm=keep)
+    updates, why = localhost_udp_env(env, keep_shm=keep)
     assert updates == {} and reason in why and "\n" not in why
 
 

@@ -19,7 +19,7 @@ renderer (a model with no stiffness: held, faded once older than ``watchdog_s``)
 
 The servo path (device pose in, render, command out) runs at SCHED_FIFO :data:`RT_PRIORITY` where the OS allows it,
 answers every queued pose (:data:`DEVICE_QUEUE_DEPTH`), and under ``LOCALHOST`` discovery keeps off shared memory
-(:func:`skin_sim_node.device.mapping.device_path_transport_env`). ``node_ns`` moves only the node's topics.
+(:func:`skin_sim_node.ros_util.localhost_udp_env`). ``node_ns`` moves only the node's topics.
 
 A watchdog sends one zero force when the device pose is older than ``watchdog_s`` (the device has
 stopped reporting; no tick to render on). Diagnostics (``diagnostics``, 1 Hz) report the render rate,
@@ -44,7 +44,7 @@ from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_pose, r
 from msgs_schema.qos import PROFILES, publisher, subscription
 from msgs_schema.topics import FRAMES, TOPICS
 
-from ..ros_util import make_executor, ros_now_ns, set_pid_realtime, set_realtime, spin_context
+from ..ros_util import localhost_udp_env, make_executor, ros_now_ns, set_pid_realtime, set_realtime, spin_context
 from .base import DeviceNode, Param, publish_while_ok
 from .mapping import (
     CONVENTIONS,
@@ -54,7 +54,6 @@ from .mapping import (
     TOUCH_MAX_STIFFNESS_N_PER_M,
     DeviceMapping,
     axes_matrix,
-    device_path_transport_env,
     force_to_tissue,
     normalize_namespace,
     without_namespace_remap,
@@ -229,7 +228,7 @@ class BridgeNode(DeviceNode):
         Param("diagnostics_period_s", 1.0, "period of the bridge's diagnostics (s)", 0.05, 60.0),
     )
 
-    TRANSPORT_NOTE = ""  # what device_path_transport_env decided before rclpy started (logged at start)
+    TRANSPORT_NOTE = ""  # what localhost_udp_env decided before rclpy started (logged at start)
 
     @classmethod
     def add_arguments(cls, ap) -> None:
@@ -252,7 +251,7 @@ class BridgeNode(DeviceNode):
         except ValueError as exc:
             print(f"skin-sim bridge: {exc}")
             return 2
-        updates, cls.TRANSPORT_NOTE = device_path_transport_env(os.environ, keep_shm=opts.localhost_shm)
+        updates, cls.TRANSPORT_NOTE = localhost_udp_env(os.environ, keep_shm=opts.localhost_shm)
         os.environ.update(updates)  # before rclpy creates a participant: both of the bridge's participants
         return None
 

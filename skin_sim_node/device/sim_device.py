@@ -22,9 +22,9 @@ from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_wrench
 from msgs_schema.qos import PROFILES, publisher
 from msgs_schema.topics import TOPICS
 
-from ..ros_util import ros_now_ns
+from ..ros_util import localhost_udp_env, ros_now_ns
 from .base import Param, ScriptedNode, publish_while_ok
-from .mapping import CONVENTIONS, MEASURED_FORCE, DeviceMapping, device_path_transport_env
+from .mapping import CONVENTIONS, MEASURED_FORCE, DeviceMapping
 from .stylus import DeviceParams, SimulatedDevice
 from .trajectories import TRAJECTORIES
 
@@ -73,7 +73,7 @@ class SimDeviceNode(ScriptedNode):
     @classmethod
     def before_start(cls, opts) -> int | None:
         """A driver on the device path: off shared memory under LOCALHOST, as the bridge (docs/devices.md)."""
-        updates, cls.TRANSPORT_NOTE = device_path_transport_env(os.environ)
+        updates, cls.TRANSPORT_NOTE = localhost_udp_env(os.environ)
         os.environ.update(updates)
         return None
 

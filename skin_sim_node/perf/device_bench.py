@@ -48,8 +48,9 @@ import numpy as np
 
 from msgs_schema.contact_model import DEFAULT_TTL_S
 
-from ..device.mapping import DEFAULT_OFFSET_M, DEFAULTS, TOUCH_PEAK_FORCE_N, device_path_transport_env
+from ..device.mapping import DEFAULT_OFFSET_M, DEFAULTS, TOUCH_PEAK_FORCE_N
 from ..device.render import FADE_S
+from ..ros_util import localhost_udp_env
 from ..scenes import REPO, Scene
 
 PERIOD_NS = 1_000_000
@@ -415,7 +416,7 @@ def run(
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
         lan = scene.env
         if node_udp:  # the node (a server-side choice) on the device path's profile too, to show what it would gain
-            scene.env = {**lan, **device_path_transport_env(lan)[0]}
+            scene.env = {**lan, **localhost_udp_env(lan)[0]}
         node = scene.node(*node_args)
         scene.env = lan
         scene.wait_for_log(node, "live:")
@@ -425,7 +426,7 @@ def run(
         tr_line = next((ln for ln in bridge.log().splitlines() if "transports:" in ln), "")
         print(f"  bridge: {rt_line.split(']: ')[-1]}; {tr_line.split(']: ')[-1]}", flush=True)
         emu_env = dict(scene.env)
-        updates, why = device_path_transport_env(emu_env, keep_shm=driver_shm)
+        updates, why = localhost_udp_env(emu_env, keep_shm=driver_shm)
         emu_env.update(updates)
         print(f"  emulator transports: {why}", flush=True)
         if hog:

@@ -16,6 +16,7 @@ The model kernels are ``nogil``; one lock orders ticks, parameter swaps and disp
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import threading
 import time
@@ -44,7 +45,7 @@ from msgs_schema.topics import FRAMES
 from ..model import ConfigError, SkinModel, TissueConfig
 from ..model.config import build_config
 from ..model.skin_model import warm_up
-from ..ros_util import LoopTiming, PeriodicLoop, run_nodes, set_process_realtime, set_realtime
+from ..ros_util import LoopTiming, PeriodicLoop, localhost_udp_env, run_nodes, set_process_realtime, set_realtime
 from ..session import HapticSession, TickResult
 from .display import DisplayProcess
 
@@ -118,6 +119,8 @@ def validate(flat: dict, changed=()) -> tuple[NodeParams, TissueConfig]:
 class SkinSimNode(Node):
     """The haptic server node. See the module docstring and ``docs/ros.md``."""
 
+    TRANSPORT_NOTE = ""  # what localhost_udp_env decided before rclpy started (logged at start)
+
     def __init__(self, ros_args: list[str] | None = None, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         for spec in ALL_PARAMETERS:
@@ -172,6 +175,8 @@ class SkinSimNode(Node):
         self._loop = PeriodicLoop(self._clock_period_ns(), self._on_clock, timing=self._haptic_timing(), on_warning=self._warn)
         self._apply_rt_scope()
         self._loop.start()
+        if self.TRANSPORT_NOTE:
+            self.get_logger().info(f"transports: {self.TRANSPORT_NOTE}")
         self.get_logger().info(
             f"live: {self.params.loop_mode} loop at {self.params.rate_hz:.0f} Hz, grid {cfg.grid_shape[1]}x{cfg.grid_shape[0]}, "
             f"numba warm-up {self._warmup_s:.2f} s; {self.session.describe_modes()}"
@@ -463,8 +468,15 @@ def main(argv=None) -> int:
         "--switch-interval-s", type=float, default=2e-4,
         help="Python GIL switch interval (default 0.2 ms, not 5 ms, so the haptic thread preempts display work quickly)",
     )  # fmt: skip
+    ap.add_argument(
+        "--localhost-shm", action="store_true",
+        help="under ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST keep rmw_fastrtps's shared memory (default: UDPv4 on this "
+        "host only, no multicast: a joining reader's shared-memory port froze the node's receive path for ~335 ms)",
+    )  # fmt: skip
     args, rest = ap.parse_known_args(argv)
     sys.setswitchinterval(args.switch_interval_s)
+    updates, SkinSimNode.TRANSPORT_NOTE = localhost_udp_env(os.environ, keep_shm=args.localhost_shm)
+    os.environ.update(updates)  # before rclpy creates a participant (the display worker inherits it)
     return run_nodes([lambda: SkinSimNode(ros_args=rest)], args=rest, executor=args.executor)
 
 
