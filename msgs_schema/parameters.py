@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import field, fields, make_dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .spec import ConfigError, ParamSpec
 from .tissue import TISSUE_PARAMETERS, tissue_defaults
@@ -184,14 +184,19 @@ def params_class(name: str, specs: tuple[ParamSpec, ...], doc: str, namespace: d
     return cls
 
 
-NodeParams = params_class("NodeParams", NODE_PARAMETERS, "The node's non-tissue parameters, read once (fields: NODE_PARAMETERS).")
-
 SESSION_PARAMETERS: tuple[ParamSpec, ...] = tuple(s for s in NODE_PARAMETERS if s.name in SESSION_KEYS) + SESSION_ONLY_PARAMETERS
 
-SessionParams = params_class(
-    "SessionParams", SESSION_PARAMETERS,
-    "Input and safety parameters of the haptic session (fields: SESSION_PARAMETERS; sources in their descriptions).",
-)  # fmt: skip
+if TYPE_CHECKING:  # classes made at run time from the specs have no static fields: their attributes are Any
+    NodeParams = Any
+    SessionParams = Any
+else:
+    NodeParams = params_class(
+        "NodeParams", NODE_PARAMETERS, "The node's non-tissue parameters, read once (fields: NODE_PARAMETERS)."
+    )
+    SessionParams = params_class(
+        "SessionParams", SESSION_PARAMETERS,
+        "Input and safety parameters of the haptic session (fields: SESSION_PARAMETERS; sources in their descriptions).",
+    )  # fmt: skip
 
 
 def session_params(node_params, **overrides) -> SessionParams:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import KW_ONLY, dataclass
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, TypeVar, cast
 
 import numpy as np
 
@@ -79,7 +79,8 @@ class ParamSpec(Generic[T]):
                 raise ConfigError(f"{name}: expected a string, got {value!r}")
             if self.choices and value not in self.choices:
                 raise ConfigError(f"{name} = {value!r}: must be one of {', '.join(self.choices)}")
-            return value
+            # T is str here; mypy checks the branch under each of T's constraints, and the narrowed str fits only one
+            return cast(Any, value)
         if self.type is bool:
             if not isinstance(value, (bool, np.bool_)):
                 raise ConfigError(f"{name}: expected true/false, got {value!r}")

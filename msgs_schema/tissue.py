@@ -199,8 +199,8 @@ def _interface_specs() -> list[ParamSpec]:
     return specs
 
 
-TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
-    [
+def _general_specs() -> list[ParamSpec]:
+    return [
         _s(
             "form",
             "layered",
@@ -254,10 +254,9 @@ TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
             "viscous regularisation speed of the friction: tangential force mu F v/sqrt(v^2 + v_s^2)",
         ),
     ]
-    + _layer_specs()
-    + _interface_specs()
-    + _lod_specs()
-)
+
+
+TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(_general_specs() + _layer_specs() + _interface_specs() + _lod_specs())
 """Every tissue parameter, named without the ``tissue.`` prefix the node declares them with
 (:data:`msgs_schema.parameters.SPEC_BY_NAME` looks them up)."""
 

@@ -14,5 +14,15 @@ if ! command -v chromium >/dev/null 2>&1; then
 fi
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export ROS_LOG_DIR="${ROS_LOG_DIR:-$PWD/out/ros_log}"
-.venv/bin/ruff check skin_sim_node msgs_schema tests scripts launch_scripts
+LINT_PATHS=(skin_sim_node msgs_schema tests scripts launch_scripts)
+.venv/bin/ruff check "${LINT_PATHS[@]}"
+.venv/bin/ruff format --check "${LINT_PATHS[@]}"
+# the type-checked paths: TYPED_PATHS (mypy's settings, the stub-less packages: [tool.mypy] in pyproject.toml)
+TYPED_PATHS=(
+  msgs_schema
+  skin_sim_node/device
+  skin_sim_node/model/__init__.py skin_sim_node/model/skin_model.py skin_sim_node/model/config.py
+  skin_sim_node/model/contact.py skin_sim_node/model/layout.py
+)
+.venv/bin/mypy "${TYPED_PATHS[@]}"
 .venv/bin/python -m pytest -q -p no:cacheprovider "$@"

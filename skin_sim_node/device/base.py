@@ -38,7 +38,7 @@ class Param:
     """One start-time parameter of a device node.
 
     ``cli``: the command-line option (``None``: ``--`` plus the name with dashes; ``""``: none).
-    ``lo``/``hi``: the ROS descriptor's range (numbers only). ``choices``: allowed strings.
+    ``lo``/``hi``: the ROS descriptor's range (numbers only; both or neither). ``choices``: allowed strings.
     """
 
     name: str
@@ -87,10 +87,11 @@ class DeviceNode(Node):
             elif isinstance(spec.default, list):
                 default = [float(c) for c in default]
             d = ParameterDescriptor(read_only=True, description=spec.description)
-            if spec.lo is not None and isinstance(spec.default, float):
-                d.floating_point_range = [FloatingPointRange(from_value=float(spec.lo), to_value=float(spec.hi))]
-            elif spec.lo is not None and isinstance(spec.default, int) and not isinstance(spec.default, bool):
-                d.integer_range = [IntegerRange(from_value=int(spec.lo), to_value=int(spec.hi))]
+            lo, hi = spec.lo, spec.hi
+            if lo is not None and hi is not None and isinstance(spec.default, float):
+                d.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
+            elif lo is not None and hi is not None and isinstance(spec.default, int) and not isinstance(spec.default, bool):
+                d.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi))]
             self.declare_parameter(spec.name, default, d)
             values[spec.name] = self.get_parameter(spec.name).value
             if spec.choices and values[spec.name] not in spec.choices:

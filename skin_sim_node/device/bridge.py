@@ -92,8 +92,7 @@ class ServerLink:
     def __init__(self, bridge: BridgeNode, ros_args: list[str], on_model, twist: bool, node_ns: str = "", rt_priority: int = 0):
         self.ctx = rclpy.Context()
         rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
-        ns_kw = {"namespace": node_ns} if node_ns else {}
-        self.node = rclpy.create_node(f"{bridge.get_name()}_server", context=self.ctx, **ns_kw)
+        self.node = rclpy.create_node(f"{bridge.get_name()}_server", context=self.ctx, namespace=node_ns or None)
         self.rt_priority = rt_priority
         self.frame = bridge.tissue_frame
         self._pose_pub = publisher(self.node, "tool_pose")
@@ -394,6 +393,7 @@ class BridgeNode(DeviceNode):
         if self.renderer.counts["fades_radius"] > n_radius and "radius" not in self._rejected_logged:
             self._rejected_logged.add("radius")
             m = self.renderer.model
+            assert m is not None  # a radius fade needs a model
             self.get_logger().warning(
                 f"tool left the contact model's validity radius: |x - x0| = {np.linalg.norm(np.subtract(x, m.x0_m)) * 1e3:.2f} mm"
                 f" > {m.validity_radius_m * 1e3:.1f} mm (model {m.sequence}, x0 z {m.x0_m[2] * 1e3:.2f} mm, x z "
@@ -421,6 +421,7 @@ class BridgeNode(DeviceNode):
     # --- node side ----------------------------------------------------------------------
     def _on_model(self, msg) -> None:
         m = read_contact_model(msg)
+        why: str | None
         if m.frame_id != self.tissue_frame:
             why = f"frame '{m.frame_id}', expected '{self.tissue_frame}'"
         else:
@@ -442,8 +443,8 @@ class BridgeNode(DeviceNode):
         self.counts["wrenches"] += 1
         t_ns, _, f = read_wrench(msg)
         self._wrench_seq += 1
-        m = LocalModel(self._wrench_seq, t_ns, self.tissue_frame, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), f, np.zeros((3, 3)),
-                       np.zeros((3, 3)), (0.0, 0.0, 1.0), HOLD_RADIUS_M, self.p.watchdog_s)  # fmt: skip
+        m = LocalModel(self._wrench_seq, t_ns, self.tissue_frame, np.zeros(3), np.zeros(3), f, np.zeros((3, 3)),
+                       np.zeros((3, 3)), np.array([0.0, 0.0, 1.0]), HOLD_RADIUS_M, self.p.watchdog_s)  # fmt: skip
         with self._render_lock:
             held = self.renderer.set_model(m) is None
         if held:

@@ -19,9 +19,12 @@ from __future__ import annotations
 import argparse
 import math
 import re
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 Vec3 = tuple[float, float, float]
+Mat3 = tuple[Vec3, Vec3, Vec3]
+Quat = tuple[float, float, float, float]
 
 TOUCH_PEAK_FORCE_N = 3.3
 """Peak force of a Geomagic Touch (3D Systems spec sheet: max exertable force 3.3 N at nominal position)."""
@@ -44,7 +47,13 @@ whose origin sits 50 mm above the rest surface: about a Touch's usable workspace
 (workspace 160 x 120 x 70 mm), so the stylus reaches the tissue from mid-workspace."""
 
 
-def axes_matrix(axes: str) -> tuple[Vec3, Vec3, Vec3]:
+def vec3(v: Sequence[float]) -> Vec3:
+    """Three floats from a sequence of exactly three numbers (``ValueError`` otherwise)."""
+    x, y, z = v
+    return (float(x), float(y), float(z))
+
+
+def axes_matrix(axes: str) -> Mat3:
     """Signed permutation matrix ``R`` (rows = tissue x, y, z) from a string like ``"x-zy"``.
 
     Each of the three tokens, an optional ``-`` and a device axis letter, says which device
@@ -71,19 +80,27 @@ def axes_matrix(axes: str) -> tuple[Vec3, Vec3, Vec3]:
     for s, j in tokens:
         row = [0.0, 0.0, 0.0]
         row[j] = s
-        rows.append(tuple(row))
-    return tuple(rows)
+        rows.append(vec3(row))
+    return (rows[0], rows[1], rows[2])
 
 
-def _mat_vec(R, v) -> Vec3:
-    return tuple(R[i][0] * v[0] + R[i][1] * v[1] + R[i][2] * v[2] for i in range(3))
+def _mat_vec(R: Mat3, v: Sequence[float]) -> Vec3:
+    return (
+        R[0][0] * v[0] + R[0][1] * v[1] + R[0][2] * v[2],
+        R[1][0] * v[0] + R[1][1] * v[1] + R[1][2] * v[2],
+        R[2][0] * v[0] + R[2][1] * v[1] + R[2][2] * v[2],
+    )
 
 
-def _mat_t_vec(R, v) -> Vec3:
-    return tuple(R[0][j] * v[0] + R[1][j] * v[1] + R[2][j] * v[2] for j in range(3))
+def _mat_t_vec(R: Mat3, v: Sequence[float]) -> Vec3:
+    return (
+        R[0][0] * v[0] + R[1][0] * v[1] + R[2][0] * v[2],
+        R[0][1] * v[0] + R[1][1] * v[1] + R[2][1] * v[2],
+        R[0][2] * v[0] + R[1][2] * v[1] + R[2][2] * v[2],
+    )
 
 
-def _det(R) -> float:
+def _det(R: Mat3) -> float:
     return (
         R[0][0] * (R[1][1] * R[2][2] - R[1][2] * R[2][1])
         - R[0][1] * (R[1][0] * R[2][2] - R[1][2] * R[2][0])
@@ -91,7 +108,7 @@ def _det(R) -> float:
     )
 
 
-def _quat_from_rot(R) -> tuple[float, float, float, float]:
+def _quat_from_rot(R: Mat3) -> Quat:
     """(x, y, z, w) of a proper rotation matrix (Shepperd's method)."""
     tr = R[0][0] + R[1][1] + R[2][2]
     if tr > 0:
@@ -105,10 +122,10 @@ def _quat_from_rot(R) -> tuple[float, float, float, float]:
     q[j] = (R[j][i] + R[i][j]) / s
     q[k] = (R[k][i] + R[i][k]) / s
     q[3] = (R[k][j] - R[j][k]) / s
-    return tuple(q)
+    return (q[0], q[1], q[2], q[3])
 
 
-def _quat_mul(a, b):
+def _quat_mul(a: Sequence[float], b: Sequence[float]) -> Quat:
     ax, ay, az, aw = a
     bx, by, bz, bw = b
     return (
@@ -119,7 +136,7 @@ def _quat_mul(a, b):
     )
 
 
-def _finite(v) -> bool:
+def _finite(v: Sequence[float]) -> bool:
     return all(math.isfinite(c) for c in v)
 
 
@@ -146,8 +163,11 @@ class DeviceMapping:
     axes: str = "xyz"
     force_scale: float = 1.0
     max_force_n: float = TOUCH_PEAK_FORCE_N
+    R: Mat3 = field(init=False, repr=False, compare=False)
+    """Signed permutation ``R`` of :func:`axes_matrix` (rows = tissue x, y, z), from ``axes``."""
+    _q: Quat | None = field(init=False, repr=False, compare=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "offset_m", tuple(float(c) for c in self.offset_m))
         if len(self.offset_m) != 3 or not _finite(self.offset_m):
             raise ValueError(f"offset_m must be 3 finite numbers, got {self.offset_m}")
@@ -166,48 +186,52 @@ class DeviceMapping:
         """True if ``R`` is a rotation (det +1); an improper convention cannot map orientations."""
         return self._q is not None
 
-    def to_tissue(self, p_device) -> Vec3:
+    def to_tissue(self, p_device: Sequence[float]) -> Vec3:
         """Device position (m) -> tissue position (m)."""
-        r = _mat_vec(self.R, p_device)
-        return tuple(self.scale * r[i] + self.offset_m[i] for i in range(3))
+        r, o, k = _mat_vec(self.R, p_device), self.offset_m, self.scale
+        return (k * r[0] + o[0], k * r[1] + o[1], k * r[2] + o[2])
 
-    def to_device(self, p_tissue) -> Vec3:
+    def to_device(self, p_tissue: Sequence[float]) -> Vec3:
         """Tissue position (m) -> device position (m); inverse of :meth:`to_tissue`."""
-        d = tuple((p_tissue[i] - self.offset_m[i]) / self.scale for i in range(3))
-        return _mat_t_vec(self.R, d)
+        o, k = self.offset_m, self.scale
+        return _mat_t_vec(self.R, ((p_tissue[0] - o[0]) / k, (p_tissue[1] - o[1]) / k, (p_tissue[2] - o[2]) / k))
 
-    def velocity_to_tissue(self, v_device) -> Vec3:
-        r = _mat_vec(self.R, v_device)
-        return tuple(self.scale * c for c in r)
+    def velocity_to_tissue(self, v_device: Sequence[float]) -> Vec3:
+        """Device velocity (m/s) -> tissue velocity (m/s): ``scale * R v``."""
+        r, k = _mat_vec(self.R, v_device), self.scale
+        return (k * r[0], k * r[1], k * r[2])
 
-    def velocity_to_device(self, v_tissue) -> Vec3:
-        return tuple(c / self.scale for c in _mat_t_vec(self.R, v_tissue))
+    def velocity_to_device(self, v_tissue: Sequence[float]) -> Vec3:
+        """Tissue velocity (m/s) -> device velocity (m/s); inverse of :meth:`velocity_to_tissue`."""
+        d, k = _mat_t_vec(self.R, v_tissue), self.scale
+        return (d[0] / k, d[1] / k, d[2] / k)
 
-    def orientation_to_tissue(self, q_device) -> tuple[float, float, float, float]:
+    def orientation_to_tissue(self, q_device: Sequence[float]) -> Quat:
         """Device orientation quaternion (x, y, z, w) -> tissue; identity for an improper ``R``."""
         if self._q is None or not _finite(q_device):
             return (0.0, 0.0, 0.0, 1.0)
         return _quat_mul(self._q, q_device)
 
-    def force_to_device(self, f_tissue) -> Vec3:
+    def force_to_device(self, f_tissue: Sequence[float]) -> Vec3:
         """Tissue force (N) -> device force command (N): ``force_scale * R^T f``, magnitude clamped.
 
         A non-finite input gives zero force.
         """
         if not _finite(f_tissue):
             return (0.0, 0.0, 0.0)
-        f = tuple(self.force_scale * c for c in _mat_t_vec(self.R, f_tissue))
-        return clamp_magnitude(f, self.max_force_n)
+        d, k = _mat_t_vec(self.R, f_tissue), self.force_scale
+        return clamp_magnitude((k * d[0], k * d[1], k * d[2]), self.max_force_n)
 
 
-def force_to_tissue(mapping: DeviceMapping, f_device) -> Vec3:
+def force_to_tissue(mapping: DeviceMapping, f_device: Sequence[float]) -> Vec3:
     """Device force (N) -> tissue force (N): the inverse of :meth:`DeviceMapping.force_to_device` before its clamp."""
     if mapping.force_scale <= 0 or not _finite(f_device):
         return (0.0, 0.0, 0.0)
-    return tuple(c / mapping.force_scale for c in _mat_vec(mapping.R, f_device))
+    r, k = _mat_vec(mapping.R, f_device), mapping.force_scale
+    return (r[0] / k, r[1] / k, r[2] / k)
 
 
-def clamp_magnitude(f, max_n: float) -> Vec3:
+def clamp_magnitude(f: Sequence[float], max_n: float) -> Vec3:
     """``f`` scaled down to magnitude ``max_n`` if longer (direction kept); non-finite -> zero."""
     if not _finite(f):
         return (0.0, 0.0, 0.0)

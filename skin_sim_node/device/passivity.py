@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 
-Vec3 = tuple[float, float, float]
+from .mapping import Vec3
 
 
 class PassivityController:

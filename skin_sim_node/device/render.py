@@ -221,6 +221,7 @@ class ContactRenderer:
         counting 0 (a restarted driver: time goes on from its new stamps), the smooth one at most ``max_tick_s``."""
         if self._stamp_last is None:
             return now_s, now_s
+        assert self._s_last is not None and self._d_last is not None  # set with _stamp_last, at every tick
         step = max(now_s - self._stamp_last, 0.0)
         return self._s_last + step, self._d_last + min(step, self.max_tick_s)
 
@@ -311,6 +312,7 @@ class ContactRenderer:
         valid = False
         self.outside_reason = None
         if slot is not None and finite_x:
+            assert slot.rx_s is not None  # set just above
             fresh = raw - slot.rx_s <= slot.m.time_to_live_s
             inside = float(np.linalg.norm(x - slot.m.x0_m)) <= slot.m.validity_radius_m
             valid = fresh and inside
@@ -320,6 +322,7 @@ class ContactRenderer:
         vd = v if self.use_damping else None
         pc_gain = 1.0  # the passivity controller acts on a rendered model only
         if valid:
+            assert slot is not None  # valid: a fresh model under the tool
             if self._fade_t0 is not None:  # back inside / model fresh again after a fade: blend from the faded force
                 self._begin_blend(d, self.cf_min if self._blend_T <= 0 else self._blend_T, keep_from=False)
             f = slot.force(x, vd)
@@ -388,10 +391,13 @@ class HoldLastRenderer:
 
     def render(self, now_s: float, x, v=None, applied_over_dx=None) -> np.ndarray:
         self._t = now_s
-        if self._m is not None and self._rx is None:
+        if self._m is None:
+            self.state = "none"
+            return np.zeros(3)
+        if self._rx is None:
             self._rx = now_s
-        if self._m is None or now_s - self._rx > self._m.time_to_live_s:
-            self.state = "none" if self._m is None else "fade"
+        if now_s - self._rx > self._m.time_to_live_s:
+            self.state = "fade"
             return np.zeros(3)
         self.state = "model"
         return clamp_vec(self._m.f0_n.copy(), self.max_force_n)

@@ -20,11 +20,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .mapping import TOUCH_PEAK_FORCE_N, DeviceMapping, clamp_magnitude
+from .mapping import TOUCH_PEAK_FORCE_N, DeviceMapping, Vec3, clamp_magnitude
 from .passivity import PassivityController
 from .trajectories import TRAJECTORIES, ScriptClock, Trajectory
 
-Vec3 = tuple[float, float, float]
 STABILISERS = ("none", "passivity")
 
 
@@ -176,10 +175,11 @@ class SimulatedDevice:
         h = dt / n_sub
         for j in range(n_sub):
             xh, vh = self.hand(self.t_s + j * h)
-            v = tuple(v[i] + h / m * (k * (xh[i] - x[i]) + b * (vh[i] - v[i]) - bd * v[i] + f_ext[i]) for i in range(3))
-            x = tuple(x[i] + h * v[i] for i in range(3))
+            a = [k * (xh[i] - x[i]) + b * (vh[i] - v[i]) - bd * v[i] + f_ext[i] for i in range(3)]  # m * acceleration
+            v = (v[0] + h / m * a[0], v[1] + h / m * a[1], v[2] + h / m * a[2])
+            x = (x[0] + h * v[0], x[1] + h * v[1], x[2] + h * v[2])
         if self.passivity is not None:
-            self.passivity.observe(f_ext, f_env, tuple(x[i] - x0[i] for i in range(3)))
+            self.passivity.observe(f_ext, f_env, (x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]))
         self.pos, self.vel = x, v
         self.t_s += dt
         self._held = cmd

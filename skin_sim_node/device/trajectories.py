@@ -16,10 +16,10 @@ import bisect
 import math
 from dataclasses import dataclass, field
 
+from .mapping import Vec3, vec3
+
 LIFT_Z_M = 0.005
 """Lifted tool height (m): 5 mm clears the rest surface by far more than any relaxing bulge."""
-
-Vec3 = tuple[float, float, float]
 
 
 @dataclass(frozen=True)
@@ -44,15 +44,17 @@ class Trajectory:
     _t0: tuple[float, ...] = field(init=False, repr=False, compare=False)
     _p0: tuple[Vec3, ...] = field(init=False, repr=False, compare=False)
 
-    def __post_init__(self):
-        t0, p0, t, p = [], [], 0.0, tuple(float(c) for c in self.start_m)
+    def __post_init__(self) -> None:
+        t0: list[float] = []
+        p0: list[Vec3] = []
+        t, p = 0.0, vec3(self.start_m)
         for dur, target in self.segments:
             if not dur > 0:
                 raise ValueError(f"{self.name}: segment durations must be > 0, got {dur}")
             t0.append(t)
             p0.append(p)
             t += float(dur)
-            p = tuple(float(c) for c in target)
+            p = vec3(target)
         object.__setattr__(self, "_t0", tuple(t0))
         object.__setattr__(self, "_p0", tuple(p0))
 
@@ -63,12 +65,12 @@ class Trajectory:
 
     @property
     def end_m(self) -> Vec3:
-        return tuple(float(c) for c in self.segments[-1][1]) if self.segments else tuple(self.start_m)
+        return vec3(self.segments[-1][1]) if self.segments else vec3(self.start_m)
 
     def sample(self, t: float) -> tuple[Vec3, Vec3]:
         """Position (m) and exact velocity (m/s) at time ``t`` (s); held at the ends outside ``[0, duration_s]``."""
         if t <= 0.0 or not self.segments:
-            return tuple(float(c) for c in self.start_m), (0.0, 0.0, 0.0)
+            return vec3(self.start_m), (0.0, 0.0, 0.0)
         if t >= self.duration_s:
             return self.end_m, (0.0, 0.0, 0.0)
         i = bisect.bisect_right(self._t0, t) - 1
@@ -77,8 +79,8 @@ class Trajectory:
         s = (t - self._t0[i]) / dur
         w = 0.5 * (1.0 - math.cos(math.pi * s))
         dw = 0.5 * math.pi / dur * math.sin(math.pi * s)
-        pos = tuple(ai + (bi - ai) * w for ai, bi in zip(a, b))
-        vel = tuple((bi - ai) * dw for ai, bi in zip(a, b))
+        pos = (a[0] + (b[0] - a[0]) * w, a[1] + (b[1] - a[1]) * w, a[2] + (b[2] - a[2]) * w)
+        vel = ((b[0] - a[0]) * dw, (b[1] - a[1]) * dw, (b[2] - a[2]) * dw)
         return pos, vel
 
 
