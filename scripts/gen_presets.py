@@ -1,5 +1,8 @@
 """Regenerate config/default.yaml, config/paper.yaml and docs/parameters.md from the parameter schema.
 
+The presets are written twice: ``config/`` at the top, where the README and the command lines point, and
+``skin_sim_node/config/``, the package data that :func:`skin_sim_node.model.config.preset` reads in an install.
+
 default: every schema default (the layered form). paper: the paper's form (Fig 3 engagement, common
 velocity), one mode, no damping, LOD levers off, the Sneddon flat-punch k of the moduli it always had,
 and each layer's tension set so that c = 0.0032 * 0.06 / (pi sqrt 2) m/s, i.e. lambda_11 = 0.0032 rad/s
@@ -15,6 +18,7 @@ from skin_sim_node.model.config import config_from_flat, dump_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "config"
+PACKAGE_CONFIG = ROOT / "skin_sim_node" / "config"
 DOCS = ROOT / "docs" / "parameters.md"
 
 
@@ -48,13 +52,16 @@ def write_parameter_doc(path: Path = DOCS) -> None:
     path.write_text("\n".join(rows) + "\n")
 
 
-def main(config_dir: Path = CONFIG, doc_path: Path = DOCS):
-    """Write ``default.yaml`` and ``paper.yaml`` into ``config_dir`` and the parameter reference to ``doc_path``.
+def main(config_dir: Path = CONFIG, doc_path: Path = DOCS, package_config_dir: Path = PACKAGE_CONFIG):
+    """Write ``default.yaml`` and ``paper.yaml`` into ``config_dir`` and ``package_config_dir``, and the parameter
+    reference to ``doc_path``.
 
     Parameters
     ----------
     config_dir : Path
     doc_path : Path
+    package_config_dir : Path
+        The packaged copy of the presets.
     """
     default = {s.name: s.default for s in ALL_PARAMETERS}
     dump_yaml(default, config_dir / "default.yaml")
@@ -74,8 +81,11 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS):
         paper[p + "tension_n_per_m"] = paper[p + "density_kg_per_m3"] * paper[p + "thickness_m"] * c**2
     config_from_flat(tissue_part(paper, TISSUE_PREFIX))
     dump_yaml(paper, config_dir / "paper.yaml")
+    package_config_dir.mkdir(parents=True, exist_ok=True)
+    for name in ("default.yaml", "paper.yaml"):
+        (package_config_dir / name).write_text((config_dir / name).read_text())
     write_parameter_doc(doc_path)
-    print("wrote", config_dir / "default.yaml", config_dir / "paper.yaml", doc_path)
+    print("wrote", config_dir / "default.yaml", config_dir / "paper.yaml", f"(copies: {package_config_dir})", doc_path)
 
 
 if __name__ == "__main__":

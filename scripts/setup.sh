@@ -13,9 +13,9 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install --quiet --upgrade pip
 if .venv/bin/python -c "import rclpy" 2>/dev/null; then
-  extras="test"
+  extras="lab,test"
 else
-  extras="ros,test"
+  extras="lab,ros,test"
 fi
 .venv/bin/python -m pip install --quiet -e ".[${extras}]"
 bash scripts/build_msgs.sh .venv   # the skin_sim_msgs interface package (idempotent: ~0.1 s when up to date)

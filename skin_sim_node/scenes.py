@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-DEFAULT_PARAMS = REPO / "config" / "default.yaml"
+DEFAULT_PARAMS = Path(__file__).resolve().parent / "config" / "default.yaml"
+"""The node parameter file of the scenes: the packaged copy of ``config/default.yaml`` (found in an install too)."""
 
 
 def pick_domain_id() -> int:

@@ -36,6 +36,7 @@ __all__ = [
     "load_tissue_config",
     "load_yaml",
     "preset",
+    "preset_path",
     "unflatten",
 ]
 
@@ -355,16 +356,24 @@ def dump_yaml(flat_by_prefix: dict[str, Any], path: str | Path, node_name: str =
         yaml.safe_dump(doc, fh, sort_keys=False)
 
 
-CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+PRESET_DIR = Path(__file__).resolve().parents[1] / "config"
+"""The shipped presets, package data: ``scripts/gen_presets.py`` writes them with the top-level ``config/*.yaml``."""
+
+
+def preset_path(name: str) -> Path:
+    """The file of a shipped preset, ``skin_sim_node/config/NAME.yaml`` (the same as the top-level ``config/NAME.yaml``).
+
+    Raises
+    ------
+    ConfigError
+        No preset of that name.
+    """
+    path = PRESET_DIR / f"{name}.yaml"
+    if not path.exists():
+        raise ConfigError(f"no preset named {name!r} (looked for {path})")
+    return path
 
 
 def preset(name: str) -> TissueConfig:
     """A shipped preset: ``default`` (layered form, in-vivo parameters) or ``paper`` (the paper's form, eq 9, one mode)."""
-    path = CONFIG_DIR / f"{name}.yaml"
-    if not path.exists():
-        from importlib import resources
-
-        path = Path(str(resources.files("skin_sim_node") / "config" / f"{name}.yaml"))
-    if not path.exists():
-        raise ConfigError(f"no preset named {name!r} (looked for {path})")
-    return load_tissue_config(path)
+    return load_tissue_config(preset_path(name))

@@ -1,0 +1,117 @@
+"""What an install gets: the server path without the lab extra, and the presets in a non-editable install."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+LAB_ONLY = ("matplotlib", "skfem", "tqdm", "psutil")
+"""The `lab` extra's import names (pyproject.toml): figures, FEM references, progress bars, process meters."""
+
+SERVER_MODULES = (
+    "skin_sim_node.server.node",
+    "skin_sim_node.server.display",
+    "skin_sim_node.device.bridge",
+    "skin_sim_node.device.sim_device",
+    "skin_sim_node.device.mock_tool",
+    "skin_sim_node.session",
+    "skin_sim_node.model",
+    "skin_sim_node.bags.record",
+    "skin_sim_node.bags.compare",
+    "skin_sim_node.cli",
+)
+"""What ``skin-sim node``, ``bridge``, ``device``, ``mock-tool``, ``record`` and ``compare`` import."""
+
+_BLOCKER = """
+import importlib, sys
+BLOCKED = {blocked!r}
+class Blocked:
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in BLOCKED:
+            raise ImportError(f"{{name}} is blocked (the lab extra is not installed)")
+        return None
+sys.meta_path.insert(0, Blocked())
+for lab in BLOCKED:
+    try:
+        importlib.import_module(lab)
+    except ImportError:
+        pass
+    else:
+        raise SystemExit(f"the blocker let {{lab}} through")
+for mod in {modules!r}:
+    importlib.import_module(mod)
+print("imported", len({modules!r}), "modules; loaded lab modules:", sorted(m for m in sys.modules if m.split(".")[0] in BLOCKED))
+"""
+
+
+def _run(code: str, cwd: Path, pythonpath: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(pythonpath))
+    return subprocess.run([sys.executable, "-c", code], cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+
+
+def test_server_modules_import_without_the_lab_extra(tmp_path):
+    r = _run(_BLOCKER.format(blocked=LAB_ONLY, modules=SERVER_MODULES), tmp_path, ROOT)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.strip() == f"imported {len(SERVER_MODULES)} modules; loaded lab modules: []", r.stdout
+
+
+def test_the_blocker_blocks(tmp_path):
+    """The same subprocess fails for a module that needs the lab extra at import (the FEM reference)."""
+    r = _run(_BLOCKER.format(blocked=LAB_ONLY, modules=("skin_sim_node.validation.fem",)), tmp_path, ROOT)
+    assert r.returncode != 0 and "skfem is blocked" in r.stderr, r.stderr[-3000:]
+
+
+def test_a_non_editable_install_finds_the_presets(tmp_path):
+    """``pip install --target`` of the package (not editable): ``preset()`` reads the packaged YAML, cwd elsewhere."""
+    src = tmp_path / "src"
+    src.mkdir()
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(ROOT / name, src / name)
+    for pkg in ("skin_sim_node", "msgs_schema"):
+        shutil.copytree(ROOT / pkg, src / pkg, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc"))
+    target = tmp_path / "site"
+    pip = [
+        sys.executable,
+        "-m",
+        "pip",
+        "install",
+        "--quiet",
+        "--no-deps",
+        "--no-build-isolation",
+        "--target",
+        str(target),
+        str(src),
+    ]
+    r = subprocess.run(pip, capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert sorted(p.name for p in (target / "skin_sim_node" / "config").glob("*.yaml")) == ["default.yaml", "paper.yaml"]
+    code = (
+        "import skin_sim_node, skin_sim_node.scenes as sc\n"
+        "from skin_sim_node.model import preset\n"
+        "from skin_sim_node.model.config import load_tissue_config, preset_path\n"
+        "print(skin_sim_node.__file__)\n"
+        "print(preset_path('default'), preset_path('paper'), sc.DEFAULT_PARAMS)\n"
+        "print(preset('default').form, preset('paper').form, preset('default') == load_tissue_config(sc.DEFAULT_PARAMS))\n"
+    )
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    r = _run(code, elsewhere, target)
+    assert r.returncode == 0, r.stderr[-3000:]
+    where, paths, forms = r.stdout.strip().splitlines()
+    assert Path(where).is_relative_to(target), f"imported {where}, not the install"
+    assert all(Path(p).is_relative_to(target / "skin_sim_node" / "config") for p in paths.split()), paths
+    assert forms == "layered paper True"
+
+
+@pytest.mark.parametrize("name", ["default", "paper"])
+def test_the_packaged_presets_are_the_top_level_files(name):
+    from skin_sim_node.model.config import preset_path
+
+    assert preset_path(name).read_text() == (ROOT / "config" / f"{name}.yaml").read_text()
