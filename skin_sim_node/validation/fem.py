@@ -340,10 +340,6 @@ def mesh_levels(level: int, base: FemSetup) -> FemSetup:
     )
 
 
-def peak_down_per_depth(res: FemResult) -> float:
-    return float(res.surface_per_depth.max())
-
-
 def _fmt(x: float) -> str:
     return f"{x:.4g}"
 
