@@ -22,10 +22,12 @@ REST_RGBA = (0.93, 0.80, 0.70, 1.0)
 
 
 def stamp_ns(header) -> int:
+    """A ``std_msgs/Header`` stamp in integer nanoseconds."""
     return int(header.stamp.sec) * NS + int(header.stamp.nanosec)
 
 
 def set_stamp(header, t_ns: int) -> None:
+    """Set ``header.stamp`` from integer nanoseconds."""
     header.stamp.sec, header.stamp.nanosec = divmod(int(t_ns), NS)
 
 
@@ -83,6 +85,7 @@ class WrenchCdr:
         struct.pack_into(f"<I{len(name)}s", self._buf, 12, len(name), name)
 
     def fill(self, t_ns: int, force, torque=(0.0, 0.0, 0.0)) -> bytes:
+        """The serialized message for stamp ``t_ns`` (ns) and ``force``/``torque`` (N, N m): the preallocated buffer, patched."""
         sec, nsec = divmod(int(t_ns), NS)
         struct.pack_into("<iI", self._buf, 4, sec, nsec)
         struct.pack_into("<6d", self._buf, self._vec, *force, *torque)
@@ -100,6 +103,7 @@ def read_wrench(msg):
 
 
 def fill_pose(msg, t_ns: int, frame: str, xyz, quat=(0.0, 0.0, 0.0, 1.0)):
+    """Fill a ``PoseStamped`` the caller owns: stamp ``t_ns`` (ns), ``frame``, position ``xyz`` (m), ``quat`` (x, y, z, w)."""
     set_stamp(msg.header, t_ns)
     msg.header.frame_id = frame
     p = msg.pose.position
@@ -110,6 +114,7 @@ def fill_pose(msg, t_ns: int, frame: str, xyz, quat=(0.0, 0.0, 0.0, 1.0)):
 
 
 def fill_twist(msg, t_ns: int, frame: str, linear, angular=(0.0, 0.0, 0.0)):
+    """Fill a ``TwistStamped`` the caller owns: stamp ``t_ns`` (ns), ``frame``, ``linear`` (m/s), ``angular`` (rad/s)."""
     set_stamp(msg.header, t_ns)
     msg.header.frame_id = frame
     lin, ang = msg.twist.linear, msg.twist.angular
@@ -119,6 +124,7 @@ def fill_twist(msg, t_ns: int, frame: str, linear, angular=(0.0, 0.0, 0.0)):
 
 
 def fill_wrench(msg, t_ns: int, frame: str, force, torque=(0.0, 0.0, 0.0)):
+    """Fill a ``WrenchStamped`` the caller owns: stamp ``t_ns`` (ns), ``frame``, ``force`` (N), ``torque`` (N m)."""
     set_stamp(msg.header, t_ns)
     msg.header.frame_id = frame
     f, m = msg.wrench.force, msg.wrench.torque
@@ -150,6 +156,7 @@ def fill_contact_from_tick(msg, result, t_ns: int, frame: str):
 
 
 def read_contact(msg):
+    """``tissue/contact`` (``JointState``) -> (stamp ns, compression m, compression rate m/s, stress Pa), per layer."""
     return stamp_ns(msg.header), np.array(msg.position), np.array(msg.velocity), np.array(msg.effort)
 
 
@@ -168,6 +175,13 @@ def fill_image(msg, t_ns: int, frame: str, data: np.ndarray):
 
 
 def read_image(msg) -> np.ndarray:
+    """A ``32FC1``/``32FCn`` ``sensor_msgs/Image`` -> float64 array (rows, cols) or (rows, cols, n).
+
+    Raises
+    ------
+    ValueError
+        Any other encoding.
+    """
     channels = int(msg.encoding[4:]) if msg.encoding.startswith("32FC") else 1
     if not msg.encoding.startswith("32FC"):
         raise ValueError(f"expected a 32FCn image, got encoding {msg.encoding!r}")

@@ -36,10 +36,12 @@ PROFILES = {
 
 
 def qos_for(key: str) -> QoSProfile:
+    """The contract's QoS profile of topic ``key`` (its class in :data:`msgs_schema.topics.TOPICS`)."""
     return PROFILES[TOPICS[key].qos]
 
 
 def publisher(node, key: str, name: str | None = None):
+    """A publisher of topic ``key`` with its contract type and QoS; ``name`` overrides the topic name."""
     spec = TOPICS[key]
     return node.create_publisher(spec.msg_class, name or spec.name, qos_for(key))
 

@@ -26,6 +26,8 @@ FRAMES = {
 
 @dataclass(frozen=True)
 class TopicSpec:
+    """One topic of the contract: relative name, ``package/msg/Type``, QoS class, units, frame and rate."""
+
     name: str  # relative topic name
     type: str  # package/msg/Type
     qos: str  # haptic | display | diagnostics

@@ -288,6 +288,7 @@ class PeriodicLoop:
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> None:
+        """Start the loop thread."""
         self._thread.start()
 
     @property
@@ -296,6 +297,7 @@ class PeriodicLoop:
         return self._thread.native_id
 
     def stop(self) -> None:
+        """Ask the loop to stop and join its thread (up to 2 s; not from the loop thread itself)."""
         self._stop.set()
         if self._thread.is_alive() and self._thread is not threading.current_thread():
             self._thread.join(timeout=2.0)
@@ -354,4 +356,5 @@ class PeriodicLoop:
 
 
 def ros_now_ns(node) -> int:
+    """The node clock's time now, in nanoseconds."""
     return node.get_clock().now().nanoseconds

@@ -63,12 +63,15 @@ busy processes beside it (tests/test_shutdown.py): node 0.7-0.8 s, bridge and de
 
 @dataclass
 class Proc:
+    """One started process of a scene: name, command line, ``Popen`` and log file."""
+
     name: str
     argv: list[str]
     popen: subprocess.Popen
     log_path: Path
 
     def log(self) -> str:
+        """The process's output so far (empty before the log file exists)."""
         return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
 
 
@@ -86,6 +89,7 @@ class Scene:
         self.env = isolated_env(self.domain_id, self.log_dir / "ros")
 
     def start(self, name: str, command: str, *args: str) -> Proc:
+        """Start ``python -m skin_sim_node.cli COMMAND ARGS`` as process ``name``, output to ``LOG_DIR/name.log``."""
         argv = [sys.executable, "-m", "skin_sim_node.cli", command, *args]
         log_path = self.log_dir / f"{name}.log"
         fh = open(log_path, "w")  # noqa: SIM115 - owned by the child for its lifetime
@@ -95,9 +99,19 @@ class Scene:
         return proc
 
     def node(self, *extra: str, params: Path = DEFAULT_PARAMS) -> Proc:
+        """Start ``skin_sim_node`` with the parameter file ``params`` and extra ``--ros-args``."""
         return self.start("skin_sim_node", "node", "--ros-args", "--params-file", str(params), *extra)
 
     def wait_for_log(self, proc: Proc, text: str, timeout_s: float = 60.0) -> None:
+        """Wait until ``text`` appears in ``proc``'s log.
+
+        Raises
+        ------
+        RuntimeError
+            The process exited first (with the log's tail).
+        TimeoutError
+            Not within ``timeout_s``.
+        """
         end = time.monotonic() + timeout_s
         while time.monotonic() < end:
             if text in proc.log():
@@ -119,6 +133,7 @@ class Scene:
         return proc.popen.returncode
 
     def stop_all(self) -> dict[str, int]:
+        """Stop every process, last started first: ``{name: exit code}``."""
         return {p.name: self.stop(p) for p in reversed(self.procs)}
 
     def __enter__(self) -> Scene:
@@ -157,6 +172,7 @@ def run_scene(kind: str, path: str, log_dir: Path, duration_s: float | None) -> 
 
 
 def main(argv=None) -> int:
+    """``skin-sim scene KIND``: start a scene's processes, wait for the tool to finish (or ``--duration-s``), stop them."""
     ap = argparse.ArgumentParser(prog="skin-sim scene", description="Start a scene as separate processes.")
     ap.add_argument("kind", choices=sorted(SCENES), help="; ".join(f"{k}: {v}" for k, v in SCENES.items()))
     ap.add_argument("--path", default="press_hold_release", help="hand path / trajectory name")

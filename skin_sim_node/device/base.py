@@ -108,6 +108,7 @@ class DeviceNode(Node):
     # --- command line -------------------------------------------------------------------
     @classmethod
     def parser(cls) -> argparse.ArgumentParser:
+        """The command line: one option per :attr:`PARAMS` entry (description, unit, default), then :meth:`add_arguments`."""
         ap = argparse.ArgumentParser(
             prog=cls.PROG,
             description=cls.DESCRIPTION,
@@ -169,11 +170,13 @@ class ScriptedNode(DeviceNode):
 
     @classmethod
     def add_arguments(cls, ap) -> None:
+        """``--loop`` (repeat the script forever) and ``--no-exit`` (hold the end pose)."""
         ap.add_argument("--loop", action="store_true", help="loop the script forever (repeat 0)")
         ap.add_argument("--no-exit", action="store_true", help="keep holding the end pose instead of exiting")
 
     @classmethod
     def overrides_from(cls, opts) -> dict:
+        """The parameter overrides of ``--loop`` and ``--no-exit`` on top of the base's."""
         o = super().overrides_from(opts)
         if opts.loop:
             o["repeat"] = 0
@@ -182,6 +185,7 @@ class ScriptedNode(DeviceNode):
         return o
 
     def start_loop(self, period_ns: int, tick, name: str) -> None:
+        """Run ``tick`` every ``period_ns`` on a :class:`~skin_sim_node.ros_util.PeriodicLoop` thread; start housekeeping."""
         self.finished = False
         self._loop = PeriodicLoop(period_ns, tick, name=name)
         self.create_timer(HOUSEKEEPING_PERIOD_S, self._housekeeping)
@@ -202,4 +206,5 @@ class ScriptedNode(DeviceNode):
         self._loop.stop()
 
     def stop(self) -> None:
+        """Stop the periodic loop (joins its thread)."""
         self._loop.stop()

@@ -145,6 +145,7 @@ class ServerLink:
                 publish_while_ok(self.node, self._pose_pub, fill_pose(self._pose, ps[0], self.frame, ps[1], ps[2]))
 
     def close(self) -> None:
+        """Stop the link's threads and destroy its node and context (idempotent at shutdown)."""
         self._stop.set()
         self._wake.set()
         for t in self._threads:
@@ -231,6 +232,7 @@ class BridgeNode(DeviceNode):
 
     @classmethod
     def add_arguments(cls, ap) -> None:
+        """The options beside the parameters: ``--restamp`` and ``--localhost-shm``."""
         ap.add_argument("--restamp", dest="restamp", action="store_true", default=None,
                         help="stamp tool poses with the bridge clock instead of the driver's")  # fmt: skip
         ap.add_argument(
@@ -242,6 +244,7 @@ class BridgeNode(DeviceNode):
 
     @classmethod
     def before_start(cls, opts) -> int | None:
+        """Before rclpy: check ``--axes`` and ``--node-ns`` (a bad one: one line, exit code 2); set the DDS transport."""
         try:
             if opts.axes is not None:
                 axes_matrix(opts.axes)
@@ -496,6 +499,7 @@ class BridgeNode(DeviceNode):
         publish_while_ok(self, self._diag_pub, self._diag)
 
     def stop(self) -> None:
+        """Close the server link and log the bridge's counts."""
         self.server.close()
         c = self.counts
         self.say(

@@ -306,6 +306,7 @@ def without_namespace_remap(ros_args: list[str]) -> list[str]:
 
 
 def parse_vec3(text: str) -> list[float]:
+    """``argparse`` type: ``"x y z"`` or ``"x,y,z"`` -> three floats."""
     v = [float(c) for c in text.replace(",", " ").split()]
     if len(v) != 3:
         raise argparse.ArgumentTypeError(f"expected 3 numbers, got {text!r}")

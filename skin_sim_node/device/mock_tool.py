@@ -35,12 +35,14 @@ class MockToolNode(ScriptedNode):
 
     @classmethod
     def add_arguments(cls, ap) -> None:
+        """The scripted node's options plus ``--list`` (print the trajectories) and ``--no-twist``."""
         super().add_arguments(ap)
         ap.add_argument("--list", action="store_true", help="list the trajectories and exit")
         ap.add_argument("--no-twist", action="store_true", help="do not publish tool/twist")
 
     @classmethod
     def overrides_from(cls, opts) -> dict:
+        """``--no-twist`` as ``publish_twist = False`` on top of the scripted node's overrides."""
         o = super().overrides_from(opts)
         if opts.no_twist:
             o["publish_twist"] = False
@@ -48,6 +50,7 @@ class MockToolNode(ScriptedNode):
 
     @classmethod
     def before_start(cls, opts) -> int | None:
+        """``--list``: print the trajectories and exit 0; else None (start the node)."""
         if opts.list:
             for t in TRAJECTORIES.values():
                 print(f"{t.name:20s} {t.duration_s:6.3f} s  {t.description}")

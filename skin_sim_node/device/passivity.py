@@ -42,6 +42,7 @@ class PassivityController:
         self.reset()
 
     def reset(self) -> None:
+        """Zero the observed energy, the dissipated energy, the damping and the active-tick count."""
         self.energy_j = 0.0  # observed energy absorbed by the environment (J); < 0: it generated energy
         self.dissipated_j = 0.0  # energy the controller dissipated, observed (J)
         self.alpha_n_s_per_m = 0.0  # damping of the current tick (N*s/m)

@@ -236,6 +236,7 @@ class ContactRenderer:
 
     @property
     def model(self) -> LocalModel | None:
+        """The current local contact model, or None before the first."""
         return self._model.m if self._model else None
 
     def bounded(self, m: LocalModel) -> tuple[np.ndarray, np.ndarray]:
@@ -386,10 +387,12 @@ class HoldLastRenderer:
         self.state = "none"
 
     def set_model(self, m: LocalModel, now_s: float | None = None) -> str | None:
+        """Hold ``m`` from ``now_s`` (default: the last tick's stamp); never drops one (returns None)."""
         self._m, self._rx = m, self._t if now_s is None else now_s
         return None
 
     def render(self, now_s: float, x, v=None, applied_over_dx=None) -> np.ndarray:
+        """The held model's ``f0`` (clamped) while it is younger than its time-to-live, else zero; ``x``, ``v`` unused."""
         self._t = now_s
         if self._m is None:
             self.state = "none"

@@ -111,6 +111,7 @@ class SimDeviceNode(ScriptedNode):
         self.start_loop(self._period_ns, self._tick, name="sim-device")
 
     def housekeeping(self) -> None:
+        """Timer callback: warn once when no force command has arrived well after the start delay."""
         if not self._hinted and self.commands == 0 and self.device.t_s > self.p.start_delay_s + NO_COMMAND_HINT_S:
             self._hinted = True
             self.get_logger().warning(HINT)
@@ -136,6 +137,7 @@ class SimDeviceNode(ScriptedNode):
             self.finish(f"hand path done ({self.commands} force commands received): shutting down")
 
     def stop(self) -> None:
+        """Stop the servo loop and log its ticks, overruns and the force commands received."""
         self._loop.stop()
         hint = f"; {HINT}" if self.commands == 0 else ""
         self.say(

@@ -153,6 +153,7 @@ class SimulatedDevice:
 
     @property
     def done(self) -> bool:
+        """True once the hand path's last run and tail are over."""
         return self.script.done(self.t_s)
 
     def step(self, force_xyz_n, dt: float) -> tuple[Vec3, Vec3]:
@@ -187,8 +188,10 @@ class SimulatedDevice:
 
     @property
     def pos_tissue(self) -> Vec3:
+        """Stylus position in the tissue frame (m)."""
         return self.mapping.to_tissue(self.pos)
 
     @property
     def vel_tissue(self) -> Vec3:
+        """Stylus velocity in the tissue frame (m/s)."""
         return self.mapping.velocity_to_tissue(self.vel)

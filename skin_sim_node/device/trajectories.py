@@ -65,6 +65,7 @@ class Trajectory:
 
     @property
     def end_m(self) -> Vec3:
+        """End position (m): the last segment's target, or the start without segments."""
         return vec3(self.segments[-1][1]) if self.segments else vec3(self.start_m)
 
     def sample(self, t: float) -> tuple[Vec3, Vec3]:
@@ -188,4 +189,5 @@ class ScriptClock:
         return t - d * (self.repeat - 1) if t >= d * self.repeat else math.fmod(t, d)
 
     def done(self, t_s: float) -> bool:
+        """True at ``t_s`` once every run and the tail are over (never with ``repeat = 0``)."""
         return self.repeat > 0 and t_s >= self.start_delay_s + self.traj.duration_s * self.repeat + self.tail_s

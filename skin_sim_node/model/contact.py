@@ -43,6 +43,7 @@ class ContactTangent:
 
     @property
     def in_contact(self) -> bool:
+        """True if the tool touches the tissue (a contact radius > 0)."""
         return self.contact_radius_m > 0.0
 
 

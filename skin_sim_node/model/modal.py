@@ -113,6 +113,7 @@ class ModalBasis:
 
     @property
     def n_modes(self) -> int:
+        """Number of modal terms (``M x N`` in eq 2)."""
         return int(self.beta.shape[0])
 
 

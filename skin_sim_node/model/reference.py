@@ -74,6 +74,7 @@ def layer_field_ref(q_l, cx, cy, mode_m, mode_n, a, b, xs, ys):
 
 
 def assemble_heights_ref(disp, rest_tops):
+    """Interface heights (m) from per-layer displacements: each interface sits at its rest depth moved by every layer below it."""
     below = np.cumsum(disp[::-1], axis=0)[::-1]
     return -rest_tops - below
 
@@ -113,6 +114,7 @@ class NumpySkinModel:
         return float(np.sum(self.q[li] * np.sin(bm.mode_m * np.pi * xi / a) * np.sin(bm.mode_n * np.pi * eta / b)))
 
     def step(self, tool_xyz, tool_velocity, dt):
+        """One tick: tool at ``tool_xyz`` (m), moving at ``tool_velocity`` (m/s), for ``dt`` (s); NumPy :meth:`SkinModel.step`."""
         x, y, z = (float(c) for c in tool_xyz)
         depth, velocity = -z, -float(tool_velocity[2])
         n_l = self.q.shape[0]
@@ -172,6 +174,7 @@ class NumpySkinModel:
         return force
 
     def build_grid(self):
+        """The height maps of every interface on the output grid: NumPy form of :meth:`SkinModel.build_grid`."""
         a, b = self.cfg.patch_size_m
         bm = self.basis
         disp = np.stack(

@@ -268,6 +268,7 @@ class SkinModel:
 
     @property
     def stress_pa(self) -> float:
+        """Contact stress of the last tick (Pa): force over the loaded area (eq 6)."""
         return float(self._out[OUT_STRESS_PA])
 
     @property
@@ -277,10 +278,12 @@ class SkinModel:
 
     @property
     def n_affected(self) -> int:
+        """Number of layers the last tick moved (the affected-layers lever leaves the rest at rest)."""
         return int(self._out[OUT_N_AFFECTED])
 
     @property
     def in_contact(self) -> bool:
+        """True if the last tick had the tool in contact (``FLAG_CONTACT``)."""
         return bool(self.flags & FLAG_CONTACT)
 
     def tangent(self) -> ContactTangent:
