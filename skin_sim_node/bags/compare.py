@@ -123,6 +123,7 @@ class Diff:
 
 
 def diff_outputs(a: tuple[dict, dict], b: tuple[dict, dict]) -> Diff:
+    """B against A, each ``(wrenches, grids)`` of :func:`read_outputs`: forces at common stamps, grids by shape and height."""
     (fa, ga), (fb, gb) = a, b
     common = sorted(set(fa) & set(fb))
     da = np.array([fa[s] for s in common]) - np.array([fb[s] for s in common]) if common else np.zeros(0)
@@ -154,12 +155,14 @@ def verdict(d: Diff, tol: Tolerances = LIVE) -> list[str]:
 
 
 def describe(tol: Tolerances) -> str:
+    """The tolerances in one line, as the verdict prints them."""
     extra = "" if tol.max_extra == float("inf") else f", at most {tol.max_extra:.0%} of B's stamps not in A"
     return (f"max |dF| <= {tol.force_abs_n:g} N + {tol.force_rel:.2%} of peak, >= {tol.min_matched:.0%} of A's stamps "
             f"matched{extra}")  # fmt: skip
 
 
 def format_table(d: Diff, a: str = "A", b: str = "B") -> str:
+    """The :class:`Diff` as a text table, bag ``a`` against bag ``b``."""
     rows = [
         (
             "wrenches",
@@ -179,6 +182,7 @@ def format_table(d: Diff, a: str = "A", b: str = "B") -> str:
 
 
 def main(argv=None) -> int:
+    """``skin-sim compare A B``: print the diff and the verdict; exit 1 if they differ beyond the tolerances, 2 on a bad bag."""
     ap = argparse.ArgumentParser(prog="skin-sim compare", description=__doc__.splitlines()[0])
     ap.add_argument("bag_a", type=Path, help="reference output bag")
     ap.add_argument("bag_b", type=Path, help="output bag to check")

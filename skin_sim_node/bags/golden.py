@@ -82,6 +82,7 @@ def make_golden(out_dir: Path, scenes=SCENES, params=DEFAULT_PARAMS) -> dict[str
 
 
 def main(argv=None) -> int:
+    """Regenerate the golden bags in ``--out`` (default ``tests/data``) and print each scene's peak force and layers."""
     ap = argparse.ArgumentParser(prog="skin_sim_node.bags.golden", description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("tests/data"), help="output folder (default tests/data)")
     ap.add_argument("--scene", action="append", choices=SCENES, help="only these scenes (repeatable)")

@@ -100,6 +100,7 @@ class Inputs:
 
     @property
     def poses(self):
+        """The pose events only: ``(stamp_ns, frame_id, xyz)`` in bag order."""
         return [(s, f, x) for s, r, f, x in self.events if r == POSE]
 
 
@@ -180,6 +181,7 @@ def read_inputs(bag, opts: InputOptions, tissue_frame: str = FRAMES["tissue"]) -
 
 # --- command-line options (shared by replay and live replay) --------------------------------
 def add_input_arguments(ap: argparse.ArgumentParser) -> None:
+    """The ``foreign bags`` option group (topics, frame, device convention and mapping) of ``replay`` and ``view``."""
     g = ap.add_argument_group("foreign bags")
     g.add_argument("--pose-topic", help="pose topic (default tool/pose, or the convention's device topic)")
     g.add_argument("--twist-topic", help="twist topic (default tool/twist or the convention's; '' to ignore twists)")
@@ -192,6 +194,7 @@ def add_input_arguments(ap: argparse.ArgumentParser) -> None:
 
 
 def input_options(args: argparse.Namespace) -> InputOptions:
+    """The :class:`InputOptions` of parsed :func:`add_input_arguments` options."""
     kw = {k: v for k, v in (("offset_m", args.offset_m), ("scale", args.scale), ("axes", args.axes)) if v is not None}
     mapping = DeviceMapping(**kw)
     return InputOptions(args.pose_topic, args.twist_topic, args.frame, args.convention, args.device_ns, mapping)

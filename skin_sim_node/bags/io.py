@@ -77,10 +77,12 @@ def qos_profiles(topic_key: str) -> list[Qos]:
 
 
 def deserialize(raw: bytes, msgtype: str):
+    """CDR bytes of type ``msgtype`` -> a ``rosbags`` message (the project's type store, ``ContactModel`` included)."""
     return typestore().deserialize_cdr(raw, msgtype)
 
 
 def serialize(msg, msgtype: str) -> bytes:
+    """A ``rosbags`` message of type ``msgtype`` -> CDR bytes."""
     return bytes(typestore().serialize_cdr(msg, msgtype))
 
 
@@ -172,6 +174,7 @@ class BagWriter:
         return data
 
     def close(self) -> None:
+        """Finish the bag (writes its metadata)."""
         self._writer.close()
 
     def __enter__(self) -> BagWriter:
@@ -279,4 +282,5 @@ def iter_messages(path, reader: Reader, topics) -> Iterator[tuple[str, str, int,
 
 
 def describe_topics(types: dict[str, str]) -> str:
+    """``{topic: type}`` as one line, sorted (``none`` for an empty bag), for error messages."""
     return ", ".join(f"{t} [{m}]" for t, m in sorted(types.items())) or "none"

@@ -47,6 +47,7 @@ def stream(pose_pub, twist_pub, stamps, ranks, frames, xyz, speed: float) -> tup
 
 
 def main(argv=None) -> int:
+    """Publish a lifted pose until ``go`` on stdin (the live replay's handshake), then stream the events; print timing JSON."""
     ap = argparse.ArgumentParser(prog="skin_sim_node.bags.live_source", description=__doc__.splitlines()[0])
     ap.add_argument("events", help=".npz with stamps, ranks (1 pose, 0 twist), frame_ids, frames, xyz")
     ap.add_argument("--speed", type=float, default=1.0)

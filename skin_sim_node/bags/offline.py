@@ -64,10 +64,12 @@ class ReplayResult:
 
     @property
     def peak_force_n(self) -> float:
+        """Largest normal force of the replay (N); 0 without answered poses."""
         return float(self.force_n[self.peak_index]) if self.force_n.size else 0.0
 
     @property
     def layers_reached(self) -> list[str]:
+        """Names of the layers the tool reached (the most layers moved by any tick)."""
         n = int(self.n_affected.max(initial=0))
         return list(self.layer_names[:n])
 
@@ -80,6 +82,7 @@ class ReplayResult:
         return m
 
     def summary(self) -> dict:
+        """The replay's figures as a JSON-ready dict (counts, peak force and its stamp, layers reached)."""
         i = self.peak_index
         return {
             "poses": self.n_poses,

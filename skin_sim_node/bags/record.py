@@ -64,6 +64,7 @@ def record_scene(out: Path, scene_kind: str, path: str, storage: str = "mcap", d
 
 
 def main(argv=None) -> int:
+    """``skin-sim record OUT``: run a scene and record its tool inputs and node outputs to the rosbag2 folder ``OUT``."""
     ap = argparse.ArgumentParser(prog="skin-sim record", description=__doc__.splitlines()[0])
     ap.add_argument("out", type=Path, help="new rosbag2 folder")
     ap.add_argument(

@@ -105,9 +105,11 @@ class Recorder:
             self.writer.write_raw(bag_topic(key), TOPICS[key].type, rx, raw)
 
     def publisher(self, key: str):
+        """A publisher of contract topic ``key`` on the recorder's node."""
         return publisher(self.node, key)
 
     def now_ns(self) -> int:
+        """The recorder's clock now (ns): the stamps of what it writes."""
         return self._clock.now().nanoseconds
 
     def close(self) -> None:

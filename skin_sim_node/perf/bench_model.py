@@ -47,6 +47,7 @@ def scripted_path(n_ticks: int, dt: float = 1e-3):
 
 
 def time_path(model, path, dt, with_grid: bool) -> np.ndarray:
+    """Wall time of each ``model.step`` along ``path`` (``(pos, vel)`` per tick), plus ``build_grid`` if ``with_grid`` (us)."""
     times = np.empty(len(path))
     clock = time.perf_counter_ns
     for i, (pos, vel) in enumerate(path):
@@ -59,6 +60,7 @@ def time_path(model, path, dt, with_grid: bool) -> np.ndarray:
 
 
 def summarize(us: np.ndarray) -> tuple[float, float, float]:
+    """Median, 99th percentile and maximum of ``us``."""
     return float(np.median(us)), float(np.percentile(us, 99)), float(us.max())
 
 
@@ -294,6 +296,7 @@ def run_lod(scenes=tuple(LOD_SCENES), cases=tuple(LOD_CASES), repeats: int = 3) 
 
 
 def print_lod(rows: list[dict]) -> None:
+    """Print the level-of-detail table of :func:`run_lod`: force and grid cost per tick, and the ratio to all levers off."""
     print("skin-sim level-of-detail levers: thread CPU time per 1 kHz tick, microseconds (model only, no ROS), one run")
     print("force: SkinModel.step; grid: build_grid time averaged over all ticks (60 Hz display frames);")
     print("ratio = mean total per tick / the same scene's 'all off' (fixed 15x15 modes, grid every display frame);")
@@ -315,6 +318,7 @@ def print_lod(rows: list[dict]) -> None:
 
 
 def main(argv=None) -> int:
+    """``skin-sim bench-model``: the model-step benchmark (default), ``--lod``, ``--physics`` or ``--against CHECKOUT``."""
     ap = argparse.ArgumentParser(prog="skin-sim bench-model", description=__doc__.splitlines()[0])
     ap.add_argument("--ticks", type=int, default=6000, help="numba ticks per case (default 6000)")
     ap.add_argument("--numpy-ticks", type=int, default=600, help="NumPy baseline ticks per case (default 600)")

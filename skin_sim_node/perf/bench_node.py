@@ -87,6 +87,7 @@ class Progress:
                         bar_format="{desc}: {percentage:3.0f}%|{bar:20}| {n:.0f}/{total:.0f} s est. [{elapsed}]")  # fmt: skip
 
     def stage(self, name: str, est_s: float) -> None:
+        """Start stage ``name`` expected to take ``est_s``: print its line with the elapsed and remaining time."""
         self._close()
         self.i += 1
         self._open = est_s
@@ -100,6 +101,7 @@ class Progress:
             self._open = 0.0
 
     def close(self) -> None:
+        """Finish the current stage and the bar."""
         self._close()
         self.bar.close()
 
@@ -554,6 +556,7 @@ def join_stall(transports: str, log_dir: Path, node_args: tuple[str, ...] = (), 
 
 
 def print_join_stall(rows: list[dict]) -> None:
+    """Print the joining-reader stall rows: the longest wrench gap before and after a second reader joins."""
     print(f"\njoining-reader stall: a second tool/wrench reader joins; longest gap between wrench arrivals at the first "
           f"reader, ms, {JOIN_WATCH_S:.0f} s after the join vs the seconds before it (answered %)")  # fmt: skip
     if os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST") == "LOCALHOST":
@@ -628,6 +631,7 @@ def latency_variant(spec: str, node_args: tuple[str, ...]) -> tuple[str, tuple[s
 
 
 def print_latency(echo: dict, nodes: list[dict]) -> None:
+    """Print pose-to-force latency (p50, p99, max) of the echo baseline and each node case, with ratios to the echo."""
     print("\npose-to-force latency across processes, ms (p50 p99 max); answered = wrenches / poses sent")
     for r in (echo, *nodes):
         line = f"  {r.get('label', r['case']):>16}: {_fmt3(r['latency_ms'])} | answered {r['answered_pct']:5.1f} %"
@@ -638,6 +642,7 @@ def print_latency(echo: dict, nodes: list[dict]) -> None:
 
 
 def print_periods(title: str, pairs: list[tuple[dict, dict]]) -> None:
+    """Print the force periods seen by the observer for each (baseline, node) pair: p50, p99, max, missed and late."""
     print(
         f"\n{title}: force period from the stamps seen by the observer (p50 p99 max, ms); missed = empty slots, "
         "late = periods > 1.5 T; the node's own count covers its ticks only (no transport)"
@@ -665,6 +670,7 @@ def print_periods(title: str, pairs: list[tuple[dict, dict]]) -> None:
 
 
 def main(argv=None) -> int:
+    """``skin-sim bench``: the node benchmark sections (tick cost, latency, rates, start-up, join stall) against bare rclpy."""
     ap = argparse.ArgumentParser(
         prog="skin-sim bench", description=__doc__.splitlines()[0],
         epilog="Duration: about 14 min with the defaults (all sections; ~1.5 min per latency case pair with "

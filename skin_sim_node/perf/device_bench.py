@@ -366,6 +366,7 @@ def missed_aims(ph: dict) -> list[str]:
 
 
 def print_table(ph: dict) -> None:
+    """Print one row per phase: rates, answered, gaps, force limits and the render/hold force errors."""
     print(
         f"{'phase':<9} {'cmd/s':>6} {'poses/s':>7} {'x':>5} {'answered':>8} {'own late':>8} {'gaps>2':>6} {'gaps>5':>6} "
         f"{'max gap':>8} {'>1.2F':>5} {'>lim':>4} {'max/F':>5} | {'render p50/p99 %':>16} {'hold p50/p99 %':>15} {'x p99':>6} "
@@ -516,6 +517,7 @@ def _throttle() -> bool:
 
 
 def main(argv=None) -> int:
+    """``skin-sim bench-device``: the device path benchmark, phases of node + bridge + emulated device; prints the table."""
     ap = argparse.ArgumentParser(prog="skin-sim bench-device", description=__doc__.splitlines()[0])
     ap.add_argument("--phase-s", type=float, default=30.0, help="length of each phase (s), rounded to whole drag periods (2 s)")
     ap.add_argument("--hog", action="store_true", help="a busy process per core, at normal priority, for the whole run")

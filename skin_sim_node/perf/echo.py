@@ -39,6 +39,7 @@ class EchoNode(Node):
         self.get_logger().info("live: echo" + (f" {ticker_kind} ticker at {ticker_hz} Hz" if ticker_hz else ""))
 
     def stop(self) -> None:
+        """Stop the ticker thread, if one runs."""
         if self._loop:
             self._loop.stop()
 
@@ -54,6 +55,7 @@ class EchoNode(Node):
 
 
 def main(argv=None) -> int:
+    """``skin-sim echo``: run the bare echo (or ticker) node until interrupted."""
     ap = argparse.ArgumentParser(prog="skin-sim echo", description=__doc__.splitlines()[0])
     ap.add_argument("--executor", choices=("events", "single"), default="events")
     ap.add_argument("--switch-interval-s", type=float, default=2e-4)

@@ -115,6 +115,7 @@ def run_scene(cfg, scene: ForceScene, rate_hz: float, latency_ticks: int, render
 
 
 def chart(results: dict, rates, path: Path) -> Path:
+    """Draw the force error against server rate, local model against hold-last, to ``path``; returns ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -164,6 +165,7 @@ def chart(results: dict, rates, path: Path) -> Path:
 
 
 def main(argv=None) -> int:
+    """``skin-sim force-path``: device force error against server rate, offline; prints the table and draws the chart."""
     ap = argparse.ArgumentParser(prog="skin-sim force-path", description=__doc__.splitlines()[0])
     ap.add_argument("--rates", type=float, nargs="+", default=list(RATES_HZ), help="server rates (Hz)")
     ap.add_argument("--latency-ms", type=float, default=1.0, help="pose-to-model delivery delay, whole device ticks (default 1)")
@@ -316,6 +318,7 @@ def msg_cost(duration_s: float = 3.0, rate_hz: float = 1000.0) -> dict:
 
 
 def print_msg_cost(duration_s: float) -> None:
+    """Print the per-message fill, serialize and publish cost of the candidate message types at 1 kHz."""
     print(f"  message cost at 1 kHz for {duration_s:.0f} s, one matched reader in this process, types interleaved "
           "(shared machine: read the ratios to the WrenchStamped baseline of the same run)")  # fmt: skip
     res = msg_cost(duration_s)

@@ -101,6 +101,7 @@ def run_case(scene_name: str, levers_on: bool, duration_s: float, warmup_s: floa
 
 
 def case_estimate_s(duration_s: float, warmup_s: float) -> float:
+    """Expected wall time of one case (s): the run, its warm-up and the start-up overhead."""
     return duration_s + warmup_s + CASE_OVERHEAD_S
 
 
@@ -133,6 +134,7 @@ def _passes(scenes, duration_s, warmup_s, log_dir, modes, repeats, runs, progres
 
 
 def report(rows: list[dict]) -> str:
+    """The CPU table of the scenes, levers off against on, as text."""
     by = {(r["scene"], r["levers"]): r for r in rows}
     base = by.get(("idle", "off")) or rows[0]
     lines = [
@@ -153,6 +155,7 @@ def report(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
+    """``skin-sim perf-lod``: node CPU in four scenes with the level-of-detail levers off and on."""
     ap = argparse.ArgumentParser(
         prog="skin-sim perf-lod", description=__doc__.splitlines()[0],
         epilog=f"Duration: scenes x 2 x repeats cases of (duration + warm-up + ~{CASE_OVERHEAD_S:.0f} s start-up): "

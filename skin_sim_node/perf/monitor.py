@@ -97,9 +97,17 @@ class Monitor:
 
     # --- helpers ----------------------------------------------------------------------
     def publisher(self, key: str):
+        """A publisher of contract topic ``key`` on the monitor's node."""
         return publisher(self.node, key)
 
     def wait_for(self, predicate: Callable[[], bool], timeout_s: float = 20.0, what: str = "condition") -> None:
+        """Wait until ``predicate()`` is true.
+
+        Raises
+        ------
+        TimeoutError
+            Not within ``timeout_s``, naming ``what``.
+        """
         end = time.monotonic() + timeout_s
         while time.monotonic() < end:
             if predicate():
@@ -113,9 +121,11 @@ class Monitor:
         return np.array(data, dtype=np.float64).reshape(-1, 3)
 
     def now_ns(self) -> int:
+        """The monitor's clock now (ns)."""
         return self._now()
 
     def close(self) -> None:
+        """Stop the spin thread, destroy the node and shut its context down."""
         self._stop.set()
         self._thread.join(timeout=2.0)
         try:

@@ -25,6 +25,7 @@ from .bench_node import _pcts
 
 
 def run_device_side(duration_s: float, label: str, log_dir: Path) -> dict:
+    """Run bridge, simulated device and a latency observer for ``duration_s`` against a node elsewhere; the figures."""
     from .bench_node import SETTLE_S, StreamObserver
 
     with Scene(log_dir) as scene:  # keeps the caller's ROS_DOMAIN_ID and discovery range
@@ -53,6 +54,7 @@ def run_device_side(duration_s: float, label: str, log_dir: Path) -> dict:
 
 
 def compare(paths: list[Path]) -> None:
+    """Print the latency rows of the JSON files ``paths``, each as a ratio to the first."""
     rows = [json.loads(p.read_text()) for p in paths]
     base = rows[0]["latency_ms"]
     print("device pose -> node -> force back at the device side, ms (p50 p99 max); ratio to the first row")
@@ -63,6 +65,7 @@ def compare(paths: list[Path]) -> None:
 
 
 def main(argv=None) -> int:
+    """``skin-sim netns-role``: the device side of ``scripts/netns_scale.sh`` (``device``) or its comparison (``compare``)."""
     ap = argparse.ArgumentParser(prog="skin-sim netns-role", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="role", required=True)
     d = sub.add_parser("device", help="bridge + simulated device + latency observer")

@@ -25,18 +25,22 @@ class MembraneSolver:
     # geometry shortcuts
     @property
     def xs_m(self) -> np.ndarray:
+        """x of the interior grid columns (m)."""
         return self.grid.xs_m
 
     @property
     def ys_m(self) -> np.ndarray:
+        """y of the interior grid rows (m)."""
         return self.grid.ys_m
 
     @property
     def dx_m(self) -> float:
+        """Grid spacing along x (m)."""
         return self.grid.dx_m
 
     @property
     def dy_m(self) -> float:
+        """Grid spacing along y (m)."""
         return self.grid.dy_m
 
     def _check_field(self, a, what: str) -> np.ndarray:
@@ -50,15 +54,19 @@ class MembraneSolver:
         return self._zero_load if load_pa is None else self._check_field(load_pa, "load_pa")
 
     def set_state(self, u0_m, v0_m_s=None) -> None:
+        """Set displacement ``u0_m`` (m, shape (ny, nx)) and velocity ``v0_m_s`` (m/s; default 0)."""
         self.u_m = self._check_field(u0_m, "u0_m").copy()
         self.v_m_s = np.zeros_like(self.u_m) if v0_m_s is None else self._check_field(v0_m_s, "v0_m_s").copy()
 
     def step(self, dt_s: float, load_pa=None) -> None:
+        """Advance one step of ``dt_s`` (s) under the load ``load_pa`` (Pa, shape (ny, nx); default none)."""
         raise NotImplementedError
 
     def advance(self, dt_s: float, n_steps: int, load_pa=None) -> None:
+        """``n_steps`` steps of ``dt_s`` (s) under a constant load ``load_pa`` (Pa)."""
         for _ in range(int(n_steps)):
             self.step(dt_s, load_pa)
 
     def energy_j(self) -> float:
+        """Kinetic plus strain energy of the membrane (J): what damping must make decay."""
         raise NotImplementedError

@@ -25,6 +25,7 @@ class LeapfrogSolver(MembraneSolver):
     name = "leapfrog FD"
 
     def set_state(self, u0_m, v0_m_s=None) -> None:
+        """Set ``u`` and ``v``; the leapfrog's previous level is rebuilt at the next step."""
         super().set_state(u0_m, v0_m_s)
         self._u_prev = None
         self._dt = None
@@ -45,6 +46,7 @@ class LeapfrogSolver(MembraneSolver):
         self._dt = dt
 
     def advance(self, dt_s: float, n_steps: int, load_pa=None) -> None:
+        """``n_steps`` leapfrog (central difference) steps of eq 1 in one compiled loop."""
         load = self._load(load_pa)
         dt = float(dt_s)
         self._prepare(dt, load)
@@ -56,6 +58,7 @@ class LeapfrogSolver(MembraneSolver):
         self.v_m_s = (self.u_m - self._u_prev) / dt
 
     def step(self, dt_s: float, load_pa=None) -> None:
+        """One leapfrog step."""
         self.advance(dt_s, 1, load_pa)
 
     def energy_j(self) -> float:
@@ -87,6 +90,7 @@ class MassSpringSolver(MembraneSolver):
         self._acc = np.zeros((ny, nx))
 
     def advance(self, dt_s: float, n_steps: int, load_pa=None) -> None:
+        """``n_steps`` semi-implicit Euler steps of the lumped masses and springs in one compiled loop."""
         load = self._load(load_pa)
         m, g = self.mem, self.grid
         area = g.dx_m * g.dy_m
@@ -97,9 +101,11 @@ class MassSpringSolver(MembraneSolver):
         )  # fmt: skip
 
     def step(self, dt_s: float, load_pa=None) -> None:
+        """One mass-spring step."""
         self.advance(dt_s, 1, load_pa)
 
     def energy_j(self) -> float:
+        """Kinetic energy of the lumped masses plus the springs' strain energy (J)."""
         g = self.grid
         kin = 0.5 * self.mem.areal_density_kg_per_m2 * float((self.v_m_s**2).sum()) * g.dx_m * g.dy_m
         return kin + strain_energy_j(self.mem, g, self.u_m)

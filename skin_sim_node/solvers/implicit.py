@@ -51,6 +51,7 @@ class ImplicitSolver(MembraneSolver):
         return lu
 
     def step(self, dt_s: float, load_pa=None) -> None:
+        """One Crank-Nicolson or backward Euler step of eq 1 (a sparse LU per ``dt``, cached)."""
         dt = float(dt_s)
         p = self._load(load_pa).ravel()
         u, v = self.u_m.ravel(), self.v_m_s.ravel()
@@ -67,6 +68,7 @@ class ImplicitSolver(MembraneSolver):
         self.u_m, self.v_m_s = u1.reshape(shape), v1.reshape(shape)
 
     def energy_j(self) -> float:
+        """Kinetic plus strain energy on the finite-difference grid (J)."""
         g = self.grid
         kin = 0.5 * self.mem.areal_density_kg_per_m2 * float((self.v_m_s**2).sum()) * g.dx_m * g.dy_m
         return kin + strain_energy_j(self.mem, g, self.u_m)

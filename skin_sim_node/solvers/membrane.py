@@ -84,6 +84,13 @@ class GridSpec:
 
 
 def grid_spec(mem: Membrane, nx: int, ny: int) -> GridSpec:
+    """The :class:`GridSpec` of ``nx`` x ``ny`` interior nodes of ``mem``'s rectangle.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 1 x 1 nodes.
+    """
     if nx < 1 or ny < 1:
         raise ValueError(f"grid needs at least 1 x 1 interior nodes, got {nx} x {ny}")
     dx, dy = mem.size_x_m / (nx + 1), mem.size_y_m / (ny + 1)

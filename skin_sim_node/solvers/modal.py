@@ -40,6 +40,7 @@ class ModalSolver(MembraneSolver):
         super().__init__(mem, nx, ny)
 
     def set_state(self, u0_m, v0_m_s=None) -> None:
+        """Set ``u`` and ``v``: their sine-transform coefficients, truncated to the kept modes."""
         super().set_state(u0_m, v0_m_s)
         self._qu = dstn(self.u_m, type=1) * self._keep
         self._qv = dstn(self.v_m_s, type=1) * self._keep
@@ -62,9 +63,11 @@ class ModalSolver(MembraneSolver):
         self._qu, self._qv = qu + q_static, qv
 
     def step(self, dt_s: float, load_pa=None) -> None:
+        """One exact modal step (eqs 2-3, damped)."""
         self.advance(dt_s, 1, load_pa)
 
     def advance(self, dt_s: float, n_steps: int, load_pa=None) -> None:
+        """``n_steps`` exact modal steps of ``dt_s`` (s) under a constant load, then the grid fields."""
         self._advance_coeffs(float(dt_s), n_steps, load_pa)
         self._sync()
 
