@@ -61,6 +61,7 @@ def wall_overrides(k_n_per_m: float) -> dict[str, float | str]:
 
 
 def wall_cfg(k_n_per_m: float):
+    """The :class:`TissueConfig` of the wall tissue of stiffness ``k_n_per_m`` (:func:`wall_overrides`)."""
     return config_from_flat({**default_flat(), **wall_overrides(k_n_per_m)})
 
 
@@ -80,6 +81,7 @@ def classify_press(t_s: np.ndarray, force_n: np.ndarray) -> Verdict:
 
 
 def in_process(rate_hz: float, k_n_per_m: float, stabiliser: str, delay_ticks: int = 1) -> Verdict:
+    """The in-process loop's verdict at one point (rate, wall stiffness, stabiliser, delay): what the DDS run must agree with."""
     tr = run_loop(TissueEnv(wall_cfg(k_n_per_m)), rate_hz, TRAJECTORIES[PATH], stabiliser, delay_ticks)
     return classify_press(tr.t_s, tr.force_n)
 

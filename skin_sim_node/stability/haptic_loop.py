@@ -54,6 +54,7 @@ class Wall:
         self.k = float(stiffness_n_per_m)
 
     def force(self, t_s: float, pos, vel, dt: float) -> float:
+        """Normal force of the linear wall at ``pos`` (N): ``k`` times the depth below z = 0."""
         return self.k * max(0.0, -pos[2])
 
 
@@ -67,6 +68,7 @@ class TissueEnv:
         self.session = HapticSession(SkinModel(cfg), session_params or SessionParams(max_stamp_age_s=0.0))
 
     def force(self, t_s: float, pos, vel, dt: float) -> float:
+        """Normal force of the haptic session at ``pos``, ``vel`` for a tick of ``dt`` (N): pose and twist in, one tick."""
         stamp = int(round(t_s * 1e9)) + 1
         self.session.on_twist(stamp, "tissue", vel)
         self.session.on_pose(stamp, "tissue", pos)
@@ -82,6 +84,8 @@ def hold_path(depth_m: float, hand_stiffness_n_per_m: float, force_n: float = HO
 
 @dataclass
 class Trace:
+    """One closed-loop run, per tick: time, stylus height, environment force, applied force; and its rate."""
+
     t_s: np.ndarray
     z_m: np.ndarray  # stylus tip height (tissue frame) at each tick
     force_n: np.ndarray  # environment force computed at each tick
@@ -108,6 +112,8 @@ def run_loop(env, rate_hz: float, path: Trajectory, stabiliser: str = "none", de
 
 @dataclass(frozen=True)
 class Verdict:
+    """Stability verdict of one run: stable or not, the kind, the force std early and late, the late mean and energy."""
+
     stable: bool
     kind: str  # settled | decaying | limit cycle | growing
     std_early_n: float

@@ -64,6 +64,7 @@ def dermis_membrane() -> Membrane:
 
 
 def make_solver(method: str, mem: Membrane, n: int):
+    """The baseline solver ``method`` (``exact modal``, ``leapfrog``, ``mass-spring``, an implicit scheme) on ``n x n`` nodes."""
     if method == "exact modal":
         return ModalSolver(mem, n, n)
     if method == "leapfrog":
@@ -83,11 +84,14 @@ def dt_limit_s(method: str, mem: Membrane, n: int) -> float:
 
 
 def initial_state(mem: Membrane, n: int) -> np.ndarray:
+    """The static indentation of ``mem`` to :data:`DEPTH_M` under the tool: the released start of every run (m)."""
     return static_indentation(mem, n, n, DEPTH_M)[1]
 
 
 @dataclass(frozen=True)
 class Point:
+    """One sweep point: method, grid, time step, Courant number ``c dt / dx`` and the largest energy ratio ``E / E0``."""
+
     method: str
     n: int
     dx_m: float
@@ -98,6 +102,7 @@ class Point:
 
     @property
     def grows(self) -> bool:
+        """True if the energy grew past :data:`GROWTH` (or became non-finite): the method is unstable here."""
         return not (self.energy_ratio <= GROWTH)
 
 
@@ -171,6 +176,7 @@ def run_point(method: str, mem: Membrane, n: int, steps: int, u0=None, u_ref=Non
 def sweep(
     methods=METHODS, grids=GRIDS, step_counts=STEP_COUNTS, mem: Membrane | None = None, progress: bool = True
 ) -> list[Point]:
+    """Run every method on every grid at every step count; one :class:`Point` each."""
     mem = mem or dermis_membrane()
     out = []
     total = len(grids) * len(methods) * len(step_counts)

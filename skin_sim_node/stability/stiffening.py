@@ -68,6 +68,8 @@ def reference_tangent_n_per_m(depths_m) -> np.ndarray:
 
 @dataclass
 class LoopPoint:
+    """The closed loop at one depth: force, model tangent, naive and passivity verdicts, largest published force rate."""
+
     depth_m: float
     force_n: float
     tangent_n_per_m: float
@@ -110,6 +112,7 @@ def table(cfg: TissueConfig | None = None, progress: bool = True) -> tuple[list[
 
 
 def figures(out: Path, cfg: TissueConfig | None = None) -> list[Path]:
+    """Draw ``stiffening.png`` in ``out`` (model and reference tangent against depth, loop limits), print the table; the paths."""
     cfg = cfg or preset("default")
     rows, pts, limits = table(cfg)
     form = cfg.as_flat().get("form", cfg.as_flat().get("tissue.form", "paper"))

@@ -44,10 +44,12 @@ class Scored:
 
     @property
     def force_mean(self) -> float:
+        """Mean relative force error over the scenarios."""
         return float(np.mean(list(self.force_err.values())))
 
     @property
     def field_mean(self) -> float:
+        """Mean relative surface-field error over the scenarios."""
         return float(np.mean(list(self.field_err.values())))
 
 
@@ -82,6 +84,7 @@ def paper_form_default() -> TissueConfig:
 
 
 def table(rows: list[Scored]) -> str:
+    """The scored configs as a markdown table: force and field error per scenario and their means."""
     names = list(rows[0].force_err)
     head = "| config | " + " | ".join(f"force {n}" for n in names) + " | **force mean** | " + \
         " | ".join(f"field {n}" for n in names) + " | **field mean** |"  # fmt: skip
@@ -138,6 +141,7 @@ class _RefScenario:
 
     @property
     def max_depth_m(self) -> float:
+        """The deepest indentation of the scenario (m)."""
         return float(self.depths_m[-1])
 
 
@@ -266,6 +270,7 @@ def table_ii_nonlinear(out: Path | None = OUT, progress: bool = True) -> dict:
 
 
 def main(argv=None) -> int:
+    """``skin-sim chart validation --only accuracy``: score the default, the paper form and ``--config`` files; the table."""
     ap = argparse.ArgumentParser(prog="skin-sim chart validation --only accuracy", description=__doc__.split("\n")[0])
     ap.add_argument("--config", action="append", default=[], help="also score this config YAML (tissue.* parameters)")
     a = ap.parse_args(argv)

@@ -120,6 +120,8 @@ def _apply(base: TissueConfig, p: np.ndarray, fit_field: bool) -> TissueConfig:
 
 @dataclass
 class Fit:
+    """A calibration result: the fitted config, the fitted parameters, RMS residual at the end and at the start, evaluations."""
+
     cfg: TissueConfig
     params: dict
     residual_rms: float
@@ -279,6 +281,7 @@ def nonlinear_datasets(progress: bool = True, field_stride: int = 3) -> list[Ind
 
 
 def main(argv=None) -> int:
+    """``skin-sim calibrate``: fit to the FEM reference or a ``--csv`` of measured indentations; write ``--out`` YAML."""
     ap = argparse.ArgumentParser(
         prog="skin-sim calibrate",
         description=__doc__.split("\n")[0],

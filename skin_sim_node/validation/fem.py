@@ -83,6 +83,7 @@ class FemSetup:
     tissue: tuple = field(default_factory=lambda: _geometry_key(preset("default")))
 
     def key(self) -> str:
+        """Cache key: a hash of the setup and :data:`FEM_VERSION`."""
         blob = json.dumps({"v": FEM_VERSION, **asdict(self)}, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
@@ -109,6 +110,7 @@ class FemResult:
     solve_s: float  # wall time of assembly + factorisation + solve on this machine
 
     def force_n(self, depth_m):
+        """Force at ``depth_m`` (N): the linear reference scales with depth."""
         return self.stiffness_n_per_m * np.asarray(depth_m)
 
 
@@ -345,6 +347,7 @@ def _fmt(x: float) -> str:
 
 
 def main(argv=None) -> int:  # pragma: no cover - exercised by the chart command
+    """Solve one FEM reference at ``--level`` and print its size, stiffness and solve time."""
     import argparse
 
     ap = argparse.ArgumentParser(description="solve one FEM reference and print its force per depth")

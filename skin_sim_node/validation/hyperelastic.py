@@ -106,6 +106,7 @@ class AxiSetup:
     law: str = "neo-hookean"
 
     def key(self) -> str:
+        """Cache key: a hash of the setup and :data:`HYPER_VERSION`."""
         blob = json.dumps({"v": HYPER_VERSION, **asdict(self)}, sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
@@ -249,6 +250,7 @@ class AxiProblem:
         self.u = np.zeros(b.N)
 
     def gradient(self, u):
+        """Displacement gradient at every quadrature point of every element, from the nodal ``u``."""
         ue = u[self.edofs]  # (n_local, ne)
         return np.einsum("aine,in->ane", self.B, ue)
 

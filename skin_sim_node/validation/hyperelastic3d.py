@@ -58,11 +58,14 @@ def neo_hookean_3d(G, lam, mu):
 
 @dataclass(frozen=True)
 class Setup3D:
+    """The 3D neo-Hookean run: the FEM mesh and geometry, the deepest indentation and the number of load steps."""
+
     fem: FemSetup
     max_depth_m: float
     n_steps: int = N_STEPS_3D
 
     def key(self) -> str:
+        """Cache key: a hash of the setup and :data:`HYPER_VERSION`."""
         blob = json.dumps({"v": HYPER_VERSION, "3d": 1, **asdict(self)}, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
@@ -112,6 +115,7 @@ class Problem3D:
         self.sym = 4.0 if s.edge_distance_m is None else 2.0
 
     def assemble(self, u, tangent: bool = True):
+        """Internal force vector, tangent stiffness (None unless ``tangent``) and the smallest ``J`` at ``u``."""
         ue = u[self.edofs].T  # (ne, nl)
         G = np.einsum("nqai,ni->anq", self.B, ue).reshape(3, 3, *self.wdx.shape)
         P, A, J = neo_hookean_3d(G, self.lam, self.mu)
@@ -131,6 +135,8 @@ class Problem3D:
 
 @dataclass
 class Result3D:
+    """3D neo-Hookean reference: force against depth and the surface field at the deepest step."""
+
     setup: Setup3D
     depths_m: np.ndarray
     forces_n: np.ndarray
@@ -142,10 +148,12 @@ class Result3D:
     solve_s: float
 
     def force_n(self, depth_m):
+        """Force at ``depth_m`` (N), interpolated between the load steps (0 at 0)."""
         return np.interp(depth_m, np.concatenate([[0.0], self.depths_m]), np.concatenate([[0.0], self.forces_n]))
 
 
 def solve(s3: Setup3D, progress: bool = True, sample_step_m: float = 0.5e-3) -> Result3D:
+    """Solve the 3D neo-Hookean indentation in load steps (Newton per step); surface sampled every ``sample_step_m``."""
     t0 = time.perf_counter()
     s = s3.fem
     pb = Problem3D(s)

@@ -62,6 +62,7 @@ def convergence_rows(cfg: TissueConfig | None = None, fresh: bool = False, progr
 
 
 def markdown(rows: list[dict], k3d: dict[str, float]) -> str:
+    """The reference page: mesh convergence table of the axisymmetric runs and the 3D cross-check."""
     ref = next(r for r in rows if r["level"] == AXI_REFERENCE_LEVEL)
     lines = [
         "# Large-deformation reference (axisymmetric, flat layers, compressible neo-Hookean)", "",
@@ -116,6 +117,7 @@ def three_d_markdown(cfg: TissueConfig | None = None, fresh: bool = False) -> st
 
 
 def chart(out: Path, cfg: TissueConfig | None, k3d: dict[str, float]) -> None:
+    """Draw ``large_deformation.png`` in ``out``: neo-Hookean against linear force-depth, and the surface profile."""
     nh = axisym(cfg)
     lin = axisym(cfg, law="linear")
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(12, 4.5))
@@ -160,6 +162,7 @@ def run(out: Path = OUT, fresh: bool = False, cfg: TissueConfig | None = None) -
 
 
 def main(argv=None) -> int:
+    """``skin-sim chart validation --only reference``: solve (or read) the references, write their page, CSV and chart."""
     ap = argparse.ArgumentParser(prog="skin-sim chart validation --only reference", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("--fresh", action="store_true", help="solve again instead of reading the cache (~2 min)")

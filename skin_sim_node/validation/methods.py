@@ -91,6 +91,7 @@ class ModalMethod:
         self.label = label or default
 
     def run(self, sc: Scenario, fem: FemResult) -> Outcome:
+        """Static forces at the scenario's depths and the surface field at the deepest, from the skin model."""
         x, y = sc.contact_xy_m
         forces = np.array([static_force_n(self.model, x, y, d) for d in sc.depths_m])
         g = self.model.build_grid()
@@ -133,6 +134,7 @@ class GridMethod:
         self.label = label or f"{kind} {n}x{n}"
 
     def run(self, sc: Scenario, fem: FemResult) -> Outcome:
+        """Static forces (linear: scaled from unit depth) and the surface field at the deepest, on the grid."""
         r0 = self.cfg.tool_radius_m
         f1, u1 = static_indentation(self.mem, self.n, self.n, 1.0, (0.0, 0.0), r0)  # linear: unit depth
         forces = f1 * sc.depths_m
@@ -141,6 +143,7 @@ class GridMethod:
         return Outcome(forces, _on_samples(xs, ys, u1 * sc.max_depth_m, fem))
 
     def seconds_per_update(self, ticks: int = 20) -> float:
+        """Wall time of one 1 kHz tick (s): the substeps the method's stability limit needs."""
         n = self.n
         if self.kind == "mass-spring":
             s, lim = MassSpringSolver(self.mem, n, n), mass_spring_dt_limit_s(self.mem, n, n)
@@ -164,10 +167,12 @@ class FemMethod:
         self.results, self.label, self.level = results, label, level
 
     def run(self, sc: Scenario, fem: FemResult) -> Outcome:
+        """This mesh's forces and surface field."""
         r = self.results[sc.name]
         return Outcome(r.stiffness_n_per_m * sc.depths_m, r.surface_per_depth * sc.max_depth_m)
 
     def seconds_per_update(self) -> float:
+        """Mean wall time of one solve (s)."""
         return float(np.mean([r.solve_s for r in self.results.values()]))
 
 
@@ -188,5 +193,6 @@ class AllLayersVariant(ModalMethod):
         self.k_series = series_stiffness_n_per_m
 
     def run(self, sc: Scenario, fem: FemResult) -> Outcome:
+        """The modal field with the all-layers series spring's force."""
         o = super().run(sc, fem)
         return Outcome(self.k_series * sc.depths_m, o.field_m)

@@ -32,6 +32,7 @@ def fem_for(sc, level: int, progress: bool = True):
 
 
 def finest_level(sc) -> int:
+    """The finest FEM mesh level of scenario ``sc``: its override, else :data:`FINEST_LEVEL`."""
     return FINEST_OVERRIDE.get(sc.name, FINEST_LEVEL)
 
 

@@ -33,6 +33,7 @@ class Scenario:
 
     @property
     def depths_m(self) -> np.ndarray:
+        """The :data:`N_DEPTHS` indentation depths, evenly spaced from ``max_depth_m / N_DEPTHS`` to ``max_depth_m`` (m)."""
         return np.linspace(self.max_depth_m / N_DEPTHS, self.max_depth_m, N_DEPTHS)
 
     def fem_setup(self, mesh: FemSetup) -> FemSetup:
