@@ -51,6 +51,7 @@ class SnapshotBuffer:
             self.header[:] = 0
 
     def write(self, q, centre, driven, version: int, level=None, active=None) -> None:
+        """Publish a snapshot (seqlock: the sequence is odd while writing); ``level``/``active`` default to -1 and 1."""
         n_l, k = q.shape
         self.header[0] += 1  # odd: writing
         self.q[: n_l * k] = q.ravel()
@@ -85,6 +86,7 @@ class SnapshotBuffer:
         return -1, -1, False  # no consistent snapshot: the caller skips this frame
 
     def close(self, unlink: bool = False) -> None:
+        """Drop the array views and close the shared memory; ``unlink``: the owner also removes it."""
         for name in ("header", "q", "centre", "driven", "level", "active"):
             setattr(self, name, None)
         self.shm.close()
