@@ -194,9 +194,10 @@ else:
         "NodeParams", NODE_PARAMETERS, "The node's non-tissue parameters, read once (fields: NODE_PARAMETERS)."
     )
     SessionParams = params_class(
-        "SessionParams", SESSION_PARAMETERS,
+        "SessionParams",
+        SESSION_PARAMETERS,
         "Input and safety parameters of the haptic session (fields: SESSION_PARAMETERS; sources in their descriptions).",
-    )  # fmt: skip
+    )
 
 
 def session_params(node_params, **overrides) -> SessionParams:

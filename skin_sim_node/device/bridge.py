@@ -446,8 +446,19 @@ class BridgeNode(DeviceNode):
         self.counts["wrenches"] += 1
         t_ns, _, f = read_wrench(msg)
         self._wrench_seq += 1
-        m = LocalModel(self._wrench_seq, t_ns, self.tissue_frame, np.zeros(3), np.zeros(3), f, np.zeros((3, 3)),
-                       np.zeros((3, 3)), np.array([0.0, 0.0, 1.0]), HOLD_RADIUS_M, self.p.watchdog_s)  # fmt: skip
+        m = LocalModel(
+            self._wrench_seq,
+            t_ns,
+            self.tissue_frame,
+            x0_m=np.zeros(3),
+            v0_m_s=np.zeros(3),
+            f0_n=f,
+            stiffness_n_per_m=np.zeros((3, 3)),
+            damping_n_s_per_m=np.zeros((3, 3)),
+            normal=np.array([0.0, 0.0, 1.0]),
+            validity_radius_m=HOLD_RADIUS_M,
+            time_to_live_s=self.p.watchdog_s,
+        )
         with self._render_lock:
             held = self.renderer.set_model(m) is None
         if held:
