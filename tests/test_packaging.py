@@ -25,9 +25,13 @@ SERVER_MODULES = (
     "skin_sim_node.model",
     "skin_sim_node.bags.record",
     "skin_sim_node.bags.compare",
+    "skin_sim_node.bags.offline",
+    "skin_sim_node.bags.live",
+    "skin_sim_node.scenes",
     "skin_sim_node.cli",
 )
-"""What ``skin-sim node``, ``bridge``, ``device``, ``mock-tool``, ``record`` and ``compare`` import."""
+"""What ``skin-sim node``, ``bridge``, ``device``, ``mock-tool``, ``scene``, ``record`` and ``compare`` import, and the
+offline and live replay engines (``skin_sim_node.bags.replay`` itself still imports the report's matplotlib)."""
 
 _BLOCKER = """
 import importlib, sys
