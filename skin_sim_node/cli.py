@@ -5,6 +5,8 @@ from __future__ import annotations
 import importlib
 import sys
 
+from .startup import install_option_suggestions, node_argument_error, suggest
+
 COMMANDS = {
     "demo": ("skin_sim_node.demo", "headless demo scene: node + bridge + simulated device, summary and picture"),
     "node": ("skin_sim_node.server.node", "run skin_sim_node (the haptic server)"),
@@ -55,7 +57,8 @@ def chart(rest: list[str]) -> int:
         print(chart_usage())
         return 0 if rest else 2
     if rest[0] not in CHART_TARGETS:
-        print(f"skin-sim chart: unknown target {rest[0]!r}\n\n{chart_usage()}", file=sys.stderr)
+        print(f"skin-sim chart: error: unknown target {rest[0]!r}{suggest(rest[0], CHART_TARGETS)}; "
+              f"targets: {', '.join(CHART_TARGETS)}", file=sys.stderr)  # fmt: skip
         return 2
     module = importlib.import_module(CHART_TARGETS[rest[0]][0])
     return int(module.main(rest[1:]) or 0)
@@ -74,13 +77,22 @@ def main(argv=None) -> int:
         print(usage())
         return 0
     cmd, rest = argv[0], argv[1:]
+    install_option_suggestions()
     if cmd == "chart":
         return chart(rest)
     if cmd not in COMMANDS:
-        print(f"skin-sim: unknown command {cmd!r}\n\n{usage()}", file=sys.stderr)
+        print(f"skin-sim: error: unknown command {cmd!r}{suggest(cmd, [*COMMANDS, 'chart'])}; skin-sim --help lists "
+              "the commands", file=sys.stderr)  # fmt: skip
+        return 2
+    if cmd == "node" and (problem := node_argument_error(rest)):
+        print(f"skin-sim node: error: {problem}", file=sys.stderr)
         return 2
     module = importlib.import_module(COMMANDS[cmd][0])
-    return int(module.main(rest) or 0)
+    try:
+        return int(module.main(rest) or 0)
+    except FileNotFoundError as exc:  # a missing input file is one line, not a traceback
+        print(f"skin-sim {cmd}: error: {exc.filename or exc}: no such file", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

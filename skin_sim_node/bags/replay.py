@@ -58,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     out = args.out or Path("out/replay") / args.bag.resolve().name
+    if not args.params.is_file():  # before any output is written
+        print(f"skin-sim replay: error: --params {args.params}: no such file", file=sys.stderr)
+        return 2
     try:
         inputs = read_inputs(args.bag, input_options(args))
         t0 = time.perf_counter()
