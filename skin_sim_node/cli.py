@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import sys
+from pathlib import Path
 
 from .startup import install_option_suggestions, node_argument_error, suggest
 
@@ -43,10 +44,17 @@ CHART_TARGETS = {
 }
 
 
+CHART_OUT = Path("out/chart")
+"""Where ``skin-sim chart TARGET`` writes unless told ``--docs`` or ``--out``: the tracked docs stay as committed."""
+CHART_DOCS = {"model": "figures", "validation": "validation", "stability": "stability", "performance": "performance"}
+"""The tracked docs folder of each target (``--docs``)."""
+
+
 def chart_usage() -> str:
     width = max(map(len, CHART_TARGETS))
-    lines = ["usage: skin-sim chart TARGET [args]   (skin-sim chart TARGET --help: its options)", "",
-             "Regenerates the figures of one target in docs/figures. targets:"]  # fmt: skip
+    lines = ["usage: skin-sim chart TARGET [--docs] [args]   (skin-sim chart TARGET --help: its options)", "",
+             f"Regenerates the figures of one target into {CHART_OUT}/TARGET, or with --docs into the tracked",
+             "docs folder (docs/figures, docs/validation, docs/stability, docs/performance). targets:"]  # fmt: skip
     lines += [f"  {name:<{width}}  {desc}" for name, (_, desc) in CHART_TARGETS.items()]
     return "\n".join(lines)
 
@@ -60,8 +68,36 @@ def chart(rest: list[str]) -> int:
         print(f"skin-sim chart: error: unknown target {rest[0]!r}{suggest(rest[0], CHART_TARGETS)}; "
               f"targets: {', '.join(CHART_TARGETS)}", file=sys.stderr)  # fmt: skip
         return 2
-    module = importlib.import_module(CHART_TARGETS[rest[0]][0])
-    return int(module.main(rest[1:]) or 0)
+    target, args = rest[0], rest[1:]
+    docs = "--docs" in args
+    args = [a for a in args if a != "--docs"]
+    given = next((a.split("=", 1)[1] if "=" in a else args[i + 1] for i, a in enumerate(args)
+                  if a == "--out" and i + 1 < len(args) or a.startswith("--out=")), None)  # fmt: skip
+    if docs and given:
+        print("skin-sim chart: error: --docs writes the tracked docs folder; give --docs or --out, not both", file=sys.stderr)
+        return 2
+    module = importlib.import_module(CHART_TARGETS[target][0])
+    if docs:
+        out = Path(module.__file__).resolve().parents[2] / "docs" / CHART_DOCS[target]
+        args += ["--out", str(out)]
+    elif given:
+        out = Path(given)
+    else:
+        out = CHART_OUT / target
+        args += ["--out", str(out)]
+    where = "the tracked docs (--docs)" if docs else "not the tracked docs (skin-sim chart TARGET --docs writes those)"
+    print(f"skin-sim chart {target}: writing to {out}, {where}", flush=True)
+    before = _files(out)
+    code = int(module.main(args) or 0)
+    written = sorted(p for p, m in _files(out).items() if before.get(p) != m)
+    print(f"skin-sim chart {target}: wrote {len(written)} file(s) in {out}"
+          + (": " + ", ".join(str(p.relative_to(out)) for p in written) if written else ""))  # fmt: skip
+    return code
+
+
+def _files(folder: Path) -> dict[Path, int]:
+    """Files under ``folder`` with their modification times (ns)."""
+    return {p: p.stat().st_mtime_ns for p in folder.rglob("*") if p.is_file()} if folder.is_dir() else {}
 
 
 def usage() -> str:
