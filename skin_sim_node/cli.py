@@ -18,7 +18,7 @@ COMMANDS = {
     "bench": ("skin_sim_node.perf.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
     "bench-model": ("skin_sim_node.perf.bench_model", "model step micro-benchmark (numba vs NumPy)"),
     "perf-lod": ("skin_sim_node.perf.lod", "node CPU in four scenes with the level-of-detail levers off and on"),
-    "force-path": ("skin_sim_node.perf.force_path", "offline: device force error vs server rate, model vs hold-last (~1 min)"),
+    "force-path": ("skin_sim_node.perf.force_path", "offline: device force error vs server rate, model vs hold-last (~10-30 s)"),
     "soak": ("skin_sim_node.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),
     "scale": ("skin_sim_node.perf.scale", "how many 1 kHz sessions (node + bridge + device, own namespaces) one machine holds"),
     "netns-role": ("skin_sim_node.perf.netns", "netns_scale.sh helper: device side (bridge, device, observer); comparison"),
@@ -39,7 +39,7 @@ COMMANDS = {
 CHART_TARGETS = {
     "model": ("skin_sim_node.viz.figures", "model figures: deformation, layers, modes (docs/figures)"),
     "validation": ("skin_sim_node.validation.charts", "FEM reference, speed-accuracy chart, calibration, Table II"),
-    "stability": ("skin_sim_node.stability.charts", "numerical and haptic-loop stability maps (~6 min)"),
+    "stability": ("skin_sim_node.stability.charts", "numerical and haptic-loop stability maps (~2 min on 2 cores)"),
     "performance": ("skin_sim_node.perf.charts", "cost growth against modes and grid size"),
 }
 
@@ -85,6 +85,8 @@ def chart(rest: list[str]) -> int:
     else:
         out = CHART_OUT / target
         args += ["--out", str(out)]
+    if "-h" in args or "--help" in args:
+        return int(module.main(args) or 0)
     where = "the tracked docs (--docs)" if docs else "not the tracked docs (skin-sim chart TARGET --docs writes those)"
     print(f"skin-sim chart {target}: writing to {out}, {where}", flush=True)
     before = _files(out)
