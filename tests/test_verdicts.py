@@ -140,3 +140,22 @@ def test_scale_verdict_says_which_session_missed_how_much():
     assert exit_code(scale_checks(rows[:1], 1)) == 0
     stopped = scale_checks(rows[:1], 3)  # the run stopped before 2 and 3 were measured
     assert exit_code(stopped) == 1 and "2..3 sessions not measured" in verdict_line("scale", stopped)
+
+
+def test_scale_progress_moves_within_a_stage_and_ends_at_its_total():
+    import time
+
+    from skin_sim_node.perf.scale import WaitingProgress
+
+    p = WaitingProgress([5.0, 5.0], "test")
+    try:
+        p.stage("first", 5.0)
+        end = time.monotonic() + 30.0
+        while p.bar.n < 1 and time.monotonic() < end:  # a condition, not a rate: generous timeout
+            time.sleep(0.05)
+        assert p.bar.n >= 1  # the bar moved before the stage ended
+        p.stage("second", 5.0)
+        assert p.bar.n == 5  # the first stage's estimate, whatever the ticker had done
+    finally:
+        p.close()
+    assert p.bar.n == 10
