@@ -360,7 +360,12 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
             pressed = float(np.median([f for f in forces if f > 0.01]))  # the hold force (the press may start with a spike)
             SHOTS.mkdir(parents=True, exist_ok=True)
             for _ in range(5):  # a shot taken while the page still shows the press (the page lags on a loaded CPU)
-                b.wait_for(f"window.skinView.force > 0.8 * {pressed}", 20, "a pressed frame")
+                try:  # the docs picture: a grid close in time to the tool (the overlay prints the offset either way)
+                    b.wait_for(f"window.skinView.force > 0.8 * {pressed} && Math.abs(window.skinView.gridDtS) < 0.05",
+                               20, "a pressed frame with a recent grid")  # fmt: skip
+                except TimeoutError:
+                    b.wait_for(f"window.skinView.force > 0.8 * {pressed}", 20, "a pressed frame")
+                _rendered(b)
                 shot = b.screenshot(SHOTS / "view_live.png")
                 if b.evaluate(f"window.skinView.force > 0.5 * {pressed}"):
                     break
@@ -375,12 +380,8 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
                 "window.skinView.toolShape === 'cylinder' && window.skinView.arrowLenMm > 0", 20, "the punch and its arrow"
             )
             assert b.evaluate("document.getElementById('arrow-label').textContent").endswith(" N")
-            assert b.evaluate("document.getElementById('tip-layer').textContent") in (
-                "above the surface",
-                "epidermis",
-                "dermis",
-                "fat",
-            )
+            reached = b.evaluate("document.getElementById('tip-layer').textContent")
+            assert reached.split()[0] in ("none", "epidermis", "dermis", "fat"), reached
             # parameters come from the node at run time; a bad value typed into the page shows the node's reason
             b.wait_for("document.querySelector('input[data-name=\"tissue.layers.dermis.stiffness_n_per_m\"]') !== null",
                        60, "the stiffness field")  # fmt: skip
