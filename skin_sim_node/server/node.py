@@ -47,6 +47,7 @@ from ..model.config import build_config
 from ..model.skin_model import warm_up
 from ..ros_util import LoopTiming, PeriodicLoop, localhost_udp_env, run_nodes, set_process_realtime, set_realtime
 from ..session import HapticSession, TickResult
+from ..startup import start_line
 from .display import DisplayProcess
 
 STATS_LEN = 16384
@@ -127,6 +128,7 @@ class SkinSimNode(Node):
             self.declare_parameter(spec.name, spec.default, descriptor(spec))
         self._flat = {s.name: self.get_parameter(s.name).value for s in ALL_PARAMETERS}
         self.params, cfg = validate(self._flat, self._flat)  # ConfigError: refuse to start, with the reason
+        self.get_logger().info(start_line(self._flat, ros_args, self.get_fully_qualified_name()))  # form, preset, tool
         t0 = time.perf_counter()
         warm_up(cfg)
         self._warmup_s = time.perf_counter() - t0
