@@ -17,6 +17,10 @@ COMMANDS = {
     "scene": ("skin_sim_node.scenes", "start a scene as separate processes"),
     "bench": ("skin_sim_node.perf.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
     "bench-model": ("skin_sim_node.perf.bench_model", "model step micro-benchmark (numba vs NumPy)"),
+    "bench-device": (
+        "skin_sim_node.perf.device_bench",
+        "device benchmark: CRTK emulator at 1 kHz vs node + bridge, per phase, vs offline ground truth",
+    ),
     "perf-lod": ("skin_sim_node.perf.lod", "node CPU in four scenes with the level-of-detail levers off and on"),
     "force-path": ("skin_sim_node.perf.force_path", "offline: device force error vs server rate, model vs hold-last (~10-30 s)"),
     "soak": ("skin_sim_node.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),

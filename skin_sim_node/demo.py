@@ -275,7 +275,7 @@ def offline_check(records: list, args, s: dict) -> list:
     res = replay(inputs, DEFAULT_PARAMS, None, 0.0)
     if res.stamps_ns.size == 0:
         return [(False, "no published force answers a recorded pose: nothing to check offline")]
-    c = check_published(dict(zip(res.stamps_ns.tolist(), res.force_n.tolist())), published)
+    c = check_published(res.forces_by_stamp(), published)
     print("  " + format_check(c, "published forces vs offline replay of the same poses", int(res.stamps_ns[0])))
     print(f"  recorded to {bag} (skin-sim replay {bag} replays it)")
     checks = [(c.ok, "published forces are the offline answer" if c.ok else "published forces DISAGREE with the "
@@ -289,7 +289,7 @@ def offline_check(records: list, args, s: dict) -> list:
         f"demo {args.source}/{args.path}: the tissue at the deepest pose, t = {(stamp - res.stamps_ns[0]) * 1e-9:.3f} s, "
         f"tip {-xyz[2] * 1e3:.2f} mm deep, force {res.force_n[k]:.3f} N (run's peak {res.peak_force_n:.3f} N)",
         "model state of the offline replay at that pose's stamp (time offset to the tool: 0 ms); the node published "
-        + (f"{pub:.4f} N for it" if pub is not None else "no wrench for it")
+        + (f"{np.linalg.norm(pub):.4f} N for it" if pub is not None else "no wrench for it")
         + f"; {n_aff} of 3 layers under the tool",
     )  # fmt: skip
     print(f"  picture: {pic} (the deepest pose, tip {-xyz[2] * 1e3:.2f} mm below the rest surface; model state at its stamp)")

@@ -85,7 +85,7 @@ def bag():
 def test_bag_timeline_matches_the_bag_readers(bag):
     forces, grids = read_outputs(DATA / "expected")
     assert len(bag.grids) == len(grids) and len(bag.wrench_t) == len(forces)
-    fz = np.array([forces[k] for k in sorted(forces)])
+    fz = np.array([forces[k][2] for k in sorted(forces)])
     np.testing.assert_allclose(bag.wrench[:, 2], fz)
     peak = int(np.argmax(fz))
     h = bag.header_at(bag.wrench_t[peak])

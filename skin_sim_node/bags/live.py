@@ -88,20 +88,21 @@ def _run_source(rec, inputs: Inputs, speed: float, out: Path, timeout_s: float =
         events.unlink(missing_ok=True)
 
 
-def live_forces(records) -> dict[int, float]:
+def live_forces(records) -> dict[int, np.ndarray]:
+    """``{stamp_ns: force vector (N)}`` of the recorded live wrenches."""
     out = {}
     for _, key, raw in records:
         if key == "tool_wrench":
             stamp, _, f = cv.read_wrench(deserialize(raw, "geometry_msgs/msg/WrenchStamped"))
-            out[stamp] = f[2]
+            out[stamp] = np.array(f, dtype=float)
     return out
 
 
-def agreement(offline: ReplayResult, live: dict[int, float]) -> dict:
+def agreement(offline: ReplayResult, live: dict[int, np.ndarray]) -> dict:
     """Max and RMS force difference at matched stamps and the fraction of poses answered."""
-    off = dict(zip(offline.stamps_ns.tolist(), offline.force_n.tolist()))
+    off = offline.forces_by_stamp()
     common = sorted(set(off) & set(live))
-    d = np.array([live[s] - off[s] for s in common]) if common else np.zeros(0)
+    d = np.array([np.linalg.norm(live[s] - off[s]) for s in common]) if common else np.zeros(0)
     peak = offline.peak_force_n
     return {
         "offline_answered": len(off),
@@ -160,7 +161,7 @@ def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path, recorded=No
     # the PASS is compare's verdict on the same two sets of wrenches (compare OUT/outputs OUT/live agrees)
     tol = replace(LIVE, force_rel=args.force_tol_frac, min_matched=args.min_answered)
     live = live_forces([r for r in rec.records if r[1] == "tool_wrench"])
-    fails = verdict(diff_outputs((dict(zip(offline.stamps_ns.tolist(), offline.force_n.tolist())), {}), (live, {})), tol)
+    fails = verdict(diff_outputs((offline.forces_by_stamp(), {}), (live, {})), tol)
     what = "live node's forces and answered fraction vs offline"
     checks = [(not fails, what + (f" ({'; '.join(fails)})" if fails else ""))]
     if recorded is not None:

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from .compare import LIVE, Diff, Tolerances, describe, diff_outputs, verdict
 from .inputs import POSE, Inputs
 
@@ -34,7 +36,7 @@ class PublishedCheck:
     worst_stamp_ns : int or None
         Stamp of the largest difference.
     worst : tuple of float or None
-        ``(published_n, offline_n)`` at ``worst_stamp_ns``.
+        ``(published_n, offline_n)``: the two forces' magnitudes at ``worst_stamp_ns``.
     """
 
     diff: Diff
@@ -49,12 +51,12 @@ class PublishedCheck:
 
 
 def check_published(offline: dict[int, float], published: dict[int, float], tol: Tolerances = PUBLISHED) -> PublishedCheck:
-    """Compare ``published`` (``{stamp_ns: fz}``) with ``offline`` at their common stamps.
+    """Compare ``published`` with ``offline`` at their common stamps, as whole vectors.
 
     Parameters
     ----------
     offline, published : dict
-        ``{stamp_ns: force_z_n}``.
+        ``{stamp_ns: force vector (N)}`` (scalars work too).
     tol : Tolerances
         The force tolerance; :data:`PUBLISHED` by default.
 
@@ -67,8 +69,11 @@ def check_published(offline: dict[int, float], published: dict[int, float], tol:
     if d.matched == 0:
         fails.append("no published wrench answers a replayed pose (stamps differ)")
     common = set(offline) & set(published)
-    worst = max(common, key=lambda s: abs(published[s] - offline[s]), default=None)
-    pair = None if worst is None else (published[worst], offline[worst])
+    def gap(s):
+        return float(np.linalg.norm(np.subtract(published[s], offline[s])))
+
+    worst = max(common, key=gap, default=None)
+    pair = None if worst is None else (float(np.linalg.norm(published[worst])), float(np.linalg.norm(offline[worst])))
     return PublishedCheck(d, fails, worst, pair)
 
 

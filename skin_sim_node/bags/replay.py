@@ -110,7 +110,7 @@ def check_recording(args, inputs) -> PublishedCheck | None:
     if not published:
         return None
     res = replay(answered_only(inputs, set(published)), args.params, None, 0.0)
-    return check_published(dict(zip(res.stamps_ns.tolist(), res.force_n.tolist())), published)
+    return check_published(res.forces_by_stamp(), published)
 
 
 if __name__ == "__main__":
