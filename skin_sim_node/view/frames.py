@@ -65,8 +65,9 @@ def diag_message(status_level: int, status_message: str, values: dict[str, str])
 def default_thickness_m() -> list[float]:
     """Layer thicknesses (m) of the parameter schema's defaults: epidermis, dermis, fat (the bottom of the cut)."""
     from msgs_schema.parameters import SPEC_BY_NAME
+    from msgs_schema.tissue import LAYER_NAMES
 
-    return [SPEC_BY_NAME[f"tissue.layers.{n}.thickness_m"].default for n in ("epidermis", "dermis", "fat")]
+    return [SPEC_BY_NAME[f"tissue.layers.{n}.thickness_m"].default for n in LAYER_NAMES]
 
 
 def tool_depth_m(z_m: float) -> float:

@@ -26,7 +26,7 @@ from .frames import default_thickness_m, diag_message, encode_frame, tool_depth_
 TUNABLE = re.compile(r"stiffness|damping|friction|tolerance")
 """Parameters the page lists first (issue 14: stiffness, damping, friction, mode tolerance); the rest are
 one click away. Matched against the names the node reports at run time, so new ones appear by themselves."""
-GEOMETRY_EXTRA = ("tissue.tool.shape", *(f"tissue.layers.{n}.thickness_m" for n in ("epidermis", "dermis", "fat")))
+GEOMETRY_EXTRA = ("tissue.tool.shape", *(f"tissue.layers.{n}.thickness_m" for n in LAYER_NAMES))
 """Parameters the page draws besides sheet size and tool radius: the tool's shape and the layer thicknesses."""
 SERVICE_TIMEOUT_S = 3.0  # a parameter call that takes longer than this is reported as unanswered
 SERVICE_WAIT_S = 10.0
