@@ -50,12 +50,19 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "max_force_rate_n_per_s", float, 1000.0, "N/s",
         "bound on the force's rate of change (0 disables): the fastest rise the default tissue gives a 0.1 m/s probing "
         "press (epidermis k = 9.7 kN/m: ~1000 N/s) passes, while a step from an edge, teleport or fast stab is spread "
-        "over ticks (3.3 N over 3.3 ms); on the receive clock, with a 1 ms allowance. See docs/stability.md",
+        "over ticks (3.3 N over 3.3 ms); on the pose stamps (the model's clock), with a 1 ms allowance. See "
+        "docs/stability.md",
         min=0.0, max=1e6, min_exclusive=False,
     ),
     ParamSpec(
         "teleport_distance_m", float, 0.02, "m",
         "a pose jump larger than this between samples restarts contact (20 mm: 20x a 1 m/s hand at 1 kHz)", min=0.0, max=10.0,
+    ),
+    ParamSpec(
+        "workspace_radius_m", float, 1.0, "m",
+        "reject a tool pose farther than this from the tissue origin (counted, logged once; the tissue is untouched): "
+        "the largest desktop haptic devices reach about 0.42 m from their centre (Phantom Premium 3.0, 838 mm wide), "
+        "so a pose beyond 1 m is a fault, not a hand", min=0.0, max=1000.0,
     ),
     ParamSpec(
         "max_tool_speed_m_s", float, 3.0, "m/s",
@@ -167,7 +174,8 @@ SESSION_ONLY_PARAMETERS: tuple[ParamSpec, ...] = (
 """Session limits that are not node parameters (the session's own; see :class:`SessionParams`)."""
 
 SESSION_KEYS = (
-    "tissue_frame", "watchdog_s", "max_stamp_age_s", "max_force_n", "teleport_distance_m", "max_tool_speed_m_s",
+    "tissue_frame", "watchdog_s", "max_stamp_age_s", "max_force_n", "teleport_distance_m", "workspace_radius_m",
+    "max_tool_speed_m_s",
     "twist_max_skew_s", "max_force_rate_n_per_s",
 )  # fmt: skip
 """The node parameters the haptic session reads (input checks and force limits)."""

@@ -12,7 +12,7 @@ as in eq 9.
 import math
 from pathlib import Path
 
-from msgs_schema.parameters import ALL_PARAMETERS, TISSUE_PREFIX, tissue_part
+from msgs_schema.parameters import ALL_PARAMETERS, NODE_NAME, TISSUE_PREFIX, tissue_part
 from msgs_schema.tissue import LAYER_NAMES, PAPER_MODULI_PA, TOOL_RADIUS_M, flat_punch_stiffness_n_per_m
 from skin_sim_node.model.config import config_from_flat, dump_yaml
 
@@ -52,6 +52,11 @@ def write_parameter_doc(path: Path = DOCS) -> None:
     path.write_text("\n".join(rows) + "\n")
 
 
+PRESET_KEY = "/**/" + NODE_NAME
+"""The presets' top key: the node in any namespace (rcl's ``**`` wildcard). A bare ``skin_sim_node:`` matches only
+``/skin_sim_node``, so a node started under ``-r __ns:=/s1`` (``skin-sim scale``'s sessions) silently ran without it."""
+
+
 def main(config_dir: Path = CONFIG, doc_path: Path = DOCS, package_config_dir: Path = PACKAGE_CONFIG):
     """Write ``default.yaml`` and ``paper.yaml`` into ``config_dir`` and ``package_config_dir``, and the parameter
     reference to ``doc_path``.
@@ -64,7 +69,7 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS, package_config_dir: P
         The packaged copy of the presets.
     """
     default = {s.name: s.default for s in ALL_PARAMETERS}
-    dump_yaml(default, config_dir / "default.yaml")
+    dump_yaml(default, config_dir / "default.yaml", PRESET_KEY)
     paper = dict(default)
     paper[TISSUE_PREFIX + "form"] = "paper"
     paper[TISSUE_PREFIX + "modes.m"] = 1
@@ -80,7 +85,7 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS, package_config_dir: P
         paper[p + "stiffness_n_per_m"] = flat_punch_stiffness_n_per_m(PAPER_MODULI_PA[n], TOOL_RADIUS_M)
         paper[p + "tension_n_per_m"] = paper[p + "density_kg_per_m3"] * paper[p + "thickness_m"] * c**2
     config_from_flat(tissue_part(paper, TISSUE_PREFIX))
-    dump_yaml(paper, config_dir / "paper.yaml")
+    dump_yaml(paper, config_dir / "paper.yaml", PRESET_KEY)
     package_config_dir.mkdir(parents=True, exist_ok=True)
     for name in ("default.yaml", "paper.yaml"):
         (package_config_dir / name).write_text((config_dir / name).read_text())

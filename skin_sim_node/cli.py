@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import importlib
 import sys
+from pathlib import Path
+
+from .startup import install_option_suggestions, node_argument_error, suggest
 
 COMMANDS = {
     "demo": ("skin_sim_node.demo", "headless demo scene: node + bridge + simulated device, summary and picture"),
@@ -14,8 +17,12 @@ COMMANDS = {
     "scene": ("skin_sim_node.scenes", "start a scene as separate processes"),
     "bench": ("skin_sim_node.perf.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
     "bench-model": ("skin_sim_node.perf.bench_model", "model step micro-benchmark (numba vs NumPy)"),
+    "bench-device": (
+        "skin_sim_node.perf.device_bench",
+        "device benchmark: CRTK emulator at 1 kHz vs node + bridge, per phase, vs offline ground truth",
+    ),
     "perf-lod": ("skin_sim_node.perf.lod", "node CPU in four scenes with the level-of-detail levers off and on"),
-    "force-path": ("skin_sim_node.perf.force_path", "offline: device force error vs server rate, model vs hold-last (~1 min)"),
+    "force-path": ("skin_sim_node.perf.force_path", "offline: device force error vs server rate, model vs hold-last (~10-30 s)"),
     "soak": ("skin_sim_node.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),
     "scale": ("skin_sim_node.perf.scale", "how many 1 kHz sessions (node + bridge + device, own namespaces) one machine holds"),
     "netns-role": ("skin_sim_node.perf.netns", "netns_scale.sh helper: device side (bridge, device, observer); comparison"),
@@ -36,15 +43,22 @@ COMMANDS = {
 CHART_TARGETS = {
     "model": ("skin_sim_node.viz.figures", "model figures: deformation, layers, modes (docs/figures)"),
     "validation": ("skin_sim_node.validation.charts", "FEM reference, speed-accuracy chart, calibration, Table II"),
-    "stability": ("skin_sim_node.stability.charts", "numerical and haptic-loop stability maps (~6 min)"),
+    "stability": ("skin_sim_node.stability.charts", "numerical and haptic-loop stability maps (~2 min on 2 cores)"),
     "performance": ("skin_sim_node.perf.charts", "cost growth against modes and grid size"),
 }
 
 
+CHART_OUT = Path("out/chart")
+"""Where ``skin-sim chart TARGET`` writes unless told ``--docs`` or ``--out``: the tracked docs stay as committed."""
+CHART_DOCS = {"model": "figures", "validation": "validation", "stability": "stability", "performance": "performance"}
+"""The tracked docs folder of each target (``--docs``)."""
+
+
 def chart_usage() -> str:
     width = max(map(len, CHART_TARGETS))
-    lines = ["usage: skin-sim chart TARGET [args]   (skin-sim chart TARGET --help: its options)", "",
-             "Regenerates the figures of one target in docs/figures. targets:"]  # fmt: skip
+    lines = ["usage: skin-sim chart TARGET [--docs] [args]   (skin-sim chart TARGET --help: its options)", "",
+             f"Regenerates the figures of one target into {CHART_OUT}/TARGET, or with --docs into the tracked",
+             "docs folder (docs/figures, docs/validation, docs/stability, docs/performance). targets:"]  # fmt: skip
     lines += [f"  {name:<{width}}  {desc}" for name, (_, desc) in CHART_TARGETS.items()]
     return "\n".join(lines)
 
@@ -55,10 +69,41 @@ def chart(rest: list[str]) -> int:
         print(chart_usage())
         return 0 if rest else 2
     if rest[0] not in CHART_TARGETS:
-        print(f"skin-sim chart: unknown target {rest[0]!r}\n\n{chart_usage()}", file=sys.stderr)
+        print(f"skin-sim chart: error: unknown target {rest[0]!r}{suggest(rest[0], CHART_TARGETS)}; "
+              f"targets: {', '.join(CHART_TARGETS)}", file=sys.stderr)  # fmt: skip
         return 2
-    module = importlib.import_module(CHART_TARGETS[rest[0]][0])
-    return int(module.main(rest[1:]) or 0)
+    target, args = rest[0], rest[1:]
+    docs = "--docs" in args
+    args = [a for a in args if a != "--docs"]
+    given = next((a.split("=", 1)[1] if "=" in a else args[i + 1] for i, a in enumerate(args)
+                  if a == "--out" and i + 1 < len(args) or a.startswith("--out=")), None)  # fmt: skip
+    if docs and given:
+        print("skin-sim chart: error: --docs writes the tracked docs folder; give --docs or --out, not both", file=sys.stderr)
+        return 2
+    module = importlib.import_module(CHART_TARGETS[target][0])
+    if docs:
+        out = Path(module.__file__).resolve().parents[2] / "docs" / CHART_DOCS[target]
+        args += ["--out", str(out)]
+    elif given:
+        out = Path(given)
+    else:
+        out = CHART_OUT / target
+        args += ["--out", str(out)]
+    if "-h" in args or "--help" in args:
+        return int(module.main(args) or 0)
+    where = "the tracked docs (--docs)" if docs else "not the tracked docs (skin-sim chart TARGET --docs writes those)"
+    print(f"skin-sim chart {target}: writing to {out}, {where}", flush=True)
+    before = _files(out)
+    code = int(module.main(args) or 0)
+    written = sorted(p for p, m in _files(out).items() if before.get(p) != m)
+    print(f"skin-sim chart {target}: wrote {len(written)} file(s) in {out}"
+          + (": " + ", ".join(str(p.relative_to(out)) for p in written) if written else ""))  # fmt: skip
+    return code
+
+
+def _files(folder: Path) -> dict[Path, int]:
+    """Files under ``folder`` with their modification times (ns)."""
+    return {p: p.stat().st_mtime_ns for p in folder.rglob("*") if p.is_file()} if folder.is_dir() else {}
 
 
 def usage() -> str:
@@ -74,13 +119,22 @@ def main(argv=None) -> int:
         print(usage())
         return 0
     cmd, rest = argv[0], argv[1:]
+    install_option_suggestions()
     if cmd == "chart":
         return chart(rest)
     if cmd not in COMMANDS:
-        print(f"skin-sim: unknown command {cmd!r}\n\n{usage()}", file=sys.stderr)
+        print(f"skin-sim: error: unknown command {cmd!r}{suggest(cmd, [*COMMANDS, 'chart'])}; skin-sim --help lists "
+              "the commands", file=sys.stderr)  # fmt: skip
+        return 2
+    if cmd == "node" and (problem := node_argument_error(rest)):
+        print(f"skin-sim node: error: {problem}", file=sys.stderr)
         return 2
     module = importlib.import_module(COMMANDS[cmd][0])
-    return int(module.main(rest) or 0)
+    try:
+        return int(module.main(rest) or 0)
+    except FileNotFoundError as exc:  # a missing input file is one line, not a traceback
+        print(f"skin-sim {cmd}: error: {exc.filename or exc}: no such file", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

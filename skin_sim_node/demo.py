@@ -18,15 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from msgs_schema.tissue import LAYER_NAMES
-
-from .model import load_tissue_config
 from .scenes import DEFAULT_PARAMS, Scene
+from .verdicts import exit_code, verdict_line
 
 PROMISED_HZ = 1000.0
 """The rate the demo promises at the device: a Touch's 1 kHz servo loop (every device tick gets a force)."""
-
-LAYER_COLOURS = ("#f2c9a5", "#d9777a", "#f5e08e")  # as skin_sim_node.viz.plots
 
 
 def _median(values) -> float:
@@ -77,63 +73,50 @@ def force_at_deepest(poses: list, wrenches: list, window_ns: int = 20_000_000):
     return (-z, fz) if abs(rx - t_deep) <= window_ns else None
 
 
-def deepest_figure(cfg, poses: list, layer_heights: list, path: Path, title: str) -> tuple[Path, float]:
-    """Surface map and cross-section at the deepest tool instant, the tool drawn, a legend of the layers.
+def model_at(inputs, params, stamp_ns: int):
+    """The tissue model after the offline session has answered every pose of ``inputs`` up to ``stamp_ns``.
 
-    ``poses``: (rx_ns, x, y, z) of ``tool/pose``; ``layer_heights``: the monitor's (rx_ns, stamp, image).
-    Returns the path and the tool tip depth (m).
+    Returns ``(model, (x, y, z), n_affected)``: the whole dynamic state copied from the session at that tick.
     """
+    from .bags.inputs import POSE
+    from .bags.offline import load_params
+    from .model import SkinModel
+    from .session import HapticSession
+
+    sp, cfg = load_params(params)
+    session = HapticSession(SkinModel(cfg), sp)
+    prev, last = None, None
+    for stamp, rank, frame, xyz in inputs.events:
+        if stamp > stamp_ns:
+            break
+        if rank != POSE:
+            session.on_twist(stamp, frame, xyz)
+        elif session.on_pose(stamp, frame, xyz) is None:
+            last = session.tick(stamp, 0 if prev is None else stamp - prev)
+            prev = stamp
+    model = SkinModel(cfg)
+    model.set_state(session.state())
+    return model, tuple(last.x0_m) if last is not None else (0.0, 0.0, 1.0), last.n_affected if last is not None else 0
+
+
+def deepest_figure(model, tool_xyz, path: Path, title: str, note: str) -> Path:
+    """Surface map and cross-section of ``model`` (the state at the deepest pose), the tool drawn at ``tool_xyz``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle, Patch, Rectangle
 
-    p = np.array(poses, dtype=float)
-    k = int(np.argmin(p[:, 3]))
-    t_deep, tx, ty, tz = p[k]
-    rx = np.array([r for r, _, _ in layer_heights], dtype=float)
-    img = layer_heights[int(np.argmin(np.abs(rx - t_deep)))][2]
-    ny, nx = cfg.grid_shape
-    sx, sy = cfg.sheet_size_m
-    xs = -sx / 2 + (np.arange(nx) + 0.5) * sx / nx
-    ys = -sy / 2 + (np.arange(ny) + 0.5) * sy / ny
-    fig, (a0, a1) = plt.subplots(1, 2, figsize=(12, 4.6), gridspec_kw={"width_ratios": [1, 1.5]})
-    ext = [xs[0] * 1e3, xs[-1] * 1e3, ys[0] * 1e3, ys[-1] * 1e3]
-    im = a0.imshow(img[:, :, 0] * 1e3, origin="lower", extent=ext, cmap="viridis")
-    plt.colorbar(im, ax=a0, label="surface height (mm)")
-    r_mm = cfg.tool_radius_m * 1e3
-    a0.add_patch(Circle((tx * 1e3, ty * 1e3), r_mm, fill=False, ec="w", lw=1.2, ls="--"))
-    a0.set_xlabel("x (mm)")
-    a0.set_ylabel("y (mm)")
-    a0.set_title("surface height; dashed: tool footprint", fontsize=9)
-    row = int(np.argmin(np.abs(ys - ty)))
-    tops = [img[row, :, i] for i in range(img.shape[2])]
-    bottom = np.full_like(xs, -cfg.total_thickness_m)
-    handles = []
-    for i, (top, below) in enumerate(zip(tops, tops[1:] + [bottom])):
-        a1.fill_between(xs * 1e3, below * 1e3, top * 1e3, color=LAYER_COLOURS[i % 3], lw=0)
-        a1.plot(xs * 1e3, top * 1e3, "k", lw=0.5)
-        handles.append(Patch(color=LAYER_COLOURS[i % 3], label=LAYER_NAMES[i] if i < 3 else f"layer {i}"))
-    if cfg.tool_shape == "sphere":
-        a1.add_patch(Circle((tx * 1e3, tz * 1e3 + r_mm), r_mm, color="0.35", alpha=0.85, zorder=5))
-    else:  # flat punch: a cylinder of the tool radius, drawn 3 radii tall
-        a1.add_patch(Rectangle((tx * 1e3 - r_mm, tz * 1e3), 2 * r_mm, 3 * r_mm, color="0.35", alpha=0.85, zorder=5))
-    handles.append(Patch(color="0.35", label=f"{cfg.tool_shape} tool (r = {r_mm:.1f} mm), tip at z = {tz * 1e3:.2f} mm"))
-    half = max(4 * r_mm, 6.0)
-    a1.set_xlim(tx * 1e3 - half, tx * 1e3 + half)
-    a1.set_ylim(-cfg.total_thickness_m * 1e3, max(2 * r_mm + 0.5, 1.0))
-    a1.set_aspect("equal")
-    a1.set_xlabel("x (mm)")
-    a1.set_ylabel("z (mm)")
-    a1.set_title(f"cross-section at y = {ys[row] * 1e3:.1f} mm, grid image nearest the deepest instant", fontsize=9)
-    a1.legend(handles=handles, fontsize=8, loc="upper right")
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path, -tz
+    from .viz.plots import draw_cross_section, draw_surface, save_figure
+
+    x, y, z = tool_xyz
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1, 1.5]})
+    draw_surface(a0, model, "surface height at that instant", tool_xy=(x, y))
+    half = max(4 * model.cfg.tool_radius_m, 8e-3)
+    draw_cross_section(a1, model, x, y, z, f"cross-section at y = {y * 1e3:.1f} mm, same instant", half_m=half)
+    a1.legend(loc="lower right", fontsize=7)
+    fig.text(0.5, 0.01, note, ha="center", fontsize=8)
+    fig.subplots_adjust(bottom=0.14)
+    return save_figure(fig, path, title, rect=(0, 0.05, 1, 1))
 
 
 def _start_view(scene: Scene, out: Path):
@@ -168,12 +151,15 @@ def main(argv=None) -> int:
 
     from .perf.monitor import Monitor  # rclpy reads the domain at init
 
-    cfg = load_tissue_config(DEFAULT_PARAMS)
     print(f"skin-sim demo: ROS_DOMAIN_ID={scene.env['ROS_DOMAIN_ID']}, source={args.source}, path={args.path}", flush=True)
     monitor = Monitor(record_depth=1)  # latency as a device sees it: newest sample
     poses: list = []
     subscription(monitor.node, "tool_pose", lambda m: poses.append((monitor.now_ns(), *cv.read_pose(m)[2])))
-    ok = True
+    from .bags.recorder import Recorder
+
+    # every input and published force (deep queues), for the offline check and out/demo/bag
+    rec = Recorder(RECORDED, None, name="skin_sim_demo_recorder", keep=True, executor="events")
+    checks: list = []
     procs = {}
     try:
         node = scene.node()
@@ -188,21 +174,26 @@ def main(argv=None) -> int:
             source = scene.start("mock_tool", "mock-tool", "--trajectory", args.path, "--start-delay-s", str(args.start_delay_s))
         try:
             source.popen.wait(timeout=args.timeout_s)
+            checks.append((True, "tool path finished"))
         except subprocess.TimeoutExpired:
-            print(f"tool source did not finish within {args.timeout_s} s", flush=True)
-            ok = False
+            checks.append((False, f"tool path did not finish within {args.timeout_s:g} s"))
         wall = time.monotonic() - t0
         time.sleep(1.2)  # one more diagnostics period
         if view is not None:  # headless view: let it finish its screenshot
             try:
                 scene.wait_for_log(view, "screenshot", timeout_s=30)
+                checks.append((True, f"view screenshot {args.out / 'view.png'}"))
             except (TimeoutError, RuntimeError) as exc:
                 print(f"  view: no screenshot ({str(exc).splitlines()[0]})", flush=True)
+                checks.append((False, "view screenshot not written"))
     finally:
         codes = scene.stop_all()
         monitor.close()
+        rec.close()
     s = summarize(monitor, wall, poses)
-    ok &= all(c == 0 for c in codes.values()) and s["peak_force_n"] > 0
+    bad = {k: c for k, c in codes.items() if c != 0}
+    checks.append((not bad, "processes exited 0" if not bad else f"processes exited non-zero: {bad}"))
+    checks.append((s["peak_force_n"] > 0, f"peak force {s['peak_force_n']:.4f} N > 0"))
     print(f"  processes exited: {codes}")
     print(f"  peak force: {s['peak_force_n']:.4f} N; layers reached: {s['layers_reached']} of 3")
     deep = force_at_deepest(poses, monitor.wrench)
@@ -247,18 +238,62 @@ def main(argv=None) -> int:
             f"p99 {s['latency_ms_p99']:.2f} ms, max {s['latency_ms_max']:.2f} ms"
         )
     print(f"  model tick p99 (worst 1 s window of the node): {s['kernel_us_p99_worst']:.1f} us")
-    if poses and monitor.layer_heights:
-        pic, depth = deepest_figure(
-            cfg, poses, monitor.layer_heights, args.out / "deformation_deepest.png",
-            f"demo {args.source}/{args.path}: tissue at the deepest tool instant ({s['layers_reached']} of 3 layers reached "
-            f"during the run, peak force {s['peak_force_n']:.3f} N)",
-        )  # fmt: skip
-        print(f"  picture (deepest instant, tool tip {depth * 1e3:.2f} mm below the rest surface): {pic}")
-    else:
-        ok = False
-        print("  no deformation grid or tool pose received")
-    print("demo " + ("OK" if ok else "FAILED"))
-    return 0 if ok else 1
+    checks += offline_check(rec.records, args, s)
+    print(verdict_line("demo", checks))
+    return exit_code(checks)
+
+
+RECORDED = ("tool_pose", "tool_twist", "tool_wrench")
+
+
+def offline_check(records: list, args, s: dict) -> list:
+    """Write ``OUT/bag``, replay the poses the node answered offline, check the published forces, draw the picture.
+
+    Returns the checks: the published forces are the offline answer; the picture was written.
+    """
+    from msgs_schema.topics import TOPICS
+
+    from .bags.compare import read_outputs
+    from .bags.inputs import InputOptions, read_inputs
+    from .bags.io import BagError, BagWriter, qos_profiles
+    from .bags.offline import bag_topic, replay
+    from .bags.published import answered_only, check_published, format_check
+
+    bag = args.out / "bag"
+    with BagWriter(bag, "mcap", custom_data={"skin_sim.scene": f"demo-{args.source}", "skin_sim.path": args.path},
+                   overwrite=True) as w:  # fmt: skip
+        for key in RECORDED:
+            w.add_topic(bag_topic(key), TOPICS[key].type, qos_profiles(key))
+        for rx, key, raw in records:
+            w.write_raw(bag_topic(key), TOPICS[key].type, rx, raw)
+    try:
+        inputs = read_inputs(bag, InputOptions())
+        published, _ = read_outputs(bag, grids=False)
+    except BagError as exc:
+        return [(False, f"no offline check: {exc}")]
+    inputs = answered_only(inputs, set(published))
+    res = replay(inputs, DEFAULT_PARAMS, None, 0.0)
+    if res.stamps_ns.size == 0:
+        return [(False, "no published force answers a recorded pose: nothing to check offline")]
+    c = check_published(res.forces_by_stamp(), published)
+    print("  " + format_check(c, "published forces vs offline replay of the same poses", int(res.stamps_ns[0])))
+    print(f"  recorded to {bag} (skin-sim replay {bag} replays it)")
+    checks = [(c.ok, "published forces are the offline answer" if c.ok else "published forces DISAGREE with the "
+               f"offline answer (max |dF| {c.diff.max_df_n:.3g} N at {c.diff.matched} matched stamps)")]  # fmt: skip
+    k = int(np.argmin(res.tool_xyz_m[:, 2]))
+    stamp = int(res.stamps_ns[k])
+    model, xyz, n_aff = model_at(inputs, DEFAULT_PARAMS, stamp)
+    pub = published.get(stamp)
+    pic = deepest_figure(
+        model, xyz, args.out / "deformation_deepest.png",
+        f"demo {args.source}/{args.path}: the tissue at the deepest pose, t = {(stamp - res.stamps_ns[0]) * 1e-9:.3f} s, "
+        f"tip {-xyz[2] * 1e3:.2f} mm deep, force {res.force_n[k]:.3f} N (run's peak {res.peak_force_n:.3f} N)",
+        "model state of the offline replay at that pose's stamp (time offset to the tool: 0 ms); the node published "
+        + (f"{np.linalg.norm(pub):.4f} N for it" if pub is not None else "no wrench for it")
+        + f"; {n_aff} of 3 layers under the tool",
+    )  # fmt: skip
+    print(f"  picture: {pic} (the deepest pose, tip {-xyz[2] * 1e3:.2f} mm below the rest surface; model state at its stamp)")
+    return checks + [(True, f"picture {pic}")]
 
 
 if __name__ == "__main__":

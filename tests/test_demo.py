@@ -1,6 +1,6 @@
 """The demo's summary helpers (pure: no processes)."""
 
-from skin_sim_node.demo import force_at_deepest
+from skin_sim_node.demo import force_at_deepest, model_at, offline_check
 
 MS = 1_000_000
 
@@ -15,3 +15,56 @@ def test_force_at_deepest_takes_the_wrench_that_answers_the_deepest_pose():
 def test_force_at_deepest_without_data_is_none():
     assert force_at_deepest([], [(0, 0, 1.0)]) is None
     assert force_at_deepest([(0, 0.0, 0.0, -1e-3)], [(10**9, 0, 1.0)]) is None  # no wrench near the deepest instant
+
+
+def _records(bag):
+    from skin_sim_node.bags.io import iter_raw, open_bag, topic_types
+
+    keys = {"/tool/pose": "tool_pose", "/tool/twist": "tool_twist", "/tool/wrench": "tool_wrench"}
+    with open_bag(bag) as r:
+        return [(t, keys[topic], raw) for topic, _, t, raw in iter_raw(bag, r, [k for k in topic_types(r) if k in keys])]
+
+
+def _args(tmp_path):
+    import types
+
+    return types.SimpleNamespace(out=tmp_path / "demo", source="mock", path="press_hold_release")
+
+
+def test_offline_check_passes_forces_that_are_the_offline_answer_and_draws_the_deepest_instant(tmp_path):
+    from test_verdicts import _with_recorded_wrenches
+
+    bag, _ = _with_recorded_wrenches(tmp_path, keep_every=2)
+    checks = offline_check(_records(bag), _args(tmp_path), {})
+    assert [ok for ok, _ in checks] == [True, True], checks
+    assert (tmp_path / "demo" / "deformation_deepest.png").stat().st_size > 10_000
+    assert (tmp_path / "demo" / "bag" / "metadata.yaml").exists()
+
+
+def test_offline_check_fails_a_published_force_that_is_not_the_offline_answer(tmp_path):
+    from test_verdicts import _with_recorded_wrenches
+
+    bag, _ = _with_recorded_wrenches(tmp_path, bump_n=4.5)
+    checks = offline_check(_records(bag), _args(tmp_path), {})
+    assert not checks[0][0] and "DISAGREE" in checks[0][1] and "4.5 N" in checks[0][1], checks
+
+
+def test_the_picture_state_is_the_deepest_instant():
+    """The model drawn is the state at the deepest pose's stamp: its surface under the tool is at the tool's depth
+    (the old picture took a display grid received near that time and showed undeformed tissue)."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from skin_sim_node.bags.inputs import InputOptions, read_inputs
+    from skin_sim_node.bags.offline import replay
+    from skin_sim_node.scenes import DEFAULT_PARAMS
+
+    inputs = read_inputs(Path(__file__).parent / "data" / "press_hold_release" / "input", InputOptions())
+    res = replay(inputs, DEFAULT_PARAMS, None, 0.0)
+    k = int(np.argmin(res.tool_xyz_m[:, 2]))
+    model, (x, y, z), n_aff = model_at(inputs, DEFAULT_PARAMS, int(res.stamps_ns[k]))
+    assert (x, y, z) == tuple(res.tool_xyz_m[k]) and n_aff >= 1
+    surface = model.cross_section(np.array([x]), y)[0][0]
+    assert abs(surface - z) < 0.1 * abs(z), (surface, z)
+    assert model.build_grid().heights_m[0].min() < 0.5 * z

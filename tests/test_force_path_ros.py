@@ -22,7 +22,7 @@ from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from msgs_schema.contact_model import DEFAULT_TTL_S  # noqa: E402
 from msgs_schema.convert import read_wrench  # noqa: E402
 from msgs_schema.qos import PROFILES  # noqa: E402
-from skin_sim_node.device.render import FADE_S  # noqa: E402
+from skin_sim_node.device.render import FADE_S, MAX_TICK_S  # noqa: E402
 from skin_sim_node.scenes import Scene  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
@@ -68,7 +68,11 @@ class CommandObserver:
         rclpy.try_shutdown(context=self.ctx)
 
 
-def test_killed_node_force_fades_within_ttl_plus_fade_never_steps(scene):
+def test_killed_node_force_fades_on_the_device_clock_and_never_steps(scene):
+    """The node is killed in a steady hold: the bridge fades the device's force to zero on the device's clock (its
+    pose stamps) and never steps it. Deterministic in what it asserts: the fade's steps and length are counted in
+    the commands' own stamps, which is the bridge's clock, so a late or lost tick does not change them; how soon in
+    wall time the force reached zero is printed (``skin-sim bench-device`` measures it, quiet and loaded)."""
     obs = CommandObserver()
     try:
         node = scene.node()
@@ -76,18 +80,25 @@ def test_killed_node_force_fades_within_ttl_plus_fade_never_steps(scene):
         scene.start("bridge", "bridge")
         scene.start("device", "device", "--hand-path", "press_hold_release", "--loop", "--start-delay-s", "2.0")
         # wait for the first hold (2.5 mm, 1 s): a steady force for 0.3 s
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 120
         while time.monotonic() < deadline:
             a = obs.array()
             recent = a[a[:, 0] > time.monotonic_ns() - 0.3e9]
-            if len(recent) > 100 and recent[:, 4].min() > 0.005 and np.ptp(recent[:, 4]) < 0.2 * recent[:, 4].mean():
+            if len(recent) > 50 and recent[:, 4].min() > 0.005 and np.ptp(recent[:, 4]) < 0.2 * recent[:, 4].mean():
                 break
             time.sleep(0.05)
         else:
             pytest.fail("no steady hold force at the device: " + node.log()[-2000:])
         t_kill = time.monotonic_ns()
         node.popen.send_signal(signal.SIGKILL)
-        time.sleep(0.5)
+        node.popen.wait()
+        deadline = time.monotonic() + 60  # until the device has ticked well past TTL + fade in its own stamps
+        while time.monotonic() < deadline:
+            a = obs.array()
+            after = a[a[:, 0] >= t_kill]
+            if len(after) > 20 and after[-1, 1] - after[0, 1] > 4 * (DEFAULT_TTL_S + FADE_S) * 1e9:
+                break
+            time.sleep(0.05)
     finally:
         obs.close()
     a = obs.array()
@@ -95,32 +106,29 @@ def test_killed_node_force_fades_within_ttl_plus_fade_never_steps(scene):
     after = a[a[:, 0] >= t_kill]
     f_kill = float(np.linalg.norm(before[-1, 2:]))
     mags = np.linalg.norm(after[:, 2:], axis=1)
-    assert f_kill > 0.005 and len(after) > 200, "the device kept ticking after the kill"
-    # zero within TTL + fade of the kill (plus 30 ms of DDS and scheduling allowance)
-    t_zero = after[np.argmax(mags == 0.0), 0] if np.any(mags == 0.0) else np.inf
-    fade_ms = (t_zero - t_kill) * 1e-6
-    trace = [(round((t - t_kill) * 1e-6, 1), round(float(f), 4)) for t, f in zip(after[::10, 0], mags[::10])]
-    assert fade_ms <= (DEFAULT_TTL_S + FADE_S) * 1e3 + 30, f"force not zero {fade_ms:.1f} ms after the kill: {trace}"
-    assert np.all(mags[after[:, 0] >= t_zero] == 0.0)
+    assert f_kill > 0.005 and len(after) > 20, "the device stopped ticking after the kill"
+    assert np.any(mags == 0.0), f"never zero after the kill: last {mags[-5:]}"
+    i_zero = int(np.argmax(mags == 0.0))
+    assert np.all(mags[i_zero:] == 0.0)
     # never a step: each command differs from the one before by at most the fade's slope over the device time
-    # between them (their stamps: a late tick covers more of the fade), plus a tenth of the force for the hold's jitter
+    # between them (their stamps, at most MAX_TICK_S of it per tick), plus a tenth of the force for the hold's jitter
     seq = np.concatenate([before[-50:], after])
     m = np.linalg.norm(seq[:, 2:], axis=1)
     steps = np.abs(np.diff(m))
-    dt_s = np.maximum(np.diff(seq[:, 1]) * 1e-9, 1e-3)
-    allowed = f_kill * (1.5 * dt_s / FADE_S + 0.1)
+    dt_s = np.minimum(np.maximum(np.diff(seq[:, 1]) * 1e-9, 0.0), MAX_TICK_S)
+    allowed = f_kill * (1.5 * np.maximum(dt_s, 1e-3) / FADE_S + 0.1)
     worst = int(np.argmax(steps - allowed))
-    ctx = [(round((seq[i, 0] - t_kill) * 1e-6, 1), round(float(m[i]), 4)) for i in range(max(worst - 3, 0), worst + 4)]
-    assert np.all(steps <= allowed), (
-        f"step of {steps[worst]:.4f} N over {dt_s[worst] * 1e3:.1f} ms from {f_kill:.4f} N: (ms after kill, N) {ctx}"
-    )
-    t_high = seq[np.flatnonzero(m >= 0.95 * f_kill)[-1], 0]
-    ramp_ms = (t_zero - t_high) * 1e-6
-    assert ramp_ms >= 0.6 * FADE_S * 1e3, f"the force came down in {ramp_ms:.1f} ms"
+    ctx = [(round((seq[i, 1] - seq[0, 1]) * 1e-6, 1), round(float(m[i]), 4)) for i in range(max(worst - 3, 0), worst + 4)]
+    assert np.all(steps <= allowed), f"step of {steps[worst]:.4f} N from {f_kill:.4f} N: (ms of device time, N) {ctx}"
+    # the fade takes its whole length in device time: from the last command near the held force to zero
+    k_high = np.flatnonzero(m >= 0.95 * f_kill)[-1]
+    k_zero = len(before[-50:]) + i_zero
+    ramp_ms = (seq[k_zero, 1] - seq[k_high, 1]) * 1e-6
+    assert ramp_ms >= 0.6 * FADE_S * 1e3, f"the force came down in {ramp_ms:.1f} ms of device time"
     print(
-        f"killed node: force {f_kill:.4f} N at the kill, zero {fade_ms:.1f} ms after it (TTL {DEFAULT_TTL_S * 1e3:.0f} ms "
-        f"+ fade {FADE_S * 1e3:.0f} ms), ramp {ramp_ms:.1f} ms, largest step {steps.max() / f_kill:.3f} of the force "
-        f"(over {dt_s[int(np.argmax(steps))] * 1e3:.1f} ms of device time)"
+        f"killed node: force {f_kill:.4f} N at the kill, zero {(after[i_zero, 0] - t_kill) * 1e-6:.1f} ms (wall) after it "
+        f"(TTL {DEFAULT_TTL_S * 1e3:.0f} ms + fade {FADE_S * 1e3:.0f} ms), ramp {ramp_ms:.1f} ms of device time, largest "
+        f"step {steps.max() / f_kill:.3f} of the force"
     )
 
 

@@ -75,7 +75,7 @@ class Run:
             self.stamp += max(dt_ns, 1000)
             self.s.on_twist(self.stamp, "tissue", v)
             self.s.on_pose(self.stamp, "tissue", xyz)
-            self.forces.append(self.s.tick(self.stamp, dt_ns).force_z_n)
+            self.forces.append(float(np.linalg.norm(self.s.tick(self.stamp, dt_ns).force_n)))  # the limits' magnitude
             self.dts.append(dt)
             self.wall_s.append(self.wall_s[-1] + dt)
             self.stamp_s.append((self.stamp - T0) * 1e-9)

@@ -117,3 +117,48 @@ def test_irregular_timing_never_exceeds_the_quasi_static_force_at_the_deepest_po
         f = float(np.linalg.norm(r.force_n))
         worst = max(worst, f - (1.2 * qs(deepest) + 0.05))
     assert worst <= 0.0, f"a force {worst:.3f} N above 1.2 x the quasi-static force + 0.05 N"
+
+
+def test_a_volley_of_absurd_poses_is_rejected_and_the_next_press_answers_at_once(default_cfg):
+    """25 poses at +-1e30 m (a device or mapping fault): each rejected as outside the workspace, counted, logged once,
+    the tissue untouched; the next valid 1 mm press answers on its first pose with the press's own force."""
+    from skin_sim_node.session import OUTSIDE_WORKSPACE
+
+    logged = []
+    s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0), log=lambda k, m: logged.append(k))
+    ref = session(default_cfg)
+    stamp = T0
+    for st, z, vz in press(60, depth_m=1e-3, speed_m_s=0.02)[:40]:  # lifted, then onto the surface
+        for x in (s, ref):
+            x.on_twist(st, "tissue", (0.0, 0.0, vz))
+            x.on_pose(st, "tissue", (0.0, 0.0, z), now_ns=st, rx_ns=st)
+            x.tick(st, MS)
+        stamp = st
+    for k in range(25):
+        stamp += MS
+        bad = 1e30 if k % 2 else -1e30
+        assert s.on_pose(stamp, "tissue", (bad, -bad, bad), now_ns=stamp, rx_ns=stamp) == OUTSIDE_WORKSPACE
+        s.tick(stamp, MS)  # pose-less: held
+    assert s.counts[OUTSIDE_WORKSPACE] == 25 and logged.count(OUTSIDE_WORKSPACE) == 1
+    stamp += MS
+    for x in (s, ref):
+        x.on_twist(stamp, "tissue", (0.0, 0.0, -0.02))
+        x.on_pose(stamp, "tissue", (0.0, 0.0, -1e-3), now_ns=stamp, rx_ns=stamp)
+    got, want = s.tick(stamp, MS), ref.tick(stamp, 26 * MS)
+    assert got.answered and got.force_z_n > 0.1
+    assert got.force_n == want.force_n  # the volley changed nothing: the press's own force, at once
+
+
+def test_rate_lever_throttles_the_answers_on_the_pose_stamps():
+    from skin_sim_node.session import AnswerThrottle
+
+    rng = np.random.default_rng(5)
+    stamps = T0 + np.arange(4000) * MS + rng.integers(-200_000, 200_000, 4000)  # 1 kHz with +-0.2 ms stamp jitter
+    for rate_hz, lo, hi in ((250.0, 0.245, 0.255), (500.0, 0.48, 0.505), (1000.0, 1.0, 1.0), (2000.0, 1.0, 1.0)):
+        th = AnswerThrottle(rate_hz)
+        share = np.mean([th.due(int(s)) for s in stamps])
+        assert lo <= share <= hi, (rate_hz, share)  # 1 kHz and above: every pose (live replay's contract)
+    th = AnswerThrottle(250.0)
+    assert th.due(T0) and not th.due(T0 + MS) and th.due(T0 + 4 * MS)
+    assert th.due(T0 + 500 * MS)  # after a gap the next pose is answered at once
+    assert th.due(T0 - 10_000 * MS)  # a new time line (a restarted driver)

@@ -85,7 +85,7 @@ def bag():
 def test_bag_timeline_matches_the_bag_readers(bag):
     forces, grids = read_outputs(DATA / "expected")
     assert len(bag.grids) == len(grids) and len(bag.wrench_t) == len(forces)
-    fz = np.array([forces[k] for k in sorted(forces)])
+    fz = np.array([forces[k][2] for k in sorted(forces)])
     np.testing.assert_allclose(bag.wrench[:, 2], fz)
     peak = int(np.argmax(fz))
     h = bag.header_at(bag.wrench_t[peak])
@@ -147,6 +147,34 @@ def test_server_streams_frames_and_answers_the_api(bag):
         srv.close()
 
 
+def test_live_frame_carries_the_largest_force_since_the_last_frame():
+    """A 1 ms spike between two 30 Hz frames reaches the page (the newest wrench alone would hide it)."""
+    from skin_sim_node.bags.io import new_message
+    from skin_sim_node.view.live import LiveSource
+
+    src = LiveSource.__new__(LiveSource)  # no rclpy: only the callbacks and the header
+    src.pose = src.wrench = src.contact = None
+    src.form, src.frames = "layered", 0
+    for fz in (0.1, 8.9, 0.2):
+        m = new_message("geometry_msgs/msg/WrenchStamped")
+        m.wrench.force.z = fz
+        src._on_wrench(m)
+    h = src.header()
+    assert h["force_max"] == 8.9 and h["force"][2] == 0.2
+    assert "force_max" not in src.header()  # no wrench since: the page shows the newest
+
+
+def test_bag_frame_while_playing_carries_the_largest_force_since_the_last_frame(bag):
+    src = BagSource(BAGS)
+    src.data = bag
+    peak = int(np.argmax(bag.wrench[:, 2]))
+    t0, t1 = float(bag.wrench_t[peak - 20]), float(bag.wrench_t[peak + 20])
+    src.frame_at(t0)
+    src.playing = True
+    h, _, _ = src.frame_at(t1)
+    assert h["force_max"] == pytest.approx(bag.wrench[peak, 2]) and h["force"][2] < h["force_max"]
+
+
 # --- the real page in headless Chromium --------------------------------------------------------
 def _tissue_pixels(png: Path) -> tuple[float, float]:
     """(fraction of the 3D area that is not background, fraction that is skin-coloured: r > g > b, bright)."""
@@ -161,35 +189,144 @@ def _tissue_pixels(png: Path) -> tuple[float, float]:
     return float(not_bg.mean()), float(skin.mean())
 
 
-@needs_browser
-def test_bag_page_scrubs_to_a_frame(tmp_path):
+LAYER_SRGB = np.array([[0.95, 0.79, 0.65], [0.85, 0.47, 0.48], [0.96, 0.88, 0.56]])  # app.js LAYER_RGB, unlit in the cut
+
+
+def _scene_pixels(png: Path) -> dict:
+    """Pixel classes of the 3D area (left of the side panel, without the overlay line and the timeline).
+
+    ``arrow``: the force arrow's unlit cyan, with its vertical extent in rows; ``tool``: the tool's steel blue,
+    with its silhouette's median width (px) in the lower quarter and the upper half of its rows; ``layers``:
+    pixels of each of the three layer colours of the cut (unlit, so exact).
+    """
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(png)[..., :3]
+    area = img[30 : img.shape[0] - 50, : int(img.shape[1] * 0.7)]
+    r, g, b = area[..., 0], area[..., 1], area[..., 2]
+    cyan = (r < 0.3) & (g > 0.7) & (b > 0.8)
+    tool = (b > r + 0.08) & (b >= g) & (area.mean(axis=2) > 0.2) & ~cyan
+    cols = tool.sum(axis=0)
+    tool &= cols > 0.05 * cols.max(initial=0)  # drop stray edge pixels (the arrow's anti-aliased rim)
+    rows = np.where(tool.sum(axis=1) > 3)[0]
+    widths = tool[rows].sum(axis=1)
+    n = len(rows)
+    out = {
+        "arrow": int(cyan.sum()),
+        "arrow_rows": int(np.ptp(np.where(cyan.any(axis=1))[0])) if cyan.any() else 0,
+        "tool": int(tool.sum()),
+        "tool_width_low": float(np.median(widths[int(0.75 * n) :])) if n > 8 else 0.0,
+        "tool_width_high": float(np.median(widths[: n // 2])) if n > 8 else 0.0,
+        "layers": [int((np.abs(area - c).max(axis=2) < 0.04).sum()) for c in LAYER_SRGB],
+    }
+    return out
+
+
+def _seek(b, t_s: float, force_n: float) -> None:
+    b.evaluate(f"fetch('/api/seek', {{method: 'POST', body: JSON.stringify({{t_s: {t_s}}})}}).then(r => r.json())")
+    b.wait_for(f"Math.abs(window.skinView.force - {force_n}) < 1e-4", 20, f"the force {force_n:.4f} N on the page")
+    _rendered(b)
+
+
+def _rendered(b) -> None:
+    """Wait until the page has rendered every frame it has received (the scene is what the DOM says)."""
+    n = b.evaluate("window.skinView.frames")
+    b.wait_for(f"window.skinView.renderedFrames >= {n}", 20, "a render of the last frame")
+
+
+@pytest.fixture()
+def bag_page():
     from skin_sim_node.view.browser import Browser
 
     src = BagSource(BAGS)
     srv = ViewServer(src, port=0).start()
     import threading
 
-    t = threading.Thread(target=src.run, args=(srv, 120.0), daemon=True)
+    t = threading.Thread(target=src.run, args=(srv, 180.0), daemon=True)
     t.start()
     try:
         with Browser(srv.url) as b:
-            b.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "the first grid")
-            d = src.data
-            peak = int(np.argmax(d.wrench[:, 2]))
-            t_peak = float(d.wrench_t[peak])
-            b.evaluate(f"fetch('/api/seek', {{method: 'POST', body: JSON.stringify({{t_s: {t_peak}}})}}).then(r => r.json())")
-            shown = b.wait_for(f"Math.abs(parseFloat(document.getElementById('force').textContent) - {d.wrench[peak, 2]}) < 1e-4 "
-                               "&& document.getElementById('force').textContent", 20, "the peak force on the page")  # fmt: skip
-            assert float(shown) == pytest.approx(d.wrench[peak, 2], abs=1e-4)
-            label = b.evaluate("document.getElementById('tlabel').textContent")
-            assert label.startswith(f"{t_peak:.3f}")
-            time.sleep(0.5)
-            not_bg, skin = _tissue_pixels(b.screenshot(tmp_path / "bag.png"))
-            assert not_bg > 0.08 and skin > 0.05, (not_bg, skin)
+            yield src, b
     finally:
         src.stop()
         t.join(timeout=5)
         srv.close()
+
+
+@needs_browser
+def test_bag_page_scrubs_to_a_frame(bag_page, tmp_path):
+    src, b = bag_page
+    b.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "the first grid")
+    d = src.data
+    peak = int(np.argmax(d.wrench[:, 2]))
+    t_peak = float(d.wrench_t[peak])
+    _seek(b, t_peak, d.wrench[peak, 2])
+    shown = b.evaluate("document.getElementById('force').textContent")
+    assert float(shown) == pytest.approx(d.wrench[peak, 2], abs=1e-4)
+    label = b.evaluate("document.getElementById('tlabel').textContent")
+    assert label.startswith(f"{t_peak:.3f}")
+    not_bg, skin = _tissue_pixels(b.screenshot(tmp_path / "bag.png"))
+    assert not_bg > 0.08 and skin > 0.05, (not_bg, skin)
+
+
+@needs_browser
+def test_bag_page_opens_at_its_first_grid_with_the_tool_in_frame(bag_page, tmp_path):
+    """No seek: the first frame the page shows is the bag's first grid (not t = 0 before any grid), and the
+    lifted tool is drawn at its true height, inside the picture."""
+    src, b = bag_page
+    b.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "the first grid")
+    _rendered(b)
+    assert b.evaluate("window.skinView.t_s") == pytest.approx(float(src.data.grid_t[0]), abs=1e-6)
+    shot = b.screenshot(tmp_path / "first.png")
+    not_bg, skin = _tissue_pixels(shot)
+    assert not_bg > 0.08 and skin > 0.05, (not_bg, skin)
+    z_tool_mm = 1e3 * float(src.data.header_at(src.data.grid_t[0])["tool"][2])
+    assert z_tool_mm > 0 and b.evaluate("window.skinView.toolZDrawnMm") == pytest.approx(z_tool_mm)  # not x z-scale
+    assert _scene_pixels(shot)["tool"] > 500  # the tool is in the frame
+
+
+@needs_browser
+def test_bag_page_force_arrow_tool_cut_and_scale(bag_page, tmp_path):
+    """From the pixels: the arrow is visible and longer at a larger force, the flat punch is a cylinder, the cut
+    shows three layer colours; from the DOM: the arrow's newton label, the layer legend, the displacement scale."""
+    src, b = bag_page
+    d = src.data
+    b.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "the first grid")
+    peak = int(np.argmax(d.wrench[:, 2]))
+    low = int(np.argmax(d.wrench[:, 2] > 0.15 * d.wrench[peak, 2]))  # on the way down, at 15 % of the peak
+    _seek(b, float(d.wrench_t[low]), d.wrench[low, 2])
+    at_low = _scene_pixels(b.screenshot(tmp_path / "low.png"))
+    _seek(b, float(d.wrench_t[peak]), d.wrench[peak, 2])
+    shot = b.screenshot(SHOTS / "view_bag_peak.png")
+    at_peak = _scene_pixels(shot)
+    assert at_low["arrow"] > 50 and at_peak["arrow"] > 50, (at_low, at_peak)
+    lengths = [b.evaluate("window.skinView.arrowLenMm")]
+    assert at_peak["arrow_rows"] > 1.5 * at_low["arrow_rows"], (at_low, at_peak)  # 6.7x the force: a longer arrow
+    label = b.evaluate("document.getElementById('arrow-label').textContent")
+    assert label == f"{d.wrench[peak, 2]:.3f} N" and lengths[0] > 10
+    # a clear "depth reached" (4 mm: past the dermis, whose bottom is at rest 0.075 + 1.2 mm deep)
+    reached = b.evaluate("document.getElementById('tip-layer').textContent")
+    assert reached == "fat (its rest depth 1.275-5.275 mm)", reached
+    # the default tool is a flat punch: a cylinder, no wider at its bottom than above (perspective narrows the
+    # farther bottom: 0.76 measured); the old ball of radius r on a 0.6 r shaft was 1.7x wider at the bottom
+    assert b.evaluate("window.skinView.toolShape") == "cylinder" and src.info()["tool_shape"] == "flat"
+    assert at_peak["tool"] > 500 and 0.6 < at_peak["tool_width_low"] / at_peak["tool_width_high"] < 1.1, at_peak
+    # three coloured bands in the cut while pressing, and a legend naming them
+    assert b.evaluate("window.skinView.cutBands") is True
+    assert all(n > 300 for n in at_peak["layers"]), at_peak["layers"]
+    legend = b.evaluate("document.getElementById('legend').textContent")
+    assert all(name in legend for name in ("epidermis", "dermis", "fat"))
+    # without the cut, the bands go: the colours came from the cut
+    b.evaluate("(() => { const c = document.getElementById('cutaway'); c.click(); return c.checked; })()")
+    b.wait_for("window.skinView.renderedCut === false", 20, "a render without the cut")
+    assert _scene_pixels(b.screenshot(tmp_path / "nocut.png"))["layers"][0] < 0.5 * at_peak["layers"][0]
+    # displacement colouring has a scale in mm
+    b.evaluate(
+        "(() => { const s = document.getElementById('colour'); s.value = 'disp'; s.dispatchEvent(new Event('change')); })()"
+    )
+    b.wait_for("document.getElementById('disp-scale').style.display === 'block'", 20, "the displacement scale")
+    text = b.evaluate("document.getElementById('disp-max').textContent")
+    assert text.endswith("mm deeper than rest") and float(text.split()[0]) > 0.5, text
 
 
 @pytest.mark.ros
@@ -223,7 +360,12 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
             pressed = float(np.median([f for f in forces if f > 0.01]))  # the hold force (the press may start with a spike)
             SHOTS.mkdir(parents=True, exist_ok=True)
             for _ in range(5):  # a shot taken while the page still shows the press (the page lags on a loaded CPU)
-                b.wait_for(f"window.skinView.force > 0.8 * {pressed}", 20, "a pressed frame")
+                try:  # the docs picture: a grid close in time to the tool (the overlay prints the offset either way)
+                    b.wait_for(f"window.skinView.force > 0.8 * {pressed} && Math.abs(window.skinView.gridDtS) < 0.05",
+                               20, "a pressed frame with a recent grid")  # fmt: skip
+                except TimeoutError:
+                    b.wait_for(f"window.skinView.force > 0.8 * {pressed}", 20, "a pressed frame")
+                _rendered(b)
                 shot = b.screenshot(SHOTS / "view_live.png")
                 if b.evaluate(f"window.skinView.force > 0.5 * {pressed}"):
                     break
@@ -233,13 +375,31 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
             # layered form, no tissue/contact reader (it would make the node publish it every tick): all 3 layers
             b.wait_for("document.getElementById('layers').textContent === '3'", 20, "3 layers during a press")
             assert b.evaluate("window.skinView.diag !== null && window.skinView.diag.values.achieved_rate_hz !== undefined")
+            # the tool as the node configures it, its arrow labelled in newtons while pressing
+            b.wait_for(
+                "window.skinView.toolShape === 'cylinder' && window.skinView.arrowLenMm > 0", 20, "the punch and its arrow"
+            )
+            assert b.evaluate("document.getElementById('arrow-label').textContent").endswith(" N")
+            reached = b.evaluate("document.getElementById('tip-layer').textContent")
+            assert reached.split()[0] in ("none", "epidermis", "dermis", "fat"), reached
             # parameters come from the node at run time; a bad value typed into the page shows the node's reason
             b.wait_for("document.querySelector('input[data-name=\"tissue.layers.dermis.stiffness_n_per_m\"]') !== null",
                        60, "the stiffness field")  # fmt: skip
+            # the panel fits the 1280 x 800 window: every "set" button lies inside it, nothing scrolls sideways
+            inside = b.evaluate("""(() => { const w = window.innerWidth, bs = [...document.querySelectorAll('button[data-set]')];
+                return {n: bs.length, out: bs.filter((e) => e.getBoundingClientRect().right > w).length,
+                        scroll: document.documentElement.scrollWidth - w,
+                        side: document.getElementById('side').scrollWidth - document.getElementById('side').clientWidth}; })()""")
+            assert inside["n"] >= 5 and inside["out"] == 0 and inside["scroll"] <= 0 and inside["side"] <= 0, inside
             r = b.evaluate("window.skinViewSetParam('tissue.layers.dermis.stiffness_n_per_m', '-5')")
             assert r["ok"] is False
             shown = b.evaluate("document.getElementById('param-result').textContent")
             assert "rejected" in shown and "must be > 0" in shown, shown
+            # scrolled down to the last parameter, the rejection stays in view (sticky above the list)
+            seen = b.evaluate("""(() => { const side = document.getElementById('side'); side.scrollTop = side.scrollHeight;
+                const r = document.getElementById('param-result').getBoundingClientRect();
+                return r.top >= 0 && r.bottom <= window.innerHeight && r.height > 0; })()""")
+            assert seen is True
             r = b.evaluate("window.skinViewSetParam('tissue.layers.dermis.damping_n_s_per_m', 'soft')")
             assert r["ok"] is False and "type" in r["reason"].lower(), r
             r = b.evaluate("window.skinViewSetParam('tissue.lod.tolerance_m', '2e-5')")

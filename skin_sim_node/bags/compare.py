@@ -74,7 +74,7 @@ def _topic(types: dict[str, str], name: str) -> str | None:
 
 def read_outputs(bag, wrench_topic: str = TOPICS["tool_wrench"].name, grid_topic: str = TOPICS["layer_heights"].name,
                  grids: bool = True) -> tuple[dict[int, float], dict[int, np.ndarray]]:  # fmt: skip
-    """``({stamp_ns: fz}, {stamp_ns: layer_heights})`` of an output bag."""
+    """``({stamp_ns: force vector (fx, fy, fz)}, {stamp_ns: layer_heights})`` of an output bag."""
     bag = Path(bag)
     with open_bag(bag) as reader:
         types = topic_types(reader)
@@ -90,7 +90,7 @@ def read_outputs(bag, wrench_topic: str = TOPICS["tool_wrench"].name, grid_topic
         for topic, _, _, msg in iter_messages(bag, reader, [t for t in (wt, gt) if t]):
             if topic == wt:
                 stamp, _, f = cv.read_wrench(msg)
-                forces[stamp] = f[2]
+                forces[stamp] = np.array(f, dtype=float)
             else:
                 images[cv.stamp_ns(msg.header)] = cv.read_image(msg)
     return forces, images
@@ -122,12 +122,18 @@ class Diff:
         return (self.n_b - self.matched) / max(self.n_b, 1)
 
 
+def _norms(f: np.ndarray) -> np.ndarray:
+    """Magnitudes of a stack of force vectors ``(n, 3)``, or of scalars ``(n,)``."""
+    return np.linalg.norm(f, axis=-1) if f.ndim == 2 else np.abs(f.reshape(-1))
+
+
 def diff_outputs(a: tuple[dict, dict], b: tuple[dict, dict]) -> Diff:
     """B against A, each ``(wrenches, grids)`` of :func:`read_outputs`: forces at common stamps, grids by shape and height."""
     (fa, ga), (fb, gb) = a, b
+    """Force and grid differences of B against A; forces are vectors (or scalars), compared as a whole: ``|F_A - F_B|``."""
     common = sorted(set(fa) & set(fb))
-    da = np.array([fa[s] for s in common]) - np.array([fb[s] for s in common]) if common else np.zeros(0)
-    peak = max((abs(v) for v in fa.values()), default=0.0)
+    da = _norms(np.array([fa[s] for s in common], dtype=float) - np.array([fb[s] for s in common], dtype=float))
+    peak = float(_norms(np.array(list(fa.values()), dtype=float)).max(initial=0.0))
     gc = sorted(set(ga) & set(gb))
     dz = max((float(np.max(np.abs(ga[s] - gb[s]))) if ga[s].shape == gb[s].shape else float("inf") for s in gc), default=0.0)
     return Diff(

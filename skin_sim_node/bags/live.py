@@ -27,6 +27,7 @@ from msgs_schema import convert as cv
 from msgs_schema.topics import TOPICS
 
 from ..scenes import REPO
+from ..verdicts import verdict_line
 from .compare import LIVE, describe, diff_outputs, verdict
 from .inputs import POSE, Inputs
 from .io import BagWriter, deserialize, qos_profiles
@@ -87,20 +88,21 @@ def _run_source(rec, inputs: Inputs, speed: float, out: Path, timeout_s: float =
         events.unlink(missing_ok=True)
 
 
-def live_forces(records) -> dict[int, float]:
+def live_forces(records) -> dict[int, np.ndarray]:
+    """``{stamp_ns: force vector (N)}`` of the recorded live wrenches."""
     out = {}
     for _, key, raw in records:
         if key == "tool_wrench":
             stamp, _, f = cv.read_wrench(deserialize(raw, "geometry_msgs/msg/WrenchStamped"))
-            out[stamp] = f[2]
+            out[stamp] = np.array(f, dtype=float)
     return out
 
 
-def agreement(offline: ReplayResult, live: dict[int, float]) -> dict:
+def agreement(offline: ReplayResult, live: dict[int, np.ndarray]) -> dict:
     """Max and RMS force difference at matched stamps and the fraction of poses answered."""
-    off = dict(zip(offline.stamps_ns.tolist(), offline.force_n.tolist()))
+    off = offline.forces_by_stamp()
     common = sorted(set(off) & set(live))
-    d = np.array([live[s] - off[s] for s in common]) if common else np.zeros(0)
+    d = np.array([np.linalg.norm(live[s] - off[s]) for s in common]) if common else np.zeros(0)
     peak = offline.peak_force_n
     return {
         "offline_answered": len(off),
@@ -113,8 +115,13 @@ def agreement(offline: ReplayResult, live: dict[int, float]) -> dict:
     }
 
 
-def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path) -> int:
-    """Start (or attach to) a node, stream the inputs, record its outputs to ``out/live``, compare."""
+def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path, recorded=None) -> int:
+    """Start (or attach to) a node, stream the inputs, record its outputs to ``out/live``, compare.
+
+    ``recorded``: the bag's own published forces checked against offline
+    (:class:`skin_sim_node.bags.published.PublishedCheck`), part of the verdict; None when the bag has none.
+    Prints one closing line, ``PASS: ...`` or ``FAIL: ...``, naming each check; returns 0 or 1.
+    """
     from ..scenes import Scene
     from .recorder import Recorder, use_scene_env
 
@@ -154,8 +161,17 @@ def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path) -> int:
     # the PASS is compare's verdict on the same two sets of wrenches (compare OUT/outputs OUT/live agrees)
     tol = replace(LIVE, force_rel=args.force_tol_frac, min_matched=args.min_answered)
     live = live_forces([r for r in rec.records if r[1] == "tool_wrench"])
-    fails = verdict(diff_outputs((dict(zip(offline.stamps_ns.tolist(), offline.force_n.tolist())), {}), (live, {})), tol)
-    ok = not fails
+    fails = verdict(diff_outputs((offline.forces_by_stamp(), {}), (live, {})), tol)
+    what = "live node's forces and answered fraction vs offline"
+    checks = [(not fails, what + (f" ({'; '.join(fails)})" if fails else ""))]
+    if recorded is not None:
+        stats["recorded_max_df_n"] = recorded.diff.max_df_n
+        stats["recorded_matched"] = recorded.diff.matched
+        stats["recorded_agrees"] = recorded.ok
+        what = "the bag's recorded forces vs offline"
+        checks.append((recorded.ok, what + ("" if recorded.ok else f" ({'; '.join(recorded.fails)})")))
+    ok = all(c for c, _ in checks)
+    stats["live_pass"] = not fails
     stats["pass"] = bool(ok)
     (out / "live_summary.json").write_text(json.dumps(stats, indent=2) + "\n")
     print(
@@ -166,6 +182,6 @@ def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path) -> int:
         f"{offline.peak_force_n:.4f} N), RMS dF = {stats['rms_df_n']:.3e} N\n"
         f"publish lateness p50 {stats['publish_late_ms_p50']:.3f} ms, p99 {stats['publish_late_ms_p99']:.3f} ms, "
         f"max {stats['publish_late_ms_max']:.3f} ms\n"
-        f"{'PASS' if ok else 'FAIL: ' + '; '.join(fails)} (limits, as skin-sim compare's defaults: {describe(tol)})"
+        f"limits, as skin-sim compare's defaults: {describe(tol)}\n" + verdict_line("live replay", checks)
     )
     return 0 if ok else 1

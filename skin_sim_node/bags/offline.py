@@ -11,6 +11,7 @@ timestamp is its header stamp, so two runs write identical message bytes.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,7 +49,7 @@ class ReplayResult:
     """What an offline replay produced (all times are stamps, ns)."""
 
     stamps_ns: np.ndarray
-    force_n: np.ndarray
+    force_n: np.ndarray  # magnitude of the published force (N), one per answered pose
     n_affected: np.ndarray
     depth_m: np.ndarray
     tool_xyz_m: np.ndarray
@@ -61,6 +62,11 @@ class ReplayResult:
     cfg: object = None
     layer_names: tuple[str, ...] = field(default_factory=tuple)
     tissue_frame: str = "tissue"  # the frame_id the replayed poses had to carry
+    force_vec_n: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # the published vectors (N), (n, 3)
+
+    def forces_by_stamp(self) -> dict[int, np.ndarray]:
+        """``{stamp_ns: force vector}`` of every answered pose: what a live node's wrenches are held against."""
+        return dict(zip(self.stamps_ns.tolist(), self.force_vec_n))
 
     @property
     def peak_force_n(self) -> float:
@@ -133,7 +139,7 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
     out = _Out()
     grid_ns = int(round(1e9 / grid_rate_hz)) if grid_rate_hz > 0 else 0
     next_grid = None
-    stamps, forces, n_aff, depths, xyzs = [], [], [], [], []
+    stamps, forces, vectors, n_aff, depths, xyzs = [], [], [], [], [], []
     peak_f, peak_i, peak_state = -1.0, 0, None
     prev = None
     n_grids = 0
@@ -146,9 +152,10 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
             continue
         r = session.tick(stamp, 0 if prev is None else stamp - prev)
         prev = stamp
-        force = r.force_z_n
+        force = math.hypot(*r.force_n)
         stamps.append(stamp)
         forces.append(force)
+        vectors.append(r.force_n)
         n_aff.append(r.n_affected)
         depths.append(r.depth_m)
         xyzs.append(r.x0_m)
@@ -176,7 +183,7 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
     return ReplayResult(
         np.array(stamps, dtype=np.int64), np.array(forces), np.array(n_aff, dtype=int), np.array(depths),
         np.array(xyzs).reshape(-1, 3), dict(session.counts), inputs.n_poses, inputs.n_twists, n_grids, peak_i,
-        peak_state, cfg, tuple(LAYER_NAMES), frame,
+        peak_state, cfg, tuple(LAYER_NAMES), frame, np.array(vectors, dtype=float).reshape(-1, 3),
     )  # fmt: skip
 
 

@@ -3,8 +3,11 @@
 Offline: writes ``OUT/outputs`` (a rosbag2 of tool/wrench, tissue/contact and display grids),
 ``OUT/report.png`` and ``OUT/summary.json``, and prints the summary. ``--live`` then also
 publishes the inputs to a node at recorded timing and compares its wrenches with the
-offline ones (see :mod:`skin_sim_node.bags.live`). Exit codes: 0 ok, 1 live disagreement,
-2 unusable bag (the message names the problem).
+offline ones (see :mod:`skin_sim_node.bags.live`). When the bag holds the wrenches its node
+published (``/tool/wrench``, as ``skin-sim record`` writes), each is checked against the offline
+answer to the poses that node answered (:mod:`skin_sim_node.bags.published`). Exit codes: 0 ok,
+1 a published force disagrees with the offline answer (the recording's or the live node's) or the
+live node answered too few poses, 2 unusable bag (the message names the problem).
 """
 
 from __future__ import annotations
@@ -16,10 +19,12 @@ from pathlib import Path
 
 from ..scenes import DEFAULT_PARAMS
 from ..session import UNKNOWN_FRAME
+from ..verdicts import verdict_line
 from .compare import LIVE
 from .inputs import add_input_arguments, input_options, read_inputs
 from .io import STORAGES, BagError
-from .offline import replay_to_bag
+from .offline import replay, replay_to_bag
+from .published import PublishedCheck, answered_only, check_published, format_check
 from .report import format_summary, write_report
 
 
@@ -53,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     out = args.out or Path("out/replay") / args.bag.resolve().name
+    if not args.params.is_file():  # before any output is written
+        print(f"skin-sim replay: error: --params {args.params}: no such file", file=sys.stderr)
+        return 2
     try:
         inputs = read_inputs(args.bag, input_options(args))
         t0 = time.perf_counter()
@@ -75,11 +83,34 @@ def main(argv=None) -> int:
         print(f"note: {hint}")
     if not args.no_report:
         print(f"report: {out / 'report.png'} (force over time; surface and cross-section at peak force), {out / 'summary.json'}")
+    recorded = check_recording(args, inputs)
+    if recorded is not None:
+        print(format_check(recorded, "recorded forces vs offline", int(res.stamps_ns[0])))
     if not args.live:
-        return 0
+        if recorded is not None:
+            print(verdict_line("replay", [(recorded.ok, "the bag's recorded forces vs offline")]))
+        return 0 if recorded is None or recorded.ok else 1
     from .live import run_live
 
-    return run_live(inputs, res, args, out)
+    return run_live(inputs, res, args, out, recorded=recorded)
+
+
+def check_recording(args, inputs) -> PublishedCheck | None:
+    """The bag's own ``/tool/wrench`` (what its node published) against the offline answer, or None without one.
+
+    Only the poses the recording node answered are replayed (their stamps are the wrench stamps), so a pose
+    the node skipped does not count against it.
+    """
+    from .compare import read_outputs
+
+    try:
+        published, _ = read_outputs(args.bag, grids=False)
+    except BagError:
+        return None
+    if not published:
+        return None
+    res = replay(answered_only(inputs, set(published)), args.params, None, 0.0)
+    return check_published(res.forces_by_stamp(), published)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Replay report: force-time plot with the layers reached shaded, and the deformation at peak force."""
+"""Replay report: force-time plot shaded by the layer the tool depth reaches (at rest), and the deformation at peak force."""
 
 from __future__ import annotations
 
@@ -28,9 +28,12 @@ def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
         t = (res.stamps_ns - res.stamps_ns[0]) * 1e-9
         ax.plot(t, res.force_n, "k", lw=1.0, label="force (N)")
         top = max(res.force_n.max() * 1.1, 1e-3)
+        reached = depth_layer(res)
         for li, name in enumerate(res.layer_names):
-            ax.fill_between(t, 0, top, where=res.n_affected == li + 1, color=LAYER_COLOURS[li % 3], alpha=0.6, lw=0,
-                            step="mid", label=f"deepest layer: {name}")  # fmt: skip
+            where = reached == li
+            if where.any():  # a legend entry only for a layer that appears
+                ax.fill_between(t, 0, top, where=where, color=LAYER_COLOURS[li % 3], alpha=0.6, lw=0, step="mid",
+                                label=f"tool depth in the {name}'s rest depths")  # fmt: skip
         ax.axvline(t[res.peak_index], color="r", lw=0.8, ls="--", label=f"peak {res.peak_force_n:.3f} N")
         ax.set_ylim(0, top)
     ax.set_xlabel("stamp time (s)")
@@ -38,15 +41,29 @@ def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
     ax.legend(loc="upper right", fontsize=7)
     ax.set_title(title or "offline replay", fontsize=10)
     model = res.model_at_peak()
-    draw_surface(fig.add_subplot(gs[1, 0]), model, "surface at peak force")
     x, y, z = res.tool_xyz_m[res.peak_index] if res.stamps_ns.size else (0.0, 0.0, 1.0)
+    t_peak = (res.stamps_ns[res.peak_index] - res.stamps_ns[0]) * 1e-9 if res.stamps_ns.size else 0.0
+    draw_surface(fig.add_subplot(gs[1, 0]), model, f"surface at peak force (t = {t_peak:.3f} s)", tool_xy=(x, y))
     a1 = fig.add_subplot(gs[1, 1])
-    draw_cross_section(a1, model, x, y, z, f"cross-section at peak force, y = {y * 1e3:.1f} mm")
+    half = max(4 * model.cfg.tool_radius_m, 8e-3)
+    draw_cross_section(a1, model, x, y, z, f"cross-section at y = {y * 1e3:.1f} mm, same tick (tool offset 0 ms)",
+                       half_m=half)  # fmt: skip
     a1.legend(loc="lower right", fontsize=7)
     fig.tight_layout()
     fig.savefig(out_dir / "report.png", dpi=100)
     plt.close(fig)
     return summary
+
+
+def depth_layer(res: ReplayResult) -> np.ndarray:
+    """Per answered pose: the layer whose rest depths (mean interface depths) hold the tool depth; -1 out of contact.
+
+    In the layered form every layer acts from first contact (``n_affected`` is 3 at any touch), so shading by it
+    would say "fat" from the first touch; this says how deep the press has gone.
+    """
+    bounds = [i.mean_depth_m for i in res.cfg.interfaces] if res.cfg is not None else []
+    k = np.searchsorted(np.asarray(bounds), res.depth_m)
+    return np.where(res.depth_m > 0, k, -1)
 
 
 def format_summary(s: dict) -> str:

@@ -51,7 +51,7 @@ from msgs_schema.contact_model import DEFAULT_TTL_S
 from ..device.mapping import DEFAULT_OFFSET_M, DEFAULTS, TOUCH_PEAK_FORCE_N
 from ..device.render import FADE_S
 from ..ros_util import localhost_udp_env
-from ..scenes import REPO, Scene
+from ..scenes import DEFAULT_PARAMS, REPO, Scene
 
 PERIOD_NS = 1_000_000
 """The emulator's servo period: a Touch's OpenHaptics servo loop runs at 1 kHz."""
@@ -403,7 +403,7 @@ def run(
     bridge_shm: bool = False,
     driver_shm: bool = False,
     node_args: tuple = (),
-    node_udp: bool = False,
+    node_shm: bool = False,
 ) -> dict:
     """Start node, bridge and emulator, drive the phases, return the records and the kill time."""
     import psutil
@@ -415,11 +415,11 @@ def run(
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
-        lan = scene.env
-        if node_udp:  # the node (a server-side choice) on the device path's profile too, to show what it would gain
-            scene.env = {**lan, **localhost_udp_env(lan)[0]}
-        node = scene.node(*node_args)
-        scene.env = lan
+        if node_shm:  # the node on rmw's LOCALHOST transports (shared memory), as before it used the UDP profile
+            shm = ("--localhost-shm", "--ros-args", "--params-file", str(DEFAULT_PARAMS))
+            node = scene.start("skin_sim_node", "node", *shm, *node_args)
+        else:
+            node = scene.node(*node_args)
         scene.wait_for_log(node, "live:")
         bridge = scene.start("bridge", "bridge", *(["--localhost-shm"] if bridge_shm else []))
         scene.wait_for_log(bridge, "bridge crtk")
@@ -525,9 +525,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
     ap.add_argument("--bridge-shm", action="store_true", help="bridge with --localhost-shm (rmw's shared memory under LOCALHOST)")
     ap.add_argument("--driver-shm", action="store_true", help="the emulated driver on rmw's LOCALHOST transports (shared memory)")
-    ap.add_argument(
-        "--node-udp", action="store_true", help="the node on the device path's UDP profile too (a server-side choice)"
-    )
+    ap.add_argument("--node-shm", action="store_true", help="the node with --localhost-shm (rmw's shared memory under LOCALHOST)")
     ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE (repeatable)")
     ap.add_argument("--emulate", type=Path, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -536,10 +534,10 @@ def main(argv=None) -> int:
     log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="skin_sim_device_bench_"))
     log_dir.mkdir(parents=True, exist_ok=True)
     print(f"skin-sim bench-device: CRTK emulator at 1 kHz vs node + bridge; {args.phase_s:g} s per phase; logs {log_dir}")
-    node_note = f"node {args.node_param}{' on UDP' if args.node_udp else ''}"
+    node_note = f"node {args.node_param}{' on shared memory' if args.node_shm else ''}"
     print(f"  machine (assumed nothing, found): {_machine()}; hog {'on' if args.hog else 'off'}; {node_note}", flush=True)
     node_args = tuple(a for p in args.node_param for a in ("-p", p))
-    res = run(args.phase_s, args.hog, log_dir, args.bridge_shm, args.driver_shm, node_args, args.node_udp)
+    res = run(args.phase_s, args.hog, log_dir, args.bridge_shm, args.driver_shm, node_args, args.node_shm)
     print(f"  analysing (offline ground truth on {int((res['rec']['slots'][:, 2] > 0).sum())} poses) ...", flush=True)
     ph = analyse(res["rec"], res["phase_s"], res["kill_ns"])
     print(f"  machine after: {_machine()}")

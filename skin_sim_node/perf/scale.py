@@ -7,6 +7,8 @@ measured for ``--step-s`` seconds from its node's own diagnostics (cheap: 1 Hz p
 the observer does not load the machine it measures): missed ticks = empty 1/rate slots
 between the node's ticks (``missed_slots_window``) over the expected tick count, late = tick
 periods over 1.5 T. The machine "holds" n sessions while every session misses < 0.1 % (issue 7).
+It ends with one line, ``scale PASS: ...`` or ``scale FAIL: ...``, naming each step and the sessions
+over the limit; exit 1 unless all ``--max-sessions`` were held.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import time
 from pathlib import Path
 
 from ..scenes import DEFAULT_PARAMS, Scene
+from ..verdicts import exit_code, verdict_line
 from .bench_node import CASE_OVERHEAD_S, SETTLE_S, Progress, cpu_steal_ms, diag_counts
 
 MISSED_LIMIT_PCT = 0.1  # issue 7
@@ -77,6 +80,37 @@ class DiagObserver:
         rclpy.try_shutdown(context=self.context)
 
 
+class WaitingProgress(Progress):
+    """:class:`~skin_sim_node.perf.bench_node.Progress` whose bar moves once a second within a stage (up to the
+    stage's estimate), also while a session's processes start: the stage line alone left it at 0 % for 37 s."""
+
+    def __init__(self, stages_est_s: list[float], desc: str):
+        super().__init__(stages_est_s, desc)
+        self._lock = threading.Lock()
+        self._done = threading.Event()
+        threading.Thread(target=self._tick, daemon=True).start()
+
+    def _tick(self) -> None:
+        while not self._done.wait(1.0):
+            with self._lock:
+                if self._open >= 1:
+                    self.bar.update(1)
+                    self._open -= 1
+
+    def stage(self, name: str, est_s: float) -> None:
+        with self._lock:
+            super().stage(name, est_s)
+
+    def wait(self, seconds: float) -> None:
+        """Sleep ``seconds`` (the bar moves meanwhile)."""
+        time.sleep(seconds)
+
+    def close(self) -> None:
+        self._done.set()
+        with self._lock:
+            super().close()
+
+
 def start_session(scene: Scene, i: int, rate_hz: float, mode: str, node_params: list[str]):
     ns = f"/s{i}"
     ros = ("--ros-args", "-r", f"__ns:={ns}")
@@ -101,15 +135,15 @@ def run_scale(
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
         obs = DiagObserver()
         est = step_estimate_s(step_s)
-        progress = Progress([est] * max_sessions, "skin-sim scale")
+        progress = WaitingProgress([est] * max_sessions, "skin-sim scale")
         try:
             for n in range(1, max_sessions + 1):
                 progress.stage(f"session {n}: start node + bridge + device, settle {SETTLE_S:.0f} s, measure {step_s:.0f} s", est)
                 obs.watch(start_session(scene, n, rate_hz, mode, node_params))
-                time.sleep(SETTLE_S)  # discovery, the device's start delay, a joining reader's stall (see SETTLE_S)
+                progress.wait(SETTLE_S)  # discovery, the device's start delay, a joining reader's stall (see SETTLE_S)
                 obs.clear()
                 load0, steal0 = os.getloadavg()[0], cpu_steal_ms()
-                time.sleep(step_s)
+                progress.wait(step_s)
                 steal_ms = cpu_steal_ms() - steal0
                 sessions = [obs.summary(f"/s{i}") for i in range(1, n + 1)]
                 worst = max(s.get("node_missed_pct", float("inf")) for s in sessions)
@@ -167,15 +201,44 @@ def main(argv=None) -> int:
         flush=True,
     )
     rows = run_scale(args.max_sessions, args.step_s, args.rate_hz, args.mode, args.node_param, log_dir, args.keep_going)
-    held = 0
-    for r in rows:
-        if r["worst_missed_pct"] > MISSED_LIMIT_PCT:
-            break
-        held = r["sessions"]
+    held = sessions_held(rows)
     print(f"sessions held with every session under {MISSED_LIMIT_PCT} % missed ticks: {held}")
+    checks = scale_checks(rows, args.max_sessions)
+    print(verdict_line("scale", checks), flush=True)
     if args.json:
         args.json.write_text(json.dumps({"rows": rows, "held": held}, indent=1))
-    return 0
+    return exit_code(checks)
+
+
+def sessions_held(rows: list[dict]) -> int:
+    """Sessions held: the largest n such that with 1..n sessions running every session missed <= the limit."""
+    held = 0
+    for r in rows:
+        if not r["worst_missed_pct"] <= MISSED_LIMIT_PCT:
+            break
+        held = r["sessions"]
+    return held
+
+
+def scale_checks(rows: list[dict], max_sessions: int) -> list[tuple[bool, str]]:
+    """One check per measured step (n sessions side by side): each session's missed ticks against the limit.
+
+    A failing step names the sessions over the limit and by how much; a step never measured (the run stopped at
+    the first failure) is a failure too, so the verdict passes only when ``max_sessions`` were held.
+    """
+    checks = []
+    for r in rows:
+        n = r["sessions"]
+        over = [(i + 1, s.get("node_missed_pct", float("nan"))) for i, s in enumerate(r["per_session"])]
+        over = [(i, m) for i, m in over if not m <= MISSED_LIMIT_PCT]  # NaN (no diagnostics) fails
+        if over:
+            names = ", ".join(f"/s{i} missed {m:.3f} %" for i, m in over)
+            checks.append((False, f"{n} session(s): {names} of ticks (limit {MISSED_LIMIT_PCT} %)"))
+        else:
+            checks.append((True, f"{n} session(s): worst missed {r['worst_missed_pct']:.3f} % <= {MISSED_LIMIT_PCT} %"))
+    if len(rows) < max_sessions:
+        checks.append((False, f"{len(rows) + 1}..{max_sessions} sessions not measured (stopped at the first failure)"))
+    return checks
 
 
 if __name__ == "__main__":

@@ -13,7 +13,8 @@ input mode), joining readers (a new DDS participant subscribes to ``tool/wrench`
 bridge's own counters (its ``diagnostics``) give the figures; the device's and the bridge's tick counts give
 the poses lost between them. Gaps are measured on the wrench stamps (in ``input`` mode the device's pose stamp
 each force answers: the stream as the node produced it) and, for reference, on the arrival times at this
-observer (which add this process's own scheduling). Exit 1 when an aim is missed (``--no-check``: always 0).
+observer (which add this process's own scheduling). It ends with one line, ``soak PASS: ...`` or
+``soak FAIL: ...``, naming each aim missed and met; exit 1 when an aim is missed (``--no-check``: always 0).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import numpy as np
 import psutil
 
 from ..scenes import Scene
+from ..verdicts import exit_code, verdict_line
 from .bench_node import SETTLE_S, cpu_steal_ms
 
 GAP_LIMIT_MS = 5.0  # issue 7
@@ -360,10 +362,33 @@ def main(argv=None) -> int:
               f"{p['model_age_ms_max']:16.2f} | {p['device_pose_gaps_over_2ms']:23d} | {p['node_rate_hz_median']:7.1f}"
               + f"  (fades: {p['fades_ttl']} stale model, {p['fades_radius']} left radius)"
               + (f"  ({p['readers_joined']} readers joined)" if p["readers_joined"] else ""))  # fmt: skip
-    print(f"aims met: {r['aims_met']} (device: {r['device_aim_met']})", flush=True)
+    checks = soak_checks(r)
+    print(f"aims met: {r['aims_met']} (device: {r['device_aim_met']})")
+    print(verdict_line("soak", checks) + (" (--no-check: exit 0)" if args.no_check else ""), flush=True)
     if args.json:
         args.json.write_text(json.dumps(r, indent=1))
-    return 0 if r["aims_met"] or args.no_check else 1
+    return 0 if args.no_check else exit_code(checks)
+
+
+def soak_checks(r: dict) -> list[tuple[bool, str]]:
+    """The soak's aims as ``(met, what)``: memory growth, force-stream gaps, and each phase at the device.
+
+    ``r``: the figures of :func:`run_soak`. Each description says what was measured against what aim.
+    """
+    growth = r["node_rss_growth_pct"]
+    gaps = r["stamp_gaps"]
+    checks = [
+        (growth <= RSS_GROWTH_LIMIT_PCT, f"node memory growth {growth:+.3f} % (aim <= {RSS_GROWTH_LIMIT_PCT} %)"),
+        (gaps["gaps_over_limit"] == 0, f"{gaps['gaps_over_limit']} force-stream gaps over {GAP_LIMIT_MS} ms "
+         f"(longest {gaps['max_gap_ms']:.2f} ms; aim: none)"),
+    ]  # fmt: skip
+    for name, p in r["device_phases"].items():
+        ok = p["stale_model"] == 0 and p["rendered"] > 0
+        what = f"device, {name}: {p['stale_model']} of {p['rendered']} ticks rendered from a model older than its TTL"
+        checks.append((ok, what + ("" if p["rendered"] else " (no tick rendered)") + " (aim: none, and some rendered)"))
+    if not r["device_phases"]:
+        checks.append((False, "device: no phase measured"))
+    return checks
 
 
 if __name__ == "__main__":

@@ -46,7 +46,8 @@ from ..model import ConfigError, SkinModel, TissueConfig
 from ..model.config import build_config
 from ..model.skin_model import warm_up
 from ..ros_util import LoopTiming, PeriodicLoop, localhost_udp_env, run_nodes, set_process_realtime, set_realtime
-from ..session import HapticSession, TickResult
+from ..session import AnswerThrottle, HapticSession, TickResult
+from ..startup import start_line
 from .display import DisplayProcess
 
 STATS_LEN = 16384
@@ -127,6 +128,7 @@ class SkinSimNode(Node):
             self.declare_parameter(spec.name, spec.default, descriptor(spec))
         self._flat = {s.name: self.get_parameter(s.name).value for s in ALL_PARAMETERS}
         self.params, cfg = validate(self._flat, self._flat)  # ConfigError: refuse to start, with the reason
+        self.get_logger().info(start_line(self._flat, ros_args, self.get_fully_qualified_name()))  # form, preset, tool
         t0 = time.perf_counter()
         warm_up(cfg)
         self._warmup_s = time.perf_counter() - t0
@@ -146,6 +148,7 @@ class SkinSimNode(Node):
         self._n_pose_ticks = 0
         self._stats_from = 0
         self._last_tick_ns = time.perf_counter_ns()
+        self._throttle = AnswerThrottle(self.params.rate_hz)  # input mode: rate_hz below 1 kHz spaces the answers
         self._last_diag_ns = self._last_tick_ns
         self._last_pub_ns = 0  # last wrench publish (idle heartbeat)
         self._last_pub_force = 0.0  # last published force (N): the idle heartbeat holds back only zeros
@@ -256,7 +259,7 @@ class SkinSimNode(Node):
         with self._lock:
             rx = time.perf_counter_ns()
             rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx)
-            if rejected is None and self.params.loop_mode == "input":
+            if rejected is None and self.params.loop_mode == "input" and self._throttle.due(stamp):
                 self._tick(rx, pose_driven=True)
 
     def _on_twist(self, data: bytes) -> None:
@@ -453,6 +456,7 @@ class SkinSimNode(Node):
             self.params = node_params
             self._flat = flat
             self._loop.period_ns = self._clock_period_ns()
+            self._throttle.set_rate(node_params.rate_hz)
         self._next_display_ns = 0  # a new display rate applies at the next tick
         self._display.set_display(self._display_settings())
         self.get_logger().info(

@@ -19,6 +19,7 @@ from .events import (
     FORCE_RATE_LIMITED,
     FUTURE_STAMP,
     NON_FINITE,
+    OUTSIDE_WORKSPACE,
     PATCH_CLIPPED,
     REGIME_EVENTS,
     REUSS_BOUND,
@@ -35,10 +36,11 @@ from .events import (
     EventLog,
 )
 from .haptic import NO_CONTACT, HapticSession, TickResult
-from .inputs import InputPolicy, TickInput, velocity_estimate
+from .inputs import AnswerThrottle, InputPolicy, TickInput, velocity_estimate
 from .limits import RATE_ALLOWANCE_S, ForceLimits
 
 __all__ = [
+    "AnswerThrottle",
     "CONTACT_SEPARATED",
     "DEGENERATE_WAVE_SPEED",
     "FORCE_CLAMPED",
@@ -46,6 +48,7 @@ __all__ = [
     "FORCE_RATE_LIMITED",
     "FUTURE_STAMP",
     "NON_FINITE",
+    "OUTSIDE_WORKSPACE",
     "NO_CONTACT",
     "PATCH_CLIPPED",
     "RATE_ALLOWANCE_S",

@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 # Rejection / event kinds (diagnostics keys).
 NON_FINITE = "non_finite_input"
+OUTSIDE_WORKSPACE = "outside_workspace"
 UNKNOWN_FRAME = "unknown_frame"
 STAMP_BACKWARDS = "stamp_backwards"
 STAMP_DUPLICATE = "stamp_duplicate"

@@ -11,6 +11,8 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from msgs_schema.parameters import SessionParams
 
 from ..model import (
@@ -64,7 +66,9 @@ class TickResult:
     velocity_m_s : tuple of 3 float
         Tool velocity the model ran at (m/s).
     force_n : tuple of 3 float
-        Published reaction force on the tool (N) after the session's clamp, rate bound and watchdog.
+        Published reaction force vector on the tool (N, tissue frame): the model's whole force (along the deformed
+        surface's normal, plus friction) scaled by the session's clamp, rate bound and watchdog, which act on its
+        magnitude.
     depth_m : float
         Tool depth of the Reuss split (eq 6), 0 out of contact.
     n_affected : int
@@ -81,7 +85,8 @@ class TickResult:
     idle : bool
         The model skipped the kernel (tissue at rest, tool off it).
     tangent : ContactTangent
-        The model's local linearisation at ``x0_m`` (:meth:`SkinModel.tangent`), for the local contact model.
+        The local linearisation of the published force at ``x0_m``, for the local contact model: ``f0 = force_n``,
+        and the model's ``K``, ``D`` (:meth:`SkinModel.tangent`) scaled as the force was.
     """
 
     seq: int
@@ -103,7 +108,7 @@ class TickResult:
 
     @property
     def force_z_n(self) -> float:
-        """The force along the tissue normal ``+z`` (N), the model's single force component."""
+        """The published force's component along the sheet's normal ``+z`` (N)."""
         return self.force_n[2]
 
 
@@ -177,7 +182,7 @@ class HapticSession:
 
     counts = _part("_event", "counts", "Occurrences of each rejection and safety event (``collections.Counter``).")
     regime_counts = _part("_event", "regime_counts", "Occurrences of each model-regime event (:data:`REGIME_EVENTS`).")
-    force_n = _part("limits", "force_n", "The last published force (N, along +z).")
+    force_n = _part("limits", "force_n", "The magnitude of the last published force (N).")
     stale = _part("inputs", "stale", "The input watchdog fired at the last tick (force zero, tissue released).")
     pose_rx_ns = _part("inputs", "pose_rx_ns", "Caller-clock arrival time of the last accepted pose (None before any).")
     pose_stamp_ns = _part("inputs", "pose_stamp_ns", "Stamp of the last accepted pose (None before any).")
@@ -242,7 +247,7 @@ class HapticSession:
         Returns
         -------
         TickResult
-            Also kept in :attr:`last`; its force (N, along +z) is also :attr:`force_n`.
+            Also kept in :attr:`last`; its force's magnitude (N) is also :attr:`force_n`.
         """
         model = self.model
         ti = self.inputs.take(now_ns, elapsed_ns)
@@ -253,21 +258,48 @@ class HapticSession:
         self.velocity = ti.velocity
         if ti.release:
             model.release()
-        force = model.step(ti.pos, ti.velocity, ti.dt_s)
+        model.step(ti.pos, ti.velocity, ti.dt_s)
         self._ticks += 1
         self._regime_events(ti.pos)
+        # the whole vector (normal along the deformed surface plus friction): the limits act on its magnitude and
+        # scale it, so the wrench, the contact model's f0 and its K, D all describe the one published force
+        raw = model.force_vector_n
+        magnitude = math.sqrt(float(raw @ raw))
         check = self._state_finite if self._ticks % STATE_CHECK_TICKS == 0 else None
-        force, reset = self.limits.apply(force, ti.rate_dt_ns, ti.stale, check)
+        published, reset = self.limits.apply(magnitude, ti.rate_dt_ns, ti.stale, check)
         if reset:
             model.reset()
-        return self._result(ti.answered, ti.pos, ti.velocity, force, ti.stale)
+        return self._result(ti.answered, ti.pos, ti.velocity, *self._published_vector(raw, magnitude, published), ti.stale)
+
+    def _published_vector(self, raw: np.ndarray, magnitude: float, published: float) -> tuple[np.ndarray, float]:
+        """The published force vector of magnitude ``published`` and the scale it applies to the model's ``raw``.
+
+        Along ``raw``; when the model's force is gone but the rate bound still ramps the published one down (the tool
+        left the tissue faster than the bound allows), along the last published force, with scale 0 (no tangent).
+        """
+        if published <= 0.0:
+            return np.zeros(3), 0.0
+        if magnitude > 0.0:
+            direction, scale = raw / magnitude, published / magnitude
+        else:
+            last = np.asarray(self.last.force_n if self.last is not None else (0.0, 0.0, 1.0), dtype=float)
+            n = math.sqrt(float(last @ last))
+            direction, scale = (last / n if n > 0.0 else np.array([0.0, 0.0, 1.0])), 0.0
+        vec = direction * published
+        while math.sqrt(float(vec @ vec)) > published:  # never an ulp above the limit the magnitude met
+            vec = np.nextafter(vec, 0.0)
+        return vec, scale
 
     def _state_finite(self) -> bool:
         """Whether the model's energy (hence its whole state) is finite."""
         return math.isfinite(self.model.energy())
 
-    def _result(self, answered: bool, pos, v, force: float, stale: bool) -> TickResult:
-        """The frozen record of this tick (the contact message's per-layer rate and stress included)."""
+    def _result(self, answered: bool, pos, v, force: np.ndarray, scale: float, stale: bool) -> TickResult:
+        """The frozen record of this tick (the contact message's per-layer rate and stress included).
+
+        ``force`` is the published vector, the model's scaled by ``scale`` (the limits' share of it); the tangent is
+        that of the published force: ``f0 = force`` and the model's ``K``, ``D`` scaled alike.
+        """
         m = self.model
         n = m.n_affected
         depth = m.depth_m
@@ -279,12 +311,36 @@ class HapticSession:
         self._seq += 1
         events = self._event.take()
         flags = m.flags
+        tangent = NO_CONTACT
+        if scale == 0.0 and force.any():  # ramping down out of contact: f0 is the published force, no stiffness
+            tangent = ContactTangent(force.copy(), np.zeros((3, 3)), np.zeros((3, 3)), NO_CONTACT.normal, 0.0)
+        elif flags & FLAG_CONTACT and scale > 0.0:
+            t = m.tangent()
+            tangent = ContactTangent(
+                force_n=force.copy(),
+                stiffness_n_per_m=t.stiffness_n_per_m * scale,
+                damping_n_s_per_m=t.damping_n_s_per_m * scale,
+                normal=t.normal,
+                contact_radius_m=t.contact_radius_m,
+            )
         self.last = TickResult(
-            seq=self._seq, stamp_ns=self.inputs.answered_stamp_ns, answered=answered, x0_m=tuple(pos), velocity_m_s=tuple(v),
-            force_n=(0.0, 0.0, force), depth_m=depth, n_affected=n, compression_m=comp, compression_rate_m_s=rate,
-            stress_pa=stress, flags=flags, events=events, stale=stale, idle=m.last_tick_idle,
-            tangent=m.tangent() if flags & FLAG_CONTACT else NO_CONTACT,
-        )  # fmt: skip
+            seq=self._seq,
+            stamp_ns=self.inputs.answered_stamp_ns,
+            answered=answered,
+            x0_m=tuple(pos),
+            velocity_m_s=tuple(v),
+            force_n=(float(force[0]), float(force[1]), float(force[2])),
+            depth_m=depth,
+            n_affected=n,
+            compression_m=comp,
+            compression_rate_m_s=rate,
+            stress_pa=stress,
+            flags=flags,
+            events=events,
+            stale=stale,
+            idle=m.last_tick_idle,
+            tangent=tangent,
+        )
         return self.last
 
     # --- read-outs for the node's diagnostics, display and logs (no caller reads the model) ---------------------

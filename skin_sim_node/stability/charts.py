@@ -60,10 +60,14 @@ def numerics_figures(out: Path) -> list[Path]:
         ax.set_xlabel("grid spacing dx (mm)")
         ax.set_title(method, fontsize=9)
     axes[0].set_ylabel("time step dt (ms)")
-    axes[0].legend(fontsize=6, loc="lower right")
+    handles = {}
+    for ax in axes:  # one legend with every mark any panel uses (each panel holds only some)
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(lab, h)
+    fig.legend(handles.values(), handles.keys(), fontsize=7, loc="lower center", ncol=len(handles), frameon=False)
     fig.suptitle(f"dermis membrane, c = {c:.1f} m/s, 60 mm patch, released from a 1 mm tool indentation; error at "
                  f"{nm.T_END_S * 1e3:.0f} ms against the exact-in-time solution of the same grid", fontsize=9)  # fmt: skip
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     p1 = out / "numerics_maps.png"
     fig.savefig(p1, dpi=110)
     plt.close(fig)
@@ -110,15 +114,19 @@ def haptic_figures(out: Path) -> list[Path]:
             for k in CHART_STIFFNESSES:
                 v = res[(stab, r, k)]
                 ax.plot(r, k * 1e-3, "o" if v.stable else "x", color="#27ae60" if v.stable else "#c0392b", ms=6)
-        ax.plot(rates, [hl.colgate_k_max(b_dev, r) * 1e-3 for r in rates], "k--", lw=1, label="Colgate 2b/T, b = device 0.05")
-        ax.plot(rates, [hl.colgate_k_max(b_all, r) * 1e-3 for r in rates], "k:", lw=1, label="2b/T, b = device + hand 3.05")
+        ax.plot([], [], "o", color="#27ae60", ms=6, label="swept point: stable (force settles)")
+        ax.plot([], [], "x", color="#c0392b", ms=6, label="swept point: unstable (force does not settle)")
+        ax.plot(rates, [hl.colgate_k_max(b_dev, r) * 1e-3 for r in rates], "k--", lw=1,
+                label=f"Colgate 2b/T, b = device {b_dev:.2f} N s/m")  # fmt: skip
+        ax.plot(rates, [hl.colgate_k_max(b_all, r) * 1e-3 for r in rates], "k:", lw=1,
+                label=f"2b/T, b = device + hand {b_all:.2f} N s/m")  # fmt: skip
         ax.plot(rates, [hl.linear_k_max(r) * 1e-3 for r in rates], "b-", lw=1, label="exact sampled loop, 1-tick delay")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_ylim(0.08, 6)
         ax.set_xlabel("loop rate (Hz)")
-        ax.set_title(f"{'naive coupling' if stab == 'none' else 'device-side passivity controller'}: o stable, x unstable",
-                     fontsize=9)  # fmt: skip
+        ax.set_title(f"{'naive coupling' if stab == 'none' else 'device-side passivity controller'}: "
+                     "dot stable, x unstable", fontsize=9)  # fmt: skip
     axes[0].set_ylabel("rendered wall stiffness K (N/mm)")
     axes[0].legend(fontsize=7, loc="lower right")
     fig.tight_layout()

@@ -104,6 +104,10 @@ def main(argv=None) -> int:
     return serve(source, args.host, args.port, args.duration_s, on_ready=on_ready)
 
 
+SHOT_GRID_DT_S = 0.05
+"""A screenshot taken while pressing waits for a frame whose grid is at most this far in time from the tool's pose."""
+
+
 def _screenshot(server, path: Path, after_s: float, when_force_n: float = 0.0) -> None:
     import time
 
@@ -116,6 +120,15 @@ def _screenshot(server, path: Path, after_s: float, when_force_n: float = 0.0) -
             if when_force_n > 0:
                 b.wait_for(f"window.skinView.force > {when_force_n}", 60, f"a force above {when_force_n} N")
             time.sleep(after_s)
-            print(f"skin-sim view: screenshot {b.screenshot(path)}", flush=True)
+            if when_force_n > 0:  # the picture shows the press it names: a grid within SHOT_GRID_DT_S of the tool, rendered
+                b.wait_for(f"window.skinView.force > {when_force_n} && Math.abs(window.skinView.gridDtS) < {SHOT_GRID_DT_S}",
+                           60, f"a pressed frame whose grid is within {SHOT_GRID_DT_S * 1e3:.0f} ms of the tool")  # fmt: skip
+            n = b.evaluate("window.skinView.frames")
+            b.wait_for(f"window.skinView.renderedFrames >= {n}", 30, "the frame rendered")
+            dt = b.evaluate("window.skinView.gridDtS")
+            f = b.evaluate("window.skinView.force")
+            shot = b.screenshot(path)
+            offset = f"grid {dt * 1e3:+.0f} ms from the tool" if isinstance(dt, (int, float)) else "no grid time offset known"
+            print(f"skin-sim view: screenshot {shot} (force {f:.3f} N, {offset})", flush=True)
     except (OSError, RuntimeError, TimeoutError) as exc:
         print(f"skin-sim view: no screenshot: {exc}", flush=True)

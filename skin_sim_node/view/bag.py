@@ -21,7 +21,7 @@ from msgs_schema.parameters import SPEC_BY_NAME
 from msgs_schema.topics import TOPICS
 
 from ..bags.io import BagError, deserialize, iter_raw, open_bag, topic_types
-from .frames import decimate, diag_message, encode_frame, tool_depth_m
+from .frames import decimate, default_thickness_m, diag_message, encode_frame, tool_depth_m
 
 KEYS = ("tool_pose", "tool_wrench", "contact", "layer_heights", "diagnostics")
 
@@ -130,7 +130,8 @@ class BagSource:
         self.data = BagData(paths)
         self.rate_hz = rate_hz
         self.speed = speed
-        self.t_s = 0.0
+        # open at the first grid: before it the page would show an empty scene (grids start 2-3 s into a recording)
+        self.t_s = float(self.data.grid_t[0]) if len(self.data.grid_t) else 0.0
         self.playing = False
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -142,6 +143,7 @@ class BagSource:
         return {"type": "info", "mode": "bag", "bags": [str(p) for p in self.data.paths],
                 "sheet_m": [SPEC_BY_NAME["tissue.sheet.size_x_m"].default, SPEC_BY_NAME["tissue.sheet.size_y_m"].default],
                 "tool_radius_m": SPEC_BY_NAME["tissue.tool.radius_m"].default, "rate_hz": self.rate_hz,
+                "tool_shape": SPEC_BY_NAME["tissue.tool.shape"].default, "thickness_m": default_thickness_m(),
                 "duration_s": self.data.duration_s, "n_grids": len(self.data.grids)}  # fmt: skip
 
     def hello(self) -> list[str]:
@@ -174,6 +176,11 @@ class BagSource:
         d = self.data
         h = d.header_at(t_s)
         h["playing"] = self.playing
+        prev = self._sent[0]
+        if self.playing and prev is not None and prev < t_s and "force" in h:  # the largest force since the last frame
+            lo, hi = np.searchsorted(d.wrench_t, [prev, t_s], side="right")
+            if hi > lo:
+                h["force_max"] = float(d.wrench[lo:hi, 2].max())
         gi = d.index_at(d.grid_t, t_s)
         di = d.index_at(d.diag_t, t_s)
         _, last_gi, last_di = self._sent

@@ -62,6 +62,14 @@ def diag_message(status_level: int, status_message: str, values: dict[str, str])
             "regime": regime, "counts": counts}  # fmt: skip
 
 
+def default_thickness_m() -> list[float]:
+    """Layer thicknesses (m) of the parameter schema's defaults: epidermis, dermis, fat (the bottom of the cut)."""
+    from msgs_schema.parameters import SPEC_BY_NAME
+    from msgs_schema.tissue import LAYER_NAMES
+
+    return [SPEC_BY_NAME[f"tissue.layers.{n}.thickness_m"].default for n in LAYER_NAMES]
+
+
 def tool_depth_m(z_m: float) -> float:
     """Tool depth below the rest surface (z = 0, z up; topics.FRAMES), 0 above it."""
     return max(0.0, -float(z_m))

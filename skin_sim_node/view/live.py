@@ -21,11 +21,13 @@ from msgs_schema import convert as cv
 from msgs_schema.parameters import NODE_NAME, SPEC_BY_NAME
 from msgs_schema.tissue import LAYER_NAMES
 
-from .frames import diag_message, encode_frame, tool_depth_m
+from .frames import default_thickness_m, diag_message, encode_frame, tool_depth_m
 
 TUNABLE = re.compile(r"stiffness|damping|friction|tolerance")
 """Parameters the page lists first (issue 14: stiffness, damping, friction, mode tolerance); the rest are
 one click away. Matched against the names the node reports at run time, so new ones appear by themselves."""
+GEOMETRY_EXTRA = ("tissue.tool.shape", *(f"tissue.layers.{n}.thickness_m" for n in LAYER_NAMES))
+"""Parameters the page draws besides sheet size and tool radius: the tool's shape and the layer thicknesses."""
 SERVICE_TIMEOUT_S = 3.0  # a parameter call that takes longer than this is reported as unanswered
 SERVICE_WAIT_S = 10.0
 """How long a call first waits for the node's parameter services to be discovered. A view process that
@@ -77,20 +79,31 @@ class LiveSource:
         self.diag = None
         self._diag_new = False
         subscription(self.node, "tool_pose", lambda m: setattr(self, "pose", m))
-        subscription(self.node, "tool_wrench", lambda m: setattr(self, "wrench", m))
+        subscription(self.node, "tool_wrench", self._on_wrench)
         if contact:  # a reader of tissue/contact makes the node publish it every tick (lazy): opt-in
             subscription(self.node, "contact", lambda m: setattr(self, "contact", m))
         subscription(self.node, "layer_heights", self._on_grid)
         subscription(self.node, "diagnostics", self._on_diag)
         self.sheet_m = (SPEC_BY_NAME["tissue.sheet.size_x_m"].default, SPEC_BY_NAME["tissue.sheet.size_y_m"].default)
         self.tool_radius_m = SPEC_BY_NAME["tissue.tool.radius_m"].default
+        self.tool_shape = SPEC_BY_NAME["tissue.tool.shape"].default
+        self.thickness_m = default_thickness_m()
         self.form = None  # the node's tissue.form once known: "layered" engages every layer from first contact
         self._stop = threading.Event()
         self.frames = 0
 
     # --- callbacks (run inside spin_once, in the source thread) -----------------------
+    def _on_wrench(self, msg) -> None:
+        self.wrench = msg
+        fz = msg.wrench.force.z
+        self.force_max = fz if self.force_max is None else max(self.force_max, fz)
+
+    grid_stamp_s = None
+    force_max = None  # the largest force z since the last frame (a 1 ms spike between two 30 Hz frames is shown)
+
     def _on_grid(self, msg) -> None:
         self.grid = cv.read_image(msg)
+        self.grid_stamp_s = cv.stamp_ns(msg.header) * 1e-9
         self.grid_new = True
         self.grid_count += 1
 
@@ -144,7 +157,7 @@ class LiveSource:
     def refresh_geometry(self, wait_s: float = SERVICE_WAIT_S) -> None:
         """Sheet size and tool radius from the node (its grid and patch), defaults if it does not answer."""
         try:
-            names = ["tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", "tissue.form"]
+            names = ["tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", "tissue.form", *GEOMETRY_EXTRA]
             self._set_geometry(self._get(names, wait_s=wait_s, tries=1))
         except TimeoutError:
             return
@@ -158,8 +171,11 @@ class LiveSource:
                    float(got["tissue.tool.radius_m"][1]))  # fmt: skip
         except (KeyError, TypeError, ValueError):
             return False
-        changed = new != (self.sheet_m, self.tool_radius_m)
+        extra = (str(got.get("tissue.tool.shape", (0, self.tool_shape))[1]),
+                 [float(got.get(n, (0, t))[1]) for n, t in zip(GEOMETRY_EXTRA[1:], self.thickness_m)])  # fmt: skip
+        changed = (new, extra) != ((self.sheet_m, self.tool_radius_m), (self.tool_shape, self.thickness_m))
         self.sheet_m, self.tool_radius_m = new
+        self.tool_shape, self.thickness_m = extra
         if "tissue.form" in got:
             self.form = str(got["tissue.form"][1])
         return changed
@@ -200,7 +216,7 @@ class LiveSource:
         except TimeoutError as exc:
             return {"ok": False, "name": name, "reason": str(exc)}
         r = res.results[0]
-        if r.successful and name in ("tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m"):
+        if r.successful and name in ("tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", *GEOMETRY_EXTRA):
             threading.Thread(target=self._after_geometry_change, daemon=True).start()
         return {"ok": bool(r.successful), "name": name, "value": value if r.successful else got[name][1],
                 "reason": r.reason or ("applied" if r.successful else "rejected (no reason given)")}  # fmt: skip
@@ -212,7 +228,8 @@ class LiveSource:
     # --- page ---------------------------------------------------------------------------
     def info(self) -> dict:
         return {"type": "info", "mode": "live", "namespace": self.namespace, "sheet_m": list(self.sheet_m),
-                "tool_radius_m": self.tool_radius_m, "rate_hz": self.rate_hz}  # fmt: skip
+                "tool_radius_m": self.tool_radius_m, "tool_shape": self.tool_shape, "thickness_m": self.thickness_m,
+                "rate_hz": self.rate_hz}  # fmt: skip
 
     def resend(self) -> None:
         self.grid_new = self.grid is not None  # a new page needs the grid once
@@ -233,6 +250,11 @@ class LiveSource:
             stamp, _, f = cv.read_wrench(self.wrench)
             h["force"] = list(f)
             h["stamp_s"] = stamp * 1e-9
+            if self.grid_stamp_s is not None and stamp:
+                h["grid_dt_s"] = self.grid_stamp_s - stamp * 1e-9
+            if self.force_max is not None:
+                h["force_max"] = float(self.force_max)
+            self.force_max = None
         if self.contact is not None:
             _, comp, _, stress = cv.read_contact(self.contact)
             h["compression_m"], h["stress_pa"] = comp.tolist(), stress.tolist()

@@ -36,16 +36,19 @@ def fig4_cross_sections(out: Path) -> Path:
     model = SkinModel(cfg)
     i_ed, i_df = cfg.interfaces
     cases = [
-        (0.5 * (i_ed.mean_depth_m + i_df.mean_depth_m - i_df.amplitude_m), "tool reaches epidermis + dermis"),
-        (i_df.mean_depth_m + 0.6 * cfg.layers[2].thickness_m, "tool reaches all three layers"),
+        (0.5 * (i_ed.mean_depth_m + i_df.mean_depth_m - i_df.amplitude_m), "tool depth within the dermis's rest depths"),
+        (i_df.mean_depth_m + 0.6 * cfg.layers[2].thickness_m, "tool depth within the fat's rest depths"),
     ]
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.0), sharey=True)
     for ax, (depth, label) in zip(axes, cases):
         press(model, 0.0, 0.0, depth)
-        draw_cross_section(ax, model, 0.0, 0.0, -depth, f"{label}: depth {depth * 1e3:.2f} mm, "
-                           f"F = {model.force_n:.3f} N, layers {model.n_affected}")  # fmt: skip
+        draw_cross_section(ax, model, 0.0, 0.0, -depth, f"{label}: {depth * 1e3:.2f} mm, F = {model.force_n:.3f} N\n"
+                           f"(layered form: all {model.n_affected} layers act in series from first contact)",
+                           half_m=12e-3)  # fmt: skip
     axes[0].legend(loc="lower left", fontsize=7)
-    fig.tight_layout()
+    fig.suptitle("default tissue pressed at the origin by the flat punch, held 20 ms (interfaces at rest: "
+                 f"{i_ed.mean_depth_m * 1e3:.3f} mm and {i_df.mean_depth_m * 1e3:.3f} mm mean depth)", fontsize=9)  # fmt: skip
+    fig.tight_layout(rect=(0, 0, 1, 0.95))
     path = out / "fig4_cross_sections.png"
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -72,12 +75,16 @@ def force_depth_and_release(out: Path) -> Path:
     slow_d = np.arange(1, int(depths[-1] / (speed * dt)) + 1) * speed * dt
     slow_f = [model.step((0.0, 0.0, -d), (0.0, 0.0, -speed), dt) for d in slow_d]
     press(model, 0.0, 0.0, 3e-3)
+    s0 = model.surface_displacement_at(0.0, 0.0)
     dt = 1e-3
     t = np.arange(0, 1.5, dt)
     surf = []
     for _ in t:
         model.step((0.0, 0.0, 0.02), (0, 0, 0), dt)
         surf.append(model.surface_displacement_at(0.0, 0.0))
+    t, surf = np.concatenate(([0.0], t + dt)), np.array([s0, *surf])
+    back = np.abs(surf) <= 0.05 * abs(s0)  # within 5 % of rest
+    t5 = float(t[np.argmax(back)]) if back.any() else float(t[-1])
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 3.6))
     a0.plot(slow_d * 1e3, slow_f, "k", label="layered (default), 0.5 mm/s press")
     a0.plot(depths * 1e3, forces, color="grey", lw=0.8, label="paper form, static")
@@ -90,11 +97,15 @@ def force_depth_and_release(out: Path) -> Path:
     a0.set_ylabel("reaction force (N)")
     a0.set_title("force-depth at the origin: layered vs paper form", fontsize=9)
     a0.legend(fontsize=7)
-    a1.plot(t * 1e3, np.array(surf) * 1e3, "k")
+    a1.plot(t * 1e3, surf * 1e3, "k.-", ms=3, lw=0.8)
     a1.axhline(0, color="grey", lw=0.5)
-    a1.set_xlabel("time after release (ms)")
-    a1.set_ylabel("surface displacement under tool (mm, down)")
-    a1.set_title("release from 3 mm: damped modal return (eq 2)", fontsize=9)
+    a1.axvline(t5 * 1e3, color="r", lw=0.8, ls="--", label=f"within 5 % of rest after {t5 * 1e3:.0f} ms")
+    a1.set_xlim(0, max(4 * t5, 0.02) * 1e3)
+    a1.set_xlabel("time after release (ms; 1 ms ticks)")
+    a1.set_ylabel("surface displacement under the tool (mm)")
+    a1.set_title(f"release after a press to 3 mm (the surface under the punch then at {s0 * 1e3:.2f} mm):\n"
+                 "damped modal return (eq 2)", fontsize=9)  # fmt: skip
+    a1.legend(fontsize=7)
     fig.tight_layout()
     path = out / "force_depth_release.png"
     fig.savefig(path, dpi=120)

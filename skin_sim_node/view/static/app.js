@@ -70,6 +70,10 @@ function buildMeshes(gx, gy) {
   });
 }
 
+// the z scale exaggerates depth into the tissue only: a tool lifted 5 mm is drawn 5 mm above the surface
+const zDraw = (zmm, zs) => (zmm < 0 ? zmm * zs : zmm);
+const MIN_BAND_MM = 0.5; // a cut band is drawn at least this thick (the 0.075 mm epidermis would be under a pixel)
+
 function colourmap(v) { // 0..1 -> dark blue .. yellow (viridis-like, 3 stops)
   const s = Math.min(1, Math.max(0, v));
   if (s < 0.5) { const u = s / 0.5; return [0.27 * (1 - u) + 0.13 * u, 0.0 * (1 - u) + 0.57 * u, 0.33 * (1 - u) + 0.55 * u]; }
@@ -94,7 +98,7 @@ function updateMeshes(grid) { // grid: Float32Array (ny, nx, 3) in m
         const v = r * nx + c, g = v * 3 + layer;
         pos[v * 3] = -sx / 2 + (c + 0.5) * sx / nx;
         pos[v * 3 + 1] = -sy / 2 + (r + 0.5) * sy / ny;
-        pos[v * 3 + 2] = grid[g] * 1e3 * zs;
+        pos[v * 3 + 2] = zDraw(grid[g] * 1e3, zs);
         if (recolour) {
           const rgb = byDisp ? colourmap((rest[g] - grid[g]) / maxd) : LAYER_RGB[layer];
           col[v * 3] = rgb[0]; col[v * 3 + 1] = rgb[1]; col[v * 3 + 2] = rgb[2];
@@ -105,6 +109,45 @@ function updateMeshes(grid) { // grid: Float32Array (ny, nx, 3) in m
     geom.computeVertexNormals();
   }
   coloured = byDisp ? "disp" : "layer";
+  $("disp-scale").style.display = byDisp ? "block" : "none";
+  if (byDisp) { $("disp-min").textContent = "0"; $("disp-max").textContent = `${(maxd * 1e3).toFixed(3)} mm deeper than rest`; }
+  state.dispMaxMm = byDisp ? maxd * 1e3 : null;
+  updateCurtain();
+}
+
+// the cut face: three coloured bands (epidermis, dermis, fat) in the plane y = tool y, from the last grid
+const curtain = [0, 1, 2].map((layer) => {
+  const c = new THREE.Color().setRGB(...LAYER_RGB[layer], THREE.SRGBColorSpace);
+  const m = new THREE.Mesh(new THREE.BufferGeometry(), new THREE.MeshBasicMaterial({ color: c, side: THREE.DoubleSide }));
+  m.visible = false; scene.add(m); return m;
+});
+let curtainN = 0;
+function updateCurtain() {
+  const show = !!(lastGrid && state.info && $("cutaway").checked && tool.visible);
+  curtain.forEach((m) => { m.visible = show; });
+  state.cutBands = show;
+  if (!show) return;
+  const info = state.info, sx = info.sheet_m[0] * 1e3, sy = info.sheet_m[1] * 1e3, zs = parseFloat($("zscale").value) || 1;
+  const r = Math.min(ny - 1, Math.max(0, Math.floor((toolY + sy / 2) / sy * ny)));
+  const bottom = -1e3 * (info.thickness_m || [0, 0, 0]).reduce((a, b) => a + b, 0);
+  if (curtainN !== nx) { // (re)build the strips' index once per grid size
+    curtainN = nx;
+    const idx = [];
+    for (let c = 0; c < nx - 1; c++) idx.push(2 * c, 2 * c + 1, 2 * c + 3, 2 * c, 2 * c + 3, 2 * c + 2);
+    curtain.forEach((m) => { m.geometry.setAttribute("position", new THREE.BufferAttribute(new Float32Array(nx * 6), 3)); m.geometry.setIndex(idx); });
+  }
+  for (let c = 0; c < nx; c++) {
+    const x = -sx / 2 + (c + 0.5) * sx / nx, g = (r * nx + c) * 3;
+    const z0 = zDraw(lastGrid[g] * 1e3, zs);
+    const z1 = Math.min(zDraw(lastGrid[g + 1] * 1e3, zs), z0 - MIN_BAND_MM);
+    const z2 = Math.min(zDraw(lastGrid[g + 2] * 1e3, zs), z1 - MIN_BAND_MM);
+    const z3 = Math.min(zDraw(bottom, zs), z2 - MIN_BAND_MM);
+    [[z0, z1], [z1, z2], [z2, z3]].forEach(([top, bot], layer) => {
+      const p = curtain[layer].geometry.attributes.position.array;
+      p.set([x, toolY + 0.02, top, x, toolY + 0.02, bot], c * 6);
+    });
+  }
+  curtain.forEach((m) => { m.geometry.attributes.position.needsUpdate = true; m.geometry.computeBoundingSphere(); });
 }
 for (const [id, i] of [["show-surface", 0], ["show-i1", 1], ["show-i2", 2]])
   $(id).addEventListener("change", () => { if (meshes) { meshes[i].visible = $(id).checked; coloured = ""; if (lastGrid) updateMeshes(lastGrid); } dirty = true; });
@@ -114,22 +157,37 @@ for (const id of ["colour", "zscale", "cutaway"])
     coloured = ""; if (lastGrid) updateMeshes(lastGrid); dirty = true;
   });
 
-// tool: tip sphere and shaft, force arrow, contact patch
-const toolMat = new THREE.MeshStandardMaterial({ color: 0x9aa4b1, metalness: 0.6, roughness: 0.3 });
+// tool as configured (tissue.tool.shape): a flat punch is a cylinder whose face is the tip; a sphere sits on its tip.
+// Its origin is the tip. The force arrow stands beside it (on the tool's axis the shaft hid it), unlit cyan.
+const toolMat = new THREE.MeshStandardMaterial({ color: 0x7f9cc4, metalness: 0.2, roughness: 0.6 }); // steel blue: told apart from skin and the cyan arrow
+const SHAFT_MM = 30;
 const tip = new THREE.Mesh(new THREE.SphereGeometry(1, 24, 16), toolMat);
-const shaft = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 40, 16), toolMat);
-shaft.rotation.x = Math.PI / 2;
+const punch = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 1, 32), toolMat);
+const shaft = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 1, 16), toolMat);
+punch.rotation.x = shaft.rotation.x = Math.PI / 2;
 const tool = new THREE.Group();
-tool.add(tip, shaft);
+tool.add(tip, punch, shaft);
 tool.visible = false;
 scene.add(tool);
-const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 10, 0x4fc3f7, 4, 2.5);
+const ARROW_RGB = 0x00e5ff, MM_PER_N = 4, ARROW_MAX_MM = 30, ARROW_MIN_MM = 3;
+const arrowMat = new THREE.MeshBasicMaterial({ color: ARROW_RGB });
+const arrowShaft = new THREE.Mesh(new THREE.CylinderGeometry(0.6, 0.6, 1, 12), arrowMat);
+const arrowHead = new THREE.Mesh(new THREE.ConeGeometry(1.8, 4, 16), arrowMat);
+arrowShaft.rotation.x = arrowHead.rotation.x = Math.PI / 2;
+const arrow = new THREE.Group();
+arrow.add(arrowShaft, arrowHead);
 arrow.visible = false;
 scene.add(arrow);
+function setArrow(lenMm) { // total length lenMm, pointing +z from the group's origin
+  const head = Math.min(4, lenMm * 0.4);
+  arrowShaft.scale.set(1, lenMm - head, 1); arrowShaft.position.set(0, 0, (lenMm - head) / 2);
+  const k = Math.max(0.5, head / 4); // a short arrow keeps a head no wider than its proportion
+  arrowHead.scale.set(k, head / 4, k); arrowHead.position.set(0, 0, lenMm - head / 2);
+}
 const patch = new THREE.Mesh(new THREE.RingGeometry(0.8, 1.0, 48), new THREE.MeshBasicMaterial({ color: 0xff5252, side: THREE.DoubleSide }));
 patch.visible = false;
 scene.add(patch);
-const MM_PER_N = 20; // force arrow length per newton (display scale)
+$("arrow-scale").textContent = `${MM_PER_N} mm per N (${ARROW_MIN_MM}-${ARROW_MAX_MM} mm)`;
 
 function surfaceAt(x, y) { // surface height (m) under (x, y) m, from the last grid
   if (!lastGrid || !state.info) return 0;
@@ -139,28 +197,64 @@ function surfaceAt(x, y) { // surface height (m) under (x, y) m, from the last g
   return lastGrid[(r * nx + c) * 3];
 }
 
+const TIP_LAYERS = ["epidermis", "dermis", "fat"];
+function depthReached(depthM) { // the layer whose rest depth range holds the tool's depth (the interfaces at rest)
+  if (!(depthM > 0)) return "none (not in contact)";
+  const th = state.info.thickness_m || [0, 0, 0];
+  let k = 0, bottom = th[0];
+  while (k < 2 && depthM > bottom) bottom += th[++k];
+  const top = bottom - th[k];
+  return `${TIP_LAYERS[k]} (its rest depth ${(top * 1e3).toFixed(3)}-${(bottom * 1e3).toFixed(3)} mm)`;
+}
+
+let shownShape = "";
 function updateTool(h) {
-  const zs = parseFloat($("zscale").value) || 1, rmm = state.info.tool_radius_m * 1e3;
+  const zs = parseFloat($("zscale").value) || 1, rmm = state.info.tool_radius_m * 1e3, shape = state.info.tool_shape || "flat";
+  if (shape !== shownShape) { // geometry of the configured tool
+    shownShape = shape;
+    const flat = shape !== "sphere";
+    tip.visible = !flat; punch.visible = flat;
+    tip.scale.setScalar(rmm); tip.position.set(0, 0, rmm);
+    punch.scale.set(rmm, SHAFT_MM, rmm); punch.position.set(0, 0, SHAFT_MM / 2);
+    shaft.visible = !flat;
+    shaft.scale.set(rmm * 0.6, SHAFT_MM, rmm * 0.6); shaft.position.set(0, 0, rmm + SHAFT_MM / 2);
+    state.toolShape = flat ? "cylinder" : "sphere";
+  }
   if (h.tool) {
     const [x, y, z] = h.tool.map((v) => v * 1e3);
     tool.visible = true;
-    tip.scale.setScalar(rmm);
-    shaft.scale.set(rmm * 0.6, 1, rmm * 0.6);
-    tool.position.set(x, y, z * zs + rmm);
+    tool.position.set(x, y, zDraw(z, zs));
     toolY = y;
     cut.constant = $("cutaway").checked ? -y : 1e4;
-    shaft.position.set(0, 0, 20 + rmm * 0.5);
+    state.toolZDrawnMm = zDraw(z, zs);
+    $("tip-layer").textContent = depthReached(h.depth_m);
   }
-  const f = h.force ? h.force[2] : 0;
+  const f = h.force_max !== undefined ? h.force_max : h.force ? h.force[2] : 0;
   const at = h.tool ? h.tool : [0, 0, 0];
-  const zsurf = surfaceAt(at[0], at[1]) * 1e3 * zs;
+  const zsurf = zDraw(surfaceAt(at[0], at[1]) * 1e3, zs);
   arrow.visible = f > 1e-4;
+  state.arrowLenMm = 0;
   if (arrow.visible) {
-    arrow.position.set(at[0] * 1e3, at[1] * 1e3, zsurf + 2 * rmm + 2);
-    arrow.setLength(Math.max(3, f * MM_PER_N), 4, 2.5);
+    const len = Math.min(ARROW_MAX_MM, Math.max(ARROW_MIN_MM, f * MM_PER_N));
+    arrow.position.set(at[0] * 1e3 + rmm + 4, at[1] * 1e3, Math.max(zsurf, 0) + 0.5);
+    setArrow(len);
+    state.arrowLenMm = len;
   }
+  placeArrowLabel(f);
   patch.visible = f > 1e-4;
   if (patch.visible) { patch.position.set(at[0] * 1e3, at[1] * 1e3, zsurf + 0.05); patch.scale.setScalar(rmm); }
+  updateCurtain();
+}
+function placeArrowLabel(f) { // "0.740 N" at the arrow's head, in screen coordinates
+  const el = $("arrow-label");
+  if (!arrow.visible) { el.style.display = "none"; return; }
+  const p = arrow.position.clone();
+  p.z += state.arrowLenMm + 1;
+  p.project(camera);
+  el.style.display = "block";
+  el.style.left = `${Math.min(host.clientWidth - 80, Math.max(0, (p.x + 1) / 2 * host.clientWidth + 6))}px`;
+  el.style.top = `${Math.min(host.clientHeight - 40, Math.max(24, (1 - p.y) / 2 * host.clientHeight - 8))}px`;
+  el.textContent = `${f.toFixed(3)} N`;
 }
 
 // --- plots --------------------------------------------------------------------------------
@@ -187,7 +281,7 @@ function plots(h) { // records every frame; the canvases are redrawn with the sc
   plotH = h; plotsDirty = true;
   if (timeline) return;
   const t = performance.now() / 1e3;
-  hist.t.push(t); hist.f.push(h.force ? h.force[2] : 0); hist.d.push((h.depth_m || 0) * 1e3);
+  hist.t.push(t); hist.f.push(h.force_max !== undefined ? h.force_max : h.force ? h.force[2] : 0); hist.d.push((h.depth_m || 0) * 1e3);
   while (hist.t.length && hist.t[0] < t - HIST_S) { hist.t.shift(); hist.f.shift(); hist.d.shift(); }
 }
 function drawPlots() {
@@ -220,7 +314,7 @@ async function loadParams() {
   try { r = await (await fetch("/api/params")).json(); }
   catch (e) { r = { ok: false, reason: `view server: ${e}`, retry: true }; }
   if (!r.ok) {
-    $("param-node").textContent = ""; $("params").innerHTML = `<tr><td>${r.reason}</td></tr>`;
+    $("param-node").textContent = ""; $("params").innerHTML = `<div>${r.reason}</div>`;
     if (r.retry) paramRetry = setTimeout(loadParams, 2000); // the node's services may not be discovered yet
     return;
   }
@@ -231,9 +325,8 @@ async function loadParams() {
 function renderParams() {
   const all = $("param-all").checked;
   $("params").innerHTML = paramList.filter((p) => all || p.tunable).map((p) =>
-    `<tr title="${p.description.replace(/"/g, "&quot;")}"><td class="pname">${p.name}</td>` +
-    `<td><input type="text" data-name="${p.name}" value="${p.value}"></td>` +
-    `<td><button data-set="${p.name}">set</button></td></tr>`).join("");
+    `<div class="prow" title="${p.description.replace(/"/g, "&quot;")}"><span class="pname">${p.name}</span>` +
+    `<input type="text" data-name="${p.name}" value="${p.value}"> <button data-set="${p.name}">set</button></div>`).join("");
 }
 $("param-all").addEventListener("change", renderParams);
 $("params").addEventListener("click", (e) => { const n = e.target.dataset.set; if (n) setParam(n); });
@@ -282,14 +375,21 @@ function onFrame(buf) {
     $("grids").textContent = state.gridFrames;
   }
   state.frames++; fpsCount++;
-  state.force = h.force ? h.force[2] : null;
+  state.force = h.force_max !== undefined ? h.force_max : h.force ? h.force[2] : null;
+  state.forceNewest = h.force ? h.force[2] : null;
   state.depth = h.depth_m;
-  $("force").textContent = h.force ? h.force[2].toFixed(4) : "-";
+  state.t_s = h.t_s;
+  $("force").textContent = state.force !== null ? state.force.toFixed(4) : "-";
   $("depth").textContent = h.depth_m !== undefined ? (h.depth_m * 1e3).toFixed(2) : "-";
   $("layers").textContent = h.layers !== undefined ? h.layers : h.stress_pa ? h.stress_pa.filter((s) => s > 0).length : "-";
   updateTool(h);
   plots(h);
   dirty = true;
+  // the grid drawn and the tool may be from different instants (grids come at the display rate): say by how much
+  let gdt = h.grid_dt_s;
+  if (gdt === undefined && timeline && h.grid_index !== undefined && h.t_s !== undefined) gdt = timeline.grid_t_s[h.grid_index] - h.t_s;
+  state.gridDtS = gdt;
+  $("grid-dt").textContent = gdt === undefined ? "-" : `${gdt >= 0 ? "+" : ""}${(gdt * 1e3).toFixed(0)} ms`;
   if (h.t_s !== undefined) {
     $("play").textContent = h.playing ? "pause" : "play";
     if (!scrubbing) $("scrub").value = h.t_s;
@@ -303,7 +403,9 @@ function connect() {
     if (typeof e.data !== "string") return onFrame(e.data);
     const m = JSON.parse(e.data);
     if (m.type === "info") {
-      state.info = m; state.mode = m.mode;
+      state.info = m; state.mode = m.mode; shownShape = "";
+      const th = (m.thickness_m || []).map((t) => (t * 1e3).toFixed(3));
+      $("legend-note").textContent = th.length ? `thickness ${th.join(" / ")} mm; in the cut each band is drawn at least ${MIN_BAND_MM} mm` : "";
       $("mode").textContent = m.mode === "bag" ? `bag ${m.bags.join(", ")}` : `live ${m.namespace}`;
       if (m.mode === "bag") { $("timeline").style.display = "block"; $("scrub").max = m.duration_s; }
       loadParams();
@@ -314,7 +416,7 @@ function connect() {
 }
 connect();
 // render on demand only: a page that redraws an unchanged scene 60 times a second costs a CPU core under SwiftShader
-controls.addEventListener("change", () => { dirty = true; });
+controls.addEventListener("change", () => { dirty = true; if (arrow.visible) placeArrowLabel(state.force || 0); });
 window.addEventListener("resize", () => { dirty = true; });
 // at most RENDER_HZ redraws: leaves the main thread time to take frames when WebGL runs on the CPU (no GPU)
 // (10 when WebGL runs on the CPU: at 30 Hz SwiftShader took 1.5 of this machine's 2 cores from the haptic node)
@@ -326,6 +428,8 @@ let lastRender = 0, lastPlots = 0;
     dirty = false; lastRender = now;
     renderer.render(scene, camera);
     state.renders = (state.renders || 0) + 1;
+    state.renderedFrames = state.frames; // the frames received up to this render (tests wait for a frame's render)
+    state.renderedCut = state.cutBands; state.renderedColour = coloured;
   }
   if (plotsDirty && now - lastPlots >= 1000 / RENDER_HZ - 2) { // 2D canvases cost CPU too: same cap
     plotsDirty = false; lastPlots = now;
