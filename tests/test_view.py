@@ -25,7 +25,9 @@ from skin_sim_node.view.server import ViewServer
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "tests" / "data" / "press_all_layers"
 BAGS = [DATA / "input", DATA / "expected"]
-SHOTS = REPO / "docs" / "view"
+SHOTS = Path(os.environ.get("SKIN_SIM_SHOTS", REPO / "out" / "view_shots"))
+"""Where the browser tests write their screenshots: out/ (untracked), so a test run rewrites no tracked file;
+``SKIN_SIM_SHOTS=docs/view`` regenerates the ones docs/view.md shows."""
 needs_browser = pytest.mark.skipif(find_browser() is None, reason="no Chromium on PATH (CI: apt-get install chromium)")
 
 
@@ -297,6 +299,7 @@ def test_bag_page_force_arrow_tool_cut_and_scale(bag_page, tmp_path):
     _seek(b, float(d.wrench_t[low]), d.wrench[low, 2])
     at_low = _scene_pixels(b.screenshot(tmp_path / "low.png"))
     _seek(b, float(d.wrench_t[peak]), d.wrench[peak, 2])
+    SHOTS.mkdir(parents=True, exist_ok=True)
     shot = b.screenshot(SHOTS / "view_bag_peak.png")
     at_peak = _scene_pixels(shot)
     assert at_low["arrow"] > 50 and at_peak["arrow"] > 50, (at_low, at_peak)
