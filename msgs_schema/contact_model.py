@@ -58,8 +58,14 @@ class LocalModel:
     time_to_live_s: float = DEFAULT_TTL_S
 
     def __post_init__(self):
-        for name, shape in (("x0_m", (3,)), ("v0_m_s", (3,)), ("f0_n", (3,)), ("normal", (3,)),
-                            ("stiffness_n_per_m", (3, 3)), ("damping_n_s_per_m", (3, 3))):  # fmt: skip
+        for name, shape in (
+            ("x0_m", (3,)),
+            ("v0_m_s", (3,)),
+            ("f0_n", (3,)),
+            ("normal", (3,)),
+            ("stiffness_n_per_m", (3, 3)),
+            ("damping_n_s_per_m", (3, 3)),
+        ):
             object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=float).reshape(shape))
 
     @property
@@ -68,9 +74,11 @@ class LocalModel:
         arrays = (self.x0_m, self.v0_m_s, self.f0_n, self.stiffness_n_per_m, self.damping_n_s_per_m, self.normal)
         return (
             all(bool(np.isfinite(a).all()) for a in arrays)
-            and math.isfinite(self.validity_radius_m) and self.validity_radius_m >= 0
-            and math.isfinite(self.time_to_live_s) and self.time_to_live_s >= 0
-        )  # fmt: skip
+            and math.isfinite(self.validity_radius_m)
+            and self.validity_radius_m >= 0
+            and math.isfinite(self.time_to_live_s)
+            and self.time_to_live_s >= 0
+        )
 
 
 def fill_contact_model(msg, m: LocalModel):

@@ -52,23 +52,27 @@ display, and about the smallest skin indentation a fingertip detects (of the ord
 def _lod_specs() -> list[ParamSpec]:
     return [
         _f(
-            "lod.tolerance_m", LOD_TOLERANCE_M, "m",
+            "lod.tolerance_m",
+            LOD_TOLERANCE_M,
+            "m",
             "displacement tolerance: adaptive mode count, settled layers, idle and display change detection "
             "(10 um: 1 % of a 1 mm height-map cell)",
         ),
         _b(
-            "lod.adaptive_modes", True,
+            "lod.adaptive_modes",
+            True,
             "choose each driven layer's modes per axis (1..59 odd, against a 60 x 60 reference) from its compression "
             "and lod.tolerance_m; off: the fixed modes.m x modes.n",
         ),
         _b(
-            "lod.affected_layers", True,
+            "lod.affected_layers",
+            True,
             "compute only layers that are driven or still moving: a free layer whose displacement bound falls "
             "below lod.tolerance_m is set to rest and skipped",
         ),
         _b("lod.patch_only", True, "grid builds touch only the cells of the deformation patches, not the whole sheet"),
         _b("lod.idle", True, "no kernel call while the tool is off the tissue and every layer has settled"),
-    ]  # fmt: skip
+    ]
 
 
 # Default layer values (the `default` preset). Sources: docs/model.md, "Parameter sources".
@@ -163,7 +167,9 @@ def _layer_specs() -> list[ParamSpec]:
         specs += [
             _f(p + "thickness_m", h, "m", f"mean {name} thickness"),
             _f(
-                p + "stiffness_n_per_m", k, "N/m",
+                p + "stiffness_n_per_m",
+                k,
+                "N/m",
                 f"{name} Kelvin-Voigt spring k (eq 6); layered form: small-strain stiffness at the mean thickness "
                 "(column E A / h times the load-spreading factor fitted to the neo-Hookean reference)",
             ),
@@ -177,11 +183,14 @@ def _layer_specs() -> list[ParamSpec]:
             ),
             _f(p + "tension_n_per_m", tension, "N/m", f"{name} membrane tension T (eq 1)"),
             _f(
-                p + "stiffening", STIFFENING_EXPONENT, "1",
+                p + "stiffening",
+                STIFFENING_EXPONENT,
+                "1",
                 f"{name} exponent n of the layered form's law f = k h ((1 - c/h)^-n - 1) / n (0: -k h ln(1 - c/h))",
-                max=10.0, min_exclusive=False,
+                max=10.0,
+                min_exclusive=False,
             ),
-        ]  # fmt: skip
+        ]
     return specs
 
 

@@ -56,9 +56,12 @@ CHART_DOCS = {"model": "figures", "validation": "validation", "stability": "stab
 
 def chart_usage() -> str:
     width = max(map(len, CHART_TARGETS))
-    lines = ["usage: skin-sim chart TARGET [--docs] [args]   (skin-sim chart TARGET --help: its options)", "",
-             f"Regenerates the figures of one target into {CHART_OUT}/TARGET, or with --docs into the tracked",
-             "docs folder (docs/figures, docs/validation, docs/stability, docs/performance). targets:"]  # fmt: skip
+    lines = [
+        "usage: skin-sim chart TARGET [--docs] [args]   (skin-sim chart TARGET --help: its options)",
+        "",
+        f"Regenerates the figures of one target into {CHART_OUT}/TARGET, or with --docs into the tracked",
+        "docs folder (docs/figures, docs/validation, docs/stability, docs/performance). targets:",
+    ]
     lines += [f"  {name:<{width}}  {desc}" for name, (_, desc) in CHART_TARGETS.items()]
     return "\n".join(lines)
 
@@ -69,14 +72,23 @@ def chart(rest: list[str]) -> int:
         print(chart_usage())
         return 0 if rest else 2
     if rest[0] not in CHART_TARGETS:
-        print(f"skin-sim chart: error: unknown target {rest[0]!r}{suggest(rest[0], CHART_TARGETS)}; "
-              f"targets: {', '.join(CHART_TARGETS)}", file=sys.stderr)  # fmt: skip
+        print(
+            f"skin-sim chart: error: unknown target {rest[0]!r}{suggest(rest[0], CHART_TARGETS)}; "
+            f"targets: {', '.join(CHART_TARGETS)}",
+            file=sys.stderr,
+        )
         return 2
     target, args = rest[0], rest[1:]
     docs = "--docs" in args
     args = [a for a in args if a != "--docs"]
-    given = next((a.split("=", 1)[1] if "=" in a else args[i + 1] for i, a in enumerate(args)
-                  if a == "--out" and i + 1 < len(args) or a.startswith("--out=")), None)  # fmt: skip
+    given = next(
+        (
+            a.split("=", 1)[1] if "=" in a else args[i + 1]
+            for i, a in enumerate(args)
+            if a == "--out" and i + 1 < len(args) or a.startswith("--out=")
+        ),
+        None,
+    )
     if docs and given:
         print("skin-sim chart: error: --docs writes the tracked docs folder; give --docs or --out, not both", file=sys.stderr)
         return 2
@@ -96,8 +108,10 @@ def chart(rest: list[str]) -> int:
     before = _files(out)
     code = int(module.main(args) or 0)
     written = sorted(p for p, m in _files(out).items() if before.get(p) != m)
-    print(f"skin-sim chart {target}: wrote {len(written)} file(s) in {out}"
-          + (": " + ", ".join(str(p.relative_to(out)) for p in written) if written else ""))  # fmt: skip
+    print(
+        f"skin-sim chart {target}: wrote {len(written)} file(s) in {out}"
+        + (": " + ", ".join(str(p.relative_to(out)) for p in written) if written else "")
+    )
     return code
 
 
@@ -123,8 +137,10 @@ def main(argv=None) -> int:
     if cmd == "chart":
         return chart(rest)
     if cmd not in COMMANDS:
-        print(f"skin-sim: error: unknown command {cmd!r}{suggest(cmd, [*COMMANDS, 'chart'])}; skin-sim --help lists "
-              "the commands", file=sys.stderr)  # fmt: skip
+        print(
+            f"skin-sim: error: unknown command {cmd!r}{suggest(cmd, [*COMMANDS, 'chart'])}; skin-sim --help lists the commands",
+            file=sys.stderr,
+        )
         return 2
     if cmd == "node" and (problem := node_argument_error(rest)):
         print(f"skin-sim node: error: {problem}", file=sys.stderr)

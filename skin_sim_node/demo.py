@@ -45,8 +45,15 @@ def summarize(monitor, wall_s: float, poses: list) -> dict:
     out["render_rate_hz_median"] = _median(rates)
     out["render_rate_hz_min"] = min(rates) if rates else float("nan")
     last = bridge_d[-1] if bridge_d else {}
-    keys = ("rendered_total", "rendered_fresh_total", "rendered_no_model_total", "rendered_stale_model_total",
-            "rendered_outside_radius_total", "device_gaps_2ms_total", "models_total")  # fmt: skip
+    keys = (
+        "rendered_total",
+        "rendered_fresh_total",
+        "rendered_no_model_total",
+        "rendered_stale_model_total",
+        "rendered_outside_radius_total",
+        "device_gaps_2ms_total",
+        "models_total",
+    )
     for key in keys:
         out[key] = int(last.get(key, 0))
     ages = [float(d["model_age_ms_max"]) for d in bridge_d if d.get("model_age_ms_max") not in (None, "nan")]
@@ -54,8 +61,10 @@ def summarize(monitor, wall_s: float, poses: list) -> dict:
     if len(f):
         lat_ms = (f[:, 0] - f[:, 1]) * 1e-6
         out["latency_ms_p50"], out["latency_ms_p99"], out["latency_ms_max"] = (
-            float(np.percentile(lat_ms, 50)), float(np.percentile(lat_ms, 99)), float(lat_ms.max()),
-        )  # fmt: skip
+            float(np.percentile(lat_ms, 50)),
+            float(np.percentile(lat_ms, 99)),
+            float(lat_ms.max()),
+        )
     kern = [float(d["kernel_us_p99"]) for d in node_d if d.get("kernel_us_p99") not in (None, "nan")]
     out["kernel_us_p99_worst"] = max(kern) if kern else float("nan")
     return out
@@ -137,9 +146,11 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder for the picture and logs")
     ap.add_argument("--timeout-s", type=float, default=60.0)
     ap.add_argument(
-        "--start-delay-s", type=float, default=2.5,
+        "--start-delay-s",
+        type=float,
+        default=2.5,
         help="tool source waits this long for DDS discovery before its path starts (up to 1.6 s measured)",
-    )  # fmt: skip
+    )
     ap.add_argument("--view", action="store_true", help="also open the browser view (skin-sim view); headless: a screenshot")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -260,8 +271,9 @@ def offline_check(records: list, args, s: dict) -> list:
     from .bags.published import answered_only, check_published, format_check
 
     bag = args.out / "bag"
-    with BagWriter(bag, "mcap", custom_data={"skin_sim.scene": f"demo-{args.source}", "skin_sim.path": args.path},
-                   overwrite=True) as w:  # fmt: skip
+    with BagWriter(
+        bag, "mcap", custom_data={"skin_sim.scene": f"demo-{args.source}", "skin_sim.path": args.path}, overwrite=True
+    ) as w:
         for key in RECORDED:
             w.add_topic(bag_topic(key), TOPICS[key].type, qos_profiles(key))
         for rx, key, raw in records:
@@ -278,20 +290,29 @@ def offline_check(records: list, args, s: dict) -> list:
     c = check_published(res.forces_by_stamp(), published)
     print("  " + format_check(c, "published forces vs offline replay of the same poses", int(res.stamps_ns[0])))
     print(f"  recorded to {bag} (skin-sim replay {bag} replays it)")
-    checks = [(c.ok, "published forces are the offline answer" if c.ok else "published forces DISAGREE with the "
-               f"offline answer (max |dF| {c.diff.max_df_n:.3g} N at {c.diff.matched} matched stamps)")]  # fmt: skip
+    checks = [
+        (
+            c.ok,
+            "published forces are the offline answer"
+            if c.ok
+            else "published forces DISAGREE with the "
+            f"offline answer (max |dF| {c.diff.max_df_n:.3g} N at {c.diff.matched} matched stamps)",
+        )
+    ]
     k = int(np.argmin(res.tool_xyz_m[:, 2]))
     stamp = int(res.stamps_ns[k])
     model, xyz, n_aff = model_at(inputs, DEFAULT_PARAMS, stamp)
     pub = published.get(stamp)
     pic = deepest_figure(
-        model, xyz, args.out / "deformation_deepest.png",
+        model,
+        xyz,
+        args.out / "deformation_deepest.png",
         f"demo {args.source}/{args.path}: the tissue at the deepest pose, t = {(stamp - res.stamps_ns[0]) * 1e-9:.3f} s, "
         f"tip {-xyz[2] * 1e3:.2f} mm deep, force {res.force_n[k]:.3f} N (run's peak {res.peak_force_n:.3f} N)",
         "model state of the offline replay at that pose's stamp (time offset to the tool: 0 ms); the node published "
         + (f"{np.linalg.norm(pub):.4f} N for it" if pub is not None else "no wrench for it")
         + f"; {n_aff} of 3 layers under the tool",
-    )  # fmt: skip
+    )
     print(f"  picture: {pic} (the deepest pose, tip {-xyz[2] * 1e3:.2f} mm below the rest surface; model state at its stamp)")
     return checks + [(True, f"picture {pic}")]
 

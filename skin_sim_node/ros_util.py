@@ -139,7 +139,7 @@ def run_nodes(factories: list[Callable[[], object]], args=None, executor: str = 
                 stop()
             try:
                 n.destroy_node()
-            except Exception:  # noqa: BLE001 - best effort at shutdown
+            except Exception:
                 pass
         rclpy.try_shutdown()
     return code
@@ -150,7 +150,7 @@ def spin_context(executor, context, stop: threading.Event) -> None:
     while not stop.is_set() and context.ok():
         try:
             executor.spin_once(timeout_sec=0.05)
-        except Exception:  # noqa: BLE001 - the context shut down under us
+        except Exception:
             if not context.ok():
                 return
             raise

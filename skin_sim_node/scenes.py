@@ -92,7 +92,7 @@ class Scene:
         """Start ``python -m skin_sim_node.cli COMMAND ARGS`` as process ``name``, output to ``LOG_DIR/name.log``."""
         argv = [sys.executable, "-m", "skin_sim_node.cli", command, *args]
         log_path = self.log_dir / f"{name}.log"
-        fh = open(log_path, "w")  # noqa: SIM115 - owned by the child for its lifetime
+        fh = open(log_path, "w")
         popen = subprocess.Popen(argv, stdout=fh, stderr=subprocess.STDOUT, env=self.env, cwd=REPO)
         proc = Proc(name, argv, popen, log_path)
         self.procs.append(proc)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import re
 from pathlib import Path
 
 
@@ -16,25 +17,33 @@ def params_files(ros_args) -> list[str]:
     return [args[i + 1] for i, a in enumerate(args[:-1]) if a == "--params-file"]
 
 
+def key_matches(key: str, node_fqn: str) -> bool:
+    """Whether a parameter-file key names the node ``node_fqn`` as rcl reads it: the key is a fully qualified node
+    name (``skin_sim_node`` is ``/skin_sim_node``) where ``*`` is one name token and ``**`` any number of them,
+    none included (``/**/skin_sim_node`` matches ``/skin_sim_node`` and ``/s1/skin_sim_node``)."""
+    parts = []
+    for tok in key.strip("/").split("/"):
+        if tok == "**":
+            parts.append("(?:/[^/]+)*")
+        elif tok == "*":
+            parts.append("/[^/]+")
+        else:
+            parts.append("/" + re.escape(tok))
+    return re.fullmatch("".join(parts), node_fqn) is not None
+
+
 def applies_to(params_file: str, node_fqn: str) -> bool | None:
     """Whether a ``ros__parameters`` file has an entry for the node ``node_fqn`` (None: the file cannot be read).
 
-    rcl matches a key as a fully qualified node name (``skin_sim_node`` is ``/skin_sim_node``), with ``*`` and
-    ``**`` wildcards; a node started in a namespace does not match a bare ``skin_sim_node:`` key.
+    A node started in a namespace does not match a bare ``skin_sim_node:`` key (:func:`key_matches`).
     """
-    import fnmatch
-
     import yaml
 
     try:
         keys = list((yaml.safe_load(Path(params_file).read_text()) or {}).keys())
     except (OSError, yaml.YAMLError, AttributeError):
         return None
-    for key in map(str, keys):
-        pattern = ("/" + key.lstrip("/")).replace("**", "*")
-        if fnmatch.fnmatchcase(node_fqn, pattern) or pattern in ("/*",):
-            return True
-    return False
+    return any(key_matches(str(key), node_fqn) for key in keys)
 
 
 def start_line(flat: dict, ros_args, node_fqn: str | None = None) -> str:
@@ -58,7 +67,7 @@ def start_line(flat: dict, ros_args, node_fqn: str | None = None) -> str:
     named = []
     for f in files:
         hit = applies_to(f, node_fqn) if node_fqn else True
-        named.append(f if hit is not False else f"{f} (NOT applied: it has no entry for {node_fqn}; key it '/**:')")
+        named.append(f if hit is not False else f"{f} (NOT applied: it has no entry for {node_fqn}; key it '/**/skin_sim_node:')")
     preset = "preset " + ", ".join(named) if files else "no preset file (the schema's defaults; see --params-file)"
     shape = str(flat.get("tissue.tool.shape", "?"))
     tool = {"flat": "flat punch", "sphere": "sphere"}.get(shape, shape)
@@ -78,8 +87,7 @@ def node_argument_error(rest: list[str]) -> str | None:
     for i, a in enumerate(rest[:ros]):
         if a in ("--params-file", "-p", "--param", "-r", "--remap"):
             val = rest[i + 1] if i + 1 < len(rest) else "..."
-            return (f"{a} {val} is a ROS argument and goes after --ros-args: "
-                    f"skin-sim node --ros-args {a} {val}")  # fmt: skip
+            return f"{a} {val} is a ROS argument and goes after --ros-args: skin-sim node --ros-args {a} {val}"
     for path in params_files(rest[ros:]):
         if not Path(path).is_file():
             return f"--params-file {path}: no such file"

@@ -64,7 +64,7 @@ def test_round_trip_both_storages(tmp_path, storage):
     assert p[7] == (T0 + 7_000_000, "tissue", (7e-3, 0.0, -7e-4))
     forces = [cv.read_wrench(deserialize(raw, TOPICS["tool_wrench"].type))[2][2] for _, raw in raw_messages(bag, "/tool/wrench")]
     assert forces == pytest.approx([0.1 * k for k in range(20)], abs=0)
-    (_, raw), = raw_messages(bag, "/tissue/layer_heights")  # fmt: skip
+    ((_, raw),) = raw_messages(bag, "/tissue/layer_heights")
     assert np.array_equal(cv.read_image(deserialize(raw, TOPICS["layer_heights"].type)), grid.astype(np.float64))
     # metadata.yaml with every field `ros2 bag info` (rosbag2_storage's YAML decoder) reads
     meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
@@ -157,8 +157,15 @@ def short_forces(bag, opts):
 
 def test_crtk_device_bag_gives_the_tissue_frame_forces(tmp_path):
     m = DeviceMapping(offset_m=(0.001, -0.002, 0.05), scale=1.0, axes="x-zy")  # a real Touch's base frame
-    dev = write_trajectory_bag(tmp_path / "dev", "press_all_layers", compress=False, frame="base", mapping=m,
-                               pose_topic="/device/measured_cp", twist_topic="/device/measured_cv")  # fmt: skip
+    dev = write_trajectory_bag(
+        tmp_path / "dev",
+        "press_all_layers",
+        compress=False,
+        frame="base",
+        mapping=m,
+        pose_topic="/device/measured_cp",
+        twist_topic="/device/measured_cv",
+    )
     ref = short_forces(DATA / "press_all_layers" / "input", InputOptions())
     got = short_forces(dev, InputOptions(convention="crtk", mapping=m))
     assert np.array_equal(got.stamps_ns, ref.stamps_ns)
@@ -170,8 +177,15 @@ def test_crtk_device_bag_gives_the_tissue_frame_forces(tmp_path):
 
 def test_omni_device_bag_without_twist_replays(tmp_path):
     m = DeviceMapping()
-    dev = write_trajectory_bag(tmp_path / "omni", "press_hold_release", compress=False, frame="base", mapping=m,
-                               pose_topic="/device/phantom/pose", twist_topic="/device/unused_twist")  # fmt: skip
+    dev = write_trajectory_bag(
+        tmp_path / "omni",
+        "press_hold_release",
+        compress=False,
+        frame="base",
+        mapping=m,
+        pose_topic="/device/phantom/pose",
+        twist_topic="/device/unused_twist",
+    )
     inputs = read_inputs(dev, InputOptions(convention="omni"))
     assert inputs.twist_topic is None and inputs.n_poses == 2301
     ref = short_forces(PRESS, InputOptions())
@@ -180,8 +194,14 @@ def test_omni_device_bag_without_twist_replays(tmp_path):
 
 
 def test_topic_and_frame_remap(tmp_path):
-    bag = write_trajectory_bag(tmp_path / "foreign", "press_hold_release", compress=False, frame="skin_patch",
-                               pose_topic="/haptics/tip_pose", twist_topic="/haptics/tip_twist")  # fmt: skip
+    bag = write_trajectory_bag(
+        tmp_path / "foreign",
+        "press_hold_release",
+        compress=False,
+        frame="skin_patch",
+        pose_topic="/haptics/tip_pose",
+        twist_topic="/haptics/tip_twist",
+    )
     ref = short_forces(PRESS, InputOptions())
     got = short_forces(bag, InputOptions(pose_topic="haptics/tip_pose", twist_topic="/haptics/tip_twist", frame="skin_patch"))
     assert np.array_equal(got.force_n, ref.force_n)
@@ -199,8 +219,10 @@ def test_bag_without_pose_topic(tmp_path, capsys):
             T0,
             cv.fill_wrench(new_message(TOPICS["tool_wrench"].type), T0, "tissue", (0, 0, 1)),
         )
-    msg = (f"{bag}: no pose topic '/tool/pose'; topics present: /tool/wrench [geometry_msgs/msg/WrenchStamped] "
-           "(choose one with --pose-topic, or --convention crtk|omni for a device driver's bag)")  # fmt: skip
+    msg = (
+        f"{bag}: no pose topic '/tool/pose'; topics present: /tool/wrench [geometry_msgs/msg/WrenchStamped] "
+        "(choose one with --pose-topic, or --convention crtk|omni for a device driver's bag)"
+    )
     with pytest.raises(NoPoseTopicError) as e:
         read_inputs(bag, InputOptions())
     assert str(e.value) == msg
@@ -268,12 +290,15 @@ def test_foreign_frame_says_which_frames_and_how_to_map(tmp_path, capsys):
 def test_unknown_message_type_on_pose_topic(tmp_path):
     bag = tmp_path / "unknown"
     with BagWriter(bag, "mcap") as w:  # a type no typestore knows, declared with its own definition
-        w._writer.add_connection("/tool/pose", "acme_msgs/msg/StylusState", msgdef="float64 x\nfloat64 y\nfloat64 z",
-                                 rihs01="RIHS01_" + "0" * 64)  # fmt: skip
+        w._writer.add_connection(
+            "/tool/pose", "acme_msgs/msg/StylusState", msgdef="float64 x\nfloat64 y\nfloat64 z", rihs01="RIHS01_" + "0" * 64
+        )
     with pytest.raises(UnknownMessageTypeError) as e:
         read_inputs(bag, InputOptions())
-    assert str(e.value) == (f"{bag}: unknown message type 'acme_msgs/msg/StylusState' on pose topic '/tool/pose' "
-                            "(expected geometry_msgs/msg/PoseStamped)")  # fmt: skip
+    assert str(e.value) == (
+        f"{bag}: unknown message type 'acme_msgs/msg/StylusState' on pose topic '/tool/pose' "
+        "(expected geometry_msgs/msg/PoseStamped)"
+    )
     bag2 = tmp_path / "point"
     with BagWriter(bag2, "sqlite3") as w:  # a known type, but not a pose
         w.add_topic("/tool/pose", "geometry_msgs/msg/PointStamped")

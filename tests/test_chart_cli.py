@@ -12,8 +12,9 @@ REPO = Path(__file__).resolve().parents[1]
 
 def run(cwd, *argv):
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return subprocess.run([sys.executable, "-m", "skin_sim_node.cli", "chart", *argv], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=600)  # fmt: skip
+    return subprocess.run(
+        [sys.executable, "-m", "skin_sim_node.cli", "chart", *argv], cwd=cwd, env=env, capture_output=True, text=True, timeout=600
+    )
 
 
 def test_chart_writes_to_out_and_leaves_the_tracked_docs_alone(tmp_path):

@@ -5,10 +5,10 @@ import random
 import pytest
 
 pytest.importorskip("rclpy")
-from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped  # noqa: E402
-from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from rclpy.serialization import deserialize_message, serialize_message
 
-from msgs_schema import convert as cv  # noqa: E402
+from msgs_schema import convert as cv
 
 FRAMES = ["", "a", "ab", "abc", "tissue", "abcdefg", "abcdefgh", "device_base_link"]  # every alignment of the vector
 

@@ -7,9 +7,9 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from skin_sim_node.device.bridge import BridgeNode  # noqa: E402
-from skin_sim_node.device.mock_tool import MockToolNode  # noqa: E402
-from skin_sim_node.device.sim_device import SimDeviceNode  # noqa: E402
+from skin_sim_node.device.bridge import BridgeNode
+from skin_sim_node.device.mock_tool import MockToolNode
+from skin_sim_node.device.sim_device import SimDeviceNode
 
 NODES = {"bridge": BridgeNode, "device": SimDeviceNode, "mock-tool": MockToolNode}
 
@@ -58,8 +58,9 @@ def test_contact_model_message_round_trip_and_stale_tick():
 
     K = np.arange(9.0).reshape(3, 3) - 4
     tg = ContactTangent(np.array([0.1, 0.0, 1.2]), K, -0.5 * np.eye(3), np.array([0.0, 0.0, 1.0]), 2.5e-3)
-    tick = SimpleNamespace(seq=7, x0_m=(0.001, 0.0, -0.002), velocity_m_s=(0.0, 0.0, -0.01), force_n=(0.1, 0.0, 1.1),
-                           stale=False, tangent=tg)  # fmt: skip
+    tick = SimpleNamespace(
+        seq=7, x0_m=(0.001, 0.0, -0.002), velocity_m_s=(0.0, 0.0, -0.01), force_n=(0.1, 0.0, 1.1), stale=False, tangent=tg
+    )
     m = read_contact_model(fill_contact_model_from_tick(ContactModel(), tick, 1_700_000_000_123_456_789, "tissue"))
     assert (m.sequence, m.stamp_ns, m.frame_id) == (7, 1_700_000_000_123_456_789, "tissue")
     np.testing.assert_array_equal(m.stiffness_n_per_m, K)

@@ -180,8 +180,9 @@ def test_tangent_matches_finite_differences(cfg, shape, where, vel):
     scale = np.abs(tan.stiffness_n_per_m).max()
     np.testing.assert_allclose(tan.stiffness_n_per_m, k_fd, atol=2e-5 * scale)
     hv = 1e-7
-    d_fd = np.column_stack([(force(pos, np.add(vel, hv * e)) - force(pos, np.subtract(vel, hv * e))) / (2 * hv)
-                            for e in np.eye(3)])  # fmt: skip
+    d_fd = np.column_stack(
+        [(force(pos, np.add(vel, hv * e)) - force(pos, np.subtract(vel, hv * e))) / (2 * hv) for e in np.eye(3)]
+    )
     np.testing.assert_allclose(tan.damping_n_s_per_m, d_fd, atol=1e-5 * max(1.0, np.abs(d_fd).max()))
     assert tan.normal @ tan.stiffness_n_per_m @ tan.normal < 0  # pressing in raises the force
 

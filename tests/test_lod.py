@@ -169,8 +169,7 @@ def test_layer_field_box_and_assemble_box_match_reference(compiled, rng):
     scratch = (np.zeros((5, 3)), np.zeros((6, xs.size)), np.zeros((4, ys.size)), np.zeros((4, xs.size)))
     for box in ((0, xs.size, 0, ys.size), (5, 30, 3, 20)):
         out = np.full((ys.size, xs.size), np.nan)
-        field_box(q, 0.01, -0.005, mode_m, mode_n, np.array([1, 3, 5]), np.array([1, 3]), 0.06, 0.04, xs, ys, *box,
-                  *scratch, out)  # fmt: skip
+        field_box(q, 0.01, -0.005, mode_m, mode_n, np.array([1, 3, 5]), np.array([1, 3]), 0.06, 0.04, xs, ys, *box, *scratch, out)
         ix0, ix1, iy0, iy1 = box
         np.testing.assert_allclose(out[iy0:iy1, ix0:ix1], expect[iy0:iy1, ix0:ix1], atol=1e-15)
         outside = np.ones_like(out, dtype=bool)

@@ -20,8 +20,14 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def run(*argv, timeout=120):
-    return subprocess.run([sys.executable, "-m", "skin_sim_node.cli", *argv], cwd=REPO, capture_output=True, text=True,
-                          timeout=timeout, env=dict(os.environ))  # fmt: skip
+    return subprocess.run(
+        [sys.executable, "-m", "skin_sim_node.cli", *argv],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=dict(os.environ),
+    )
 
 
 def one_line_error(p) -> str:
@@ -66,24 +72,43 @@ def test_start_line_names_form_preset_and_tool():
         "starting: tissue form 'paper', preset config/paper.yaml, tool flat punch r = 2.50 mm"
     )
     assert "no preset file" in start_line(dict(flat, **{"tissue.tool.shape": "sphere"}), [])
-    args = ["--ros-args", "--params-file", str(REPO / "config/paper.yaml")]
+    args = ["--ros-args", "--params-file", str(REPO / "config/paper.yaml")]  # keyed /**/skin_sim_node
+    assert "NOT applied" not in start_line(flat, args, "/skin_sim_node")
+    assert "NOT applied" not in start_line(flat, args, "/bed1/skin_sim_node")
+
+
+def test_start_line_says_when_a_bare_key_misses_a_namespaced_node(tmp_path):
+    bare = tmp_path / "bare.yaml"
+    bare.write_text("skin_sim_node:\n  ros__parameters:\n    rate_hz: 500.0\n")
+    flat = {"tissue.form": "layered", "tissue.tool.shape": "flat", "tissue.tool.radius_m": 2.5e-3}
+    args = ["--ros-args", "--params-file", str(bare)]
     assert "NOT applied" not in start_line(flat, args, "/skin_sim_node")
     assert "NOT applied: it has no entry for /bed1/skin_sim_node" in start_line(flat, args, "/bed1/skin_sim_node")
 
 
 @pytest.mark.ros
 def test_node_first_line_names_the_tissue_form_preset_and_tool(tmp_path, ros_domain):
-    """The first line says what runs; in a namespace the preset's bare ``skin_sim_node:`` key does not apply (rcl
-    matches fully qualified names), and the line says so instead of naming a preset that is not in force."""
+    """The first line says what runs, and the shipped preset (keyed ``/**/skin_sim_node``) applies in a namespace too:
+    it was keyed ``skin_sim_node:``, which rcl matches to ``/skin_sim_node`` only, and namespaced nodes ran without it."""
     from skin_sim_node.scenes import Scene
 
     firsts = {}
     with Scene(tmp_path / "logs") as scene:
         for ns in ("/", "/mistakes"):
-            node = scene.start(f"node{len(firsts)}", "node", "--ros-args", "--params-file", "config/paper.yaml",
-                               "-r", f"__ns:={ns}")  # fmt: skip
+            node = scene.start(
+                f"node{len(firsts)}", "node", "--ros-args", "--params-file", "config/paper.yaml", "-r", f"__ns:={ns}"
+            )
             scene.wait_for_log(node, "live:", timeout_s=180)
             time.sleep(0.2)
             firsts[ns] = next(line for line in node.log().splitlines() if "skin_sim_node" in line)
     assert firsts["/"].endswith("starting: tissue form 'paper', preset config/paper.yaml, tool flat punch r = 2.50 mm")
-    assert "tissue form 'layered', preset config/paper.yaml (NOT applied" in firsts["/mistakes"], firsts
+    assert firsts["/mistakes"].endswith("starting: tissue form 'paper', preset config/paper.yaml, tool flat punch r = 2.50 mm")
+
+
+def test_parameter_file_keys_match_as_rcl_reads_them():
+    from skin_sim_node.startup import key_matches
+
+    assert key_matches("/**/skin_sim_node", "/skin_sim_node") and key_matches("/**/skin_sim_node", "/s1/skin_sim_node")
+    assert key_matches("skin_sim_node", "/skin_sim_node") and not key_matches("skin_sim_node", "/s1/skin_sim_node")
+    assert key_matches("/*/skin_sim_node", "/s1/skin_sim_node") and not key_matches("/*/skin_sim_node", "/skin_sim_node")
+    assert key_matches("/**", "/a/b/c") and not key_matches("/other", "/skin_sim_node")

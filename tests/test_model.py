@@ -339,7 +339,7 @@ layer_values = st.fixed_dictionaries(
         ),
         min_size=1,
         max_size=25,
-    ),  # fmt: skip
+    ),
 )
 def test_property_force_and_grid_finite_and_bounded(layers, amp_frac, modes, form, sphere, path):
     flat = default_flat()

@@ -91,14 +91,28 @@ def test_node_rt_priority_is_opt_in_and_degrades_with_a_warning(tmp_path):
     from skin_sim_node.perf.monitor import Monitor
 
     with Scene(tmp_path, domain_id=int(os.environ["ROS_DOMAIN_ID"])) as scene:
-        base = [sys.executable, "-m", "skin_sim_node.cli", "node", "--ros-args", "--params-file", str(DEFAULT_PARAMS),
-                "-p", "loop_mode:=timer", "-p", "rt_priority:=20", "-p", "display_rate_hz:=0.0"]  # fmt: skip
+        base = [
+            sys.executable,
+            "-m",
+            "skin_sim_node.cli",
+            "node",
+            "--ros-args",
+            "--params-file",
+            str(DEFAULT_PARAMS),
+            "-p",
+            "loop_mode:=timer",
+            "-p",
+            "rt_priority:=20",
+            "-p",
+            "display_rate_hz:=0.0",
+        ]
         procs = {}
         for name, prefix in (("granted", []), ("denied", ["setpriv", "--inh-caps=-sys_nice", "--bounding-set=-sys_nice"])):
             log = tmp_path / f"{name}.log"
             with open(log, "w") as fh:
-                p = subprocess.Popen(prefix + base + ["-r", f"__ns:=/{name}"], stdout=fh, stderr=subprocess.STDOUT,
-                                     env=scene.env, cwd=REPO)  # fmt: skip
+                p = subprocess.Popen(
+                    prefix + base + ["-r", f"__ns:=/{name}"], stdout=fh, stderr=subprocess.STDOUT, env=scene.env, cwd=REPO
+                )
             procs[name] = (p, log)
         try:
             for p, log in procs.values():
@@ -155,8 +169,9 @@ def test_dds_across_network_namespaces():
     if reason:
         pytest.skip(reason)
     env = dict(os.environ, CASES="cross_udp", PY=sys.executable)
-    r = subprocess.run(["bash", str(REPO / "scripts" / "netns_scale.sh"), "3"], capture_output=True, text=True, env=env,
-                       timeout=300)  # fmt: skip
+    r = subprocess.run(
+        ["bash", str(REPO / "scripts" / "netns_scale.sh"), "3"], capture_output=True, text=True, env=env, timeout=300
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     line = next(ln for ln in r.stdout.splitlines() if ln.startswith("across namespaces (veth), UDPv4:"))
     assert int(line.split(":")[1].split()[0]) > 100  # forces crossed the veth both ways
@@ -182,8 +197,14 @@ def test_diag_counts_sums_the_windows_after_the_first():
     from skin_sim_node.perf.bench_node import diag_counts
 
     def d(total, missed, late, hz):
-        return {"ticks_total": str(total), "missed_slots_window": str(missed), "late_ticks_window": str(late),
-                "achieved_rate_hz": str(hz), "period_us_p99": "1100", "kernel_us_p99": "20"}  # fmt: skip
+        return {
+            "ticks_total": str(total),
+            "missed_slots_window": str(missed),
+            "late_ticks_window": str(late),
+            "achieved_rate_hz": str(hz),
+            "period_us_p99": "1100",
+            "kernel_us_p99": "20",
+        }
 
     c = diag_counts([d(500, 99, 99, 1.0), d(1500, 10, 4, 990.0), d(2500, 30, 6, 1000.0)])
     assert (c["node_windows"], c["node_ticks"], c["node_late_ticks"]) == (2, 2000, 10)

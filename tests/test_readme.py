@@ -63,8 +63,14 @@ def test_readme_record_replay_live_compare_sequence(tmp_path, ros_domain):
     env = dict(os.environ)
 
     def run(*argv, timeout=600):
-        return subprocess.run([sys.executable, "-m", "skin_sim_node.cli", *argv], cwd=tmp_path, env=env,
-                              capture_output=True, text=True, timeout=timeout)  # fmt: skip
+        return subprocess.run(
+            [sys.executable, "-m", "skin_sim_node.cli", *argv],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
 
     rec = run("record", "out/rec", "--scene", "demo-mock", "--path", "press_hold_release", "--no-images")
     assert rec.returncode == 0, rec.stdout + rec.stderr

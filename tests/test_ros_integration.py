@@ -143,6 +143,7 @@ def test_grid_shows_indentation_at_tool(scene, monitor):
     node = start_node(scene)
     # the display worker (the node's child process) yields to the haptic process: niceness 19, all its threads
     (worker,) = [p for p in psutil.Process(node.popen.pid).children(recursive=True) if "spawn_main" in " ".join(p.cmdline())]
+
     def nices():
         return {psutil.Process(t.id).nice() for t in worker.threads()}
 
@@ -321,8 +322,11 @@ def test_parameter_change_applied_or_rejected(scene, monitor):
     assert not r.successful and r.reason.startswith("tissue.layers.dermis.stiffness_n_per_m = -5.0 N/m: must be >")
     (r,) = set_params(Parameter("tissue.tool.radius_m", Parameter.Type.DOUBLE, -1.0))
     assert not r.successful and r.reason.startswith("tissue.tool.radius_m"), r.reason
-    for name, ptype, value in (("rt_priority", Parameter.Type.INTEGER, 10), ("precise_sleep", Parameter.Type.BOOL, False),
-                               ("input_queue_depth", Parameter.Type.INTEGER, 5)):  # fmt: skip
+    for name, ptype, value in (
+        ("rt_priority", Parameter.Type.INTEGER, 10),
+        ("precise_sleep", Parameter.Type.BOOL, False),
+        ("input_queue_depth", Parameter.Type.INTEGER, 5),
+    ):
         (r,) = set_params(Parameter(name, ptype, value))  # read at start only: a live set is refused with the reason
         assert not r.successful and "read-only" in r.reason and name in r.reason, r.reason
     (r,) = set_params(Parameter("tissue.interfaces.dermis_fat.amplitude_m", Parameter.Type.DOUBLE, 3e-3))

@@ -19,7 +19,7 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from skin_sim_node.scenes import STOP_TIMEOUT_S, Scene  # noqa: E402
+from skin_sim_node.scenes import STOP_TIMEOUT_S, Scene
 
 pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
 

@@ -134,8 +134,9 @@ def test_scale_verdict_says_which_session_missed_how_much():
     checks = scale_checks(rows, 2)
     line = verdict_line("scale", checks)
     assert exit_code(checks) == 1
-    assert line == ("scale FAIL: 2 session(s): /s2 missed 7.800 % of ticks (limit 0.1 %); "
-                    "passed: 1 session(s): worst missed 0.050 % <= 0.1 %")  # fmt: skip
+    assert line == (
+        "scale FAIL: 2 session(s): /s2 missed 7.800 % of ticks (limit 0.1 %); passed: 1 session(s): worst missed 0.050 % <= 0.1 %"
+    )
     assert sessions_held([_scale_row(1, [7.8])]) == 0
     assert exit_code(scale_checks(rows[:1], 1)) == 0
     stopped = scale_checks(rows[:1], 3)  # the run stopped before 2 and 3 were measured

@@ -64,15 +64,19 @@ def test_parse_value_follows_the_parameter_type():
 
 
 def test_diag_message_keeps_regime_and_counts():
-    d = frames.diag_message(1, "late", {"achieved_rate_hz": "990.0", "regime_beyond_fat": "2", "count_teleport": "1",
-                                        "warmup_s": "1.0"})  # fmt: skip
+    d = frames.diag_message(
+        1, "late", {"achieved_rate_hz": "990.0", "regime_beyond_fat": "2", "count_teleport": "1", "warmup_s": "1.0"}
+    )
     assert d["values"] == {"achieved_rate_hz": "990.0"}
     assert d["regime"] == {"beyond_fat": "2"} and d["counts"] == {"teleport": "1"} and d["level"] == 1
 
 
 def test_find_topic_in_any_namespace():
-    types = {"/bed1/tool/wrench": "geometry_msgs/msg/WrenchStamped", "/tool/pose": "geometry_msgs/msg/PoseStamped",
-             "/x/tool/wrench": "std_msgs/msg/String"}  # fmt: skip
+    types = {
+        "/bed1/tool/wrench": "geometry_msgs/msg/WrenchStamped",
+        "/tool/pose": "geometry_msgs/msg/PoseStamped",
+        "/x/tool/wrench": "std_msgs/msg/String",
+    }
     assert find_topic(types, "tool_wrench") == "/bed1/tool/wrench"
     assert find_topic(types, "tool_pose") == "/tool/pose"
     assert find_topic(types, "layer_heights") is None
@@ -364,8 +368,11 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
             SHOTS.mkdir(parents=True, exist_ok=True)
             for _ in range(5):  # a shot taken while the page still shows the press (the page lags on a loaded CPU)
                 try:  # the docs picture: a grid close in time to the tool (the overlay prints the offset either way)
-                    b.wait_for(f"window.skinView.force > 0.8 * {pressed} && Math.abs(window.skinView.gridDtS) < 0.05",
-                               20, "a pressed frame with a recent grid")  # fmt: skip
+                    b.wait_for(
+                        f"window.skinView.force > 0.8 * {pressed} && Math.abs(window.skinView.gridDtS) < 0.05",
+                        20,
+                        "a pressed frame with a recent grid",
+                    )
                 except TimeoutError:
                     b.wait_for(f"window.skinView.force > 0.8 * {pressed}", 20, "a pressed frame")
                 _rendered(b)
@@ -386,8 +393,11 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
             reached = b.evaluate("document.getElementById('tip-layer').textContent")
             assert reached.split()[0] in ("none", "epidermis", "dermis", "fat"), reached
             # parameters come from the node at run time; a bad value typed into the page shows the node's reason
-            b.wait_for("document.querySelector('input[data-name=\"tissue.layers.dermis.stiffness_n_per_m\"]') !== null",
-                       60, "the stiffness field")  # fmt: skip
+            b.wait_for(
+                "document.querySelector('input[data-name=\"tissue.layers.dermis.stiffness_n_per_m\"]') !== null",
+                60,
+                "the stiffness field",
+            )
             # the panel fits the 1280 x 800 window: every "set" button lies inside it, nothing scrolls sideways
             inside = b.evaluate("""(() => { const w = window.innerWidth, bs = [...document.querySelectorAll('button[data-set]')];
                 return {n: bs.length, out: bs.filter((e) => e.getBoundingClientRect().right > w).length,
@@ -437,6 +447,9 @@ def test_page_opened_before_the_node_lists_its_parameters_once_it_runs(ros_domai
             b.wait_for("document.getElementById('params').textContent.includes('not found')", 60, "the reason")
             node = scene.node("-r", f"__ns:={ns}")
             scene.wait_for_log(node, "live:", timeout_s=180)
-            b.wait_for("document.querySelector('input[data-name=\"tissue.layers.dermis.stiffness_n_per_m\"]') !== null",
-                       60, "the stiffness field once the node runs")  # fmt: skip
+            b.wait_for(
+                "document.querySelector('input[data-name=\"tissue.layers.dermis.stiffness_n_per_m\"]') !== null",
+                60,
+                "the stiffness field once the node runs",
+            )
             assert b.evaluate("document.getElementById('param-node').textContent") == f"{ns}/skin_sim_node"

@@ -72,8 +72,9 @@ def _topic(types: dict[str, str], name: str) -> str | None:
     return None
 
 
-def read_outputs(bag, wrench_topic: str = TOPICS["tool_wrench"].name, grid_topic: str = TOPICS["layer_heights"].name,
-                 grids: bool = True) -> tuple[dict[int, float], dict[int, np.ndarray]]:  # fmt: skip
+def read_outputs(
+    bag, wrench_topic: str = TOPICS["tool_wrench"].name, grid_topic: str = TOPICS["layer_heights"].name, grids: bool = True
+) -> tuple[dict[int, float], dict[int, np.ndarray]]:
     """``({stamp_ns: force vector (fx, fy, fz)}, {stamp_ns: layer_heights})`` of an output bag."""
     bag = Path(bag)
     with open_bag(bag) as reader:
@@ -137,10 +138,17 @@ def diff_outputs(a: tuple[dict, dict], b: tuple[dict, dict]) -> Diff:
     gc = sorted(set(ga) & set(gb))
     dz = max((float(np.max(np.abs(ga[s] - gb[s]))) if ga[s].shape == gb[s].shape else float("inf") for s in gc), default=0.0)
     return Diff(
-        len(fa), len(fb), len(common),
-        float(np.max(np.abs(da))) if da.size else 0.0, float(np.sqrt(np.mean(da**2))) if da.size else 0.0, peak,
-        len(ga), len(gb), len(gc), dz,
-    )  # fmt: skip
+        len(fa),
+        len(fb),
+        len(common),
+        float(np.max(np.abs(da))) if da.size else 0.0,
+        float(np.sqrt(np.mean(da**2))) if da.size else 0.0,
+        peak,
+        len(ga),
+        len(gb),
+        len(gc),
+        dz,
+    )
 
 
 def verdict(d: Diff, tol: Tolerances = LIVE) -> list[str]:
@@ -163,8 +171,9 @@ def verdict(d: Diff, tol: Tolerances = LIVE) -> list[str]:
 def describe(tol: Tolerances) -> str:
     """The tolerances in one line, as the verdict prints them."""
     extra = "" if tol.max_extra == float("inf") else f", at most {tol.max_extra:.0%} of B's stamps not in A"
-    return (f"max |dF| <= {tol.force_abs_n:g} N + {tol.force_rel:.2%} of peak, >= {tol.min_matched:.0%} of A's stamps "
-            f"matched{extra}")  # fmt: skip
+    return (
+        f"max |dF| <= {tol.force_abs_n:g} N + {tol.force_rel:.2%} of peak, >= {tol.min_matched:.0%} of A's stamps matched{extra}"
+    )
 
 
 def format_table(d: Diff, a: str = "A", b: str = "B") -> str:
@@ -223,8 +232,10 @@ def main(argv=None) -> int:
         return 2
     d = diff_outputs(a, b)
     print(format_table(d, str(args.bag_a), str(args.bag_b)))
-    tol = replace(EXACT if args.exact else LIVE, **{k: v for k in ("force_abs_n", "force_rel", "grid_m", "min_matched")
-                                                    if (v := getattr(args, k)) is not None})  # fmt: skip
+    tol = replace(
+        EXACT if args.exact else LIVE,
+        **{k: v for k in ("force_abs_n", "force_rel", "grid_m", "min_matched") if (v := getattr(args, k)) is not None},
+    )
     fails = verdict(d, tol)
     print(f"tolerances ({'exact' if args.exact else 'live'}): {describe(tol)}")
     print("DIFFERENT: " + "; ".join(fails) if fails else "SAME within tolerances")

@@ -39,9 +39,18 @@ GRID_RATE_HZ = 2.0
 RATE_HZ = 1000.0
 
 
-def write_trajectory_bag(path: Path, name: str, rate_hz: float = RATE_HZ, t0_ns: int = T0_NS, storage: str = "mcap",
-                         compress: bool = True, frame: str = FRAMES["tissue"], pose_topic: str | None = None,
-                         twist_topic: str | None = None, mapping=None) -> Path:  # fmt: skip
+def write_trajectory_bag(
+    path: Path,
+    name: str,
+    rate_hz: float = RATE_HZ,
+    t0_ns: int = T0_NS,
+    storage: str = "mcap",
+    compress: bool = True,
+    frame: str = FRAMES["tissue"],
+    pose_topic: str | None = None,
+    twist_topic: str | None = None,
+    mapping=None,
+) -> Path:
     """Write a mock tool trajectory as a bag of poses and twists (``mapping``: device frame).
 
     Parameters
@@ -75,8 +84,9 @@ def make_golden(out_dir: Path, scenes=SCENES, params=DEFAULT_PARAMS) -> dict[str
             shutil.rmtree(d)
         d.mkdir(parents=True)
         write_trajectory_bag(d / "input", name)
-        res = replay_to_bag(read_inputs(d / "input", InputOptions()), d / "expected", params,
-                            grid_rate_hz=GRID_RATE_HZ, compress=True)  # fmt: skip
+        res = replay_to_bag(
+            read_inputs(d / "input", InputOptions()), d / "expected", params, grid_rate_hz=GRID_RATE_HZ, compress=True
+        )
         summaries[name] = res.summary()
     return summaries
 
@@ -88,8 +98,10 @@ def main(argv=None) -> int:
     ap.add_argument("--scene", action="append", choices=SCENES, help="only these scenes (repeatable)")
     args = ap.parse_args(argv)
     for name, s in make_golden(args.out, args.scene or SCENES).items():
-        print(f"{name:20s} peak {s['peak_force_n']:.4f} N, layers {', '.join(s['layers_reached']) or '-'}, "
-              f"{s['answered']} wrenches, {s['grid_frames']} grids")  # fmt: skip
+        print(
+            f"{name:20s} peak {s['peak_force_n']:.4f} N, layers {', '.join(s['layers_reached']) or '-'}, "
+            f"{s['answered']} wrenches, {s['grid_frames']} grids"
+        )
     total = sum(f.stat().st_size for f in args.out.rglob("*") if f.is_file())
     print(f"{args.out}: {total / 1e6:.2f} MB")
     return 0

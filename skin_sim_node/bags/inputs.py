@@ -94,9 +94,11 @@ class Inputs:
             return None
         held = ", ".join(f"'{f}' ({n} poses)" for f, n in sorted(foreign.items(), key=lambda kv: -kv[1]))
         top = max(foreign, key=foreign.get)
-        return (f"{self.pose_topic} holds poses in frame {held}; the model answers only frame '{tissue_frame}': "
-                f"map one with --frame {top} (it is then treated as the tissue frame), or --convention crtk|omni "
-                "for a device driver's frame")  # fmt: skip
+        return (
+            f"{self.pose_topic} holds poses in frame {held}; the model answers only frame '{tissue_frame}': "
+            f"map one with --frame {top} (it is then treated as the tissue frame), or --convention crtk|omni "
+            "for a device driver's frame"
+        )
 
     @property
     def poses(self):

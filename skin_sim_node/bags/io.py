@@ -70,10 +70,17 @@ def qos_profiles(topic_key: str) -> list[Qos]:
     reliability, depth = _QOS_CLASSES[TOPICS[topic_key].qos]
     return [
         Qos(
-            QosHistory.KEEP_LAST, depth, reliability, QosDurability.VOLATILE,
-            _ZERO, _ZERO, QosLiveliness.AUTOMATIC, _ZERO, False,
+            QosHistory.KEEP_LAST,
+            depth,
+            reliability,
+            QosDurability.VOLATILE,
+            _ZERO,
+            _ZERO,
+            QosLiveliness.AUTOMATIC,
+            _ZERO,
+            False,
         )
-    ]  # fmt: skip
+    ]
 
 
 def deserialize(raw: bytes, msgtype: str):
@@ -223,14 +230,14 @@ def open_bag(path) -> Iterator[Reader]:
         reader.open()
     except BagError:
         raise
-    except Exception as exc:  # noqa: BLE001 - rosbags raises ReaderError, struct/sqlite/IO errors
+    except Exception as exc:
         raise _truncated(path, exc) from exc
     try:
         yield reader
     finally:
         try:
             reader.close()
-        except Exception:  # noqa: BLE001 - closing a broken file
+        except Exception:
             pass
 
 
@@ -257,7 +264,7 @@ def iter_raw(path, reader: Reader, topics) -> Iterator[tuple[str, str, int, byte
             yield conn.topic, conn.msgtype, t_ns, raw
     except BagError:
         raise
-    except Exception as exc:  # noqa: BLE001 - see open_bag
+    except Exception as exc:
         raise _truncated(Path(path), exc) from exc
     # a record zeroed mid-file can end the reader's scan early without an error: compare with the index
     short = [f"{c.topic} {read[c.id]} of {c.msgcount}" for c in conns if c.msgcount and read[c.id] < c.msgcount]
@@ -276,7 +283,7 @@ def iter_messages(path, reader: Reader, topics) -> Iterator[tuple[str, str, int,
     for topic, msgtype, t_ns, raw in iter_raw(path, reader, topics):
         try:
             msg = deserialize(raw, msgtype)
-        except Exception as exc:  # noqa: BLE001 - rosbags raises SerdeError, struct and index errors
+        except Exception as exc:
             raise _truncated(Path(path), exc) from exc
         yield topic, msgtype, t_ns, msg
 

@@ -63,8 +63,16 @@ def _run_source(rec, inputs: Inputs, speed: float, out: Path, timeout_s: float =
     base = first - HANDSHAKE_LEAD_NS
     events = (out / "live_inputs.npz").resolve()  # the publisher process runs in the repository folder
     _events_file(inputs, events)
-    argv = [sys.executable, "-m", "skin_sim_node.bags.live_source", str(events), "--speed", f"{speed}",
-            "--handshake-base-ns", str(base)]  # fmt: skip
+    argv = [
+        sys.executable,
+        "-m",
+        "skin_sim_node.bags.live_source",
+        str(events),
+        "--speed",
+        f"{speed}",
+        "--handshake-base-ns",
+        str(base),
+    ]
     proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=REPO)
     try:
         t0 = time.perf_counter()

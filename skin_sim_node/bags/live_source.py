@@ -80,8 +80,17 @@ def main(argv=None) -> int:
     gc.disable()
     sys.setswitchinterval(2e-4)
     wall, late = stream(pose_pub, twist_pub, stamps, ranks, frames, xyz, args.speed)
-    print(json.dumps({"stream_wall_s": wall, "handshake_poses": i, **{f"publish_late_ms_p{q}": float(np.percentile(late, q) * 1e3)
-                      for q in (50, 99)}, "publish_late_ms_max": float(late.max() * 1e3)}), flush=True)  # fmt: skip
+    print(
+        json.dumps(
+            {
+                "stream_wall_s": wall,
+                "handshake_poses": i,
+                **{f"publish_late_ms_p{q}": float(np.percentile(late, q) * 1e3) for q in (50, 99)},
+                "publish_late_ms_max": float(late.max() * 1e3),
+            }
+        ),
+        flush=True,
+    )
     node.destroy_node()
     rclpy.try_shutdown()
     return 0

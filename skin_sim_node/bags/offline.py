@@ -164,8 +164,9 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
             peak_state = session.state()
         if writer is None:
             continue
-        writer.write(bag_topic("tool_wrench"), TOPICS["tool_wrench"].type, stamp,
-                     cv.fill_wrench_from_tick(out.wrench, r, stamp, frame), wq)  # fmt: skip
+        writer.write(
+            bag_topic("tool_wrench"), TOPICS["tool_wrench"].type, stamp, cv.fill_wrench_from_tick(out.wrench, r, stamp, frame), wq
+        )
         msg = cv.fill_contact_from_tick(out.contact, r, stamp, frame)
         msg.position, msg.velocity, msg.effort = (
             np.asarray(a, dtype=np.float64) for a in (msg.position, msg.velocity, msg.effort)
@@ -181,16 +182,37 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
                 n_grids += 1
                 next_grid += grid_ns * ((stamp - next_grid) // grid_ns + 1)
     return ReplayResult(
-        np.array(stamps, dtype=np.int64), np.array(forces), np.array(n_aff, dtype=int), np.array(depths),
-        np.array(xyzs).reshape(-1, 3), dict(session.counts), inputs.n_poses, inputs.n_twists, n_grids, peak_i,
-        peak_state, cfg, tuple(LAYER_NAMES), frame, np.array(vectors, dtype=float).reshape(-1, 3),
-    )  # fmt: skip
+        np.array(stamps, dtype=np.int64),
+        np.array(forces),
+        np.array(n_aff, dtype=int),
+        np.array(depths),
+        np.array(xyzs).reshape(-1, 3),
+        dict(session.counts),
+        inputs.n_poses,
+        inputs.n_twists,
+        n_grids,
+        peak_i,
+        peak_state,
+        cfg,
+        tuple(LAYER_NAMES),
+        frame,
+        np.array(vectors, dtype=float).reshape(-1, 3),
+    )
 
 
-def replay_to_bag(inputs: Inputs, out_bag: Path, params=DEFAULT_PARAMS, storage: str = "mcap",
-                  grid_rate_hz: float = 60.0, compress: bool = False) -> ReplayResult:  # fmt: skip
+def replay_to_bag(
+    inputs: Inputs,
+    out_bag: Path,
+    params=DEFAULT_PARAMS,
+    storage: str = "mcap",
+    grid_rate_hz: float = 60.0,
+    compress: bool = False,
+) -> ReplayResult:
     """:func:`replay` writing a new output bag at ``out_bag`` (replaced if it is a bag)."""
-    custom = {"skin_sim.source": str(inputs.bag.name), "skin_sim.params": Path(params).name,
-              "skin_sim.grid_rate_hz": f"{grid_rate_hz:g}"}  # fmt: skip
+    custom = {
+        "skin_sim.source": str(inputs.bag.name),
+        "skin_sim.params": Path(params).name,
+        "skin_sim.grid_rate_hz": f"{grid_rate_hz:g}",
+    }
     with BagWriter(out_bag, storage, compress=compress, custom_data=custom, overwrite=True) as w:
         return replay(inputs, params, w, grid_rate_hz)

@@ -69,6 +69,7 @@ def check_published(offline: dict[int, float], published: dict[int, float], tol:
     if d.matched == 0:
         fails.append("no published wrench answers a replayed pose (stamps differ)")
     common = set(offline) & set(published)
+
     def gap(s):
         return float(np.linalg.norm(np.subtract(published[s], offline[s])))
 

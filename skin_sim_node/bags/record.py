@@ -23,9 +23,17 @@ START_DELAY_S = 3.0
 """Tool start delay: DDS discovery between three new processes took up to 1.6 s in our probe."""
 
 
-def record_scene(out: Path, scene_kind: str, path: str, storage: str = "mcap", duration_s: float | None = None,
-                 mesh: bool = False, images: bool = True, params: Path = DEFAULT_PARAMS,
-                 start_delay_s: float = START_DELAY_S) -> dict[str, int]:  # fmt: skip
+def record_scene(
+    out: Path,
+    scene_kind: str,
+    path: str,
+    storage: str = "mcap",
+    duration_s: float | None = None,
+    mesh: bool = False,
+    images: bool = True,
+    params: Path = DEFAULT_PARAMS,
+    start_delay_s: float = START_DELAY_S,
+) -> dict[str, int]:
     """Record one scene run to ``out``; returns messages per topic key."""
     out = Path(out)
     if out.exists():
@@ -79,8 +87,17 @@ def main(argv=None) -> int:
     ap.add_argument("--start-delay-s", type=float, default=START_DELAY_S, help="tool start delay (DDS discovery)")
     args = ap.parse_args(argv)
     try:
-        counts = record_scene(args.out, args.scene, args.path, args.storage, args.duration_s, args.mesh,
-                              not args.no_images, args.params, args.start_delay_s)  # fmt: skip
+        counts = record_scene(
+            args.out,
+            args.scene,
+            args.path,
+            args.storage,
+            args.duration_s,
+            args.mesh,
+            not args.no_images,
+            args.params,
+            args.start_delay_s,
+        )
     except FileExistsError as exc:
         print(f"skin-sim record: error: {exc}", file=sys.stderr)
         return 2

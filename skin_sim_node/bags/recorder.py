@@ -58,8 +58,9 @@ class Recorder:
         stalled the publishing thread of this process for up to 50 ms (p99 37 ms late).
     """
 
-    def __init__(self, keys, writer: BagWriter | None = None, name: str = "skin_sim_recorder", keep: bool = False,
-                 executor: str = "single"):  # fmt: skip
+    def __init__(
+        self, keys, writer: BagWriter | None = None, name: str = "skin_sim_recorder", keep: bool = False, executor: str = "single"
+    ):
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node(name, context=self.context)

@@ -49,8 +49,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=LIVE.force_rel,
         help=f"max |dF| allowed, fraction of peak (default {LIVE.force_rel}, as skin-sim compare)",
     )
-    g.add_argument("--min-answered", type=float, default=LIVE.min_matched,
-                   help=f"min fraction of poses answered (default {LIVE.min_matched}, as skin-sim compare)")  # fmt: skip
+    g.add_argument(
+        "--min-answered",
+        type=float,
+        default=LIVE.min_matched,
+        help=f"min fraction of poses answered (default {LIVE.min_matched}, as skin-sim compare)",
+    )
     g.add_argument("--timeout-s", type=float, default=180.0, help="node start-up timeout (numba warm-up, discovery)")
     return ap
 
@@ -71,13 +75,20 @@ def main(argv=None) -> int:
         return 2
     hint = inputs.frame_hint(res.tissue_frame) if res.counts.get(UNKNOWN_FRAME) else None
     if res.stamps_ns.size == 0:
-        print(f"skin-sim replay: error: {args.bag}: none of {res.n_poses} poses was answered ("
-              + (", ".join(f"{k} {v}" for k, v in sorted(res.counts.items())) or "no events") + ")"
-              + (f"; {hint}" if hint else ""), file=sys.stderr)  # fmt: skip
+        print(
+            f"skin-sim replay: error: {args.bag}: none of {res.n_poses} poses was answered ("
+            + (", ".join(f"{k} {v}" for k, v in sorted(res.counts.items())) or "no events")
+            + ")"
+            + (f"; {hint}" if hint else ""),
+            file=sys.stderr,
+        )
         return 2
     summary = write_report(res, out, title=f"offline replay of {args.bag}") if not args.no_report else res.summary()
-    print(f"offline replay of {args.bag} ({inputs.pose_topic}" + (f", {inputs.twist_topic}" if inputs.twist_topic else "")
-          + f") in {t_replay:.2f} s -> {out / 'outputs'}")  # fmt: skip
+    print(
+        f"offline replay of {args.bag} ({inputs.pose_topic}"
+        + (f", {inputs.twist_topic}" if inputs.twist_topic else "")
+        + f") in {t_replay:.2f} s -> {out / 'outputs'}"
+    )
     print(format_summary(summary))
     if hint:
         print(f"note: {hint}")

@@ -8,11 +8,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from ..viz.plots import LAYER_COLOURS, draw_cross_section, draw_surface  # noqa: E402
-from .offline import ReplayResult  # noqa: E402
+from ..viz.plots import LAYER_COLOURS, draw_cross_section, draw_surface
+from .offline import ReplayResult
 
 
 def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
@@ -32,8 +32,17 @@ def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
         for li, name in enumerate(res.layer_names):
             where = reached == li
             if where.any():  # a legend entry only for a layer that appears
-                ax.fill_between(t, 0, top, where=where, color=LAYER_COLOURS[li % 3], alpha=0.6, lw=0, step="mid",
-                                label=f"tool depth in the {name}'s rest depths")  # fmt: skip
+                ax.fill_between(
+                    t,
+                    0,
+                    top,
+                    where=where,
+                    color=LAYER_COLOURS[li % 3],
+                    alpha=0.6,
+                    lw=0,
+                    step="mid",
+                    label=f"tool depth in the {name}'s rest depths",
+                )
         ax.axvline(t[res.peak_index], color="r", lw=0.8, ls="--", label=f"peak {res.peak_force_n:.3f} N")
         ax.set_ylim(0, top)
     ax.set_xlabel("stamp time (s)")
@@ -46,8 +55,7 @@ def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
     draw_surface(fig.add_subplot(gs[1, 0]), model, f"surface at peak force (t = {t_peak:.3f} s)", tool_xy=(x, y))
     a1 = fig.add_subplot(gs[1, 1])
     half = max(4 * model.cfg.tool_radius_m, 8e-3)
-    draw_cross_section(a1, model, x, y, z, f"cross-section at y = {y * 1e3:.1f} mm, same tick (tool offset 0 ms)",
-                       half_m=half)  # fmt: skip
+    draw_cross_section(a1, model, x, y, z, f"cross-section at y = {y * 1e3:.1f} mm, same tick (tool offset 0 ms)", half_m=half)
     a1.legend(loc="lower right", fontsize=7)
     fig.tight_layout()
     fig.savefig(out_dir / "report.png", dpi=100)

@@ -164,7 +164,7 @@ class ServerLink:
         try:
             self._executor.shutdown(timeout_sec=LINK_JOIN_S)
             self.node.destroy_node()
-        except Exception:  # noqa: BLE001 - best effort at shutdown
+        except Exception:
             pass
         rclpy.try_shutdown(context=self.ctx)
 
@@ -192,40 +192,40 @@ class BridgeNode(DeviceNode):
             "cap of the rendered stiffness at the device (N/m); Touch spec >= 1.02 N/mm on its weakest axis",
             0.0,
             1e6,
-        ),  # fmt: skip
+        ),
         Param(
             "max_damping_n_s_per_m",
             TOUCH_MAX_DAMPING_N_S_PER_M,
             "cap of the rendered damping at the device (N*s/m); sawSensablePhantom's largest servo damping on a Touch",
             0.0,
             1e4,
-        ),  # fmt: skip
+        ),
         Param(
             "node_ns",
             DEFAULTS["node_ns"],
             "namespace of the node's topics (tool/pose, tool/twist, tool/contact_model, tool/wrench), e.g. /skin1; "
             "'' : the process's. Unlike -r __ns:=, it leaves the device topics where they are",
-        ),  # fmt: skip
+        ),
         Param(
             "rt_priority",
             RT_PRIORITY,
             "SCHED_FIFO priority of the device path, 1-99 (0: normal scheduling); refused without root/CAP_SYS_NICE",
             0,
             99,
-        ),  # fmt: skip
+        ),
         Param(
             "force_source",
             "model",
             "model: render tool/contact_model per device tick; wrench: forward tool/wrench",
             choices=SOURCES,
-        ),  # fmt: skip
+        ),
         Param("fade_s", FADE_S, "fade to zero when the model goes stale or the tool leaves it (s)", 1e-3, 1.0),
         Param(
             "stabiliser",
             "passivity",
             "passivity: time-domain passivity controller on the rendered force; none",
             choices=STABILISERS,
-        ),  # fmt: skip
+        ),
         Param("device_mass_kg", DeviceParams.mass_kg, "apparent stylus mass for the passivity controller (kg)", 1e-3, 10.0),
         Param(
             "watchdog_s",
@@ -233,7 +233,7 @@ class BridgeNode(DeviceNode):
             "device pose age (s) after which one zero force is sent (wrench source: also the node's wrench age)",
             1e-3,
             10.0,
-        ),  # fmt: skip
+        ),
         Param("watchdog_rate_hz", DEFAULTS["watchdog_rate_hz"], "watchdog check rate (Hz)", 1.0, 1e4),
         Param("device_frame", DEFAULTS["device_frame"], "frame_id of force commands; empty: the device pose's frame_id"),
         Param("restamp", DEFAULTS["restamp"], "stamp tool poses with the bridge clock instead of the driver's", cli=""),
@@ -245,8 +245,13 @@ class BridgeNode(DeviceNode):
     @classmethod
     def add_arguments(cls, ap) -> None:
         """The options beside the parameters: ``--restamp`` and ``--localhost-shm``."""
-        ap.add_argument("--restamp", dest="restamp", action="store_true", default=None,
-                        help="stamp tool poses with the bridge clock instead of the driver's")  # fmt: skip
+        ap.add_argument(
+            "--restamp",
+            dest="restamp",
+            action="store_true",
+            default=None,
+            help="stamp tool poses with the bridge clock instead of the driver's",
+        )
         ap.add_argument(
             "--localhost-shm",
             action="store_true",
@@ -322,10 +327,22 @@ class BridgeNode(DeviceNode):
         self._wrench_seq = 0
         self.last_pose_rx_ns: int | None = None
         self.stale = False  # the first watchdog check sends one zero force
-        self.counts = {"poses": 0, "twists": 0, "models": 0, "models_rejected": 0, "wrenches": 0, "forwarded": 0,
-                       "zeros": 0, "non_finite_pose": 0, "rendered": 0, "rendered_fresh": 0, "rendered_no_model": 0,
-                       "rendered_stale_model": 0, "rendered_outside_radius": 0,
-                       "device_gaps_2ms": 0}  # fmt: skip
+        self.counts = {
+            "poses": 0,
+            "twists": 0,
+            "models": 0,
+            "models_rejected": 0,
+            "wrenches": 0,
+            "forwarded": 0,
+            "zeros": 0,
+            "non_finite_pose": 0,
+            "rendered": 0,
+            "rendered_fresh": 0,
+            "rendered_no_model": 0,
+            "rendered_stale_model": 0,
+            "rendered_outside_radius": 0,
+            "device_gaps_2ms": 0,
+        }
         self._ages_ms = np.zeros(AGE_RING)
         self._n_age = 0
         self._win = {"rendered": 0, "models": 0, "t_ns": time.monotonic_ns(), "age_from": 0, "period_max_ns": 0}

@@ -175,9 +175,12 @@ class ContactRenderer:
         friction_cone_floor: float = FRICTION_CONE_FLOOR,
         max_tick_s: float = MAX_TICK_S,
     ):
-        for name, val in (("max_force_n", max_force_n), ("max_stiffness_n_per_m", max_stiffness_n_per_m),
-                          ("max_damping_n_s_per_m", max_damping_n_s_per_m),
-                          ("friction_cone_floor", friction_cone_floor)):  # fmt: skip
+        for name, val in (
+            ("max_force_n", max_force_n),
+            ("max_stiffness_n_per_m", max_stiffness_n_per_m),
+            ("max_damping_n_s_per_m", max_damping_n_s_per_m),
+            ("friction_cone_floor", friction_cone_floor),
+        ):
             if math.isnan(val) or val < 0:
                 raise ValueError(f"{name} must be >= 0, got {val}")
         if not (fade_s > 0 and 0 < crossfade_min_s <= crossfade_max_s and max_tick_s > 0):

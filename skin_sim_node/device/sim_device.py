@@ -80,8 +80,14 @@ class SimDeviceNode(ScriptedNode):
     def __init__(self, overrides: dict | None = None, **kwargs):
         super().__init__(overrides, **kwargs)
         p = self.p
-        params = DeviceParams(p.mass_kg, p.damping_n_s_per_m, p.hand_stiffness_n_per_m, p.hand_damping_n_s_per_m,
-                              p.max_force_n, substep_s=p.substep_s)  # fmt: skip
+        params = DeviceParams(
+            p.mass_kg,
+            p.damping_n_s_per_m,
+            p.hand_stiffness_n_per_m,
+            p.hand_damping_n_s_per_m,
+            p.max_force_n,
+            substep_s=p.substep_s,
+        )
         self.device = SimulatedDevice(
             p.hand_path, params, DeviceMapping(offset_m=tuple(p.offset_m)), p.start_delay_s, p.repeat, p.tail_s
         )

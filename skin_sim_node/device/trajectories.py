@@ -95,16 +95,34 @@ def _build() -> dict[str, Trajectory]:
     lift = LIFT_Z_M
     trajs = [
         _press(
-            "press_hold_release", 0.0, 2.5e-3, 0.5, 1.0, 0.3, 0.5,
+            "press_hold_release",
+            0.0,
+            2.5e-3,
+            0.5,
+            1.0,
+            0.3,
+            0.5,
             "centre: press to 2.5 mm over 0.5 s, hold 1 s, release over 0.3 s, stay lifted 0.5 s",
         ),
         _press(
-            "light_touch", 0.0, 20e-6, 0.5, 1.0, 0.3, 0.5,
+            "light_touch",
+            0.0,
+            20e-6,
+            0.5,
+            1.0,
+            0.3,
+            0.5,
             "centre: press to 20 um (epidermis only: the epidermis/dermis interface peaks at 35 um), hold 1 s, "
             "release over 0.3 s, stay lifted 0.5 s",
         ),
         _press(
-            "press_all_layers", 0.0, 4.0e-3, 0.8, 1.0, 0.5, 0.5,
+            "press_all_layers",
+            0.0,
+            4.0e-3,
+            0.8,
+            1.0,
+            0.5,
+            0.5,
             "centre: press to 4.0 mm (below the dermis/fat interface, 1.275 +- 0.5 mm: all three layers)",
         ),
         Trajectory(
@@ -122,7 +140,13 @@ def _build() -> dict[str, Trajectory]:
             "peaks (x = 0, +-5 mm, ...) and valleys (x = +-2.5 mm, ...) of the dermis/fat interface, lift",
         ),
         _press(
-            "edge_press", 0.05, 2.0e-3, 0.5, 1.0, 0.3, 0.5,
+            "edge_press",
+            0.05,
+            2.0e-3,
+            0.5,
+            1.0,
+            0.3,
+            0.5,
             "press to 2 mm at x = 50 mm, 10 mm from the +x sheet edge",
         ),
         Trajectory(
@@ -153,7 +177,7 @@ def _build() -> dict[str, Trajectory]:
             "press 3 mm, release to +0.5 mm in 15 ms, come back down to 1 mm 30 ms after the release "
             "started (the tissue is still relaxing: fat release time constant is tens of ms), hold, lift",
         ),
-    ]  # fmt: skip
+    ]
     return {t.name: t for t in trajs}
 
 

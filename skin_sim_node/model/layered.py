@@ -415,8 +415,9 @@ def contact_jacobians(normal, grad, velocity, mu, slip_speed_m_s, force_n, out_k
 
 
 @njit(cache=True, nogil=True)
-def layered_step_kernel(tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate,
-                        istate, aux, sbuf, out):  # fmt: skip
+def layered_step_kernel(
+    tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, aux, sbuf, out
+):
     """One haptic tick of the layered form: series chain force, friction, tangent and modal state.
 
     Arguments as :func:`~.paper.paper_step_kernel` plus the tool's lateral velocity. Contact is unilateral

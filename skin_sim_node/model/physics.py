@@ -40,8 +40,16 @@ def band_n(depth_m: float) -> tuple[float, float]:
     return lo * depth_m * 1e3, hi * depth_m * 1e3
 
 
-def press(model: SkinModel, x: float, y: float, depth_m: float, speed_m_s: float = 0.5e-3, dt: float = 1e-3,
-          hold_s: float = 0.0, on_tick: Callable[[float], None] | None = None) -> float:  # fmt: skip
+def press(
+    model: SkinModel,
+    x: float,
+    y: float,
+    depth_m: float,
+    speed_m_s: float = 0.5e-3,
+    dt: float = 1e-3,
+    hold_s: float = 0.0,
+    on_tick: Callable[[float], None] | None = None,
+) -> float:
     """Press at ``(x, y)`` from the surface to ``depth_m`` at ``speed_m_s``, hold ``hold_s``; returns the last force."""
     n = max(1, int(math.ceil(depth_m / (speed_m_s * dt))))
     f = 0.0
@@ -73,8 +81,9 @@ def worst_drop(forces: np.ndarray) -> float:
     return float(np.max((run[ok] - f[ok]) / run[ok])) if ok.any() else 0.0
 
 
-def monotone_scan(cfg: TissueConfig, n_points: int = 40, depth_m: float = 5e-3, speed_m_s: float = 0.5e-3,
-                  progress=None) -> tuple[float, tuple[float, float]]:  # fmt: skip
+def monotone_scan(
+    cfg: TissueConfig, n_points: int = 40, depth_m: float = 5e-3, speed_m_s: float = 0.5e-3, progress=None
+) -> tuple[float, tuple[float, float]]:
     """Worst drop (fraction of the running maximum) over slow presses to ``depth_m`` at ``n_points`` points of the
     sheet, and the point where it happens."""
     worst, where = 0.0, (0.0, 0.0)
@@ -90,8 +99,9 @@ def monotone_scan(cfg: TissueConfig, n_points: int = 40, depth_m: float = 5e-3, 
     return worst, where
 
 
-def drag_ratio(cfg: TissueConfig, depth_m: float = 1e-3, length_m: float = 0.010, speed_m_s: float = 0.01,
-               y_m: float = 0.0, dt: float = 1e-3) -> tuple[float, float, float]:  # fmt: skip
+def drag_ratio(
+    cfg: TissueConfig, depth_m: float = 1e-3, length_m: float = 0.010, speed_m_s: float = 0.01, y_m: float = 0.0, dt: float = 1e-3
+) -> tuple[float, float, float]:
     """Press at ``(0, y)`` to ``depth_m``, hold 1 s, drag ``length_m`` along x; returns (max/min, min, max) of the
     normal force during the drag."""
     m = SkinModel(cfg)

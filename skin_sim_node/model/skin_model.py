@@ -307,9 +307,18 @@ class SkinModel:
         b = self.basis
         nk = b.k_prefix[self.level[layer]]
         return layer_point_displacement(
-            self.q[layer, :nk], self.centre[layer, 0], self.centre[layer, 1], b.mode_m[:nk], b.mode_n[:nk],
-            self._patch[0], self._patch[1], float(x), float(y), self._sx_buf, self._sy_buf,
-        )  # fmt: skip
+            self.q[layer, :nk],
+            self.centre[layer, 0],
+            self.centre[layer, 1],
+            b.mode_m[:nk],
+            b.mode_n[:nk],
+            self._patch[0],
+            self._patch[1],
+            float(x),
+            float(y),
+            self._sx_buf,
+            self._sy_buf,
+        )
 
     def surface_displacement_at(self, x: float, y: float) -> float:
         """Current downward surface displacement (m) at ``(x, y)``: sum over layers."""
@@ -370,10 +379,27 @@ class SkinModel:
             nk = b.k_prefix[lv]
             m_used, n_used = self._used[lv]
             layer_field_box(
-                self.q[li, :nk], self.centre[li, 0], self.centre[li, 1], b.mode_m[:nk], b.mode_n[:nk], m_used, n_used,
-                self._patch[0], self._patch[1], self.xs, self.ys, ix0, ix1, iy0, iy1,
-                self._q_dense, self._sx, self._sy, self._tmp, self._disp[li],
-            )  # fmt: skip
+                self.q[li, :nk],
+                self.centre[li, 0],
+                self.centre[li, 1],
+                b.mode_m[:nk],
+                b.mode_n[:nk],
+                m_used,
+                n_used,
+                self._patch[0],
+                self._patch[1],
+                self.xs,
+                self.ys,
+                ix0,
+                ix1,
+                iy0,
+                iy1,
+                self._q_dense,
+                self._sx,
+                self._sy,
+                self._tmp,
+                self._disp[li],
+            )
             d[:] = (ix0, ix1, iy0, iy1)
             _grow(box, d)
         if not self._patch_only:

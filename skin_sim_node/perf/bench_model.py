@@ -339,14 +339,18 @@ def main(argv=None) -> int:
         return 0
     cfg = preset("default")
     ny, nx = cfg.grid_shape
-    print(f"skin-sim model micro-benchmark: sheet grid {ny}x{nx}, patch {cfg.patch_size_m[0] * 1e3:.0f} mm, 3 layers; "
-          f"{args.ticks} ticks per row at 1 kHz (machine shared: compare ratios within this run)", flush=True)  # fmt: skip
+    print(
+        f"skin-sim model micro-benchmark: sheet grid {ny}x{nx}, patch {cfg.patch_size_m[0] * 1e3:.0f} mm, 3 layers; "
+        f"{args.ticks} ticks per row at 1 kHz (machine shared: compare ratios within this run)",
+        flush=True,
+    )
     print("1. force path per tick, default preset in each form (level-of-detail levers as configured), best of 3 interleaved:")
     rows = {}
     for r in form_rows(args.ticks):
         rows[r["form"]] = r
-        print(f"  {r['form']:>8}: median {r['median_us']:7.2f} us, p99 {r['p99_us']:7.2f} us, max {r['max_us']:8.1f} us",
-              flush=True)  # fmt: skip
+        print(
+            f"  {r['form']:>8}: median {r['median_us']:7.2f} us, p99 {r['p99_us']:7.2f} us, max {r['max_us']:8.1f} us", flush=True
+        )
     print(f"  layered/paper median ratio {rows['layered']['median_us'] / rows['paper']['median_us']:.2f}", flush=True)
     print("2. fixed mode counts (every level-of-detail lever off), paper form; ratio = NumPy median / numba median:")
     hdr = f"{'modes':>6} {'active':>6} {'path':>10} | {'median':>8} {'p99':>8} {'max':>8} | "

@@ -83,8 +83,14 @@ class Progress:
         self.i = 0
         self.t0 = time.monotonic()
         self._open = 0.0
-        self.bar = tqdm(total=round(self.total), unit="s", desc=desc, mininterval=1.0, leave=False,
-                        bar_format="{desc}: {percentage:3.0f}%|{bar:20}| {n:.0f}/{total:.0f} s est. [{elapsed}]")  # fmt: skip
+        self.bar = tqdm(
+            total=round(self.total),
+            unit="s",
+            desc=desc,
+            mininterval=1.0,
+            leave=False,
+            bar_format="{desc}: {percentage:3.0f}%|{bar:20}| {n:.0f}/{total:.0f} s est. [{elapsed}]",
+        )
 
     def stage(self, name: str, est_s: float) -> None:
         """Start stage ``name`` expected to take ``est_s``: print its line with the elapsed and remaining time."""
@@ -314,8 +320,16 @@ def run_interleaved(cases: list[tuple], total_s: float, slot_s: float, log_dir: 
             os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
             mon = StreamObserver(f"bench_ab_{len(state)}", record_depth=1)
             stack.callback(mon.close)
-            state.append({"label": label, "mon": mon, "pose": mon.publisher("tool_pose"), "twist": mon.publisher("tool_twist"),
-                          "sent": [], "counted": set()})  # fmt: skip
+            state.append(
+                {
+                    "label": label,
+                    "mon": mon,
+                    "pose": mon.publisher("tool_pose"),
+                    "twist": mon.publisher("tool_twist"),
+                    "sent": [],
+                    "counted": set(),
+                }
+            )
         for st in state:
             end = time.monotonic() + 15
             while st["pose"].get_subscription_count() == 0 and time.monotonic() < end:
@@ -355,9 +369,17 @@ def run_interleaved(cases: list[tuple], total_s: float, slot_s: float, log_dir: 
         for st in state:
             counted = st["counted"]
             lat = np.array([r - s for r, s, _ in list(st["mon"].wrench) if s in counted], dtype=np.int64)
-            out.append({"case": "echo" if st["label"] == "echo" else "node", "label": st["label"], "slots": n_slots,
-                        "answered_pct": 100.0 * lat.size / max(len(counted), 1), "latency_ms": _pcts(lat * 1e-6),
-                        "steal_ms": steal_ms, "duration_s": n_slots * slot_s})  # fmt: skip
+            out.append(
+                {
+                    "case": "echo" if st["label"] == "echo" else "node",
+                    "label": st["label"],
+                    "slots": n_slots,
+                    "answered_pct": 100.0 * lat.size / max(len(counted), 1),
+                    "latency_ms": _pcts(lat * 1e-6),
+                    "steal_ms": steal_ms,
+                    "duration_s": n_slots * slot_s,
+                }
+            )
     return out
 
 
@@ -415,9 +437,13 @@ def tick_cost(n: int = 5000) -> dict:
     pub_w, pub_c = publisher(node, "tool_wrench"), publisher(node, "contact")
     pose, wrench_cdr, contact = PoseStamped(), cv.WrenchCdr("tissue"), JointState()
     keys = (
-        "read_pose (CDR)", "on_pose", "tick (session + model)", "model step (nogil)", "publish wrench (CDR)",
+        "read_pose (CDR)",
+        "on_pose",
+        "tick (session + model)",
+        "model step (nogil)",
+        "publish wrench (CDR)",
         "publish contact (only while read)",
-    )  # fmt: skip
+    )
     t = {k: np.zeros(n) for k in keys}
     step = model.step
     step_ns = [0]
@@ -551,19 +577,29 @@ def join_stall(transports: str, log_dir: Path, node_args: tuple[str, ...] = (), 
 
     gap_b, ans_b = window(t_before, t_join)
     gap_a, ans_a = window(t_join, t_end)
-    return {"transports": transports, "max_gap_before_ms": gap_b, "max_gap_after_ms": gap_a, "answered_before_pct": ans_b,
-            "answered_after_pct": ans_a, "joiner_wrenches": joined_got}  # fmt: skip
+    return {
+        "transports": transports,
+        "max_gap_before_ms": gap_b,
+        "max_gap_after_ms": gap_a,
+        "answered_before_pct": ans_b,
+        "answered_after_pct": ans_a,
+        "joiner_wrenches": joined_got,
+    }
 
 
 def print_join_stall(rows: list[dict]) -> None:
     """Print the joining-reader stall rows: the longest wrench gap before and after a second reader joins."""
-    print(f"\njoining-reader stall: a second tool/wrench reader joins; longest gap between wrench arrivals at the first "
-          f"reader, ms, {JOIN_WATCH_S:.0f} s after the join vs the seconds before it (answered %)")  # fmt: skip
+    print(
+        f"\njoining-reader stall: a second tool/wrench reader joins; longest gap between wrench arrivals at the first "
+        f"reader, ms, {JOIN_WATCH_S:.0f} s after the join vs the seconds before it (answered %)"
+    )
     if os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST") == "LOCALHOST":
         print("  note: LOCALHOST discovery: rmw_fastrtps sets its own transports, so both rows ran with shared memory")
     for r in rows:
-        print(f"  {r['transports']:>12}: before {r['max_gap_before_ms']:7.1f} ({r['answered_before_pct']:5.1f} %) | after join "
-              f"{r['max_gap_after_ms']:7.1f} ({r['answered_after_pct']:5.1f} %) | joiner got {r['joiner_wrenches']}")  # fmt: skip
+        print(
+            f"  {r['transports']:>12}: before {r['max_gap_before_ms']:7.1f} ({r['answered_before_pct']:5.1f} %) | after join "
+            f"{r['max_gap_after_ms']:7.1f} ({r['answered_after_pct']:5.1f} %) | joiner got {r['joiner_wrenches']}"
+        )
     for mode in JOIN_TRANSPORTS:
         g = [r["max_gap_after_ms"] for r in rows if r["transports"] == mode]
         if g:
@@ -665,18 +701,21 @@ def print_periods(title: str, pairs: list[tuple[dict, dict]]) -> None:
                     f"tick p99 {r['node_tick_us_p99']:.0f} us"
                 )
             print(line)
-        print(f"  {'':>14} ratio {node.get('label', node['case'])}/{base['case']} p99 period: "
-              f"{node['period_ms'][1] / base['period_ms'][1]:.2f}x")  # fmt: skip
+        print(
+            f"  {'':>14} ratio {node.get('label', node['case'])}/{base['case']} p99 period: "
+            f"{node['period_ms'][1] / base['period_ms'][1]:.2f}x"
+        )
 
 
 def main(argv=None) -> int:
     """``skin-sim bench``: the node benchmark sections (tick cost, latency, rates, start-up, join stall) against bare rclpy."""
     ap = argparse.ArgumentParser(
-        prog="skin-sim bench", description=__doc__.splitlines()[0],
+        prog="skin-sim bench",
+        description=__doc__.splitlines()[0],
         epilog="Duration: about 14 min with the defaults (all sections; ~1.5 min per latency case pair with "
         "--latency-s 30); the estimate for the chosen sections is printed at start, then one line per case. "
         "Short: --sections tickcost,latency --latency-s 15 (~1.5 min).",
-    )  # fmt: skip
+    )
     ap.add_argument(
         "--sections",
         default=",".join(DEFAULT_SECTIONS),
@@ -690,9 +729,11 @@ def main(argv=None) -> int:
         "seconds (the same machine load for all; 0: one case after the other)",
     )
     ap.add_argument(
-        "--join-trials", type=int, default=4,
+        "--join-trials",
+        type=int,
+        default=4,
         help="joinstall: trials per transport setting (~25 s each; run with ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET)",
-    )  # fmt: skip
+    )
     ap.add_argument("--duration-s", type=float, default=60.0, help="seconds of the first-rate jitter case (missed ticks)")
     ap.add_argument("--jitter-s", type=float, default=20.0, help="seconds of the other rates' jitter cases")
     ap.add_argument("--latency-s", type=float, default=30.0, help="seconds of each latency case")
@@ -703,20 +744,26 @@ def main(argv=None) -> int:
     ap.add_argument("--pose-rate-hz", type=float, default=1000.0, help="held-pose rate fed to timer-mode cases")
     ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE for all node cases")
     ap.add_argument(
-        "--lever", action="append", default=[],
+        "--lever",
+        action="append",
+        default=[],
         help=f"levers case NAME or NAME=P:=V,P:=V (repeatable; presets: {', '.join(LEVER_PRESETS)}; default all presets)",
-    )  # fmt: skip
+    )
     ap.add_argument(
-        "--latency-variant", action="append", default=[],
+        "--latency-variant",
+        action="append",
+        default=[],
         help="latency node case NAME=P:=V,P:=V (repeatable; default one case 'node' with --node-param only); "
         "an item env.VAR:=VALUE sets the node's environment, e.g. env.RMW_FASTRTPS_PUBLICATION_MODE:=ASYNCHRONOUS; "
         "with.view also runs skin-sim view on that node (a display reader)",
-    )  # fmt: skip
+    )
     ap.add_argument(
-        "--observer-rt", type=int, default=0,
+        "--observer-rt",
+        type=int,
+        default=0,
         help="SCHED_FIFO priority of this process (pose source and observer, as a device's servo loop would run); "
         "0: normal. The processes it starts run normally (SCHED_RESET_ON_FORK)",
-    )  # fmt: skip
+    )
     ap.add_argument("--json", type=Path, help="also write all figures to this JSON file")
     args = ap.parse_args(argv)
     if args.observer_rt > 0:  # before any thread or DDS participant exists: they all inherit it
@@ -780,13 +827,16 @@ def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, e
             late = r["over_half_period_pct"]
             print(f"  {name:>14}: p50 {w[0]:6.0f} p99 {w[1]:6.0f} max {w[2]:7.0f} | later than T/2: {late:.3f} %{note}")
     if "latency" in sections and args.interleave_s > 0:
-        progress.stage(f"latency, interleaved {args.interleave_s:g} s slots: echo and {len(variants)} node case(s)",
-                       est["latency"][0])  # fmt: skip
+        progress.stage(
+            f"latency, interleaved {args.interleave_s:g} s slots: echo and {len(variants)} node case(s)", est["latency"][0]
+        )
         cases = [("echo", (), {}, ()), *(latency_variant(spec, node_args) for spec in variants)]
         rows = run_interleaved(cases, args.latency_s, args.interleave_s, log_dir / "latency_interleaved")
         results["latency"] = rows
-        print(f"\n(interleaved: all cases running, one pose stream switched between them every {args.interleave_s:g} s, "
-              f"{args.latency_s:g} s each in all)")  # fmt: skip
+        print(
+            f"\n(interleaved: all cases running, one pose stream switched between them every {args.interleave_s:g} s, "
+            f"{args.latency_s:g} s each in all)"
+        )
         print_latency(rows[0], rows[1:])
     elif "latency" in sections:
         progress.stage("latency: bare rclpy echo", est["latency"][0])
@@ -833,8 +883,9 @@ def _run_sections(args, sections, rates, node_args, log_dir, levers, variants, e
     if "startup" in sections:
         cache = Path(tempfile.mkdtemp(prefix="skin_sim_numba_cache_"))
         rows = []
-        for (kind, name, c), e in zip((("timer", "timer", None), ("node-timer", "cold", cache), ("node-timer", "warm", cache)),
-                                      est["startup"]):  # fmt: skip
+        for (kind, name, c), e in zip(
+            (("timer", "timer", None), ("node-timer", "cold", cache), ("node-timer", "warm", cache)), est["startup"]
+        ):
             progress.stage(f"start-up: {'bare rclpy timer' if kind == 'timer' else f'node, {name} numba cache'}", e)
             rows.append(run_startup(kind, log_dir / f"start_{name}", c))
         rows[1]["label"], rows[2]["label"] = "node cold cache", "node warm cache"

@@ -110,8 +110,9 @@ def growth_order(x, y) -> float:
         return np.log(np.exp(log_a) + np.exp(log_b) * xx**p)
 
     try:
-        popt, _ = curve_fit(model, x, np.log(y), p0=(np.log(y.min()), np.log(y.max() / x.max() ** max(slope, 0.1)), slope),
-                            maxfev=20000)  # fmt: skip
+        popt, _ = curve_fit(
+            model, x, np.log(y), p0=(np.log(y.min()), np.log(y.max() / x.max() ** max(slope, 0.1)), slope), maxfev=20000
+        )
         return float(popt[2])
     except (RuntimeError, ValueError):
         return slope

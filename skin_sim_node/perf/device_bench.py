@@ -435,7 +435,7 @@ def run(
             hogs = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(os.cpu_count() or 1)]
             print(f"  CPU hog: {len(hogs)} busy processes at normal priority", flush=True)
         rec_path = log_dir / "emulator.npz"
-        emu_log = open(log_dir / "emulator.log", "w")  # noqa: SIM115 - closed below
+        emu_log = open(log_dir / "emulator.log", "w")
         emu = subprocess.Popen(
             [sys.executable, "-m", "skin_sim_node.perf.device_bench", "--emulate", str(rec_path), "--phase-s", str(phase_s)],
             stdout=emu_log,

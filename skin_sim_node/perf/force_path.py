@@ -213,8 +213,17 @@ def main(argv=None) -> int:
 # --- message type cost (issue 12: custom interface package vs a documented layout in standard messages) -------
 def _layout_values(m: LocalModel) -> list[float]:
     """The 31 numbers of a contact model in the standard-message layout that was measured against the package."""
-    return [float(m.sequence), *m.x0_m, *m.v0_m_s, *m.f0_n, *m.stiffness_n_per_m.ravel(), *m.damping_n_s_per_m.ravel(),
-            *m.normal, m.validity_radius_m, m.time_to_live_s]  # fmt: skip
+    return [
+        float(m.sequence),
+        *m.x0_m,
+        *m.v0_m_s,
+        *m.f0_n,
+        *m.stiffness_n_per_m.ravel(),
+        *m.damping_n_s_per_m.ravel(),
+        *m.normal,
+        m.validity_radius_m,
+        m.time_to_live_s,
+    ]
 
 
 def msg_cost(duration_s: float = 3.0, rate_hz: float = 1000.0) -> dict:
@@ -241,8 +250,19 @@ def msg_cost(duration_s: float = 3.0, rate_hz: float = 1000.0) -> dict:
     from ..ros_util import sleep_until_ns
 
     rng = np.random.default_rng(0)
-    lm = LocalModel(1, 0, "tissue", rng.normal(size=3), rng.normal(size=3), rng.normal(size=3), rng.normal(size=(3, 3)),
-                    rng.normal(size=(3, 3)), (0, 0, 1), DEFAULT_VALIDITY_RADIUS_M, DEFAULT_TTL_S)  # fmt: skip
+    lm = LocalModel(
+        1,
+        0,
+        "tissue",
+        rng.normal(size=3),
+        rng.normal(size=3),
+        rng.normal(size=3),
+        rng.normal(size=(3, 3)),
+        rng.normal(size=(3, 3)),
+        (0, 0, 1),
+        DEFAULT_VALIDITY_RADIUS_M,
+        DEFAULT_TTL_S,
+    )
     labels = [f"v{i}" for i in range(31)]
 
     def fill_js(msg, t_ns, names):
@@ -309,8 +329,14 @@ def msg_cost(duration_s: float = 3.0, rate_hz: float = 1000.0) -> dict:
     out = {}
     for name in kinds:
         s, p = np.array(ser[name]) * 1e-3, np.array(pub[name]) * 1e-3
-        out[name] = (np.percentile(s, 50), np.percentile(s, 99), np.percentile(p, 50), np.percentile(p, 99), size[name],
-                     received[name] / n)  # fmt: skip
+        out[name] = (
+            np.percentile(s, 50),
+            np.percentile(s, 99),
+            np.percentile(p, 50),
+            np.percentile(p, 99),
+            size[name],
+            received[name] / n,
+        )
     pub_node.destroy_node()
     sub_node.destroy_node()
     rclpy.try_shutdown(context=ctx)
@@ -319,14 +345,18 @@ def msg_cost(duration_s: float = 3.0, rate_hz: float = 1000.0) -> dict:
 
 def print_msg_cost(duration_s: float) -> None:
     """Print the per-message fill, serialize and publish cost of the candidate message types at 1 kHz."""
-    print(f"  message cost at 1 kHz for {duration_s:.0f} s, one matched reader in this process, types interleaved "
-          "(shared machine: read the ratios to the WrenchStamped baseline of the same run)")  # fmt: skip
+    print(
+        f"  message cost at 1 kHz for {duration_s:.0f} s, one matched reader in this process, types interleaved "
+        "(shared machine: read the ratios to the WrenchStamped baseline of the same run)"
+    )
     res = msg_cost(duration_s)
     base = res["WrenchStamped (force only, baseline)"]
     print(f"  {'type':40s} | fill+serialize us p50 / p99 | fill+publish us p50 / p99 (x baseline p50) | bytes | received")
     for name, (s50, s99, p50, p99, nbytes, rx) in res.items():
-        print(f"  {name:40s} | {s50:7.1f} / {s99:7.1f}            | {p50:7.1f} / {p99:7.1f} ({p50 / base[2]:.2f}x)"
-              f"                | {nbytes:5d} | {100 * rx:.1f} %")  # fmt: skip
+        print(
+            f"  {name:40s} | {s50:7.1f} / {s99:7.1f}            | {p50:7.1f} / {p99:7.1f} ({p50 / base[2]:.2f}x)"
+            f"                | {nbytes:5d} | {100 * rx:.1f} %"
+        )
 
 
 if __name__ == "__main__":

@@ -157,11 +157,12 @@ def report(rows: list[dict]) -> str:
 def main(argv=None) -> int:
     """``skin-sim perf-lod``: node CPU in four scenes with the level-of-detail levers off and on."""
     ap = argparse.ArgumentParser(
-        prog="skin-sim perf-lod", description=__doc__.splitlines()[0],
+        prog="skin-sim perf-lod",
+        description=__doc__.splitlines()[0],
         epilog=f"Duration: scenes x 2 x repeats cases of (duration + warm-up + ~{CASE_OVERHEAD_S:.0f} s start-up): "
         "about 11 min with the defaults (24 cases of ~22 s); --repeats 1 --duration-s 5 takes ~2.5 min. "
         "The estimate is printed at start, then one line per case.",
-    )  # fmt: skip
+    )
     ap.add_argument("--duration-s", type=float, default=10.0, help="measured wall time per case (default 10)")
     ap.add_argument("--warmup-s", type=float, default=4.0, help="time after the tool starts before measuring (default 4)")
     ap.add_argument("--scenes", default="idle,light,deep,drag", help="comma-separated: " + ", ".join(SCENE_TOOLS))

@@ -116,9 +116,17 @@ def start_session(scene: Scene, i: int, rate_hz: float, mode: str, node_params: 
     ros = ("--ros-args", "-r", f"__ns:={ns}")
     extra = [a for p in node_params for a in ("-p", p)]
     node = scene.start(
-        f"node_s{i}", "node", *ros, "--params-file", str(DEFAULT_PARAMS),
-        "-p", f"loop_mode:={mode}", "-p", f"rate_hz:={rate_hz}", *extra,
-    )  # fmt: skip
+        f"node_s{i}",
+        "node",
+        *ros,
+        "--params-file",
+        str(DEFAULT_PARAMS),
+        "-p",
+        f"loop_mode:={mode}",
+        "-p",
+        f"rate_hz:={rate_hz}",
+        *extra,
+    )
     scene.wait_for_log(node, "live:", timeout_s=180)
     scene.start(f"bridge_s{i}", "bridge", *ros)
     scene.start(f"device_s{i}", "device", "--hand-path", "drag", "--loop", "--start-delay-s", "1.0", *ros)
@@ -156,13 +164,16 @@ def run_scale(
                 }
                 rows.append(row)
                 print(
-                    f"  {n} session(s): missed " + ", ".join(f"{s.get('node_missed_pct', nan):.3f}" for s in sessions)
-                    + " % | late " + ", ".join(f"{s.get('node_late_pct', nan):.3f}" for s in sessions)
-                    + " % | period p99 " + ", ".join(f"{s.get('node_period_us_p99', nan):.0f}" for s in sessions)
+                    f"  {n} session(s): missed "
+                    + ", ".join(f"{s.get('node_missed_pct', nan):.3f}" for s in sessions)
+                    + " % | late "
+                    + ", ".join(f"{s.get('node_late_pct', nan):.3f}" for s in sessions)
+                    + " % | period p99 "
+                    + ", ".join(f"{s.get('node_period_us_p99', nan):.0f}" for s in sessions)
                     + f" us | worst missed {worst:.3f} % {'<=' if worst <= MISSED_LIMIT_PCT else '>'} {MISSED_LIMIT_PCT} %"
                     + f" | steal {steal_ms:.0f} ms",
                     flush=True,
-                )  # fmt: skip
+                )
                 if worst > MISSED_LIMIT_PCT and not keep_going:
                     break
         finally:
@@ -178,10 +189,11 @@ def step_estimate_s(step_s: float) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(
-        prog="skin-sim scale", description=__doc__.splitlines()[0],
+        prog="skin-sim scale",
+        description=__doc__.splitlines()[0],
         epilog=f"Duration: per added session (--step-s + {SETTLE_S:.0f} s settle + ~{CASE_OVERHEAD_S:.0f} s start-up), "
         "about 45 s each: ~3 min with the defaults (4 sessions). The estimate is printed at start, then one line per step.",
-    )  # fmt: skip
+    )
     ap.add_argument("--max-sessions", type=int, default=4)
     ap.add_argument("--step-s", type=float, default=30.0, help="measured seconds after each added session")
     ap.add_argument("--rate-hz", type=float, default=1000.0)

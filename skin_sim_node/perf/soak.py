@@ -156,8 +156,11 @@ def run_soak(
                 n_force += len(batch)
                 n_pressing += int(np.sum(np.abs(batch[:, 2]) > 0))
                 if not quiet and len(rss) % 30 == 0:
-                    print(f"  t {now - t0:6.0f} s: node rss {main_rss / 2**20:.1f} MiB, display {kid_rss / 2**20:.1f} MiB, "
-                          f"forces {n_force}, max stamp gap {stamp_gaps.max_ns * 1e-6:.2f} ms", flush=True)  # fmt: skip
+                    print(
+                        f"  t {now - t0:6.0f} s: node rss {main_rss / 2**20:.1f} MiB, display {kid_rss / 2**20:.1f} MiB, "
+                        f"forces {n_force}, max stamp gap {stamp_gaps.max_ns * 1e-6:.2f} ms",
+                        flush=True,
+                    )
                 next_sample += SAMPLE_PERIOD_S
                 time.sleep(max(0.0, next_sample - time.monotonic()))
             steal_ms = cpu_steal_ms() - steal0
@@ -354,14 +357,18 @@ def main(argv=None) -> int:
         flush=True,
     )
     print(f"device side (bridge counters; device ticks {r['device_ticks']}, bridge rendered {r['bridge_rendered']}):")
-    print("  phase             | ticks rendered (bridge renders/s: median, min) | from a valid model | model older than "
-          "TTL | outside radius | max model age ms | device pose gaps > 2 ms | node ticks/s median")  # fmt: skip
+    print(
+        "  phase             | ticks rendered (bridge renders/s: median, min) | from a valid model | model older than "
+        "TTL | outside radius | max model age ms | device pose gaps > 2 ms | node ticks/s median"
+    )
     for name, p in r["device_phases"].items():
-        print(f"  {name:17s} | {p['rendered']:8d} ({p['render_rate_hz_median']:6.1f}, {p['render_rate_hz_min']:6.1f})"
-              f"                 | {p['from_fresh_model']:8d}           | {p['stale_model']:20d} | {p['outside_radius']:14d} | "
-              f"{p['model_age_ms_max']:16.2f} | {p['device_pose_gaps_over_2ms']:23d} | {p['node_rate_hz_median']:7.1f}"
-              + f"  (fades: {p['fades_ttl']} stale model, {p['fades_radius']} left radius)"
-              + (f"  ({p['readers_joined']} readers joined)" if p["readers_joined"] else ""))  # fmt: skip
+        print(
+            f"  {name:17s} | {p['rendered']:8d} ({p['render_rate_hz_median']:6.1f}, {p['render_rate_hz_min']:6.1f})"
+            f"                 | {p['from_fresh_model']:8d}           | {p['stale_model']:20d} | {p['outside_radius']:14d} | "
+            f"{p['model_age_ms_max']:16.2f} | {p['device_pose_gaps_over_2ms']:23d} | {p['node_rate_hz_median']:7.1f}"
+            + f"  (fades: {p['fades_ttl']} stale model, {p['fades_radius']} left radius)"
+            + (f"  ({p['readers_joined']} readers joined)" if p["readers_joined"] else "")
+        )
     checks = soak_checks(r)
     print(f"aims met: {r['aims_met']} (device: {r['device_aim_met']})")
     print(verdict_line("soak", checks) + (" (--no-check: exit 0)" if args.no_check else ""), flush=True)
@@ -379,9 +386,12 @@ def soak_checks(r: dict) -> list[tuple[bool, str]]:
     gaps = r["stamp_gaps"]
     checks = [
         (growth <= RSS_GROWTH_LIMIT_PCT, f"node memory growth {growth:+.3f} % (aim <= {RSS_GROWTH_LIMIT_PCT} %)"),
-        (gaps["gaps_over_limit"] == 0, f"{gaps['gaps_over_limit']} force-stream gaps over {GAP_LIMIT_MS} ms "
-         f"(longest {gaps['max_gap_ms']:.2f} ms; aim: none)"),
-    ]  # fmt: skip
+        (
+            gaps["gaps_over_limit"] == 0,
+            f"{gaps['gaps_over_limit']} force-stream gaps over {GAP_LIMIT_MS} ms "
+            f"(longest {gaps['max_gap_ms']:.2f} ms; aim: none)",
+        ),
+    ]
     for name, p in r["device_phases"].items():
         ok = p["stale_model"] == 0 and p["rendered"] > 0
         what = f"device, {name}: {p['stale_model']} of {p['rendered']} ticks rendered from a model older than its TTL"

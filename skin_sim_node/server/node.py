@@ -460,23 +460,27 @@ class SkinSimNode(Node):
         self._next_display_ns = 0  # a new display rate applies at the next tick
         self._display.set_display(self._display_settings())
         self.get_logger().info(
-            "parameters applied: " + ", ".join(f"{p.name}={p.value}" for p in ours)
+            "parameters applied: "
+            + ", ".join(f"{p.name}={p.value}" for p in ours)
             + (" (tissue restarts at rest)" if new_model else "")
-        )  # fmt: skip
+        )
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim node", description="Run skin_sim_node (ROS args after --ros-args).")
     ap.add_argument("--executor", choices=("events", "single"), default="events", help="rclpy executor (default events)")
     ap.add_argument(
-        "--switch-interval-s", type=float, default=2e-4,
+        "--switch-interval-s",
+        type=float,
+        default=2e-4,
         help="Python GIL switch interval (default 0.2 ms, not 5 ms, so the haptic thread preempts display work quickly)",
-    )  # fmt: skip
+    )
     ap.add_argument(
-        "--localhost-shm", action="store_true",
+        "--localhost-shm",
+        action="store_true",
         help="under ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST keep rmw_fastrtps's shared memory (default: UDPv4 on this "
         "host only, no multicast: a joining reader's shared-memory port froze the node's receive path for ~335 ms)",
-    )  # fmt: skip
+    )
     args, rest = ap.parse_known_args(argv)
     sys.setswitchinterval(args.switch_interval_s)
     updates, SkinSimNode.TRANSPORT_NOTE = localhost_udp_env(os.environ, keep_shm=args.localhost_shm)

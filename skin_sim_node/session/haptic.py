@@ -159,7 +159,7 @@ class HapticSession:
     """
 
     def __init__(self, model: SkinModel, params: SessionParams, log: Callable[[str, str], None] | None = None):
-        self.model = None
+        self.model: SkinModel = model  # set_model below also logs its degenerate layers
         self._event = EventLog(log)
         self.inputs = InputPolicy(params, self._event)
         self.limits = ForceLimits(params, self._event)

@@ -254,20 +254,23 @@ class InputPolicy:
             # resync or a stale spell, and a teleport) step by max_dt_s: the tool has been where it is for an unknown
             # time, so contact starts from the quasi-static state (dampers relaxed) and not through a rigid damper
             # (a 1 mm restart in 1 ms raised 200 N before the force clamp)
-            restart = self._last_used_stamp_ns is None or self._teleported
-            dt_ns = int(p.max_dt_s * 1e9) if restart else self.pose_stamp_ns - self._last_used_stamp_ns
-            rate_dt_ns = elapsed_ns if self._last_used_stamp_ns is None else self.pose_stamp_ns - self._last_used_stamp_ns
-            self._last_used_stamp_ns = self.pose_stamp_ns
+            stamp = self.pose_stamp_ns
+            assert stamp is not None  # a pending pose has a stamp
+            last = self._last_used_stamp_ns
+            restart = last is None or self._teleported
+            dt_ns = int(p.max_dt_s * 1e9) if restart or last is None else stamp - last
+            rate_dt_ns = elapsed_ns if last is None else stamp - last
+            self._last_used_stamp_ns = stamp
             if self._teleported:
                 release = True
                 self._teleported = False
                 v = AT_REST
             else:
                 v = velocity_estimate(
-                    p, self.pose_stamp_ns, self.pose, self._prev_pose_stamp_ns, self._prev_pose, self.twist_stamp_ns, self.twist
+                    p, stamp, self.pose, self._prev_pose_stamp_ns, self._prev_pose, self.twist_stamp_ns, self.twist
                 )
             pos = self.pose
-            self.answered_stamp_ns = self.pose_stamp_ns
+            self.answered_stamp_ns = stamp
         else:  # stale: the tool is unknown, treated as lifted off; the tissue relaxes on the caller's clock
             restart = False
             dt_ns = rate_dt_ns = elapsed_ns

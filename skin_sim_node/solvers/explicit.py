@@ -52,9 +52,19 @@ class LeapfrogSolver(MembraneSolver):
         self._prepare(dt, load)
         m = self.mem
         leapfrog_membrane_steps(
-            self.u_m, self._u_prev, load, int(n_steps), dt, m.areal_density_kg_per_m2, m.tension_n_per_m,
-            m.damping_n_s_per_m3, m.foundation_n_per_m3, self.dx_m, self.dy_m, self._tmp,
-        )  # fmt: skip
+            self.u_m,
+            self._u_prev,
+            load,
+            int(n_steps),
+            dt,
+            m.areal_density_kg_per_m2,
+            m.tension_n_per_m,
+            m.damping_n_s_per_m3,
+            m.foundation_n_per_m3,
+            self.dx_m,
+            self.dy_m,
+            self._tmp,
+        )
         self.v_m_s = (self.u_m - self._u_prev) / dt
 
     def step(self, dt_s: float, load_pa=None) -> None:
@@ -95,10 +105,19 @@ class MassSpringSolver(MembraneSolver):
         m, g = self.mem, self.grid
         area = g.dx_m * g.dy_m
         mass_spring_steps(
-            self.u_m, self.v_m_s, load * area, int(n_steps), float(dt_s), m.areal_density_kg_per_m2 * area,
-            m.tension_n_per_m * g.dy_m / g.dx_m, m.tension_n_per_m * g.dx_m / g.dy_m,
-            m.foundation_n_per_m3 * area, m.damping_n_s_per_m3 * area, self.edge_damping_n_s_per_m, self._acc,
-        )  # fmt: skip
+            self.u_m,
+            self.v_m_s,
+            load * area,
+            int(n_steps),
+            float(dt_s),
+            m.areal_density_kg_per_m2 * area,
+            m.tension_n_per_m * g.dy_m / g.dx_m,
+            m.tension_n_per_m * g.dx_m / g.dy_m,
+            m.foundation_n_per_m3 * area,
+            m.damping_n_s_per_m3 * area,
+            self.edge_damping_n_s_per_m,
+            self._acc,
+        )
 
     def step(self, dt_s: float, load_pa=None) -> None:
         """One mass-spring step."""

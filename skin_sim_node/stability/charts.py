@@ -18,14 +18,14 @@ import matplotlib
 import matplotlib.ticker
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from tqdm import tqdm
 
-from ..device.stylus import DeviceParams  # noqa: E402
-from . import haptic_loop as hl  # noqa: E402
-from . import numerics as nm  # noqa: E402
-from . import stiffening  # noqa: E402
+from ..device.stylus import DeviceParams
+from . import haptic_loop as hl
+from . import numerics as nm
+from . import stiffening
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "stability"
 CHART_RATES_HZ = (100.0, 250.0, 500.0, 1000.0, 2000.0, 4000.0)
@@ -65,8 +65,11 @@ def numerics_figures(out: Path) -> list[Path]:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(lab, h)
     fig.legend(handles.values(), handles.keys(), fontsize=7, loc="lower center", ncol=len(handles), frameon=False)
-    fig.suptitle(f"dermis membrane, c = {c:.1f} m/s, 60 mm patch, released from a 1 mm tool indentation; error at "
-                 f"{nm.T_END_S * 1e3:.0f} ms against the exact-in-time solution of the same grid", fontsize=9)  # fmt: skip
+    fig.suptitle(
+        f"dermis membrane, c = {c:.1f} m/s, 60 mm patch, released from a 1 mm tool indentation; error at "
+        f"{nm.T_END_S * 1e3:.0f} ms against the exact-in-time solution of the same grid",
+        fontsize=9,
+    )
     fig.tight_layout(rect=(0, 0.07, 1, 1))
     p1 = out / "numerics_maps.png"
     fig.savefig(p1, dpi=110)
@@ -92,14 +95,18 @@ def numerics_figures(out: Path) -> list[Path]:
     p2 = out / "cfl_boundary.png"
     fig.savefig(p2, dpi=110)
     plt.close(fig)
-    print("spatial error of the 5-point grid (exact in time) against the continuum modes at "
-          f"{nm.T_END_S * 1e3:.0f} ms, max over the patch / initial peak:")  # fmt: skip
+    print(
+        "spatial error of the 5-point grid (exact in time) against the continuum modes at "
+        f"{nm.T_END_S * 1e3:.0f} ms, max over the patch / initial peak:"
+    )
     for n in nm.GRIDS:
         print(f"  n={n:2d} dx={mem.size_x_m / (n + 1) * 1e3:5.2f} mm: {nm.spatial_error(mem, n) * 100:.1f} %")
     print("measured explicit limits (energy growth > 100x within 2000 steps, bisection to 0.1 %):")
     for method, n, d, m, t in rows:
-        print(f"  {method:<11} n={n:2d} dx={d * 1e3:5.2f} mm: dt {m * 1e6:8.2f} us vs 2/omega_max {t * 1e6:8.2f} us "
-              f"(ratio {m / t:.4f}), c dt/dx = {c * m / d:.4f} (1/sqrt(2) = {1 / math.sqrt(2):.4f})")  # fmt: skip
+        print(
+            f"  {method:<11} n={n:2d} dx={d * 1e3:5.2f} mm: dt {m * 1e6:8.2f} us vs 2/omega_max {t * 1e6:8.2f} us "
+            f"(ratio {m / t:.4f}), c dt/dx = {c * m / d:.4f} (1/sqrt(2) = {1 / math.sqrt(2):.4f})"
+        )
     return [p1, p2]
 
 
@@ -116,17 +123,28 @@ def haptic_figures(out: Path) -> list[Path]:
                 ax.plot(r, k * 1e-3, "o" if v.stable else "x", color="#27ae60" if v.stable else "#c0392b", ms=6)
         ax.plot([], [], "o", color="#27ae60", ms=6, label="swept point: stable (force settles)")
         ax.plot([], [], "x", color="#c0392b", ms=6, label="swept point: unstable (force does not settle)")
-        ax.plot(rates, [hl.colgate_k_max(b_dev, r) * 1e-3 for r in rates], "k--", lw=1,
-                label=f"Colgate 2b/T, b = device {b_dev:.2f} N s/m")  # fmt: skip
-        ax.plot(rates, [hl.colgate_k_max(b_all, r) * 1e-3 for r in rates], "k:", lw=1,
-                label=f"2b/T, b = device + hand {b_all:.2f} N s/m")  # fmt: skip
+        ax.plot(
+            rates,
+            [hl.colgate_k_max(b_dev, r) * 1e-3 for r in rates],
+            "k--",
+            lw=1,
+            label=f"Colgate 2b/T, b = device {b_dev:.2f} N s/m",
+        )
+        ax.plot(
+            rates,
+            [hl.colgate_k_max(b_all, r) * 1e-3 for r in rates],
+            "k:",
+            lw=1,
+            label=f"2b/T, b = device + hand {b_all:.2f} N s/m",
+        )
         ax.plot(rates, [hl.linear_k_max(r) * 1e-3 for r in rates], "b-", lw=1, label="exact sampled loop, 1-tick delay")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_ylim(0.08, 6)
         ax.set_xlabel("loop rate (Hz)")
-        ax.set_title(f"{'naive coupling' if stab == 'none' else 'device-side passivity controller'}: "
-                     "dot stable, x unstable", fontsize=9)  # fmt: skip
+        ax.set_title(
+            f"{'naive coupling' if stab == 'none' else 'device-side passivity controller'}: dot stable, x unstable", fontsize=9
+        )
     axes[0].set_ylabel("rendered wall stiffness K (N/mm)")
     axes[0].legend(fontsize=7, loc="lower right")
     fig.tight_layout()
@@ -135,10 +153,12 @@ def haptic_figures(out: Path) -> list[Path]:
     plt.close(fig)
     print("haptic wall sweep (hold 0.5 N, 1-tick delay + ZOH): largest swept K below which all points are stable, N/mm")
     for r in CHART_RATES_HZ:
-        print(f"  {r:6.0f} Hz: naive {hl.boundary(res, 'none', r, CHART_STIFFNESSES) * 1e-3:.3f}, passivity "
-              f"{hl.boundary(res, 'passivity', r, CHART_STIFFNESSES) * 1e-3:.3f}; Colgate 2b/T b=0.05: "
-              f"{hl.colgate_k_max(b_dev, r) * 1e-3:.3f}, b=3.05: {hl.colgate_k_max(b_all, r) * 1e-3:.3f}; exact linear "
-              f"{hl.linear_k_max(r) * 1e-3:.3f}")  # fmt: skip
+        print(
+            f"  {r:6.0f} Hz: naive {hl.boundary(res, 'none', r, CHART_STIFFNESSES) * 1e-3:.3f}, passivity "
+            f"{hl.boundary(res, 'passivity', r, CHART_STIFFNESSES) * 1e-3:.3f}; Colgate 2b/T b=0.05: "
+            f"{hl.colgate_k_max(b_dev, r) * 1e-3:.3f}, b=3.05: {hl.colgate_k_max(b_all, r) * 1e-3:.3f}; exact linear "
+            f"{hl.linear_k_max(r) * 1e-3:.3f}"
+        )
     for r in (1000.0, 250.0):
         lo = hl.largest_stable(r, "none", 100.0, 20000.0)
         print(f"  naive boundary by bisection at {r:.0f} Hz: {lo * 1e-3:.3f} N/mm (exact linear {hl.linear_k_max(r) * 1e-3:.3f})")
@@ -156,8 +176,10 @@ def haptic_figures(out: Path) -> list[Path]:
                 ks.append(k)
                 kr.append(kf)
                 br.append(bf)
-                print(f"  transparency {r:.0f} Hz {stab}: K {k * 1e-3:.3f} N/mm -> felt {kf * 1e-3:.3f} N/mm, "
-                      f"damping {bf:.2f} N*s/m")  # fmt: skip
+                print(
+                    f"  transparency {r:.0f} Hz {stab}: K {k * 1e-3:.3f} N/mm -> felt {kf * 1e-3:.3f} N/mm, "
+                    f"damping {bf:.2f} N*s/m"
+                )
             ks = np.array(ks)
             ax.plot(ks * 1e-3, np.array(kr) / ks, mk + "-", color=col, mfc="none", label=f"{r:.0f} Hz, {stab}")
             bx.plot(ks * 1e-3, br, mk + "-", color=col, mfc="none", label=f"{r:.0f} Hz, {stab}")
@@ -200,8 +222,11 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=DOCS, help="output folder (default docs/stability)")
     ap.add_argument("--only", choices=("numerics", "haptic", "stiffening"), help="regenerate one group")
     args = ap.parse_args(argv)
-    what = {"numerics": "explicit-solver maps (~30 s)", "haptic": "haptic-loop sweeps (~1-2 min)",
-            "stiffening": "tangent stiffness vs depth and loop limits (~1 min)"}  # fmt: skip
+    what = {
+        "numerics": "explicit-solver maps (~30 s)",
+        "haptic": "haptic-loop sweeps (~1-2 min)",
+        "stiffening": "tangent stiffness vs depth and loop limits (~1 min)",
+    }
     todo = [k for k in what if args.only in (None, k)]
     print("chart stability: " + "; ".join(what[k] for k in todo) + f" -> {args.out}", flush=True)
     args.out.mkdir(parents=True, exist_ok=True)

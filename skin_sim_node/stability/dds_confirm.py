@@ -104,9 +104,17 @@ def over_dds(rate_hz: float, k_n_per_m: float, stabiliser: str, log_dir: Path, m
             # the sweep's coupling (the node's force held per device tick); the bridge runs the passivity controller
             scene.start("bridge", "bridge", "--watchdog-s", "0.5", "--force-source", "wrench", "--stabiliser", stabiliser)
             device = scene.start(
-                "device", "device", "--hand-path", PATH, "--rate-hz", str(rate_hz),
-                "--substep-s", "5e-5", "--start-delay-s", "3.0",
-            )  # fmt: skip
+                "device",
+                "device",
+                "--hand-path",
+                PATH,
+                "--rate-hz",
+                str(rate_hz),
+                "--substep-s",
+                "5e-5",
+                "--start-delay-s",
+                "3.0",
+            )
             mon.wrench.clear()
             device.popen.wait(timeout=60)
             time.sleep(0.3)
@@ -166,11 +174,15 @@ def main(argv=None) -> int:
 
     chosen = list(range(len(POINTS))) if args.points is None else args.points
     mon = Monitor(name=f"stability_monitor_{os.getpid()}", images=False)
-    print(f"stability-dds: {len(chosen)} points, each ~15 s per DDS run (up to {args.attempts} runs while the device "
-          f"overruns its clock); wall tissue (4 mm epidermis, k = K, b = 0), hand path {PATH}; logs in {log_dir}",
-          flush=True)  # fmt: skip
-    print(f"  rate Hz | K N/mm | stabiliser | in-process, delay {' / '.join(map(str, DELAYS))} ticks | over DDS: verdict "
-          "(force std early / late, N) | device ticks, overruns, commands received | judged")  # fmt: skip
+    print(
+        f"stability-dds: {len(chosen)} points, each ~15 s per DDS run (up to {args.attempts} runs while the device "
+        f"overruns its clock); wall tissue (4 mm epidermis, k = K, b = 0), hand path {PATH}; logs in {log_dir}",
+        flush=True,
+    )
+    print(
+        f"  rate Hz | K N/mm | stabiliser | in-process, delay {' / '.join(map(str, DELAYS))} ticks | over DDS: verdict "
+        "(force std early / late, N) | device ticks, overruns, commands received | judged"
+    )
     outcome: dict[str, list[str]] = {"agree": [], "MISMATCH": [], "inconclusive": []}
     try:
         for n, i in enumerate(chosen):

@@ -155,12 +155,19 @@ def wall_point(k_n_per_m: float, rate_hz: float, stabiliser: str = "none", delay
     return classify(run_loop(Wall(k_n_per_m), rate_hz, path, stabiliser, delay_ticks))
 
 
-def sweep(stiffnesses=STIFFNESSES_N_PER_M, rates=RATES_HZ, stabilisers=("none", "passivity"), delay_ticks: int = 1,
-          progress: bool = True):  # fmt: skip
+def sweep(
+    stiffnesses=STIFFNESSES_N_PER_M,
+    rates=RATES_HZ,
+    stabilisers=("none", "passivity"),
+    delay_ticks: int = 1,
+    progress: bool = True,
+):
     """All wall points: ``{(stabiliser, rate_hz, k): Verdict}`` (a tqdm bar over the points)."""
     keys = [(s, r, k) for s in stabilisers for r in rates for k in stiffnesses]
-    return {key: wall_point(key[2], key[1], key[0], delay_ticks)
-            for key in tqdm(keys, desc="wall sweep (stabiliser x rate x K)", disable=not progress, leave=False)}  # fmt: skip
+    return {
+        key: wall_point(key[2], key[1], key[0], delay_ticks)
+        for key in tqdm(keys, desc="wall sweep (stabiliser x rate x K)", disable=not progress, leave=False)
+    }
 
 
 def boundary(results, stabiliser: str, rate_hz: float, stiffnesses=STIFFNESSES_N_PER_M) -> float:
@@ -258,8 +265,11 @@ def main(argv=None) -> int:
     ap.add_argument("--delay-ticks", type=int, default=1)
     args = ap.parse_args(argv)
     n_pts = 2 * len(args.rates) * len(STIFFNESSES_N_PER_M)
-    print(f"stability-loop: {n_pts} closed-loop runs (naive and passivity, {len(args.rates)} rates x "
-          f"{len(STIFFNESSES_N_PER_M)} stiffnesses), about 10 s", flush=True)  # fmt: skip
+    print(
+        f"stability-loop: {n_pts} closed-loop runs (naive and passivity, {len(args.rates)} rates x "
+        f"{len(STIFFNESSES_N_PER_M)} stiffnesses), about 10 s",
+        flush=True,
+    )
     p = DeviceParams()
     b_dev, b_all = p.damping_n_s_per_m, p.damping_n_s_per_m + p.hand_damping_n_s_per_m
     res = sweep(rates=args.rates, delay_ticks=args.delay_ticks)

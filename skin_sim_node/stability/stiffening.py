@@ -22,16 +22,16 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from tqdm import tqdm
 
-from ..device.stylus import DeviceParams  # noqa: E402
-from ..model import SkinModel, TissueConfig, preset  # noqa: E402
-from ..session import SessionParams  # noqa: E402
-from ..validation.methods import static_dt_s  # noqa: E402
-from ..validation.references import axisym  # noqa: E402
-from . import haptic_loop as hl  # noqa: E402
+from ..device.stylus import DeviceParams
+from ..model import SkinModel, TissueConfig, preset
+from ..session import SessionParams
+from ..validation.methods import static_dt_s
+from ..validation.references import axisym
+from . import haptic_loop as hl
 
 RATE_HZ = 1000.0  # the product's haptic rate
 DEPTHS_M = tuple(np.round(np.linspace(0.25e-3, 3e-3, 12), 6))
@@ -97,10 +97,13 @@ def table(cfg: TissueConfig | None = None, progress: bool = True) -> tuple[list[
     rows = []
     for d, kr in zip(DEPTHS_M, k_ref):
         f, k = model_tangent_n_per_m(model, d)
-        rows.append({"depth_mm": d * 1e3, "force_n": f, "model_tangent_n_per_mm": k * 1e-3,
-                     "reference_tangent_n_per_mm": kr * 1e-3})  # fmt: skip
-    limits = {"naive_exact_n_per_mm": hl.linear_k_max(RATE_HZ) * 1e-3,
-              "colgate_device_b_n_per_mm": hl.colgate_k_max(DeviceParams().damping_n_s_per_m, RATE_HZ) * 1e-3}  # fmt: skip
+        rows.append(
+            {"depth_mm": d * 1e3, "force_n": f, "model_tangent_n_per_mm": k * 1e-3, "reference_tangent_n_per_mm": kr * 1e-3}
+        )
+    limits = {
+        "naive_exact_n_per_mm": hl.linear_k_max(RATE_HZ) * 1e-3,
+        "colgate_device_b_n_per_mm": hl.colgate_k_max(DeviceParams().damping_n_s_per_m, RATE_HZ) * 1e-3,
+    }
     pts = []
     for d in tqdm(LOOP_DEPTHS_M, desc="closed loop at depth (naive, passivity)", disable=not progress, leave=False):
         v0, tr = loop_point(cfg, d, "none")
@@ -123,25 +126,38 @@ def figures(out: Path, cfg: TissueConfig | None = None) -> list[Path]:
     ax.axhline(limits["naive_exact_n_per_mm"], color="r", ls="--", lw=1, label="naive loop limit, 1 kHz (exact, 1-tick delay)")
     ax.axhline(limits["colgate_device_b_n_per_mm"], color="r", ls=":", lw=1, label="Colgate 2b/T, device damping only")
     for p in pts:
-        ax.plot(p.depth_m * 1e3, max(p.tangent_n_per_m * 1e-3, 1e-6), "s" if p.passivity_stable else "x", color="g" if
-                p.passivity_stable else "r", ms=9, mfc="none")  # fmt: skip
+        ax.plot(
+            p.depth_m * 1e3,
+            max(p.tangent_n_per_m * 1e-3, 1e-6),
+            "s" if p.passivity_stable else "x",
+            color="g" if p.passivity_stable else "r",
+            ms=9,
+            mfc="none",
+        )
     ax.set_xlabel("press depth (mm)")
     ax.set_ylabel("tangent stiffness (N/mm)")
-    ax.set_title("tangent stiffness the haptic loop sees, against the loop limits (squares: loop with passivity stable)",
-                 fontsize=8)  # fmt: skip
+    ax.set_title(
+        "tangent stiffness the haptic loop sees, against the loop limits (squares: loop with passivity stable)", fontsize=8
+    )
     ax.legend(fontsize=7)
     fig.tight_layout()
     path = out / "stiffening.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    print(f"loop limits at {RATE_HZ:.0f} Hz: naive exact {limits['naive_exact_n_per_mm']:.3f} N/mm, "
-          f"Colgate 2b/T (device b) {limits['colgate_device_b_n_per_mm']:.3f} N/mm")  # fmt: skip
+    print(
+        f"loop limits at {RATE_HZ:.0f} Hz: naive exact {limits['naive_exact_n_per_mm']:.3f} N/mm, "
+        f"Colgate 2b/T (device b) {limits['colgate_device_b_n_per_mm']:.3f} N/mm"
+    )
     print("  depth mm | force N | model K N/mm | reference K N/mm")
     for r in rows:
-        print(f"  {r['depth_mm']:8.2f} | {r['force_n']:7.4f} | {r['model_tangent_n_per_mm']:12.4f} "
-              f"| {r['reference_tangent_n_per_mm']:.4f}")  # fmt: skip
+        print(
+            f"  {r['depth_mm']:8.2f} | {r['force_n']:7.4f} | {r['model_tangent_n_per_mm']:12.4f} "
+            f"| {r['reference_tangent_n_per_mm']:.4f}"
+        )
     print("  closed loop (session with force-rate limiter): depth mm | K N/mm | naive | passivity | max dF/dt N/s")
     for p in pts:
-        print(f"  {p.depth_m * 1e3:.2f} | {p.tangent_n_per_m * 1e-3:.4f} | {'stable' if p.naive_stable else 'UNSTABLE'} | "
-              f"{'stable' if p.passivity_stable else 'UNSTABLE'} | {p.max_force_rate_n_per_s:.1f}")  # fmt: skip
+        print(
+            f"  {p.depth_m * 1e3:.2f} | {p.tangent_n_per_m * 1e-3:.4f} | {'stable' if p.naive_stable else 'UNSTABLE'} | "
+            f"{'stable' if p.passivity_stable else 'UNSTABLE'} | {p.max_force_rate_n_per_s:.1f}"
+        )
     return [path]

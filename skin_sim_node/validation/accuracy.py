@@ -86,8 +86,13 @@ def paper_form_default() -> TissueConfig:
 def table(rows: list[Scored]) -> str:
     """The scored configs as a markdown table: force and field error per scenario and their means."""
     names = list(rows[0].force_err)
-    head = "| config | " + " | ".join(f"force {n}" for n in names) + " | **force mean** | " + \
-        " | ".join(f"field {n}" for n in names) + " | **field mean** |"  # fmt: skip
+    head = (
+        "| config | "
+        + " | ".join(f"force {n}" for n in names)
+        + " | **force mean** | "
+        + " | ".join(f"field {n}" for n in names)
+        + " | **field mean** |"
+    )
     lines = [head, "|---" * (2 * len(names) + 3) + "|"]
     for r in rows:
         f = " | ".join(f"{100 * r.force_err[n]:.1f} %" for n in names)
@@ -118,16 +123,32 @@ def run(configs: dict[str, TissueConfig] | None = None, out: Path | None = OUT, 
     rows = [score(c, label, refs) for label, c in tqdm(configs.items(), desc="scoring configs", disable=not progress)]
     text = table(rows)
     aims = f"aims: force <= {FORCE_AIM:.0%}, field <= {FIELD_AIM:.0%} (mean over {', '.join(refs)})"
-    verdicts = [f"- {r.label}: force {100 * r.force_mean:.1f} % ({_verdict(r.force_mean, FORCE_AIM)}), "
-                f"field {100 * r.field_mean:.1f} % ({_verdict(r.field_mean, FIELD_AIM)})" for r in rows]  # fmt: skip
+    verdicts = [
+        f"- {r.label}: force {100 * r.force_mean:.1f} % ({_verdict(r.force_mean, FORCE_AIM)}), "
+        f"field {100 * r.field_mean:.1f} % ({_verdict(r.field_mean, FIELD_AIM)})"
+        for r in rows
+    ]
     full = "\n".join([text, "", aims, *verdicts, "", curves(rows, refs)])
     print(full)
     if out is not None:
         head = "# Accuracy against the large-deformation reference\n\nWritten by `skin-sim chart validation --only accuracy`.\n\n"
         (out / "accuracy.md").write_text(head + "\n".join([text, "", aims, *verdicts]) + "\n")
-        (out / "accuracy.json").write_text(json.dumps(
-            [{"label": r.label, "force_err": r.force_err, "field_err": r.field_err, "force_mean": r.force_mean,
-              "field_mean": r.field_mean} for r in rows], indent=1) + "\n")  # fmt: skip
+        (out / "accuracy.json").write_text(
+            json.dumps(
+                [
+                    {
+                        "label": r.label,
+                        "force_err": r.force_err,
+                        "field_err": r.field_err,
+                        "force_mean": r.force_mean,
+                        "field_mean": r.field_mean,
+                    }
+                    for r in rows
+                ],
+                indent=1,
+            )
+            + "\n"
+        )
     return rows
 
 
@@ -185,8 +206,11 @@ def speed_accuracy(out: Path | None = OUT, progress: bool = True) -> list[dict]:
         row["field_err_mean"] = float(np.mean([row[f"field_{n}"] for n in refs]))
         rows.append(row)
     lines = ["| method | time per update (ms) | force error (mean) | field error (mean) |", "|---|---|---|---|"]
-    lines += [f"| {r['method']} | {r['s_per_update'] * 1e3:.4g} | {100 * r['force_err_mean']:.1f} % | "
-              f"{100 * r['field_err_mean']:.1f} % |" for r in rows]  # fmt: skip
+    lines += [
+        f"| {r['method']} | {r['s_per_update'] * 1e3:.4g} | {100 * r['force_err_mean']:.1f} % | "
+        f"{100 * r['field_err_mean']:.1f} % |"
+        for r in rows
+    ]
     text = "\n".join(lines)
     print(text)
     print("membrane baseline fitted to the nonlinear reference:", json.dumps(mem_fit))
@@ -205,15 +229,21 @@ def speed_accuracy(out: Path | None = OUT, progress: bool = True) -> list[dict]:
         (out / "speed_accuracy_nonlinear.md").write_text(
             "# Speed vs accuracy against the 3D neo-Hookean reference\n\nWritten by "
             "`skin-sim chart validation --only speed` (one run on a shared 2-core machine).\n\n" + text + "\n\n"
-            f"Membrane baseline fitted to the nonlinear reference: `{json.dumps(mem_fit)}`\n")  # fmt: skip
+            f"Membrane baseline fitted to the nonlinear reference: `{json.dumps(mem_fit)}`\n"
+        )
         fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
         families: dict[str, list] = {}
         for r in rows:
-            fam = r["method"].rsplit(" ", 1)[0] if r["method"][0] in "lp" else r["method"].split(" ")[0] + (
-                ", fitted" if "fitted" in r["method"] else "")  # fmt: skip
+            fam = (
+                r["method"].rsplit(" ", 1)[0]
+                if r["method"][0] in "lp"
+                else r["method"].split(" ")[0] + (", fitted" if "fitted" in r["method"] else "")
+            )
             families.setdefault(fam, []).append(r)
-        for ax, key, title in ((axes[0], "force_err_mean", "force-depth error (relative RMS)"),
-                               (axes[1], "field_err_mean", "surface-field error (RMS / depth)")):  # fmt: skip
+        for ax, key, title in (
+            (axes[0], "force_err_mean", "force-depth error (relative RMS)"),
+            (axes[1], "field_err_mean", "surface-field error (RMS / depth)"),
+        ):
             for fam, members in families.items():
                 ax.loglog([r["s_per_update"] for r in members], [r[key] for r in members], "o-", lw=0.8, ms=5, label=fam)
                 for r in members:
@@ -225,8 +255,9 @@ def speed_accuracy(out: Path | None = OUT, progress: bool = True) -> list[dict]:
             ax.set_ylabel(title + ", mean over peak, valley, edge")
             ax.grid(True, which="both", alpha=0.2)
         axes[1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="numbers: modes", title_fontsize=6)
-        fig.suptitle("Speed vs accuracy against the 3D compressible neo-Hookean reference (dashed: 1 ms; dotted: aim)",
-                     fontsize=10)  # fmt: skip
+        fig.suptitle(
+            "Speed vs accuracy against the 3D compressible neo-Hookean reference (dashed: 1 ms; dotted: aim)", fontsize=10
+        )
         fig.tight_layout()
         fig.savefig(out / "speed_accuracy_nonlinear.png", dpi=120)
         plt.close(fig)
@@ -240,9 +271,13 @@ def table_ii_nonlinear(out: Path | None = OUT, progress: bool = True) -> dict:
     ref = nonlinear_references(progress)["peak-3layer"]
     ramp = paper_ramp_n(float(ref.forces_n[-1]))
     ref_depth = np.interp(ramp, np.concatenate([[0.0], ref.forces_n]), np.concatenate([[0.0], ref.depths_m]))
-    md = ["# Table II, redone against the 3D neo-Hookean reference", "",
-          f"Ramp 0 -> {ramp.max():.3f} N -> 0 (100 samples; the deepest converged load step of the peak solve, "
-          f"{ref.depths_m[-1] * 1e3:.2f} mm). Written by `skin-sim chart validation --only speed`.", ""]  # fmt: skip
+    md = [
+        "# Table II, redone against the 3D neo-Hookean reference",
+        "",
+        f"Ramp 0 -> {ramp.max():.3f} N -> 0 (100 samples; the deepest converged load step of the peak solve, "
+        f"{ref.depths_m[-1] * 1e3:.2f} mm). Written by `skin-sim chart validation --only speed`.",
+        "",
+    ]
     results = {}
     for label, cfg in {"default (layered)": preset("default"), "paper form, Sneddon springs": paper_form_default()}.items():
         model = SkinModel(cfg)
@@ -255,10 +290,13 @@ def table_ii_nonlinear(out: Path | None = OUT, progress: bool = True) -> dict:
         model.reset()
         model.step((0.0, 0.0, -d[i_pk]), (0.0, 0.0, 0.0), static_dt_s(cfg))
         u_mod = model_field_m(model, ref)
-        extra = {"samples_reached": int(sum(i.size > 0 for i in idx)), "model_max_force_n": float(f.max()),
-                 "peak_disp_error": peak_error(d[i_pk], ref_depth[i_pk]),
-                 "field_rms_error_rel_peak": field_error(u_mod, ref.field_down_m, ref.depths_m[-1]),
-                 "field_max_error_rel_peak": field_max_error(u_mod, ref.field_down_m, ref.depths_m[-1])}  # fmt: skip
+        extra = {
+            "samples_reached": int(sum(i.size > 0 for i in idx)),
+            "model_max_force_n": float(f.max()),
+            "peak_disp_error": peak_error(d[i_pk], ref_depth[i_pk]),
+            "field_rms_error_rel_peak": field_error(u_mod, ref.field_down_m, ref.depths_m[-1]),
+            "field_max_error_rel_peak": field_max_error(u_mod, ref.field_down_m, ref.depths_m[-1]),
+        }
         results[label] = {"table": tab, **extra}
         md += [f"## FEM (neo-Hookean) vs model ({label})", "", table_markdown(tab, ("FEA", f"model, {label}")), ""]
         md += [f"- {k}: {v:.4g}" if isinstance(v, float) else f"- {k}: {v}" for k, v in extra.items()] + [""]

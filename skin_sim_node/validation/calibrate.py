@@ -160,8 +160,9 @@ def fit(datasets: list[IndentData], base: TissueConfig | None = None, fit_field:
         alt = p0.copy()
         alt[len(fitted_springs(base))] = STIFFENING_RESTART
         starts.append(alt)
-    sols = [least_squares(fun, p, bounds=(lo, hi), x_scale=1.0, diff_step=1e-4, xtol=1e-12, ftol=1e-12, gtol=1e-12)
-            for p in starts]  # fmt: skip
+    sols = [
+        least_squares(fun, p, bounds=(lo, hi), x_scale=1.0, diff_step=1e-4, xtol=1e-12, ftol=1e-12, gtol=1e-12) for p in starts
+    ]
     sol = min(sols, key=lambda r: r.cost)
     cfg = _apply(base, sol.x, fit_field)
     params = {n: float(v if n == STIFFENING_NAME else np.exp(v)) for n, v in zip(names, sol.x)}
@@ -290,12 +291,17 @@ def main(argv=None) -> int:
         "Implausible magnitudes (a depth beyond the tissue thickness, e.g. a file in millimetres; a force above "
         f"{MAX_PLAUSIBLE_FORCE_N:g} N) are rejected with a one-line error.",
     )
-    ap.add_argument("--csv", help=f"measured indentation CSV with header x,y,depth,force ({CSV_UNITS}); "
-                    "default: the FEM reference")  # fmt: skip
+    ap.add_argument(
+        "--csv", help=f"measured indentation CSV with header x,y,depth,force ({CSV_UNITS}); default: the FEM reference"
+    )
     ap.add_argument("--out", default="calibrated.yaml", help="config YAML to write (tissue.* parameters)")
     ap.add_argument("--modes", type=int, default=None, help="modes per axis of the model being fitted")
-    ap.add_argument("--reference", choices=("nonlinear", "linear"), default="nonlinear",
-                    help="without --csv: fit to the large-deformation reference (default) or the linear FEM")  # fmt: skip
+    ap.add_argument(
+        "--reference",
+        choices=("nonlinear", "linear"),
+        default="nonlinear",
+        help="without --csv: fit to the large-deformation reference (default) or the linear FEM",
+    )
     ap.add_argument("--form", choices=("layered", "paper"), default="layered", help="tissue form being fitted")
     a = ap.parse_args(argv)
     base = preset("default").replace(form=a.form)
@@ -312,8 +318,18 @@ def main(argv=None) -> int:
         return 2
     res = fit(data, base)
     dump_yaml({f"tissue.{k}": v for k, v in res.cfg.as_flat().items()}, a.out)
-    print(json.dumps({"params": res.params, "residual_rms_start": res.residual_rms_start, "residual_rms": res.residual_rms,
-                      "evaluations": res.n_evals, "out": a.out}, indent=2))  # fmt: skip
+    print(
+        json.dumps(
+            {
+                "params": res.params,
+                "residual_rms_start": res.residual_rms_start,
+                "residual_rms": res.residual_rms,
+                "evaluations": res.n_evals,
+                "out": a.out,
+            },
+            indent=2,
+        )
+    )
     return 0
 
 
@@ -351,5 +367,8 @@ def fit_membrane(datasets: list[IndentData], cfg: TissueConfig, n: int = 59) -> 
 
     p0 = np.log([sum(la.tension_n_per_m for la in cfg.layers), 1e4])
     sol = least_squares(fun, p0, diff_step=1e-4)
-    return {"tension_n_per_m": float(np.exp(sol.x[0])), "foundation_n_per_m3": float(np.exp(sol.x[1])),
-            "residual_rms": float(np.sqrt(np.mean(sol.fun**2) * sol.fun.size / len(datasets)))}  # fmt: skip
+    return {
+        "tension_n_per_m": float(np.exp(sol.x[0])),
+        "foundation_n_per_m3": float(np.exp(sol.x[1])),
+        "residual_rms": float(np.sqrt(np.mean(sol.fun**2) * sol.fun.size / len(datasets))),
+    }

@@ -18,13 +18,13 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy import stats  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from scipy import stats
 
-from skin_sim_node.model import SkinModel, preset  # noqa: E402
-from skin_sim_node.model.config import dump_yaml  # noqa: E402
-from skin_sim_node.solvers import (  # noqa: E402
+from skin_sim_node.model import SkinModel, preset
+from skin_sim_node.model.config import dump_yaml
+from skin_sim_node.solvers import (
     LeapfrogSolver,
     MassSpringSolver,
     ModalSolver,
@@ -34,9 +34,9 @@ from skin_sim_node.solvers import (  # noqa: E402
     static_indentation,
 )
 
-from . import accuracy, calibrate, fem, large_deformation  # noqa: E402
-from .fem import FemSetup, mesh_levels, reference  # noqa: E402
-from .methods import (  # noqa: E402
+from . import accuracy, calibrate, fem, large_deformation
+from .fem import FemSetup, mesh_levels, reference
+from .methods import (
     AllLayersVariant,
     FemMethod,
     GridMethod,
@@ -45,10 +45,10 @@ from .methods import (  # noqa: E402
     skin_membrane,
     static_force_n,
 )
-from .metrics import field_error, field_max_error, force_depth_error, peak_error  # noqa: E402
-from .references import converged_fem, fem_for, finest_level  # noqa: E402
-from .scenarios import BY_NAME, SUITE, paper_ramp_n  # noqa: E402
-from .stats import table_ii, table_markdown  # noqa: E402
+from .metrics import field_error, field_max_error, force_depth_error, peak_error
+from .references import converged_fem, fem_for, finest_level
+from .scenarios import BY_NAME, SUITE, paper_ramp_n
+from .stats import table_ii, table_markdown
 
 OUT = Path(__file__).resolve().parents[2] / "docs" / "validation"
 CONVERGENCE_LEVELS = (-2, -1, 0, 1)
@@ -84,12 +84,18 @@ def convergence(out: Path) -> dict:
         s = r.setup
         peak = probe_n / r.stiffness_n_per_m
         row = {
-            "level": lvl, "n_tool": s.n_tool, "n_out": s.n_out, "nz": "x".join(map(str, s.nz)), "dofs": r.n_dofs,
-            "stiffness_n_per_m": r.stiffness_n_per_m, "peak_disp_at_0.2N_mm": peak * 1e3,
-            "surface_at_5mm_per_depth": _field_at(r, 5e-3), "solve_s": r.solve_s,
+            "level": lvl,
+            "n_tool": s.n_tool,
+            "n_out": s.n_out,
+            "nz": "x".join(map(str, s.nz)),
+            "dofs": r.n_dofs,
+            "stiffness_n_per_m": r.stiffness_n_per_m,
+            "peak_disp_at_0.2N_mm": peak * 1e3,
+            "surface_at_5mm_per_depth": _field_at(r, 5e-3),
+            "solve_s": r.solve_s,
             "force_change_pct": "" if prev is None else 100 * abs(r.stiffness_n_per_m / prev[0] - 1),
             "peak_change_pct": "" if prev is None else 100 * abs(peak / prev[1] - 1),
-        }  # fmt: skip
+        }
         prev = (r.stiffness_n_per_m, peak)
         rows.append(row)
     _write_csv(out / "convergence.csv", rows)
@@ -103,8 +109,11 @@ def convergence(out: Path) -> dict:
         k = reference(setup).stiffness_n_per_m
         checks.append({"check": label, "stiffness_n_per_m": k, "change_vs_level0_pct": 100 * (k / k0 - 1)})
     _write_csv(out / "extent_checks.csv", checks)
-    lines = ["| level | elements (tool, outer, z bands) | DOFs | K (N/m) | change | peak disp. at 0.2 N (mm) | change "
-             "| surface at 5 mm / depth | solve (s) |", "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = [
+        "| level | elements (tool, outer, z bands) | DOFs | K (N/m) | change | peak disp. at 0.2 N (mm) | change "
+        "| surface at 5 mm / depth | solve (s) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         fc = "" if r["force_change_pct"] == "" else f"{r['force_change_pct']:.2f} %"
         pc = "" if r["peak_change_pct"] == "" else f"{r['peak_change_pct']:.2f} %"
@@ -162,14 +171,17 @@ def speed_accuracy(out: Path, fems: dict, extra: list | None = None) -> list[dic
     _write_csv(out / "speed_accuracy.csv", rows)
     groups = _chart_groups(rows)
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
-    for ax, key, title in ((axes[0], "force_err_mean", "force-depth error (relative RMS)"),
-                           (axes[1], "field_err_mean", "surface-field error (RMS / peak depth)")):  # fmt: skip
+    for ax, key, title in (
+        (axes[0], "force_err_mean", "force-depth error (relative RMS)"),
+        (axes[1], "field_err_mean", "surface-field error (RMS / peak depth)"),
+    ):
         for (label, marker), members in groups.items():
             xs = [r["s_per_update"] for r, _ in members]
             ys = [r[key] for r, _ in members]
             big = marker in "*P"
-            ax.loglog(xs, ys, marker=marker, ls="-" if len(members) > 1 else "", lw=0.8, ms=11 if big else 6,
-                      alpha=0.85, label=label)  # fmt: skip
+            ax.loglog(
+                xs, ys, marker=marker, ls="-" if len(members) > 1 else "", lw=0.8, ms=11 if big else 6, alpha=0.85, label=label
+            )
             for (_r, tag), x, y in zip(members, xs, ys):
                 if tag:
                     ax.annotate(tag, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
@@ -180,8 +192,9 @@ def speed_accuracy(out: Path, fems: dict, extra: list | None = None) -> list[dic
         ax.set_xlabel("compute time per update on this machine (s)")
         ax.set_ylabel(title + ", mean over the suite")
         ax.grid(True, which="both", alpha=0.2)
-    axes[1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="numbers: modes / nodes / mesh level",
-                   title_fontsize=6)  # fmt: skip
+    axes[1].legend(
+        fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="numbers: modes / nodes / mesh level", title_fontsize=6
+    )
     fig.suptitle("Speed vs accuracy against the converged FEM (one run on this machine)", fontsize=10)
     fig.tight_layout()
     fig.savefig(out / "speed_accuracy.png", dpi=120)
@@ -312,8 +325,15 @@ def calibration(out: Path, fems: dict, modes: int, grid: int) -> dict:
     xx = np.arange(len(names))
     for j, (lab, col) in enumerate((("uncalibrated", "C0"), ("calibrated", "C1"))):
         axes[2].bar(xx + 0.2 * j - 0.3, [r[f"{lab}_force_err"] for r in per], 0.2, color=col, label=f"force, {lab}")
-        axes[2].bar(xx + 0.2 * j + 0.1, [r[f"{lab}_field_err"] for r in per], 0.2, color=col, alpha=0.45, hatch="//",
-                    label=f"field, {lab}")  # fmt: skip
+        axes[2].bar(
+            xx + 0.2 * j + 0.1,
+            [r[f"{lab}_field_err"] for r in per],
+            0.2,
+            color=col,
+            alpha=0.45,
+            hatch="//",
+            label=f"field, {lab}",
+        )
     axes[2].set_yscale("log")
     axes[2].axhline(0.05, color="r", lw=0.8, ls="--")
     axes[2].axhline(0.10, color="orange", lw=0.8, ls="--")
@@ -324,8 +344,14 @@ def calibration(out: Path, fems: dict, modes: int, grid: int) -> dict:
     fig.tight_layout()
     fig.savefig(out / "calibration.png", dpi=120)
     plt.close(fig)
-    summary = {"modes": modes, "grid": grid, "params": res.params, "residual_rms_start": res.residual_rms_start,
-               "residual_rms": res.residual_rms, "per_scenario": per}  # fmt: skip
+    summary = {
+        "modes": modes,
+        "grid": grid,
+        "params": res.params,
+        "residual_rms_start": res.residual_rms_start,
+        "residual_rms": res.residual_rms,
+        "per_scenario": per,
+    }
     (out / "calibration.json").write_text(json.dumps(summary, indent=2) + "\n")
     print("calibration:", json.dumps(summary, indent=1))
     return {"summary": summary, "cfg": res.cfg}
@@ -380,14 +406,16 @@ def paper_validation(out: Path, fems: dict, cfgs: dict) -> dict:
             u_fem = fem.surface_per_depth[::2, ::2] * fem_depth[i_pk]
             f_model_at_fem_depth = np.array([static_force_n(model, 0.0, 0.0, min(dd, bottom)) for dd in fem_depth])
             extra = {
-                "samples_reached": int(reached.sum()), "model_max_force_n": fmax,
+                "samples_reached": int(reached.sum()),
+                "model_max_force_n": fmax,
                 "peak_disp_error": peak_error(d[i_pk], fem_depth[i_pk]),
                 "field_rms_error_rel_peak": field_error(u_mod, u_fem, fem_depth[i_pk]),
                 "field_max_error_rel_peak": field_max_error(u_mod, u_fem, fem_depth[i_pk]),
                 "force_error_rel_rms": force_depth_error(f_model_at_fem_depth, ramp),
-                "fem_solve_s": fem.solve_s, "model_100_samples_s": model_s,
+                "fem_solve_s": fem.solve_s,
+                "model_100_samples_s": model_s,
                 "speed_ratio_fem_over_model": fem.solve_s / model_s,
-            }  # fmt: skip
+            }
             results[f"{rname}/{label}"] = {"table": tab, **extra}
             md += [f"## ramp to {ramp.max():.3g} N, FEM vs model ({label})", ""]
             md += [table_markdown(tab, ("FEA", f"model, {label}")), ""]
@@ -416,10 +444,13 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart validation", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("--prune-cache", action="store_true", help="delete cached FEM solves this run did not use")
-    ap.add_argument("--only", choices=("reference", "accuracy", "speed"),
-                    help="reference: only the large-deformation reference and its tables; accuracy: only the model's "
-                    "force and field errors against it (issue 11 aims); speed: the speed-accuracy chart and Table II "
-                    "against it")  # fmt: skip
+    ap.add_argument(
+        "--only",
+        choices=("reference", "accuracy", "speed"),
+        help="reference: only the large-deformation reference and its tables; accuracy: only the model's "
+        "force and field errors against it (issue 11 aims); speed: the speed-accuracy chart and Table II "
+        "against it",
+    )
     ap.add_argument("--fresh", action="store_true", help="solve the large-deformation reference again (~2 min)")
     ap.add_argument("--config", action="append", default=[], help="with --only accuracy: also score this config YAML")
     a = ap.parse_args(argv)

@@ -211,8 +211,9 @@ def layered_column(setup: FemSetup, pressure_pa: float, width_m: float = 1e-3, n
     constrained modulus ``M = E (1 - nu) / ((1 + nu)(1 - 2 nu))`` (uniaxial strain).
     """
     (hs, ifaces, r0) = setup.tissue
-    flat = FemSetup(moduli_pa=setup.moduli_pa, poisson=setup.poisson,
-                    tissue=(hs, tuple((m, 0.0, 1.0, 1.0) for m, *_ in ifaces), r0))  # fmt: skip
+    flat = FemSetup(
+        moduli_pa=setup.moduli_pa, poisson=setup.poisson, tissue=(hs, tuple((m, 0.0, 1.0, 1.0) for m, *_ in ifaces), r0)
+    )
     edges = np.concatenate([[0.0], np.cumsum(hs)])
     zs = np.unique(np.concatenate([np.linspace(a, b, n_per_layer + 1) for a, b in zip(edges[:-1], edges[1:])]))
     mesh = MeshHex.init_tensor(np.linspace(0, width_m, 2), np.linspace(0, width_m, 2), -zs[::-1])
@@ -226,11 +227,13 @@ def layered_column(setup: FemSetup, pressure_pa: float, width_m: float = 1e-3, n
 
     f = load.assemble(top)
     tol = 1e-12
-    fixed = np.concatenate([
-        basis.get_dofs(lambda x: np.abs(x[2] + edges[-1]) < tol).all(),
-        basis.get_dofs(lambda x: (np.abs(x[0]) < tol) | (np.abs(x[0] - width_m) < tol)).all("u^1"),
-        basis.get_dofs(lambda x: (np.abs(x[1]) < tol) | (np.abs(x[1] - width_m) < tol)).all("u^2"),
-    ])  # fmt: skip
+    fixed = np.concatenate(
+        [
+            basis.get_dofs(lambda x: np.abs(x[2] + edges[-1]) < tol).all(),
+            basis.get_dofs(lambda x: (np.abs(x[0]) < tol) | (np.abs(x[0] - width_m) < tol)).all("u^1"),
+            basis.get_dofs(lambda x: (np.abs(x[1]) < tol) | (np.abs(x[1] - width_m) < tol)).all("u^2"),
+        ]
+    )
     u = solve_linear(*condense(K, f, D=np.unique(fixed)))
     top_dofs = basis.get_dofs(lambda x: np.abs(x[2]) < tol).all("u^3")
     nu = setup.poisson
@@ -318,10 +321,15 @@ def reference(setup: FemSetup, cache_dir: Path | None = CACHE_DIR, progress: boo
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(
-            path, stiffness=res.stiffness_n_per_m, sx=res.sample_x_m, sy=res.sample_y_m,
-            field=res.surface_per_depth.astype(np.float32), n_dofs=res.n_dofs, solve_s=res.solve_s,
+            path,
+            stiffness=res.stiffness_n_per_m,
+            sx=res.sample_x_m,
+            sy=res.sample_y_m,
+            field=res.surface_per_depth.astype(np.float32),
+            n_dofs=res.n_dofs,
+            solve_s=res.solve_s,
             setup=json.dumps(asdict(setup), default=str),
-        )  # fmt: skip
+        )
     return res
 
 

@@ -116,8 +116,12 @@ def setup_from_config(cfg: TissueConfig | None = None, level: int = 0, **kw) -> 
     cfg = cfg or preset("default")
     base = AxiSetup(tuple(la.thickness_m for la in cfg.layers), layer_moduli_pa(cfg), cfg.tool_radius_m)
     f = 1.5**level
-    base = replace(base, n_tool=max(2, round(base.n_tool * f)), n_out=max(3, round(base.n_out * f)),
-                   nz=tuple(max(1, round(n * f)) for n in base.nz))  # fmt: skip
+    base = replace(
+        base,
+        n_tool=max(2, round(base.n_tool * f)),
+        n_out=max(3, round(base.n_out * f)),
+        nz=tuple(max(1, round(n * f)) for n in base.nz),
+    )
     return replace(base, **kw)
 
 
@@ -302,8 +306,12 @@ def solve(s: AxiSetup, progress: bool = True) -> AxiResult:
         bar.close()
         return _result(s, pb, depths, forces, prof_d, prof_ur, prof_dn, slips, 1, time.perf_counter() - t0)
 
-    iters = march(pb, stops, lambda d, f: (record(d, f), bar.update(), bar.set_postfix(depth_mm=f"{d * 1e3:.2f}",
-                  force_n=f"{-forces[-1]:.3g}")), s.max_depth_m)  # fmt: skip
+    iters = march(
+        pb,
+        stops,
+        lambda d, f: (record(d, f), bar.update(), bar.set_postfix(depth_mm=f"{d * 1e3:.2f}", force_n=f"{-forces[-1]:.3g}")),
+        s.max_depth_m,
+    )
     bar.close()
     return _result(s, pb, depths, forces, prof_d, prof_ur, prof_dn, slips, iters, time.perf_counter() - t0)
 
@@ -377,9 +385,18 @@ def _newton(pb, u, max_it: int = 15, rtol: float = 1e-9, solver=None):
 
 def _result(s, pb, depths, forces, prof_d, prof_ur, prof_dn, slips, iters, wall):
     return AxiResult(
-        s, np.array(depths), -np.array(forces), pb.surface_r, np.array(prof_d), np.array(prof_ur), np.array(prof_dn),
-        np.array(slips), pb.basis.N, iters, wall,
-    )  # fmt: skip
+        s,
+        np.array(depths),
+        -np.array(forces),
+        pb.surface_r,
+        np.array(prof_d),
+        np.array(prof_ur),
+        np.array(prof_dn),
+        np.array(slips),
+        pb.basis.N,
+        iters,
+        wall,
+    )
 
 
 def reference(s: AxiSetup, cache_dir: Path | None = CACHE_DIR, progress: bool = True, fresh: bool = False) -> AxiResult:
@@ -387,15 +404,34 @@ def reference(s: AxiSetup, cache_dir: Path | None = CACHE_DIR, progress: bool = 
     path = None if cache_dir is None else Path(cache_dir) / f"{s.key()}.npz"
     if path is not None and path.exists() and not fresh:
         z = np.load(path)
-        return AxiResult(s, z["depths"], z["forces"], z["surface_r"], z["profile_depths"], z["surface_ur"], z["surface_down"],
-                         z["edge_slip"], int(z["n_dofs"]), int(z["iters"]), float(z["solve_s"]))  # fmt: skip
+        return AxiResult(
+            s,
+            z["depths"],
+            z["forces"],
+            z["surface_r"],
+            z["profile_depths"],
+            z["surface_ur"],
+            z["surface_down"],
+            z["edge_slip"],
+            int(z["n_dofs"]),
+            int(z["iters"]),
+            float(z["solve_s"]),
+        )
     res = solve(s, progress)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(
-            path, depths=res.depths_m, forces=res.forces_n, surface_r=res.surface_r_m, profile_depths=res.profile_depths_m,
-            surface_ur=res.surface_ur_m.astype(np.float32), surface_down=res.surface_down_m.astype(np.float32),
-            edge_slip=res.edge_slip_m, n_dofs=res.n_dofs, iters=res.newton_iterations, solve_s=res.solve_s,
+            path,
+            depths=res.depths_m,
+            forces=res.forces_n,
+            surface_r=res.surface_r_m,
+            profile_depths=res.profile_depths_m,
+            surface_ur=res.surface_ur_m.astype(np.float32),
+            surface_down=res.surface_down_m.astype(np.float32),
+            edge_slip=res.edge_slip_m,
+            n_dofs=res.n_dofs,
+            iters=res.newton_iterations,
+            solve_s=res.solve_s,
             setup=json.dumps(asdict(s)),
-        )  # fmt: skip
+        )
     return res

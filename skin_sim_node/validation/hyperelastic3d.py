@@ -50,9 +50,11 @@ def neo_hookean_3d(G, lam, mu):
     lnJ = np.log(np.where(ok, J, 1.0))
     P = mu[..., None, None] * (F - FiT) + (lam * lnJ)[..., None, None] * FiT
     eye = np.eye(3)
-    A = (mu[..., None, None, None, None] * np.einsum("ik,JL->iJkL", eye, eye)
-         + (mu - lam * lnJ)[..., None, None, None, None] * np.einsum("...Li,...Jk->...iJkL", Fi, Fi)
-         + lam[..., None, None, None, None] * np.einsum("...Ji,...Lk->...iJkL", Fi, Fi))  # fmt: skip
+    A = (
+        mu[..., None, None, None, None] * np.einsum("ik,JL->iJkL", eye, eye)
+        + (mu - lam * lnJ)[..., None, None, None, None] * np.einsum("...Li,...Jk->...iJkL", Fi, Fi)
+        + lam[..., None, None, None, None] * np.einsum("...Ji,...Lk->...iJkL", Fi, Fi)
+    )
     return np.moveaxis(P, (-2, -1), (0, 1)), np.moveaxis(A, (-4, -3, -2, -1), (0, 1, 2, 3)), np.where(ok, J, -1.0)
 
 
@@ -192,8 +194,7 @@ def solve(s3: Setup3D, progress: bool = True, sample_step_m: float = 0.5e-3) -> 
     SX, SY = np.meshgrid(sx, sy)
     field = griddata(cur, down, (SX, SY), method="linear", fill_value=0.0)
     xc, yc = s.contact_xy_m
-    return Result3D(s3, np.array(depths), np.array(forces), sx + xc, sy + yc, field, pb.basis.N, iters,
-                    time.perf_counter() - t0)  # fmt: skip
+    return Result3D(s3, np.array(depths), np.array(forces), sx + xc, sy + yc, field, pb.basis.N, iters, time.perf_counter() - t0)
 
 
 def reference(s3: Setup3D, cache_dir: Path | None = CACHE_DIR, progress: bool = True, fresh: bool = False) -> Result3D:
@@ -201,12 +202,22 @@ def reference(s3: Setup3D, cache_dir: Path | None = CACHE_DIR, progress: bool = 
     path = None if cache_dir is None else Path(cache_dir) / f"3d-{s3.key()}.npz"
     if path is not None and path.exists() and not fresh:
         z = np.load(path)
-        return Result3D(s3, z["depths"], z["forces"], z["sx"], z["sy"], z["field"], int(z["n_dofs"]), int(z["iters"]),
-                        float(z["solve_s"]))  # fmt: skip
+        return Result3D(
+            s3, z["depths"], z["forces"], z["sx"], z["sy"], z["field"], int(z["n_dofs"]), int(z["iters"]), float(z["solve_s"])
+        )
     res = solve(s3, progress)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(path, depths=res.depths_m, forces=res.forces_n, sx=res.sample_x_m, sy=res.sample_y_m,
-                            field=res.field_down_m.astype(np.float32), n_dofs=res.n_dofs, iters=res.newton_iterations,
-                            solve_s=res.solve_s, setup=json.dumps(asdict(s3), default=str))  # fmt: skip
+        np.savez_compressed(
+            path,
+            depths=res.depths_m,
+            forces=res.forces_n,
+            sx=res.sample_x_m,
+            sy=res.sample_y_m,
+            field=res.field_down_m.astype(np.float32),
+            n_dofs=res.n_dofs,
+            iters=res.newton_iterations,
+            solve_s=res.solve_s,
+            setup=json.dumps(asdict(s3), default=str),
+        )
     return res

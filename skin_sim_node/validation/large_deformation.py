@@ -15,12 +15,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from skin_sim_node.model import TissueConfig, preset  # noqa: E402
+from skin_sim_node.model import TissueConfig, preset
 
-from .references import (  # noqa: E402
+from .references import (
     AXI_LEVELS,
     AXI_REFERENCE_LEVEL,
     THREE_D_LEVEL,
@@ -30,7 +30,7 @@ from .references import (  # noqa: E402
     linear_3d,
     nonlinear_3d,
 )
-from .scenarios import BY_NAME  # noqa: E402
+from .scenarios import BY_NAME
 
 OUT = Path(__file__).resolve().parents[2] / "docs" / "validation"
 CHECK_DEPTHS_M = (0.1e-3, 0.5e-3, 1e-3, 2e-3, 3e-3)
@@ -65,13 +65,16 @@ def markdown(rows: list[dict], k3d: dict[str, float]) -> str:
     """The reference page: mesh convergence table of the axisymmetric runs and the 3D cross-check."""
     ref = next(r for r in rows if r["level"] == AXI_REFERENCE_LEVEL)
     lines = [
-        "# Large-deformation reference (axisymmetric, flat layers, compressible neo-Hookean)", "",
-        "Written by `skin-sim chart validation --only reference` (`skin_sim_node/validation/large_deformation.py`).", "",
-        "## Mesh convergence", "",
+        "# Large-deformation reference (axisymmetric, flat layers, compressible neo-Hookean)",
+        "",
+        "Written by `skin-sim chart validation --only reference` (`skin_sim_node/validation/large_deformation.py`).",
+        "",
+        "## Mesh convergence",
+        "",
         "| level | elements (tool, outer, z: epi x dermis x fat) | DOFs | F 0.1 mm (N) | F 1 mm (N) | F 2 mm (N) | F 3 mm (N) "
         "| change at 3 mm | edge slip at 3 mm (mm) | Newton its | solve (s) |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
-    ]  # fmt: skip
+    ]
     for r in rows:
         ch = "" if r["change_3mm_pct"] == "" else f"{r['change_3mm_pct']:.2f} %"
         lines.append(
@@ -79,17 +82,29 @@ def markdown(rows: list[dict], k3d: dict[str, float]) -> str:
             f"| {r['F_nh_2mm_n']:.4f} | {r['F_nh_3mm_n']:.4f} | {ch} | {r['edge_slip_3mm_mm']:.3f} | {r['newton_iterations']} "
             f"| {r['solve_s']:.1f} |"
         )
-    lines += ["", f"Reference level: {AXI_REFERENCE_LEVEL}.", "", "## Nonlinear over linear (same mesh, same moduli)", "",
-              "| level | " + " | ".join(f"{d * 1e3:g} mm" for d in CHECK_DEPTHS_M) + " |",
-              "|---|" + "---|" * len(CHECK_DEPTHS_M)]  # fmt: skip
+    lines += [
+        "",
+        f"Reference level: {AXI_REFERENCE_LEVEL}.",
+        "",
+        "## Nonlinear over linear (same mesh, same moduli)",
+        "",
+        "| level | " + " | ".join(f"{d * 1e3:g} mm" for d in CHECK_DEPTHS_M) + " |",
+        "|---|" + "---|" * len(CHECK_DEPTHS_M),
+    ]
     for r in rows:
         ratios = " | ".join(f"{r[f'nh_over_linear_{d * 1e3:g}mm']:.4f}" for d in CHECK_DEPTHS_M)
         lines.append(f"| {r['level']} | {ratios} |")
     ok = abs(ref[f"nh_over_linear_{SMALL_STRAIN_DEPTH_M * 1e3:g}mm"] - 1) <= SMALL_STRAIN_TOL
-    lines += ["", f"Small-strain check at {SMALL_STRAIN_DEPTH_M * 1e3:g} mm (aim within {SMALL_STRAIN_TOL:.0%}): "
-              f"{'PASS' if ok else 'FAIL'}.", "", "## Linear axisymmetric vs the linear 3D FEM (egg-carton interfaces)", "",
-              f"Axisymmetric linear stiffness, flat layers, level {AXI_REFERENCE_LEVEL}: "
-              f"{ref['linear_k_n_per_m']:.3f} N/m.", ""]  # fmt: skip
+    lines += [
+        "",
+        f"Small-strain check at {SMALL_STRAIN_DEPTH_M * 1e3:g} mm (aim within {SMALL_STRAIN_TOL:.0%}): "
+        f"{'PASS' if ok else 'FAIL'}.",
+        "",
+        "## Linear axisymmetric vs the linear 3D FEM (egg-carton interfaces)",
+        "",
+        f"Axisymmetric linear stiffness, flat layers, level {AXI_REFERENCE_LEVEL}: {ref['linear_k_n_per_m']:.3f} N/m.",
+        "",
+    ]
     lines += [f"- 3D linear, {k}: {v:.3f} N/m ({100 * (v / ref['linear_k_n_per_m'] - 1):+.2f} %)" for k, v in k3d.items()]
     return "\n".join(lines) + "\n"
 
@@ -97,9 +112,13 @@ def markdown(rows: list[dict], k3d: dict[str, float]) -> str:
 def three_d_markdown(cfg: TissueConfig | None = None, fresh: bool = False) -> str:
     """The 3D egg-carton neo-Hookean solves: force at 1, 2, 3 mm, over the linear 3D FEM and the axisymmetric reference."""
     ax = axisym(cfg)
-    lines = [f"## 3D, egg-carton interfaces (mesh level {THREE_D_LEVEL})", "",
-             "| scenario | DOFs | F 1 mm (N) | F 2 mm (N) | F 3 mm (N) | nonlinear / linear 3D at 0.3, 1, 2, 3 mm "
-             "| 3D / axisymmetric at 1, 2, 3 mm | Newton its | solve (s) |", "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = [
+        f"## 3D, egg-carton interfaces (mesh level {THREE_D_LEVEL})",
+        "",
+        "| scenario | DOFs | F 1 mm (N) | F 2 mm (N) | F 3 mm (N) | nonlinear / linear 3D at 0.3, 1, 2, 3 mm "
+        "| 3D / axisymmetric at 1, 2, 3 mm | Newton its | solve (s) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for name in THREE_D_SCENARIOS:
         sc = BY_NAME[name]
         r = nonlinear_3d(sc, cfg, fresh=fresh)
@@ -111,8 +130,9 @@ def three_d_markdown(cfg: TissueConfig | None = None, fresh: bool = False) -> st
         fcol = [f"{fi:.4f}" if ok else f"- (stopped at {deepest * 1e3:.2f} mm)" for fi, ok in zip(f, reached)]
         ratio_lin = "; ".join(f"{r.force_n(x) / (k * x):.4f}" if x <= deepest + 1e-12 else "-" for x in (r.depths_m[0], *d))
         ratio_ax = "; ".join(f"{a / b:.3f}" if ok else "-" for a, b, ok in zip(f, ax.force_n(d), reached))
-        lines.append(f"| {name} | {r.n_dofs} | {' | '.join(fcol)} | {ratio_lin} | {ratio_ax} "
-                     f"| {r.newton_iterations} | {r.solve_s:.0f} |")  # fmt: skip
+        lines.append(
+            f"| {name} | {r.n_dofs} | {' | '.join(fcol)} | {ratio_lin} | {ratio_ax} | {r.newton_iterations} | {r.solve_s:.0f} |"
+        )
     return "\n".join(lines) + "\n"
 
 

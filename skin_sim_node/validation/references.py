@@ -41,8 +41,13 @@ def converged_fem(sc, progress: bool = True):
     return fem_for(sc, finest_level(sc), progress)
 
 
-def axisym(cfg: TissueConfig | None = None, level: int = AXI_REFERENCE_LEVEL, law: str = "neo-hookean",
-           progress: bool = True, fresh: bool = False) -> hyperelastic.AxiResult:  # fmt: skip
+def axisym(
+    cfg: TissueConfig | None = None,
+    level: int = AXI_REFERENCE_LEVEL,
+    law: str = "neo-hookean",
+    progress: bool = True,
+    fresh: bool = False,
+) -> hyperelastic.AxiResult:
     """The axisymmetric flat-layer punch solve of ``cfg`` (default preset) to 3 mm (cached)."""
     s = hyperelastic.setup_from_config(cfg, level)
     return hyperelastic.reference(replace(s, law=law), progress=progress, fresh=fresh)

@@ -23,8 +23,7 @@ _BROWSERS: list = []  # headless browsers this process opened (screenshots), clo
 PORT = 8642  # arbitrary unprivileged port; --port 0 picks a free one
 
 
-def serve(source, host: str, port: int, duration_s: float | None = None, screenshot: Path | None = None,
-          on_ready=None) -> int:  # fmt: skip
+def serve(source, host: str, port: int, duration_s: float | None = None, screenshot: Path | None = None, on_ready=None) -> int:
     """Run ``source`` behind a :class:`ViewServer` until interrupted (or ``duration_s``)."""
     from .server import ViewServer
 
@@ -67,15 +66,20 @@ def main(argv=None) -> int:
     ap.add_argument("--port", type=int, default=PORT, help="HTTP port (0: any free port)")
     ap.add_argument("--rate-hz", type=float, default=DISPLAY_RATE_HZ, help="frames per second sent to the page")
     ap.add_argument("--duration-s", type=float, help="stop after this long (default: until Ctrl-C)")
-    ap.add_argument("--contact", action="store_true",
-                    help="also read tissue/contact (per-layer stress, for the paper form's layer count); the node "
-                         "then publishes it every haptic tick, which costs its latency")  # fmt: skip
+    ap.add_argument(
+        "--contact",
+        action="store_true",
+        help="also read tissue/contact (per-layer stress, for the paper form's layer count); the node "
+        "then publishes it every haptic tick, which costs its latency",
+    )
     ap.add_argument("--screenshot", type=Path, help="open the page in headless Chromium and save a PNG after --shot-after-s")
     ap.add_argument("--shot-after-s", type=float, default=3.0, help="delay before the screenshot")
     ap.add_argument(
-        "--shot-when-force-n", type=float, default=0.0,
+        "--shot-when-force-n",
+        type=float,
+        default=0.0,
         help="take the screenshot once the shown force exceeds this (N; waits up to 60 s), then --shot-after-s",
-    )  # fmt: skip
+    )
     ap.add_argument("--bench", action="store_true", help="latency benchmark: node p99 with the view open vs closed")
     ap.add_argument("--compare-libs", action="store_true", help="library comparison (mesh rate, CPU, install size)")
     args = ap.parse_args(argv)
@@ -121,8 +125,11 @@ def _screenshot(server, path: Path, after_s: float, when_force_n: float = 0.0) -
                 b.wait_for(f"window.skinView.force > {when_force_n}", 60, f"a force above {when_force_n} N")
             time.sleep(after_s)
             if when_force_n > 0:  # the picture shows the press it names: a grid within SHOT_GRID_DT_S of the tool, rendered
-                b.wait_for(f"window.skinView.force > {when_force_n} && Math.abs(window.skinView.gridDtS) < {SHOT_GRID_DT_S}",
-                           60, f"a pressed frame whose grid is within {SHOT_GRID_DT_S * 1e3:.0f} ms of the tool")  # fmt: skip
+                b.wait_for(
+                    f"window.skinView.force > {when_force_n} && Math.abs(window.skinView.gridDtS) < {SHOT_GRID_DT_S}",
+                    60,
+                    f"a pressed frame whose grid is within {SHOT_GRID_DT_S * 1e3:.0f} ms of the tool",
+                )
             n = b.evaluate("window.skinView.frames")
             b.wait_for(f"window.skinView.renderedFrames >= {n}", 30, "the frame rendered")
             dt = b.evaluate("window.skinView.gridDtS")

@@ -47,8 +47,9 @@ class BagData:
                 if not topics:
                     raise BagError(f"{path}: none of the skin-sim topics ({', '.join(TOPICS[k].name for k in KEYS)})")
                 total = sum(c.msgcount for c in reader.connections if c.topic in topics)
-                for topic, msgtype, t_ns, raw in tqdm(iter_raw(path, reader, list(topics)), total=total,
-                                                      desc=f"reading {path.name}", unit="msg", leave=False):  # fmt: skip
+                for topic, msgtype, t_ns, raw in tqdm(
+                    iter_raw(path, reader, list(topics)), total=total, desc=f"reading {path.name}", unit="msg", leave=False
+                ):
                     key = topics[topic]
                     msg = deserialize(raw, msgtype)
                     if key == "tool_pose":
@@ -119,8 +120,14 @@ class BagData:
             depth = np.interp(t, self.contact_t, self.contact[:, :3].sum(axis=1))
         else:
             depth = np.zeros_like(t)
-        return {"type": "timeline", "duration_s": self.duration_s, "t_s": t.round(5).tolist(), "force_n": f.round(6).tolist(),
-                "depth_m": depth.round(8).tolist(), "grid_t_s": self.grid_t.round(5).tolist()}  # fmt: skip
+        return {
+            "type": "timeline",
+            "duration_s": self.duration_s,
+            "t_s": t.round(5).tolist(),
+            "force_n": f.round(6).tolist(),
+            "depth_m": depth.round(8).tolist(),
+            "grid_t_s": self.grid_t.round(5).tolist(),
+        }
 
 
 class BagSource:
@@ -140,11 +147,18 @@ class BagSource:
         self.server = None
 
     def info(self) -> dict:
-        return {"type": "info", "mode": "bag", "bags": [str(p) for p in self.data.paths],
-                "sheet_m": [SPEC_BY_NAME["tissue.sheet.size_x_m"].default, SPEC_BY_NAME["tissue.sheet.size_y_m"].default],
-                "tool_radius_m": SPEC_BY_NAME["tissue.tool.radius_m"].default, "rate_hz": self.rate_hz,
-                "tool_shape": SPEC_BY_NAME["tissue.tool.shape"].default, "thickness_m": default_thickness_m(),
-                "duration_s": self.data.duration_s, "n_grids": len(self.data.grids)}  # fmt: skip
+        return {
+            "type": "info",
+            "mode": "bag",
+            "bags": [str(p) for p in self.data.paths],
+            "sheet_m": [SPEC_BY_NAME["tissue.sheet.size_x_m"].default, SPEC_BY_NAME["tissue.sheet.size_y_m"].default],
+            "tool_radius_m": SPEC_BY_NAME["tissue.tool.radius_m"].default,
+            "rate_hz": self.rate_hz,
+            "tool_shape": SPEC_BY_NAME["tissue.tool.shape"].default,
+            "thickness_m": default_thickness_m(),
+            "duration_s": self.data.duration_s,
+            "n_grids": len(self.data.grids),
+        }
 
     def hello(self) -> list[str]:
         return [json.dumps(self.info()), json.dumps(self.data.timeline())]

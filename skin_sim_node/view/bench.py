@@ -50,8 +50,11 @@ def run(duration_s: float, cycles: int, out: Path, rate_hz: float) -> dict:
     with Scene(out / "logs") as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
-        print(f"skin-sim view --bench: ROS_DOMAIN_ID={scene.env['ROS_DOMAIN_ID']}, {cycles} x (closed, view alone, view + page) "
-              f"of {duration_s:.0f} s", flush=True)  # fmt: skip
+        print(
+            f"skin-sim view --bench: ROS_DOMAIN_ID={scene.env['ROS_DOMAIN_ID']}, {cycles} x (closed, view alone, view + page) "
+            f"of {duration_s:.0f} s",
+            flush=True,
+        )
         node = scene.node()
         scene.wait_for_log(node, "live:", timeout_s=180)
         mon = StreamObserver("view_bench_observer", record_depth=1)
@@ -90,15 +93,22 @@ def run(duration_s: float, cycles: int, out: Path, rate_hz: float) -> dict:
                     browser.close()
                 if view is not None:
                     scene.stop(view)
-                phases.append({
-                    "view": kind, "view_cpu_pct": 100 * view_cpu / wall, "cycle": k, "n": int(lat.size),
-                    "latency_ms": lat.tolist(),
-                    "p50_ms": float(np.percentile(lat, 50)) if lat.size else float("nan"),
-                    "p99_ms": float(np.percentile(lat, 99)) if lat.size else float("nan"),
-                    "missed_slots": int(sum(int(d.get("missed_slots_window", 0)) for d in diags)),
-                    "rate_hz": float(np.median([float(d["achieved_rate_hz"]) for d in diags])) if diags else float("nan"),
-                    "view_browser_cpu_pct": 100 * cpu / wall, "node_cpu_pct": 100 * node_cpu / wall, **extra,
-                })  # fmt: skip
+                phases.append(
+                    {
+                        "view": kind,
+                        "view_cpu_pct": 100 * view_cpu / wall,
+                        "cycle": k,
+                        "n": int(lat.size),
+                        "latency_ms": lat.tolist(),
+                        "p50_ms": float(np.percentile(lat, 50)) if lat.size else float("nan"),
+                        "p99_ms": float(np.percentile(lat, 99)) if lat.size else float("nan"),
+                        "missed_slots": int(sum(int(d.get("missed_slots_window", 0)) for d in diags)),
+                        "rate_hz": float(np.median([float(d["achieved_rate_hz"]) for d in diags])) if diags else float("nan"),
+                        "view_browser_cpu_pct": 100 * cpu / wall,
+                        "node_cpu_pct": 100 * node_cpu / wall,
+                        **extra,
+                    }
+                )
                 bar.update(1)
         bar.close()
         mon.close()
@@ -130,8 +140,10 @@ def summarize(res: dict) -> dict:
 
 
 def print_summary(res: dict, s: dict) -> None:
-    print(f"\nview closed vs open, same node process, {len(res['phases'])} alternating phases of {res['duration_s']:.0f} s "
-          f"(machine shared: compare the ratios)")  # fmt: skip
+    print(
+        f"\nview closed vs open, same node process, {len(res['phases'])} alternating phases of {res['duration_s']:.0f} s "
+        f"(machine shared: compare the ratios)"
+    )
     for p in res["phases"]:
         print(
             f"  cycle {p['cycle']} view {p['view']:6s}: latency p50 {p['p50_ms']:.3f} ms p99 {p['p99_ms']:.3f} ms "

@@ -121,8 +121,10 @@ class Browser:
         """Value of a JavaScript expression in the page (promises awaited)."""
         r = self.call("Runtime.evaluate", expression=expression, awaitPromise=True, returnByValue=True)
         if "exceptionDetails" in r:
-            raise RuntimeError(f"page error in {expression!r}: {r['exceptionDetails'].get('text')} "
-                               f"{r['exceptionDetails'].get('exception', {}).get('description', '')}")  # fmt: skip
+            raise RuntimeError(
+                f"page error in {expression!r}: {r['exceptionDetails'].get('text')} "
+                f"{r['exceptionDetails'].get('exception', {}).get('description', '')}"
+            )
         return r.get("result", {}).get("value")
 
     def wait_for(self, expression: str, timeout_s: float = 30.0, what: str = ""):

@@ -58,8 +58,14 @@ def diag_message(status_level: int, status_message: str, values: dict[str, str])
     shown = {k: values[k] for k in DIAG_KEYS if k in values}
     regime = {k[len("regime_") :]: v for k, v in values.items() if k.startswith("regime_")}
     counts = {k[len("count_") :]: v for k, v in values.items() if k.startswith("count_")}
-    return {"type": "diag", "level": int(status_level), "message": status_message, "values": shown,
-            "regime": regime, "counts": counts}  # fmt: skip
+    return {
+        "type": "diag",
+        "level": int(status_level),
+        "message": status_message,
+        "values": shown,
+        "regime": regime,
+        "counts": counts,
+    }
 
 
 def default_thickness_m() -> list[float]:

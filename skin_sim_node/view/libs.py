@@ -50,8 +50,18 @@ class _Stub:
     """The minimal source the own server needs for this measurement (no ROS): sheet info only."""
 
     def hello(self):
-        return [json.dumps({"type": "info", "mode": "live", "namespace": "bench", "sheet_m": [0.12, 0.12],
-                            "tool_radius_m": 0.0025, "rate_hz": 30})]  # fmt: skip
+        return [
+            json.dumps(
+                {
+                    "type": "info",
+                    "mode": "live",
+                    "namespace": "bench",
+                    "sheet_m": [0.12, 0.12],
+                    "tool_radius_m": 0.0025,
+                    "rate_hz": 30,
+                }
+            )
+        ]
 
     def resend(self):
         pass
@@ -172,7 +182,7 @@ def _reader(ws, on_text=None) -> dict:
                 else:
                     stats["bytes"] += len(m)
                     stats["msgs"] += 1
-        except Exception:  # noqa: BLE001 - measurement client: any end is the end
+        except Exception:
             pass
 
     threading.Thread(target=run, daemon=True).start()
@@ -198,9 +208,13 @@ def _foxglove_client(url: str):
     u = urlparse(url)
     sock = socket.create_connection((u.hostname, u.port), timeout=10)
     key = base64.b64encode(os.urandom(16)).decode()
-    sock.sendall((f"GET / HTTP/1.1\r\nHost: {u.hostname}:{u.port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-                  f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
-                  f"Sec-WebSocket-Protocol: foxglove.sdk.v1, foxglove.websocket.v1\r\n\r\n").encode())  # fmt: skip
+    sock.sendall(
+        (
+            f"GET / HTTP/1.1\r\nHost: {u.hostname}:{u.port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+            f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
+            f"Sec-WebSocket-Protocol: foxglove.sdk.v1, foxglove.websocket.v1\r\n\r\n"
+        ).encode()
+    )
     buf = b""
     while b"\r\n\r\n" not in buf:
         buf += sock.recv(4096)
@@ -296,24 +310,32 @@ def format_row(row: dict) -> str:
     def g(d, k):
         return d.get(k, float("nan"))
 
-    text = (f"{row['lib']:13s} install +{row['install_mb']:7.1f} MB | at 30 Hz: server CPU {g(a, 'cpu_pct'):5.1f} %, "
-            f"client CPU {g(a, 'client_cpu_pct'):5.1f} %, {row['bytes_per_update'] / 1e3:5.0f} kB/update, "
-            f"{g(a, 'delivered_per_s'):5.1f} updates/s delivered | flat out: {g(m, 'delivered_per_s'):5.1f} updates/s "
-            f"delivered (pushed {g(m, 'frames_per_s'):5.0f}/s) at server CPU {g(m, 'cpu_pct'):5.1f} %")  # fmt: skip
+    text = (
+        f"{row['lib']:13s} install +{row['install_mb']:7.1f} MB | at 30 Hz: server CPU {g(a, 'cpu_pct'):5.1f} %, "
+        f"client CPU {g(a, 'client_cpu_pct'):5.1f} %, {row['bytes_per_update'] / 1e3:5.0f} kB/update, "
+        f"{g(a, 'delivered_per_s'):5.1f} updates/s delivered | flat out: {g(m, 'delivered_per_s'):5.1f} updates/s "
+        f"delivered (pushed {g(m, 'frames_per_s'):5.0f}/s) at server CPU {g(m, 'cpu_pct'):5.1f} %"
+    )
     err = a.get("error") or m.get("error")
     return text + (f" | error: {err}" if err else "")
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim view --compare-libs", description=__doc__.splitlines()[0])
-    ap.add_argument("--lib-dir", type=Path, default=Path("out/view_libs"),
-                    help="folder with one `pip install --target DIR/NAME NAME` per candidate")  # fmt: skip
+    ap.add_argument(
+        "--lib-dir",
+        type=Path,
+        default=Path("out/view_libs"),
+        help="folder with one `pip install --target DIR/NAME NAME` per candidate",
+    )
     ap.add_argument("--duration-s", type=float, default=8.0)
     ap.add_argument("--libs", nargs="*", default=list(LIBS))
     ap.add_argument("--out", type=Path, default=Path("out/view_libs/compare.json"))
     args = ap.parse_args(argv)
-    print(f"skin-sim view --compare-libs: {', '.join(args.libs)}; 120 x 120 grid, 3 layers; {args.duration_s:.0f} s per run",
-          flush=True)  # fmt: skip
+    print(
+        f"skin-sim view --compare-libs: {', '.join(args.libs)}; 120 x 120 grid, 3 layers; {args.duration_s:.0f} s per run",
+        flush=True,
+    )
     rows = []
     for k, lib in enumerate(args.libs):
         if not lib.startswith("own") and not (args.lib_dir / lib).is_dir():

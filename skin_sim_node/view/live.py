@@ -111,8 +111,9 @@ class LiveSource:
         for st in msg.status:
             values = {kv.key: kv.value for kv in st.values}
             if "achieved_rate_hz" in values:
-                self.diag = diag_message(int.from_bytes(st.level, "little") if isinstance(st.level, bytes) else st.level,
-                                         st.message, values)  # fmt: skip
+                self.diag = diag_message(
+                    int.from_bytes(st.level, "little") if isinstance(st.level, bytes) else st.level, st.message, values
+                )
                 self._diag_new = True
 
     # --- ROS calls --------------------------------------------------------------------
@@ -125,8 +126,9 @@ class LiveSource:
         end = time.monotonic() + SERVICE_TIMEOUT_S
         while not future.done():
             if time.monotonic() > end:
-                raise TimeoutError(f"{what}: no answer from {self.namespace.rstrip('/')}/{NODE_NAME} "
-                                   f"within {SERVICE_TIMEOUT_S} s")  # fmt: skip
+                raise TimeoutError(
+                    f"{what}: no answer from {self.namespace.rstrip('/')}/{NODE_NAME} within {SERVICE_TIMEOUT_S} s"
+                )
             if self._stop.is_set() or not self._running:
                 self._spin(4)
             time.sleep(0.005)
@@ -138,9 +140,11 @@ class LiveSource:
     def _call(self, call, what: str, wait_s: float = SERVICE_WAIT_S, tries: int = SERVICE_TRIES):
         """``call()`` returns a future; wait for the services, send, and resend if unanswered."""
         if not self.client.wait_for_services(timeout_sec=wait_s):
-            raise TimeoutError(f"{what}: the parameter services of {self.namespace.rstrip('/')}/{NODE_NAME} "
-                               f"were not found within {wait_s:.0f} s (is the node running in this "
-                               "namespace and ROS_DOMAIN_ID?)")  # fmt: skip
+            raise TimeoutError(
+                f"{what}: the parameter services of {self.namespace.rstrip('/')}/{NODE_NAME} "
+                f"were not found within {wait_s:.0f} s (is the node running in this "
+                "namespace and ROS_DOMAIN_ID?)"
+            )
         for attempt in range(tries):
             try:
                 return self._wait(call(), what)
@@ -167,12 +171,16 @@ class LiveSource:
 
         A node without one of them (rclpy then answers no values at all) leaves the defaults."""
         try:
-            new = ((float(got["tissue.sheet.size_x_m"][1]), float(got["tissue.sheet.size_y_m"][1])),
-                   float(got["tissue.tool.radius_m"][1]))  # fmt: skip
+            new = (
+                (float(got["tissue.sheet.size_x_m"][1]), float(got["tissue.sheet.size_y_m"][1])),
+                float(got["tissue.tool.radius_m"][1]),
+            )
         except (KeyError, TypeError, ValueError):
             return False
-        extra = (str(got.get("tissue.tool.shape", (0, self.tool_shape))[1]),
-                 [float(got.get(n, (0, t))[1]) for n, t in zip(GEOMETRY_EXTRA[1:], self.thickness_m)])  # fmt: skip
+        extra = (
+            str(got.get("tissue.tool.shape", (0, self.tool_shape))[1]),
+            [float(got.get(n, (0, t))[1]) for n, t in zip(GEOMETRY_EXTRA[1:], self.thickness_m)],
+        )
         changed = (new, extra) != ((self.sheet_m, self.tool_radius_m), (self.tool_shape, self.thickness_m))
         self.sheet_m, self.tool_radius_m = new
         self.tool_shape, self.thickness_m = extra
@@ -195,8 +203,15 @@ class LiveSource:
             ptype, value = got[d.name]
             if ptype not in (1, 2, 3, 4) or d.read_only:
                 continue
-            out.append({"name": d.name, "type": ptype, "value": value, "description": d.description,
-                        "tunable": bool(TUNABLE.search(d.name))})  # fmt: skip
+            out.append(
+                {
+                    "name": d.name,
+                    "type": ptype,
+                    "value": value,
+                    "description": d.description,
+                    "tunable": bool(TUNABLE.search(d.name)),
+                }
+            )
         return {"ok": True, "node": f"{self.namespace.rstrip('/')}/{NODE_NAME}", "params": out}
 
     def set_param(self, name: str, text: str) -> dict:
@@ -218,8 +233,12 @@ class LiveSource:
         r = res.results[0]
         if r.successful and name in ("tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", *GEOMETRY_EXTRA):
             threading.Thread(target=self._after_geometry_change, daemon=True).start()
-        return {"ok": bool(r.successful), "name": name, "value": value if r.successful else got[name][1],
-                "reason": r.reason or ("applied" if r.successful else "rejected (no reason given)")}  # fmt: skip
+        return {
+            "ok": bool(r.successful),
+            "name": name,
+            "value": value if r.successful else got[name][1],
+            "reason": r.reason or ("applied" if r.successful else "rejected (no reason given)"),
+        }
 
     def _after_geometry_change(self) -> None:
         self.refresh_geometry()
@@ -227,9 +246,16 @@ class LiveSource:
 
     # --- page ---------------------------------------------------------------------------
     def info(self) -> dict:
-        return {"type": "info", "mode": "live", "namespace": self.namespace, "sheet_m": list(self.sheet_m),
-                "tool_radius_m": self.tool_radius_m, "tool_shape": self.tool_shape, "thickness_m": self.thickness_m,
-                "rate_hz": self.rate_hz}  # fmt: skip
+        return {
+            "type": "info",
+            "mode": "live",
+            "namespace": self.namespace,
+            "sheet_m": list(self.sheet_m),
+            "tool_radius_m": self.tool_radius_m,
+            "tool_shape": self.tool_shape,
+            "thickness_m": self.thickness_m,
+            "rate_hz": self.rate_hz,
+        }
 
     def resend(self) -> None:
         self.grid_new = self.grid is not None  # a new page needs the grid once

@@ -100,7 +100,7 @@ class ViewServer:
                 self.end_headers()
                 self.wfile.write(body)
 
-            def do_GET(self):  # noqa: N802 - http.server's naming
+            def do_GET(self):
                 path = self.path.split("?", 1)[0]
                 if path == "/ws":
                     return view._upgrade(self)
@@ -123,7 +123,7 @@ class ViewServer:
                 self.end_headers()
                 self.wfile.write(body)
 
-            def do_POST(self):  # noqa: N802
+            def do_POST(self):
                 n = int(self.headers.get("Content-Length") or 0)
                 try:
                     req = json.loads(self.rfile.read(n) or b"{}")

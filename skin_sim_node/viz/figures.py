@@ -13,11 +13,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from ..model import SkinModel, preset  # noqa: E402
-from .plots import draw_cross_section  # noqa: E402
+from ..model import SkinModel, preset
+from .plots import draw_cross_section
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "figures"
 
@@ -42,12 +42,22 @@ def fig4_cross_sections(out: Path) -> Path:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.0), sharey=True)
     for ax, (depth, label) in zip(axes, cases):
         press(model, 0.0, 0.0, depth)
-        draw_cross_section(ax, model, 0.0, 0.0, -depth, f"{label}: {depth * 1e3:.2f} mm, F = {model.force_n:.3f} N\n"
-                           f"(layered form: all {model.n_affected} layers act in series from first contact)",
-                           half_m=12e-3)  # fmt: skip
+        draw_cross_section(
+            ax,
+            model,
+            0.0,
+            0.0,
+            -depth,
+            f"{label}: {depth * 1e3:.2f} mm, F = {model.force_n:.3f} N\n"
+            f"(layered form: all {model.n_affected} layers act in series from first contact)",
+            half_m=12e-3,
+        )
     axes[0].legend(loc="lower left", fontsize=7)
-    fig.suptitle("default tissue pressed at the origin by the flat punch, held 20 ms (interfaces at rest: "
-                 f"{i_ed.mean_depth_m * 1e3:.3f} mm and {i_df.mean_depth_m * 1e3:.3f} mm mean depth)", fontsize=9)  # fmt: skip
+    fig.suptitle(
+        "default tissue pressed at the origin by the flat punch, held 20 ms (interfaces at rest: "
+        f"{i_ed.mean_depth_m * 1e3:.3f} mm and {i_df.mean_depth_m * 1e3:.3f} mm mean depth)",
+        fontsize=9,
+    )
     fig.tight_layout(rect=(0, 0, 1, 0.95))
     path = out / "fig4_cross_sections.png"
     fig.savefig(path, dpi=120)
@@ -103,8 +113,10 @@ def force_depth_and_release(out: Path) -> Path:
     a1.set_xlim(0, max(4 * t5, 0.02) * 1e3)
     a1.set_xlabel("time after release (ms; 1 ms ticks)")
     a1.set_ylabel("surface displacement under the tool (mm)")
-    a1.set_title(f"release after a press to 3 mm (the surface under the punch then at {s0 * 1e3:.2f} mm):\n"
-                 "damped modal return (eq 2)", fontsize=9)  # fmt: skip
+    a1.set_title(
+        f"release after a press to 3 mm (the surface under the punch then at {s0 * 1e3:.2f} mm):\ndamped modal return (eq 2)",
+        fontsize=9,
+    )
     a1.legend(fontsize=7)
     fig.tight_layout()
     path = out / "force_depth_release.png"

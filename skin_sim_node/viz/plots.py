@@ -7,10 +7,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from ..model import SkinModel  # noqa: E402
+from ..model import SkinModel
 
 LAYER_COLOURS = ("#f2c9a5", "#d9777a", "#f5e08e")  # epidermis, dermis, fat
 
@@ -60,9 +60,16 @@ def draw_cross_section(
         draw_tool(ax, shape, x0, tool_z, model.cfg.tool_radius_m, top_mm=2.2)
         gap = punch_face_gap_m(model, x0, y0, tool_z) if shape == "flat" else 0.0
         if gap > 0.02e-3:
-            ax.text(0.01, 0.98, f"under the punch's edge the modal surface lies up to {gap * 1e3:.2f} mm above its face\n"
-                    "(the smooth field cannot form the corner; the force uses the tip depth)",
-                    transform=ax.transAxes, fontsize=7, va="top", bbox={"fc": "w", "alpha": 0.8, "lw": 0})  # fmt: skip
+            ax.text(
+                0.01,
+                0.98,
+                f"under the punch's edge the modal surface lies up to {gap * 1e3:.2f} mm above its face\n"
+                "(the smooth field cannot form the corner; the force uses the tip depth)",
+                transform=ax.transAxes,
+                fontsize=7,
+                va="top",
+                bbox={"fc": "w", "alpha": 0.8, "lw": 0},
+            )
     ax.set_xlim((x0 - half) * 1e3, (x0 + half) * 1e3)
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("z (mm)")
