@@ -155,3 +155,18 @@ def test_device_alone_says_how_to_connect_it(scene):
     dev = scene.start("device", "device", "--hand-path", "light_touch", "--start-delay-s", "0.2")
     scene.wait_for_log(dev, "no force commands received: is the bridge running?", timeout_s=30)
     assert "three terminals" in dev.log()
+
+
+def test_bridge_with_a_device_but_no_node_says_so(scene):
+    """Bridge and simulated Touch without a node: within a few seconds the bridge names the missing node once; at
+    the device's normal end (lifted, zero force) nothing is a warning."""
+    bridge = scene.start("bridge", "bridge")
+    scene.wait_for_log(bridge, "bridge crtk:", timeout_s=60)
+    # 3 s start delay: the device publishes its start pose while DDS discovery completes (it took up to 1.6 s here)
+    dev = scene.start("device", "device", "--hand-path", "light_touch", "--start-delay-s", "3.0")
+    scene.wait_for_log(bridge, "no contact model from skin_sim_node in 3 s", timeout_s=60)
+    dev.popen.wait(timeout=60)
+    scene.wait_for_log(bridge, "no device pose for", timeout_s=30)
+    log = bridge.log()
+    assert log.count("no contact model from skin_sim_node") == 1
+    assert not [ln for ln in log.splitlines() if "no device pose for" in ln and "WARN" in ln], log[-1500:]

@@ -79,6 +79,10 @@ SWITCH_INTERVAL_S = 2e-4
 within 0.2 ms of the link thread holding it (the node uses the same)."""
 
 
+NO_NODE_HINT_NS = 3_000_000_000
+"""Device poses without a contact model (or wrench) from the node for this long (3 s; DDS discovery on localhost
+takes well under 2 s): the bridge says once that the node seems missing."""
+
 LINK_JOIN_S = 2.0
 """How long the bridge waits at shutdown for each of its node-link threads (they poll every 50 ms)."""
 
@@ -347,6 +351,8 @@ class BridgeNode(DeviceNode):
         self._n_age = 0
         self._win = {"rendered": 0, "models": 0, "t_ns": time.monotonic_ns(), "age_from": 0, "period_max_ns": 0}
         self._first_model = False
+        self._no_node_since: int | None = None  # monotonic ns of the first device pose while no model came
+        self._no_node_hinted = False
         self.max_model_age_ms = 0.0
         self._rejected_logged: set[str] = set()
         self.create_timer(1.0 / p.watchdog_rate_hz, self._watchdog)
@@ -502,11 +508,26 @@ class BridgeNode(DeviceNode):
         # a stale node is the renderer's business (it fades); a silent device has no tick to render on
         stale = self.last_pose_rx_ns is None or now - self.last_pose_rx_ns > self.watchdog_ns
         if stale and not self.stale:
+            f = self._force_out.wrench.force
+            held = math.sqrt(f.x * f.x + f.y * f.y + f.z * f.z)
             self._publish_force(ros_now_ns(self), (0.0, 0.0, 0.0))
             self.counts["zeros"] += 1
-            if self.counts["poses"]:
-                self.get_logger().warn(f"no device pose for {self.watchdog_ns * 1e-6:.0f} ms: device force set to zero")
+            if self.counts["poses"]:  # a device that stopped while pushing is a warning; one that ended lifted is not
+                log = self.get_logger().warning if held > 0.0 else self.get_logger().info
+                log(f"no device pose for {self.watchdog_ns * 1e-6:.0f} ms: device force set to zero (was {held:.3f} N)")
         self.stale = stale
+        if self._no_node_since is None and self.counts["poses"] and not self._first_model:
+            self._no_node_since = now
+        if self._first_model:
+            self._no_node_since = None
+        elif self._no_node_since is not None and not self._no_node_hinted and now - self._no_node_since > NO_NODE_HINT_NS:
+            self._no_node_hinted = True
+            ns = self.p.node_ns or "(the bridge's namespace)"
+            self.get_logger().warning(
+                f"device poses arrive but no {'contact model' if self.model_source else 'wrench'} from skin_sim_node "
+                f"in {NO_NODE_HINT_NS * 1e-9:.0f} s: is `skin-sim node` running with the same ROS_DOMAIN_ID, in node "
+                f"namespace {ns}? The device gets zero force until it answers"
+            )
 
     # --- diagnostics --------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:

@@ -46,7 +46,7 @@ from ..model import ConfigError, SkinModel, TissueConfig
 from ..model.config import build_config
 from ..model.skin_model import warm_up
 from ..ros_util import LoopTiming, PeriodicLoop, localhost_udp_env, run_nodes, set_process_realtime, set_realtime
-from ..session import AnswerThrottle, HapticSession, TickResult
+from ..session import WATCHDOG, AnswerThrottle, HapticSession, TickResult
 from ..startup import start_line
 from .display import DisplayProcess
 
@@ -249,7 +249,11 @@ class SkinSimNode(Node):
             return None
 
     def _log_event(self, kind: str, message: str) -> None:
-        self.get_logger().warning(f"[{kind}] {message} (logged once; counted in diagnostics)")
+        """Log a session event once: a warning, except the watchdog after a tool that had left the tissue (the
+        normal end of a session: the force was already zero)."""
+        quiet = kind == WATCHDOG and self.session.force_n == 0.0
+        log = self.get_logger().info if quiet else self.get_logger().warning
+        log(f"[{kind}] {message} (logged once; counted in diagnostics)")
 
     # --- inputs -----------------------------------------------------------------------
     def _on_pose(self, data: bytes) -> None:
