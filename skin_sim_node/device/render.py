@@ -44,8 +44,8 @@ CROSSFADE_MIN_S = 1e-3
 """Shortest crossfade (s): one servo period of a 1 kHz device; a shorter one is a step at the tick."""
 
 CROSSFADE_MAX_S = 0.02
-"""Longest crossfade (s): two periods of the slowest server rate of the rate lever (100 Hz); models further
-apart than that are not spread out further (the crossfade lags the model by half its length)."""
+"""Blend from zero (the first model) or from a fade (s): two periods of the slowest server rate of the rate lever
+(100 Hz). Model-to-model switches blend over :data:`CROSSFADE_MIN_S` only (:meth:`ContactRenderer.set_model`)."""
 
 PASSIVITY_DELAY_TICKS = 2
 """Ticks from the bridge rendering a force (at device pose ``k``) to the device applying it: the command reaches
@@ -272,8 +272,11 @@ class ContactRenderer:
         ratio0 = float(np.linalg.norm(m.f0_n - fn0 * m.normal)) / fn0 if fn0 > 0 else 0.0
         K, D = self.bounded(m)
         slot = _Slot(m, rx, K, D, fn0, max(ratio0, self.cone_floor))
-        interval = age if cur is not None else self.cf_max
-        self._begin_blend(smooth_now, min(max(interval, self.cf_min), self.cf_max), keep_from=self._fade_t0 is None)
+        # model to model: one servo tick (the models are linearisations of one force; a longer blend lags the new
+        # one by half its length: at 250 Hz it made the rendered force worse than hold-last's, p99 7.6 against 4.8 %
+        # of peak, at friction reversals the capped D cannot predict); from zero or a fade: cf_max
+        blend = self.cf_min if cur is not None and self._fade_t0 is None else self.cf_max
+        self._begin_blend(smooth_now, blend, keep_from=self._fade_t0 is None)
         self._model = slot
         self.counts["models"] += 1
         return None
