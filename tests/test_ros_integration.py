@@ -161,7 +161,16 @@ def test_grid_shows_indentation_at_tool(scene, monitor):
                 im for _, _, im in list(monitor.layer_heights) if im[:, :, 0].min() < -0.95 * depth
             ]
 
-        monitor.wait_for(deep_frames, 20, "height maps of the held press")
+        try:
+            monitor.wait_for(deep_frames, 20, "height maps of the held press")
+        except TimeoutError:
+            hm = [float(im.min()) for _, _, im in list(monitor.height_map)]
+            lh = [float(im[:, :, 0].min()) for _, _, im in list(monitor.layer_heights)]
+            raise TimeoutError(
+                f"height maps {len(hm)} (deepest {min(hm, default=0):.2e}), layer heights {len(lh)} "
+                f"(deepest {min(lh, default=0):.2e}), wrenches {len(monitor.wrench)}, last fz "
+                f"{monitor.wrench[-1][2] if monitor.wrench else None}"
+            ) from None
         time.sleep(0.5)  # a few more frames of the hold
     finally:
         src.stop()

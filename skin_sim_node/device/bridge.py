@@ -513,8 +513,11 @@ class BridgeNode(DeviceNode):
             self._publish_force(ros_now_ns(self), (0.0, 0.0, 0.0))
             self.counts["zeros"] += 1
             if self.counts["poses"]:  # a device that stopped while pushing is a warning; one that ended lifted is not
-                log = self.get_logger().warning if held > 0.0 else self.get_logger().info
-                log(f"no device pose for {self.watchdog_ns * 1e-6:.0f} ms: device force set to zero (was {held:.3f} N)")
+                text = f"no device pose for {self.watchdog_ns * 1e-6:.0f} ms: device force set to zero (was {held:.3f} N)"
+                if held > 0.0:  # rclpy: one severity per call site
+                    self.get_logger().warning(text)
+                else:
+                    self.get_logger().info(text)
         self.stale = stale
         if self._no_node_since is None and self.counts["poses"] and not self._first_model:
             self._no_node_since = now

@@ -138,7 +138,11 @@ def mesh_due(now_s: float, last_mesh_s: float, mesh_rate_hz: float, joined: bool
 
 
 def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # pragma: no cover - child process
-    lower_priority()  # first: every thread started below (rclpy, DDS) inherits it
+    # start-up at normal priority: loading the numba kernels at niceness 19 beside a busy haptic process took the
+    # worker over 15 s (no frame within the browser's and the tests' waits); the model and a first grid first
+    model = SkinModel(cfg)  # the config the node validated and built
+    model.build_grid()
+    lower_priority()  # then every thread, and all that rclpy and DDS start below, at niceness 19
     import rclpy
     from geometry_msgs.msg import Point
     from sensor_msgs.msg import Image
@@ -154,7 +158,6 @@ def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # p
     pubs = {k: publisher(node, k) for k in ("height_map", "layer_heights", "mesh")}
     image, layers_image, marker = Image(), Image(), Marker()
     snap = SnapshotBuffer(shm_name)
-    model = SkinModel(cfg)  # the config the node validated and built
     version = 0
     frame = FRAMES["tissue"]
     last_seq, last_pub, last_mesh = -1, 0.0, -math.inf

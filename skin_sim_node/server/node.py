@@ -251,9 +251,11 @@ class SkinSimNode(Node):
     def _log_event(self, kind: str, message: str) -> None:
         """Log a session event once: a warning, except the watchdog after a tool that had left the tissue (the
         normal end of a session: the force was already zero)."""
-        quiet = kind == WATCHDOG and self.session.force_n == 0.0
-        log = self.get_logger().info if quiet else self.get_logger().warning
-        log(f"[{kind}] {message} (logged once; counted in diagnostics)")
+        text = f"[{kind}] {message} (logged once; counted in diagnostics)"
+        if kind == WATCHDOG and self.session.force_n == 0.0:  # rclpy: one severity per call site
+            self.get_logger().info(text)
+        else:
+            self.get_logger().warning(text)
 
     # --- inputs -----------------------------------------------------------------------
     def _on_pose(self, data: bytes) -> None:
