@@ -27,6 +27,7 @@ SERVER_MODULES = (
     "skin_sim_node.bags.compare",
     "skin_sim_node.bags.offline",
     "skin_sim_node.bags.live",
+    "skin_sim_node.bags.replay",
     "skin_sim_node.scenes",
     "skin_sim_node.cli",
 )

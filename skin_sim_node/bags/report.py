@@ -5,18 +5,24 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
-from ..viz.plots import LAYER_COLOURS, draw_cross_section, draw_surface
 from .offline import ReplayResult
 
 
 def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
-    """Write ``out_dir/report.png`` and ``out_dir/summary.json``; return the summary."""
+    """Write ``out_dir/report.png`` and ``out_dir/summary.json``; return the summary.
+
+    matplotlib (and :mod:`skin_sim_node.viz.plots`) is imported here, not at module level, so that
+    :mod:`skin_sim_node.bags.replay` imports without it.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..viz.plots import LAYER_COLOURS, draw_cross_section, draw_surface
+
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = res.summary()
@@ -75,6 +81,7 @@ def depth_layer(res: ReplayResult) -> np.ndarray:
 
 
 def format_summary(s: dict) -> str:
+    """One human-readable paragraph from a :meth:`ReplayResult.summary` dict (force in N, positions in mm)."""
     rejected = ", ".join(f"{k} {v}" for k, v in s["rejected"].items()) or "none"
     return (
         f"poses {s['poses']}, twists {s['twists']}, answered {s['answered']}, rejected/events: {rejected}\n"

@@ -107,29 +107,3 @@ def save_figure(fig, path: str | Path, title: str = "", rect=(0, 0, 1, 1)) -> Pa
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
-
-
-def layer_heights_figure(
-    xs, ys, layer_heights, y_row_m: float, path: str | Path, title: str = "", bottom_m: float | None = None
-) -> Path:
-    """Surface map and cross-section from a published ``tissue/layer_heights`` image (rows y, cols x, 3).
-
-    ``bottom_m``: depth of the tissue bottom (positive), drawn as the bottom of the last layer.
-    """
-    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw={"width_ratios": [1, 1.5]})
-    ext = [xs[0] * 1e3, xs[-1] * 1e3, ys[0] * 1e3, ys[-1] * 1e3]
-    im = a0.imshow(layer_heights[:, :, 0] * 1e3, origin="lower", extent=ext, cmap="viridis")
-    plt.colorbar(im, ax=a0, label="surface height (mm)")
-    a0.set_xlabel("x (mm)")
-    a0.set_ylabel("y (mm)")
-    a0.set_title("surface height (tissue/layer_heights)", fontsize=9)
-    row = int(np.argmin(np.abs(ys - y_row_m)))
-    tops = [layer_heights[row, :, i] for i in range(layer_heights.shape[2])]
-    bottom = np.full_like(xs, -bottom_m if bottom_m is not None else min(t.min() for t in tops) - 4e-3)
-    for i, (top, below) in enumerate(zip(tops, tops[1:] + [bottom])):
-        a1.fill_between(xs * 1e3, below * 1e3, top * 1e3, color=LAYER_COLOURS[i % 3], lw=0)
-        a1.plot(xs * 1e3, top * 1e3, "k", lw=0.5)
-    a1.set_xlabel("x (mm)")
-    a1.set_ylabel("z (mm)")
-    a1.set_title(f"cross-section at y = {ys[row] * 1e3:.1f} mm (grid resolution)", fontsize=9)
-    return save_figure(fig, path, title)
