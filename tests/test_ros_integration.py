@@ -162,7 +162,7 @@ def test_grid_shows_indentation_at_tool(scene, monitor):
             ]
 
         try:
-            monitor.wait_for(deep_frames, 20, "height maps of the held press")
+            monitor.wait_for(deep_frames, 60, "height maps of the held press")
         except TimeoutError:
             hm = [float(im.min()) for _, _, im in list(monitor.height_map)]
             lh = [float(im[:, :, 0].min()) for _, _, im in list(monitor.layer_heights)]

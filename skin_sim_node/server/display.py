@@ -107,12 +107,12 @@ def _moved(model: SkinModel, last_q, last_centre, last_active) -> bool:
     return float(np.abs(model.q - last_q).sum()) > model.cfg.lod.tolerance_m
 
 
-DISPLAY_NICE = 19
-"""Niceness of every thread of the display worker process: the lowest CFS weight (15 against a default
-thread's 1024), so on a machine with fewer free cores than busy threads its grid builds and large publishes
-yield to the haptic process; with a core to spare it runs as before. Set before rclpy starts, so its DDS
-threads inherit it. Not ``SCHED_IDLE`` (as before): that yields to every other process too, and with two busy
-processes beside the node (a browser and a build) the view got no mesh in 30 s."""
+DISPLAY_NICE = 10
+"""Niceness of every thread of the display worker process (CFS weight 110 against a default thread's 1024): on a
+machine with fewer free cores than busy threads its grid builds and large publishes yield most of a contended CPU
+to the haptic process (at most about a tenth goes to it). Not 19 (weight 15) nor ``SCHED_IDLE`` (as before): with
+two busy processes beside the node (a browser and a build) those starved the view of every frame for 20-30 s.
+Set after the worker's start-up, before rclpy starts, so its DDS threads inherit it."""
 
 
 def lower_priority(nice: int = DISPLAY_NICE) -> int:
@@ -142,7 +142,7 @@ def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # p
     # worker over 15 s (no frame within the browser's and the tests' waits); the model and a first grid first
     model = SkinModel(cfg)  # the config the node validated and built
     model.build_grid()
-    lower_priority()  # then every thread, and all that rclpy and DDS start below, at niceness 19
+    lower_priority()  # then every thread, and all that rclpy and DDS start below, at DISPLAY_NICE
     import rclpy
     from geometry_msgs.msg import Point
     from sensor_msgs.msg import Image
@@ -225,7 +225,7 @@ def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # p
 
 def restore_priority(pid: int) -> None:
     """Undo :func:`lower_priority` for every thread of process ``pid`` (``SCHED_OTHER``, niceness 0), best effort:
-    lowering the niceness needs ``CAP_SYS_NICE`` (root); without it the worker keeps niceness 19."""
+    lowering the niceness needs ``CAP_SYS_NICE`` (root); without it the worker keeps DISPLAY_NICE."""
     try:
         tids = [int(t) for t in os.listdir(f"/proc/{pid}/task")]
     except OSError:
@@ -243,7 +243,7 @@ def restore_priority(pid: int) -> None:
 
 CLOSE_WAIT_S = 0.5
 """How long the owner waits for the worker to leave on its own at shutdown before it kills it. A quiet worker
-leaves within one display period (17 ms at 60 Hz); under load, at niceness 19 (:data:`DISPLAY_NICE`; it ran
+leaves within one display period (17 ms at 60 Hz); under load, at a raised niceness (:data:`DISPLAY_NICE`; it ran
 SCHED_IDLE before), two busy processes starved it for seconds, which kept the node 5-30 s in its shutdown, past
 the 5 s its launchers allowed. The worker holds nothing to save: it only publishes."""
 
