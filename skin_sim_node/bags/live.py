@@ -107,19 +107,19 @@ def live_forces(records) -> dict[int, np.ndarray]:
 
 
 def agreement(offline: ReplayResult, live: dict[int, np.ndarray]) -> dict:
-    """Max and RMS force difference at matched stamps and the fraction of poses answered."""
-    off = offline.forces_by_stamp()
-    common = sorted(set(off) & set(live))
-    d = np.array([np.linalg.norm(live[s] - off[s]) for s in common]) if common else np.zeros(0)
+    """Max and RMS force difference at matched stamps (whole vectors, :func:`diff_outputs`) and the fraction of
+    poses answered."""
+    d = diff_outputs((offline.forces_by_stamp(), {}), (live, {}))
     peak = offline.peak_force_n
+    nan = float("nan")
     return {
-        "offline_answered": len(off),
-        "live_answered": len(common),
-        "fraction_answered": len(common) / max(len(off), 1),
-        "max_df_n": float(np.max(np.abs(d))) if d.size else float("nan"),
-        "rms_df_n": float(np.sqrt(np.mean(d**2))) if d.size else float("nan"),
+        "offline_answered": d.n_a,
+        "live_answered": d.matched,
+        "fraction_answered": d.matched_fraction,
+        "max_df_n": d.max_df_n if d.matched else nan,
+        "rms_df_n": d.rms_df_n if d.matched else nan,
         "peak_force_n": peak,
-        "max_df_frac_of_peak": float(np.max(np.abs(d)) / peak) if d.size and peak > 0 else float("nan"),
+        "max_df_frac_of_peak": d.max_df_n / peak if d.matched and peak > 0 else nan,
     }
 
 
@@ -162,13 +162,13 @@ def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path, recorded=No
     with BagWriter(out / "live", args.storage, custom_data={"skin_sim.source": inputs.bag.name}, overwrite=True) as w:
         for rx, key, raw in rec.records:
             w.write_raw(bag_topic(key), TOPICS[key].type, rx, raw, qos_profiles(key))
-    stats = agreement(offline, live_forces([r for r in rec.records if r[1] == "tool_wrench"]))
+    live = live_forces([r for r in rec.records if r[1] == "tool_wrench"])
+    stats = agreement(offline, live)
     span = (inputs.events[-1][0] - inputs.events[0][0]) * 1e-9
     stats.update({"speed": args.speed, "recorded_span_s": span, "handshake_s": t_handshake, **src})
     t_stream = src["stream_wall_s"]
     # the PASS is compare's verdict on the same two sets of wrenches (compare OUT/outputs OUT/live agrees)
     tol = replace(LIVE, force_rel=args.force_tol_frac, min_matched=args.min_answered)
-    live = live_forces([r for r in rec.records if r[1] == "tool_wrench"])
     fails = verdict(diff_outputs((offline.forces_by_stamp(), {}), (live, {})), tol)
     what = "live node's forces and answered fraction vs offline"
     checks = [(not fails, what + (f" ({'; '.join(fails)})" if fails else ""))]
