@@ -16,6 +16,10 @@ COMMANDS = {
     "mock-tool": ("skin_sim_node.device.mock_tool", "scripted tool pose/twist publisher"),
     "scene": ("skin_sim_node.scenes", "start a scene as separate processes"),
     "bench": ("skin_sim_node.perf.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
+    "visco": (
+        "skin_sim_node.validation.viscoelastic",
+        "offline: relaxation, creep, rate effect, recovery vs in-vivo data (~3 s)",
+    ),
     "bench-model": ("skin_sim_node.perf.bench_model", "model step micro-benchmark (numba vs NumPy)"),
     "bench-device": (
         "skin_sim_node.perf.device_bench",

@@ -120,7 +120,7 @@ def test_several_poses_per_tick_lose_no_time(default_cfg):
     s = HapticSession(SkinModel(default_cfg), SessionParams())
     advanced = []
     orig = s.model.step
-    s.model.step = lambda pos, v, dt: (advanced.append(dt), orig(pos, v, dt))[1]
+    s.model.step = lambda pos, v, dt, restart=False: (advanced.append(dt), orig(pos, v, dt, restart))[1]
     for i in range(1000):
         s.on_pose(T0 + i * MS, "tissue", (0.0, 0.0, 0.01))
         if i % 2 == 1:

@@ -28,6 +28,7 @@ __all__ = [
     "LayerConfig",
     "LodConfig",
     "TissueConfig",
+    "ViscoelasticConfig",
     "build_config",
     "config_from_flat",
     "default_flat",
@@ -77,6 +78,18 @@ class InterfaceConfig:
 
 
 @dataclass(frozen=True)
+class ViscoelasticConfig:
+    """The layered form's quasi-linear viscoelasticity (Fung): every layer's reduced relaxation function
+    ``G(t) = 1 + g1 exp(-t / tau1) + g2 exp(-t / tau2)``, relative to the equilibrium (elastic) law. ``g1 = g2 = 0``
+    is the purely elastic chain."""
+
+    g1: float = 0.0
+    tau1_s: float = 0.01
+    g2: float = 0.0
+    tau2_s: float = 0.5
+
+
+@dataclass(frozen=True)
 class LodConfig:
     """Level-of-detail switches and the displacement tolerance (m) they share."""
 
@@ -105,6 +118,7 @@ class TissueConfig:
     friction_coefficient: float = 0.0
     slip_speed_m_s: float = 1e-3
     foundation_length_m: float = 0.0  # membranes' foundation decay length (modal.py); 0: bare membrane
+    viscoelastic: ViscoelasticConfig = ViscoelasticConfig()  # layered form's Prony arms; default: none
 
     @property
     def total_thickness_m(self) -> float:
@@ -225,6 +239,12 @@ def build_config(flat: dict[str, Any]) -> TissueConfig:
         friction_coefficient=flat["contact.friction_coefficient"],
         slip_speed_m_s=flat["contact.slip_speed_m_s"],
         foundation_length_m=flat["patch.foundation_length_m"],
+        viscoelastic=ViscoelasticConfig(
+            g1=flat["viscoelastic.g1"],
+            tau1_s=flat["viscoelastic.tau1_s"],
+            g2=flat["viscoelastic.g2"],
+            tau2_s=flat["viscoelastic.tau2_s"],
+        ),
     )
     _check_geometry(cfg)
     return cfg

@@ -37,21 +37,34 @@ from .layout import (
     AUX_DBD,
     AUX_DBX,
     AUX_DBY,
+    AUX_EA,
     AUX_G,
+    AUX_OFF,
     AUX_THICK,
     FLAG_BOTTOMED,
     FLAG_CONTACT,
     FLAG_LAYER_BOUND,
     FLAG_SEPARATED,
     IS_ACTIVE,
+    IS_DRIVEN,
     LP_B,
     LP_EA,
+    LP_G1,
+    LP_G2,
     LP_IF_AMP,
     LP_IF_KX,
     LP_IF_KY,
     LP_IF_MEAN,
     LP_N,
+    LP_TAU1,
+    LP_TAU2,
     LS_COMP,
+    LS_CX,
+    LS_CY,
+    LS_FE,
+    LS_H1,
+    LS_H2,
+    LS_THICK,
     OUT_DFN_DX,
     OUT_DFN_DY,
     OUT_DFN_DZ,
@@ -64,6 +77,7 @@ from .layout import (
     OUT_RADIUS_M,
     OUT_T,
     SP_BOTTOM,
+    SP_MODE_TOL,
     SP_MU,
     SP_SPHERE,
     SP_TOOL_R,
@@ -226,11 +240,12 @@ def layer_compression(target, ea, n, beta, c_old, h, wall, c0):
 
 
 @njit(cache=True, nogil=True)
-def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, out_c, out_g):
+def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, off, out_c, out_g):
     """Backward-Euler step of the series Kelvin-Voigt chain under the tool.
 
-    Solves ``T = ea_i phi(c_i/h_i) + (b_i/dt) (c_i - c_old_i)`` for every layer (iso-stress, eq 4,
-    with each layer's own rate) and ``sum_i c_i = d``. ``sum_i c_i(T)`` is concave and increasing in
+    Solves ``T = ea_i phi(c_i/h_i) + (b_i/dt) (c_i - c_old_i) + off_i`` for every layer (iso-stress, eq 4,
+    with each layer's own rate; ``off_i`` the force its viscoelastic arms carry in, :func:`prony_prepare`) and
+    ``sum_i c_i = d``. ``sum_i c_i(T)`` is concave and increasing in
     ``T`` (the inverse of convex increasing maps), so Newton on ``T`` started at or left of the root
     converges monotonically. Returns ``T`` (N), or ``-1.0`` when the chain relaxed with ``T = 0``
     is already at least ``d`` long (the tool is above the relaxing surface: no contact); writes the
@@ -252,6 +267,8 @@ def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, out_c, out_g):
         Thicknesses under the tool (m).
     wall : float
         Wall strain.
+    off : ndarray, shape (L,)
+        Force each layer's Prony arms carry into the step (N, ``<= 0`` after loading from rest; 0: elastic).
     out_c, out_g : ndarray, shape (L,)
         Written: compressions (m) and slopes (N/m).
 
@@ -264,7 +281,7 @@ def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, out_c, out_g):
     dt_eff = max(dt, DT_FLOOR_S)
     free = 0.0
     for i in range(nl):
-        c, g = layer_compression(0.0, ea[i], n[i], b[i] / dt_eff, c_old[i], h[i], wall, c_old[i])
+        c, g = layer_compression(-off[i], ea[i], n[i], b[i] / dt_eff, c_old[i], h[i], wall, c_old[i])
         out_c[i] = c
         out_g[i] = g
         free += c
@@ -275,7 +292,7 @@ def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, out_c, out_g):
         total = 0.0
         s = 0.0
         for i in range(nl):
-            c, g = layer_compression(t, ea[i], n[i], b[i] / dt_eff, c_old[i], h[i], wall, out_c[i])
+            c, g = layer_compression(t - off[i], ea[i], n[i], b[i] / dt_eff, c_old[i], h[i], wall, out_c[i])
             out_c[i] = c
             out_g[i] = g
             total += c
@@ -285,6 +302,108 @@ def chain_solve(d, t0, ea, n, b, dt, c_old, h, wall, out_c, out_g):
             break
         t = max(t - res / s, 0.0)
     return t
+
+
+@njit(cache=True, nogil=True)
+def prony_weights(lp, li, dt, restart):
+    """Backward-Euler weights ``a_j = tau_j / (tau_j + dt)`` of layer ``li``'s two Prony arms (0 on a restart).
+
+    Quasi-linear viscoelasticity (Fung) with a two-term Prony series: the layer's force is its elastic
+    (equilibrium) law plus two arms, ``f = f_e(c) + H_1 + H_2``, ``dH_j/dt = -H_j / tau_j + g_j df_e/dt``, so a
+    held compression relaxes as ``G(t) = 1 + g_1 e^{-t/tau_1} + g_2 e^{-t/tau_2}`` times ``f_e`` (relative to
+    equilibrium). Backward Euler: ``H_j' = a_j (H_j + g_j (f_e' - f_e))``, dissipative for any ``dt``. A contact
+    restart (the tool has been where it is for an unknown time) takes the arms as relaxed: ``a_j = 0``.
+
+    Parameters
+    ----------
+    lp : ndarray, shape (LP_SIZE, L)
+        Its ``LP_G*``, ``LP_TAU*`` rows (:mod:`.layout`).
+    li : int
+        Layer.
+    dt : float
+        Step (s).
+    restart : bool
+        The arms are relaxed (contact restart).
+
+    Returns
+    -------
+    a1, a2 : float
+        The two weights.
+    """
+    if restart:
+        return 0.0, 0.0
+    t1 = lp[LP_TAU1, li]
+    t2 = lp[LP_TAU2, li]
+    return t1 / (t1 + dt), t2 / (t2 + dt)
+
+
+@njit(cache=True, nogil=True)
+def prony_prepare(lp, lstate, dt, restart, out_ea, out_off):
+    """Each layer's instantaneous ``EA`` and carried-in arm force for this tick's backward-Euler step.
+
+    With the weights of :func:`prony_weights`, the layer's force is
+    ``f_e(c) (1 + a_1 g_1 + a_2 g_2) + sum_j a_j (H_j - g_j f_e,old)``: the chain (:func:`chain_solve`) sees a
+    stiffer law, ``EA (1 + a_1 g_1 + a_2 g_2) phi(c / h)`` (``out_ea``), and an offset (``out_off``).
+
+    Parameters
+    ----------
+    lp : ndarray, shape (LP_SIZE, L)
+        Layer properties (:mod:`.layout`).
+    lstate : ndarray, shape (LS_SIZE, L)
+        Its ``LS_FE``, ``LS_H1``, ``LS_H2`` rows: the arms' state.
+    dt : float
+        Step (s).
+    restart : bool
+        The arms are relaxed (contact restart).
+    out_ea, out_off : ndarray, shape (>= L,)
+        Written: ``EA`` of the step (N) and the arms' carried-in force (N).
+    """
+    for li in range(lstate.shape[1]):
+        a1, a2 = prony_weights(lp, li, dt, restart)
+        g1 = lp[LP_G1, li]
+        g2 = lp[LP_G2, li]
+        fe = lstate[LS_FE, li]
+        out_ea[li] = lp[LP_EA, li] * (1.0 + a1 * g1 + a2 * g2)
+        out_off[li] = a1 * (lstate[LS_H1, li] - g1 * fe) + a2 * (lstate[LS_H2, li] - g2 * fe)
+
+
+@njit(cache=True, nogil=True)
+def prony_commit(lp, lstate, li, c, h, wall, dt, restart):
+    """Advance layer ``li``'s arms over the step to compression ``c`` (m) at thickness ``h`` (m): the update of
+    :func:`prony_weights`, and the new elastic force ``f_e = EA phi(c / h)`` kept in ``LS_FE``.
+
+    Parameters
+    ----------
+    lp, lstate : ndarray
+        As :func:`prony_prepare`; ``lstate``'s arm rows are written.
+    li : int
+        Layer.
+    c, h : float
+        The step's compression and thickness (m).
+    wall : float
+        Wall strain of :func:`compression_law`.
+    dt : float
+        Step (s).
+    restart : bool
+        The arms are relaxed (contact restart).
+    """
+    phi, _ = compression_law(c / h, lp[LP_N, li], wall)
+    fe = lp[LP_EA, li] * phi
+    a1, a2 = prony_weights(lp, li, dt, restart)
+    dfe = fe - lstate[LS_FE, li]
+    lstate[LS_H1, li] = a1 * (lstate[LS_H1, li] + lp[LP_G1, li] * dfe)
+    lstate[LS_H2, li] = a2 * (lstate[LS_H2, li] + lp[LP_G2, li] * dfe)
+    lstate[LS_FE, li] = fe
+
+
+@njit(cache=True, nogil=True)
+def clear_memory(lstate, li):
+    """Forget layer ``li``'s viscoelastic memory and recovery: arms, elastic force and compression to zero."""
+    lstate[LS_FE, li] = 0.0
+    lstate[LS_H1, li] = 0.0
+    lstate[LS_H2, li] = 0.0
+    lstate[LS_THICK, li] = 0.0
+    lstate[LS_COMP, li] = 0.0
 
 
 @njit(cache=True, nogil=True)
@@ -415,8 +534,73 @@ def contact_jacobians(normal, grad, velocity, mu, slip_speed_m_s, force_n, out_k
 
 
 @njit(cache=True, nogil=True)
+def recover_layers(dt, restart, lp, sp, bmodes, bvec, blev, mstate, lstate, istate, ea_eff, off):
+    """Out of contact: each layer recovers along its chain law at zero force (viscoelastic arms included), its
+    membrane driven at the last contact's centre; once every compression is below a tenth of ``lod.tolerance_m``
+    the memory is cleared and the layers relax freely (eq 2), as they do with no memory.
+
+    Recovery after a held press is the standard linear solid's: an elastic part at once (at the Kelvin-Voigt
+    rate ``b / k``), the rest as the arms relax (``tau_1``, ``tau_2``).
+
+    Parameters
+    ----------
+    dt : float
+        Step (s).
+    restart : bool
+        The arms are relaxed (the tool's history is unknown).
+    lp, sp, bmodes, bvec, blev, mstate, lstate, istate : ndarray
+        The grouped arrays (:mod:`.layout`); the layers' state is written.
+    ea_eff, off : ndarray, shape (>= L,)
+        Scratch for :func:`prony_prepare`.
+    """
+    nl = lstate.shape[1]
+    wall = sp[SP_WALL]
+    if lstate[LS_THICK, 0] > 0.0:
+        prony_prepare(lp, lstate, dt, restart, ea_eff, off)
+        dt_eff = max(dt, DT_FLOOR_S)
+        done = True
+        for li in range(nl):
+            h = lstate[LS_THICK, li]
+            c_old = lstate[LS_COMP, li]
+            beta = lp[LP_B, li] / dt_eff
+            c, _ = layer_compression(-off[li], ea_eff[li], lp[LP_N, li], beta, c_old, h, wall, c_old)
+            prony_commit(lp, lstate, li, c, h, wall, dt, restart)
+            rate = min(RATE_CAP_M_S, max(-RATE_CAP_M_S, (c - c_old) / dt_eff))
+            drive_layer(li, c, rate, lstate[LS_CX, li], lstate[LS_CY, li], sp, bmodes, bvec, blev, mstate, lstate, istate)
+            istate[IS_DRIVEN, li] = 0  # recovering, not in contact: the next contact test is against the surface
+            if abs(c) > 0.1 * sp[SP_MODE_TOL]:
+                done = False
+        if not done:
+            return
+        for li in range(nl):
+            clear_memory(lstate, li)
+    for li in range(nl):
+        lstate[LS_COMP, li] = 0.0
+        relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate)
+
+
+@njit(cache=True, nogil=True)
 def layered_step_kernel(
-    tool_x, tool_y, tool_z, tool_vx, tool_vy, tool_vz, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, aux, sbuf, out
+    tool_x,
+    tool_y,
+    tool_z,
+    tool_vx,
+    tool_vy,
+    tool_vz,
+    dt,
+    restart,
+    lp,
+    sp,
+    bmodes,
+    bvec,
+    blev,
+    bk,
+    mstate,
+    lstate,
+    istate,
+    aux,
+    sbuf,
+    out,
 ):
     """One haptic tick of the layered form: series chain force, friction, tangent and modal state.
 
@@ -426,13 +610,19 @@ def layered_step_kernel(
     fixed from the deformed surface's slope there (central differences over 5 um); while in contact
     every layer is driven with its own compression and rate (eq 3: ``q = c_l beta``, ``v = cdot_l
     beta``); out of contact (or when the chain relaxing with zero force is shorter than the tool
-    depth) every layer relaxes freely. Writes ``out`` (``OUT_*``: force vector, normal, contact
+    depth) the layers recover: each follows its chain law at zero force, viscoelastic arms included
+    (:func:`prony_prepare`), driving its membrane at the last contact's centre, until every compression is below
+    a tenth of ``lod.tolerance_m``; then they relax freely. A new contact on the recovering spot (within the
+    contact radius of its centre) continues from the recovering compressions and arms; elsewhere the material
+    under the tool starts with no viscoelastic memory. Writes ``out`` (``OUT_*``: force vector, normal, contact
     radius, gradient of the normal force, and ``OUT_T``/normal carried to the next tick).
 
     Parameters
     ----------
     tool_vx, tool_vy, tool_vz : float
         Tool velocity (m/s): the friction's slip velocity and the cap of the membranes' rates.
+    restart : bool
+        Contact restarts (the first pose, after a stale spell or a teleport): the Prony arms are relaxed.
     tool_x, tool_y, tool_z, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, aux, sbuf, out
         As :func:`~.paper.paper_step_kernel`, which also returns the step flags.
     """
@@ -451,6 +641,13 @@ def layered_step_kernel(
     c_old = aux[AUX_C_OLD, :nl]
     c_new = aux[AUX_C, :nl]
     g = aux[AUX_G, :nl]
+    ea_eff = aux[AUX_EA, :nl]
+    off = aux[AUX_OFF, :nl]
+    wall = sp[SP_WALL]
+    has_memory = False  # viscoelastic arms: the layers recover after contact; without them they relax freely at once
+    for li in range(nl):
+        if lp[LP_G1, li] > 0.0 or lp[LP_G2, li] > 0.0:
+            has_memory = True
     if touching:
         a, s, ds, da_dd = contact_geometry(depth, sp[SP_TOOL_R], sp[SP_SPHERE] > 0.0)
         averaged_bounds(tool_x, tool_y, a, da_dd, lp, sp[SP_BOTTOM], bounds, aux[AUX_DBX], aux[AUX_DBY], aux[AUX_DBD])
@@ -460,6 +657,10 @@ def layered_step_kernel(
             for li in range(nl):
                 c_old[li] = lstate[LS_COMP, li]
         else:  # first contact: start from the deformed state under the tool, normal from its slope
+            # on the recovering spot the chain continues from its compressions and arms; elsewhere no memory
+            dxc = tool_x - lstate[LS_CX, 0]
+            dyc = tool_y - lstate[LS_CY, 0]
+            on_spot = lstate[LS_THICK, 0] > 0.0 and dxc * dxc + dyc * dyc <= a * a
             gx = 0.0
             gy = 0.0
             hstep = 5e-6
@@ -473,14 +674,21 @@ def layered_step_kernel(
                     gy -= layer_at(li, tool_x, tool_y - hstep, sp, blev, bk, mstate, lstate, istate, sbuf)
             gx /= 2.0 * hstep
             gy /= 2.0 * hstep
+            for li in range(nl):
+                if on_spot:
+                    c_old[li] = lstate[LS_COMP, li]
+                else:
+                    clear_memory(lstate, li)
+                    phi0, _ = compression_law(c_old[li] / thick[li], lp[LP_N, li], sp[SP_WALL])
+                    lstate[LS_FE, li] = lp[LP_EA, li] * phi0
             # surface height -U(x, y) (z up): outward normal ~ (dU/dx, dU/dy, 1)
             norm = math.sqrt(gx * gx + gy * gy + 1.0)
             out[OUT_NX] = gx / norm
             out[OUT_NY] = gy / norm
             out[OUT_NZ] = 1.0 / norm
             out[OUT_T] = 0.0
-        wall = sp[SP_WALL]
-        t = chain_solve(depth, out[OUT_T], lp[LP_EA], lp[LP_N], lp[LP_B], dt, c_old, thick, wall, c_new, g)
+        prony_prepare(lp, lstate, dt, restart, ea_eff, off)
+        t = chain_solve(depth, out[OUT_T], ea_eff, lp[LP_N], lp[LP_B], dt, c_old, thick, wall, off, c_new, g)
         if t <= 0.0:
             touching = False
             t = 0.0
@@ -510,7 +718,7 @@ def layered_step_kernel(
             if eps > wall:
                 flags |= FLAG_LAYER_BOUND
             phi, dphi = compression_law(eps, lp[LP_N, li], wall)
-            hh = -lp[LP_EA, li] * dphi * eps / h  # d(residual)/dh at fixed c
+            hh = -ea_eff[li] * dphi * eps / h  # d(residual)/dh at fixed c
             dhx = (aux[AUX_DBX, li] if li < nl - 1 else 0.0) - (aux[AUX_DBX, li - 1] if li > 0 else 0.0)
             dhy = (aux[AUX_DBY, li] if li < nl - 1 else 0.0) - (aux[AUX_DBY, li - 1] if li > 0 else 0.0)
             dhd = (aux[AUX_DBD, li] if li < nl - 1 else 0.0) - (aux[AUX_DBD, li - 1] if li > 0 else 0.0)
@@ -538,14 +746,15 @@ def layered_step_kernel(
         dt_eff = max(dt, DT_FLOOR_S)
         cap = max(RATE_CAP_M_S, math.sqrt(tool_vx * tool_vx + tool_vy * tool_vy + tool_vz * tool_vz))
         for li in range(nl):
+            prony_commit(lp, lstate, li, c_new[li], thick[li], wall, dt, restart)
+            if has_memory:  # the layers recover along their law after contact (recover_layers)
+                lstate[LS_THICK, li] = thick[li]
             rate = min(cap, max(-cap, (c_new[li] - c_old[li]) / dt_eff))  # each layer its own rate (series chain)
             drive_layer(li, c_new[li], rate, tool_x, tool_y, sp, bmodes, bvec, blev, mstate, lstate, istate)
     else:
         out[OUT_T] = 0.0
         a = 0.0
-        for li in range(nl):
-            lstate[LS_COMP, li] = 0.0
-            relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate)
+        recover_layers(dt, restart, lp, sp, bmodes, bvec, blev, mstate, lstate, istate, ea_eff, off)
     stress = force_n / (math.pi * a * a) if a > 0.0 else 0.0
     d_out = depth if touching else 0.0
     n_out = nl if touching else 0
@@ -567,14 +776,14 @@ class LayeredForm(Form):
         self._mu = cfg.friction_coefficient
         self._slip = cfg.slip_speed_m_s
 
-    def tick(self, x, y, z, vx, vy, vz, dt) -> int:
+    def tick(self, x, y, z, vx, vy, vz, dt, restart=False) -> int:
         """:func:`layered_step_kernel`; the velocity is kept for :meth:`tangent` (the friction's Jacobian)."""
         vx, vy, vz = float(vx), float(vy), float(vz)
         v = self._last_velocity  # by item: a slice assignment from a tuple costs several times more
         v[0] = vx
         v[1] = vy
         v[2] = vz
-        return layered_step_kernel(float(x), float(y), float(z), vx, vy, vz, float(dt), *self._args)
+        return layered_step_kernel(float(x), float(y), float(z), vx, vy, vz, float(dt), bool(restart), *self._args)
 
     def tangent(self, flags: int) -> ContactTangent:
         """Force and derivatives of the last tick (``flags``: its flags): :func:`contact_jacobians` of its force."""

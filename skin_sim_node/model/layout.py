@@ -95,7 +95,11 @@ LP_IF_MEAN = 5
 LP_IF_AMP = 6
 LP_IF_KX = 7
 LP_IF_KY = 8
-LP_SIZE = 9
+LP_G1 = 9
+LP_TAU1 = 10
+LP_G2 = 11
+LP_TAU2 = 12
+LP_SIZE = 13
 """Rows of ``lp``, shape (LP_SIZE, L), float64: per-layer properties; the ``LP_IF_*`` rows hold interface ``j``
 (the top of layer ``j + 1``, section II.C) in column ``j``, and column ``L - 1`` is unused there.
 
@@ -155,7 +159,11 @@ LS_AMP = 2
 LS_PROP_DT = 3
 LS_CX = 4
 LS_CY = 5
-LS_SIZE = 6
+LS_FE = 6
+LS_H1 = 7
+LS_H2 = 8
+LS_THICK = 9
+LS_SIZE = 10
 """Rows of ``lstate``, shape (LS_SIZE, L), float64: per-layer float state carried between ticks.
 
 ===========  ======  ========================================================================
@@ -167,6 +175,10 @@ LS_AMP       m       bound on a free layer's future displacement; inf while driv
 LS_PROP_DT   s       ``dt`` of the cached propagator (NaN: none yet)
 LS_CX        m       patch centre x (where the layer was last driven)
 LS_CY        m       patch centre y
+LS_FE        N       layered form: the layer's elastic (equilibrium) force ``EA phi(c / h)`` at the last tick
+LS_H1        N       layered form: force of the first Prony arm (quasi-linear viscoelasticity)
+LS_H2        N       layered form: force of the second Prony arm
+LS_THICK     m       layered form: the layer's thickness under the tool at the last contact (its recovery uses it)
 ===========  ======  ========================================================================
 """
 
@@ -196,7 +208,9 @@ AUX_G = 5
 AUX_DBX = 6
 AUX_DBY = 7
 AUX_DBD = 8
-AUX_SIZE = 9
+AUX_EA = 9
+AUX_OFF = 10
+AUX_SIZE = 11
 """Rows of ``aux``, shape (AUX_SIZE, L + 1), float64: scratch of one tick (only ``AUX_BOUNDS`` uses column L).
 
 ==========  =====  ===========================================================================
@@ -211,6 +225,8 @@ AUX_G       N/m    slope ``dT/dc_i`` of each layer's backward-Euler residual (la
 AUX_DBX     -      d(interface depth)/dx of the disk-averaged interfaces (layered form)
 AUX_DBY     -      d(interface depth)/dy
 AUX_DBD     -      d(interface depth)/d(tool depth) through the contact radius (sphere)
+AUX_EA      N      the layer's instantaneous ``EA (1 + a_1 g_1 + a_2 g_2)`` of this tick's backward-Euler step
+AUX_OFF     N      the Prony arms' force carried into this tick, ``sum_j a_j (H_j - g_j f_e,old)``
 ==========  =====  ===========================================================================
 """
 
@@ -235,6 +251,8 @@ def pack_layers(cfg: TissueConfig) -> np.ndarray:
     lp[LP_IF_AMP, :n_i] = [i.amplitude_m for i in cfg.interfaces]
     lp[LP_IF_KX, :n_i] = [2 * math.pi / i.wavelength_x_m for i in cfg.interfaces]
     lp[LP_IF_KY, :n_i] = [2 * math.pi / i.wavelength_y_m for i in cfg.interfaces]
+    ve = cfg.viscoelastic
+    lp[LP_G1], lp[LP_TAU1], lp[LP_G2], lp[LP_TAU2] = ve.g1, ve.tau1_s, ve.g2, ve.tau2_s
     return lp
 
 
@@ -315,8 +333,9 @@ class Form:
         self._args = arrays.args
         self._out = arrays.out
 
-    def tick(self, x, y, z, vx, vy, vz, dt) -> int:
-        """The form's tick kernel at the tool position ``(x, y, z)`` (m) and velocity (m/s); returns the flags."""
+    def tick(self, x, y, z, vx, vy, vz, dt, restart=False) -> int:
+        """The form's tick kernel at the tool position ``(x, y, z)`` (m) and velocity (m/s); returns the flags.
+        ``restart``: contact restarts after an unknown time (the layered form's viscoelastic arms are relaxed)."""
         raise NotImplementedError
 
     def tangent(self, flags: int):

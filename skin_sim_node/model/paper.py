@@ -275,7 +275,7 @@ class PaperForm(Form):
         self._k, self._b, self._area = arrays.lp[LP_K], arrays.lp[LP_B], arrays.lp[LP_AREA]
         self._radius = cfg.tool_radius_m
 
-    def tick(self, x, y, z, vx, vy, vz, dt) -> int:
+    def tick(self, x, y, z, vx, vy, vz, dt, restart=False) -> int:
         """:func:`paper_step_kernel`; only the normal velocity ``vz`` enters (eq 6)."""
         return paper_step_kernel(float(x), float(y), float(z), float(vz), float(dt), *self._args)
 

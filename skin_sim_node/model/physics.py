@@ -113,9 +113,16 @@ def drag_ratio(
     return float(f.max() / f.min()), float(f.min()), float(f.max())
 
 
+def equilibrium(cfg: TissueConfig) -> TissueConfig:
+    """``cfg`` without the viscoelastic arms (``viscoelastic.g1 = g2 = 0``): its equilibrium (fully relaxed) law,
+    the one the hyperelastic references check."""
+    return cfg.replace(**{"viscoelastic.g1": 0.0, "viscoelastic.g2": 0.0})
+
+
 def quasi_static_force(cfg: TissueConfig, depth_m: float, x: float = 0.0, y: float = 0.0) -> float:
-    """Force (N) after a 1 mm/s press to ``depth_m`` at ``(x, y)`` and a 2 s hold (the dampers relaxed)."""
-    return press(SkinModel(cfg), x, y, depth_m, 1e-3, hold_s=2.0)
+    """Force (N) after a 1 mm/s press to ``depth_m`` at ``(x, y)`` and a 2 s hold (the dampers relaxed), on the
+    equilibrium law (:func:`equilibrium`: the viscoelastic arms, up to 0.28 s, relaxed)."""
+    return press(SkinModel(equilibrium(cfg)), x, y, depth_m, 1e-3, hold_s=2.0)
 
 
 def wall_curve(cfg: TissueConfig, depths_m=(4.0e-3, 5.0e-3, 5.275e-3, 5.5e-3, 6e-3, 8e-3, 10e-3)) -> list[tuple[float, float]]:

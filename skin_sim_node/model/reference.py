@@ -203,17 +203,20 @@ def compression_law_ref(eps, n, wall):
     return phi(wall) + dphi * (eps - wall)
 
 
-def chain_solve_ref(d, ea, n, b, dt, c_old, h, wall):
+def chain_solve_ref(d, ea, n, b, dt, c_old, h, wall, off=None):
     """Backward-Euler series chain by bracketing (``scipy.optimize.brentq``), independent of the Newton kernel.
+
+    ``off``: each layer's carried-in viscoelastic arm force (N; default none), added to its law.
 
     Returns ``(T, c)``; ``T = -1`` when the chain relaxed at zero force is at least ``d`` long.
     """
     from scipy.optimize import brentq
 
     dt = max(dt, 1e-6)
+    off = np.zeros(len(ea)) if off is None else off
 
     def comp(t, i):
-        f = lambda c: ea[i] * compression_law_ref(c / h[i], n[i], wall) + b[i] / dt * (c - c_old[i]) - t  # noqa: E731
+        f = lambda c: ea[i] * compression_law_ref(c / h[i], n[i], wall) + b[i] / dt * (c - c_old[i]) + off[i] - t  # noqa: E731
         lo, hi = -10.0 * h[i] - abs(c_old[i]), 10.0 * h[i] + abs(c_old[i])
         while f(lo) > 0:
             lo *= 2

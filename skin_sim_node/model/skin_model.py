@@ -34,6 +34,8 @@ from .layout import (
     LS_CX,
     LS_CY,
     LS_DROPPED,
+    LS_FE,
+    LS_THICK,
     OUT_DEPTH_M,
     OUT_FORCE_N,
     OUT_FX,
@@ -121,6 +123,7 @@ class SkinModel:
         self.dropped_m = arrays.lstate[LS_DROPPED]  # displacement bound shed with outer modes since last driven
         self.amplitude_bound_m = arrays.lstate[LS_AMP]  # bound on a free layer's future displacement; inf when driven
         self.centre = arrays.lstate[LS_CX : LS_CY + 1].T  # (L, 2) view
+        self.memory = arrays.lstate[LS_FE : LS_THICK + 1]  # layered form: elastic force, Prony arms, thickness
         self.driven = arrays.istate[IS_DRIVEN]
         self.level = arrays.istate[IS_LEVEL]  # index into basis levels (mode count) per layer
         self.active = arrays.istate[IS_ACTIVE]
@@ -176,7 +179,16 @@ class SkinModel:
 
     def reset(self) -> None:
         """Return to rest: no contact, no deformation."""
-        for a in (self.q, self.v, self.centre, self.compression_m, self._out, self.amplitude_bound_m, self.dropped_m):
+        for a in (
+            self.q,
+            self.v,
+            self.centre,
+            self.compression_m,
+            self._out,
+            self.amplitude_bound_m,
+            self.dropped_m,
+            self.memory,
+        ):
             a[...] = 0.0
         self._out[OUT_NZ] = 1.0
         self.driven[:] = 0
@@ -204,13 +216,15 @@ class SkinModel:
         self.driven[:] = 0
         self._out[OUT_T] = 0.0
 
-    def step(self, tool_xyz, tool_velocity, dt: float) -> float:
+    def step(self, tool_xyz, tool_velocity, dt: float, restart: bool = False) -> float:
         """Advance one tick with the tool at ``tool_xyz`` (m) moving at ``tool_velocity`` (m/s).
 
         Returns the normal reaction force magnitude in newtons (>= 0; along +z in the paper form,
         along :attr:`contact_normal` in the layered form, whose full vector with friction is
         :attr:`force_vector_n`). ``dt`` (s) is the time since the previous tick; the release dynamics
         are exact for any ``dt >= 0`` and the layered form's chain is implicit (passive for any ``dt``).
+        ``restart``: contact restarts after an unknown time (a first pose, a stale spell, a teleport), so the layered
+        form's viscoelastic arms start relaxed.
         """
         x, y, z = tool_xyz
         if self._idle_ok and z >= 0.0 and self._out[OUT_SETTLED]:
@@ -228,16 +242,16 @@ class SkinModel:
         self.kernel_calls += 1
         self.version += 1
         self.last_tick_idle = False
-        self.flags = self._tick(x, y, z, vx, vy, vz, dt)
+        self.flags = self._tick(x, y, z, vx, vy, vz, dt, restart)
         return float(self._out[OUT_FORCE_N])
 
-    def _tick_releasing_from_rest(self, x, y, z, vx, vy, vz, dt) -> int:
+    def _tick_releasing_from_rest(self, x, y, z, vx, vy, vz, dt, restart=False) -> int:
         """The form's tick, for a tissue with degenerate layers: one released this tick (by the tick or by
         :meth:`release` since the last one) restarts from its last driven shape at rest (eq 9's ``B* = 0``),
         advanced over the tick with its exact modal propagator."""
         driven_before = self.driven.astype(bool) | self._released
         q_before = self.q.copy()
-        flags = self._form.tick(x, y, z, vx, vy, vz, dt)
+        flags = self._form.tick(x, y, z, vx, vy, vz, dt, restart)
         self._released[:] = False
         for li in np.flatnonzero(driven_before & ~self.driven.astype(bool) & self._degenerate):
             self.q[li] = self._prop[0, li] * q_before[li]
@@ -409,7 +423,19 @@ class SkinModel:
         return Grid(self.xs, self.ys, self._disp, self._heights)
 
     # --- state hand-over (the session; the replay report's model at peak) -------------------
-    _STATE = ("q", "v", "centre", "driven", "compression_m", "level", "dropped_m", "active", "amplitude_bound_m", "_out")
+    _STATE = (
+        "q",
+        "v",
+        "centre",
+        "driven",
+        "compression_m",
+        "level",
+        "dropped_m",
+        "active",
+        "amplitude_bound_m",
+        "memory",
+        "_out",
+    )
 
     def state(self) -> dict:
         """A copy of the dynamic state (modal amplitudes, patch centres, mode levels, active set, outputs)."""

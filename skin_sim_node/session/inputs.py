@@ -44,6 +44,10 @@ class TickInput(NamedTuple):
     rate_dt_ns : int
         The interval the force-rate bound allows a change over (ns): the stamp interval of an answered pose,
         the caller's interval otherwise.
+    restart : bool
+        Contact restarts (the first pose after a start, a resync or a stale spell, or a teleport): the tool has been
+        where it is for an unknown time, so the model starts from the quasi-static state (dampers and viscoelastic
+        arms relaxed).
     """
 
     answered: bool
@@ -54,6 +58,7 @@ class TickInput(NamedTuple):
     release: bool
     hold: bool = False
     rate_dt_ns: int = 0
+    restart: bool = False
 
 
 def velocity_estimate(
@@ -283,7 +288,7 @@ class InputPolicy:
             if answered and not restart:  # a released tissue relaxing, or a restart, in steps of max_dt_s is no event
                 self._event(ev.TICK_CLAMPED, f"tick interval {dt * 1e3:.1f} ms advanced as max_dt_s = {p.max_dt_s * 1e3:.0f} ms")
             dt = p.max_dt_s
-        return TickInput(answered, stale, pos, v, dt, release, hold=False, rate_dt_ns=max(rate_dt_ns, 0))
+        return TickInput(answered, stale, pos, v, dt, release, hold=False, rate_dt_ns=max(rate_dt_ns, 0), restart=restart)
 
 
 ANSWER_ALL_HZ = 1000.0

@@ -71,9 +71,10 @@ def static_dt_s(cfg: TissueConfig) -> float:
 
 
 def static_force_n(model: SkinModel, x: float, y: float, depth_m: float) -> float:
-    """The model's static reaction at one depth (a press held still: xdot = 0, dampers relaxed)."""
+    """The model's static reaction at one depth (a press held still: xdot = 0, dampers and viscoelastic arms relaxed:
+    a contact restart, ``SkinModel.step(restart=True)``, so the equilibrium law exactly)."""
     model.reset()
-    return model.step((x, y, -depth_m), (0.0, 0.0, 0.0), static_dt_s(model.cfg))
+    return model.step((x, y, -depth_m), (0.0, 0.0, 0.0), static_dt_s(model.cfg), restart=True)
 
 
 class ModalMethod:
