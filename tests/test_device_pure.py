@@ -283,13 +283,15 @@ def test_closed_loop_press_hold_release_settles(default_cfg):
     hold = slice(int(1.0 / dt), int(1.5 / dt))  # last 0.5 s of the hold (0.5 s .. 1.5 s)
     fh = force[hold]
     assert fh.mean() > 0.01
-    assert fh.std() < 1e-3 * fh.mean()
+    # settled: no oscillation; the force only creeps down as the tissue relaxes (viscoelastic arms, tau2 = 0.28 s)
+    assert np.all(np.diff(fh) <= 1e-9)
+    assert fh[0] - fh[-1] < 0.05 * fh.mean()
     k_h = dev.params.hand_stiffness_n_per_m
     # static balance: the hand spring, stretched by the stylus stopping short of the hand, carries the tissue force
     spring = k_h * (z[hold] - hand_z[hold])
     np.testing.assert_allclose(spring, fh, rtol=0.01)
     assert z[hold].mean() > hand_z[hold].mean()  # the stylus stops above (short of) the hand
-    assert -z[hold].mean() > 1e-3  # and still well inside the tissue (below the ~0.1 mm epidermis, in the dermis)
+    assert -z[hold].mean() > 0.5e-3  # and still well inside the tissue (below the ~0.1 mm epidermis, in the dermis)
     assert force[-200:].max() == 0.0  # lifted off at the end
     assert np.all(np.isfinite(force)) and force.max() < 3.3
 
