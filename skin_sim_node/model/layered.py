@@ -42,6 +42,7 @@ from .layout import (
     FLAG_BOTTOMED,
     FLAG_CONTACT,
     FLAG_LAYER_BOUND,
+    FLAG_OFF_SHEET,
     FLAG_SEPARATED,
     IS_ACTIVE,
     LP_B,
@@ -64,6 +65,8 @@ from .layout import (
     OUT_RADIUS_M,
     OUT_T,
     SP_BOTTOM,
+    SP_HALF_X,
+    SP_HALF_Y,
     SP_MU,
     SP_SPHERE,
     SP_TOOL_R,
@@ -72,7 +75,7 @@ from .layout import (
     Form,
     KernelArrays,
 )
-from .modal_kernels import begin_tick, drive_layer, end_tick, layer_at, relax_layer
+from .modal_kernels import begin_tick_reach, drive_layer, end_tick, footprint, layer_at, relax_layer
 
 RATE_CAP_M_S = 3.0
 """Largest layer rate handed to a membrane (m/s): the node's default tool speed cap (``max_tool_speed_m_s``;
@@ -437,9 +440,15 @@ def layered_step_kernel(
         As :func:`~.paper.paper_step_kernel`, which also returns the step flags.
     """
     nl = istate.shape[1]
-    flags, was_contact, surface, touching = begin_tick(
-        tool_x, tool_y, tool_z, dt, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf
+    flags, was_contact, surface, touching = begin_tick_reach(
+        tool_x, tool_y, tool_z, dt, sp[SP_TOOL_R], sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf
     )
+    frac = 1.0  # the footprint: fraction of the contact disk on the sheet, its derivatives, its centroid
+    dfrac_x = 0.0
+    dfrac_y = 0.0
+    dfrac_a = 0.0
+    foot_x = tool_x
+    foot_y = tool_y
     depth = -tool_z
     force_n = 0.0
     t = 0.0
@@ -453,6 +462,7 @@ def layered_step_kernel(
     g = aux[AUX_G, :nl]
     if touching:
         a, s, ds, da_dd = contact_geometry(depth, sp[SP_TOOL_R], sp[SP_SPHERE] > 0.0)
+        frac, dfrac_x, dfrac_y, dfrac_a, foot_x, foot_y = footprint(tool_x, tool_y, a, sp[SP_HALF_X], sp[SP_HALF_Y])
         averaged_bounds(tool_x, tool_y, a, da_dd, lp, sp[SP_BOTTOM], bounds, aux[AUX_DBX], aux[AUX_DBY], aux[AUX_DBD])
         for li in range(nl):
             thick[li] = bounds[li + 1] - bounds[li]
@@ -485,6 +495,10 @@ def layered_step_kernel(
             touching = False
             t = 0.0
             flags |= FLAG_SEPARATED
+        if frac <= 0.0:  # the contact disk is off the sheet
+            touching = False
+            t = 0.0
+            flags |= FLAG_OFF_SHEET
     nx = 0.0
     ny = 0.0
     nz = 1.0
@@ -498,7 +512,7 @@ def layered_step_kernel(
         flags |= FLAG_CONTACT
         if depth > sp[SP_BOTTOM]:
             flags |= FLAG_BOTTOMED
-        force_n = s * t
+        force_n = frac * s * t  # the footprint: the load on the part of the disk that lies on the sheet
         # gradient of the normal force: dT = (dd + sum_i H_i dh_i / G_i) / S  (implicit function theorem)
         s_inv = 0.0
         sx = 0.0
@@ -518,9 +532,9 @@ def layered_step_kernel(
             sx += hh * dhx / g[li]
             sy += hh * dhy / g[li]
             sd += hh * dhd / g[li]
-        dfx = s * sx / s_inv
-        dfy = s * sy / s_inv
-        dfz = -(ds * t + s * (1.0 + sd) / s_inv)
+        dfx = frac * s * sx / s_inv + s * t * dfrac_x
+        dfy = frac * s * sy / s_inv + s * t * dfrac_y
+        dfz = -(frac * (ds * t + s * (1.0 + sd) / s_inv) + s * t * dfrac_a * da_dd)
         nx = out[OUT_NX]
         ny = out[OUT_NY]
         nz = out[OUT_NZ]
@@ -539,7 +553,7 @@ def layered_step_kernel(
         cap = max(RATE_CAP_M_S, math.sqrt(tool_vx * tool_vx + tool_vy * tool_vy + tool_vz * tool_vz))
         for li in range(nl):
             rate = min(cap, max(-cap, (c_new[li] - c_old[li]) / dt_eff))  # each layer its own rate (series chain)
-            drive_layer(li, c_new[li], rate, tool_x, tool_y, sp, bmodes, bvec, blev, mstate, lstate, istate)
+            drive_layer(li, c_new[li], rate, foot_x, foot_y, sp, bmodes, bvec, blev, mstate, lstate, istate)
     else:
         out[OUT_T] = 0.0
         a = 0.0

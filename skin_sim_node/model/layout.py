@@ -47,7 +47,7 @@ FLAG_LAYER_BOUND = 4
 FLAG_SEPARATED = 8
 """Step flag: the tool retracted faster than the tissue follows; the unilateral contact is released."""
 FLAG_OFF_SHEET = 16
-"""Step flag: the tool tip is outside the sheet's x-y extent."""
+"""Step flag: the tool tip is outside the sheet's x-y extent (layered form: its contact disk does not reach the sheet)."""
 
 OUT_FORCE_N = 0
 OUT_STRESS_PA = 1

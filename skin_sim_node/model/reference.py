@@ -252,3 +252,44 @@ def contact_jacobians_ref(normal, grad, velocity, mu, slip_speed_m_s, force_n):
     stiffness = np.outer(normal - mu * vt / r, grad)
     damping = -mu * force_n * (np.eye(3) / r - np.outer(vt, vt) / r**3) @ proj
     return stiffness, damping
+
+
+def footprint_ref(x, y, r, half_x, half_y):
+    """NumPy/SciPy reference of :func:`skin_sim_node.model.modal_kernels.footprint`'s fraction and centroid.
+
+    The overlap of the disk (radius ``r`` at ``(x, y)``) with the sheet as 1D integrals over the disk's chords
+    (``scipy.integrate.quad``): area ``int L(X) dX``, moments ``int X L(X) dX`` and ``int (hi^2 - lo^2) / 2 dX``.
+    Returns ``(frac, cx, cy)``.
+    """
+    import warnings
+
+    from scipy.integrate import IntegrationWarning, quad
+
+    x0, x1, y0, y1 = -half_x - x, half_x - x, -half_y - y, half_y - y
+
+    def chord(px):
+        s = np.sqrt(max(r * r - px * px, 0.0))
+        return max(y0, -s), min(y1, s)
+
+    def length(px):
+        lo, hi = chord(px)
+        return max(0.0, hi - lo)
+
+    def moment_y(px):
+        lo, hi = chord(px)
+        return 0.5 * (hi * hi - lo * lo) if hi > lo else 0.0
+
+    lo, hi = max(x0, -r), min(x1, r)
+    if hi <= lo:
+        return 0.0, x, y
+    kinks = [sg * np.sqrt(r * r - yy * yy) for yy in (y0, y1) if abs(yy) < r for sg in (-1.0, 1.0)]  # chord meets y0, y1
+    pts = [p for p in (x0, x1, *kinks) if lo < p < hi] or None
+    kw = dict(points=pts, epsabs=0.0, epsrel=1e-12, limit=200)
+    with warnings.catch_warnings():  # quad warns of round-off at 1e-12 relative; the fraction is still ~1e-14
+        warnings.simplefilter("ignore", IntegrationWarning)
+        area = quad(length, lo, hi, **kw)[0]
+        if area <= 0.0:
+            return 0.0, x, y
+        mx = quad(lambda px: px * length(px), lo, hi, **kw)[0]
+        my = quad(moment_y, lo, hi, **kw)[0]
+    return area / (np.pi * r * r), x + mx / area, y + my / area
