@@ -42,12 +42,14 @@ from .layout import (
     OUT_SETTLED,
     OUT_STRESS_PA,
     OUT_SURFACE_M,
+    SP_COS,
     SP_HALF_X,
     SP_HALF_Y,
     SP_MODE_TOL,
     SP_PATCH_A,
     SP_PATCH_B,
     SP_SETTLE_TOL,
+    SP_SIN,
     SP_SKIP_SETTLED,
 )
 
@@ -128,7 +130,9 @@ def sine_table(theta, n_max, out):
 
 @njit(cache=True, nogil=True)
 def layer_point_displacement(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y, sx_buf, sy_buf):
-    """One layer's downward displacement (m) at ``(x, y)``: eq 2 summed over its modes.
+    """One layer's downward displacement (m) at ``(x, y)``: eq 2 summed over its modes, the patch along the axes.
+
+    :func:`layer_point_displacement_rot` at angle 0 (``cos = 1``, ``sin = 0``), which is exact there.
 
     Parameters
     ----------
@@ -150,8 +154,33 @@ def layer_point_displacement(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y
     float
         The displacement (m, down); 0 outside the patch.
     """
-    xi = x - cx + 0.5 * patch_a
-    eta = y - cy + 0.5 * patch_b
+    return layer_point_displacement_rot(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, 1.0, 0.0, x, y, sx_buf, sy_buf)
+
+
+@njit(cache=True, nogil=True)
+def layer_point_displacement_rot(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, cos_t, sin_t, x, y, sx_buf, sy_buf):
+    """One layer's downward displacement (m) at ``(x, y)`` on a patch turned by the tension lines' angle (eq 2).
+
+    The point in the patch's frame is ``xi = cos (x - cx) + sin (y - cy) + a/2`` (along the lines) and
+    ``eta = -sin (x - cx) + cos (y - cy) + b/2`` (across); the modes are the sines of eq 2 in ``xi, eta``.
+    At ``cos = 1, sin = 0`` this is bit for bit the unturned patch.
+
+    Parameters
+    ----------
+    q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y, sx_buf, sy_buf
+        As :func:`layer_point_displacement`.
+    cos_t, sin_t : float
+        Cosine and sine of the angle of the patch's first side from the x axis (``SP_COS``, ``SP_SIN``).
+
+    Returns
+    -------
+    float
+        The displacement (m, down); 0 outside the patch.
+    """
+    dx = x - cx
+    dy = y - cy
+    xi = cos_t * dx + sin_t * dy + 0.5 * patch_a
+    eta = cos_t * dy - sin_t * dx + 0.5 * patch_b
     if xi <= 0.0 or xi >= patch_a or eta <= 0.0 or eta >= patch_b:
         return 0.0
     sine_table(math.pi * xi / patch_a, sx_buf.shape[0] - 1, sx_buf)
@@ -202,12 +231,13 @@ def layer_at(li, x, y, sp, blev, bk, mstate, lstate, istate, sbuf):
     Returns
     -------
     float
-        :func:`layer_point_displacement` with the layer's modes, amplitudes and patch.
+        :func:`layer_point_displacement_rot` with the layer's modes, amplitudes and patch (turned by ``SP_COS``,
+        ``SP_SIN``).
     """
     lv = istate[IS_LEVEL, li]
     nk = blev[0, lv]
     ml = blev[1, lv] + 1
-    return layer_point_displacement(
+    return layer_point_displacement_rot(
         mstate[0, li, :nk],
         lstate[LS_CX, li],
         lstate[LS_CY, li],
@@ -215,6 +245,8 @@ def layer_at(li, x, y, sp, blev, bk, mstate, lstate, istate, sbuf):
         bk[1, :nk],
         sp[SP_PATCH_A],
         sp[SP_PATCH_B],
+        sp[SP_COS],
+        sp[SP_SIN],
         x,
         y,
         sbuf[0, :ml],
