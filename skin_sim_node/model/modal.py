@@ -76,9 +76,7 @@ def disk_load_coefficients(m_max, n_max, a, b, r0, xc=None, yc=None, foundation_
     return load * sin_x * sin_y / (k2 + foundation_wavenumber2(foundation_length_m))
 
 
-def shape_coefficients(
-    m_max: int, n_max: int, a: float, b: float, r0: float, foundation_length_m=0.0, ratio=1.0
-) -> np.ndarray:
+def shape_coefficients(m_max: int, n_max: int, a: float, b: float, r0: float, foundation_length_m=0.0, ratio=1.0) -> np.ndarray:
     """``beta_mn``: eq 3 coefficients of the unit-depth indentation shape, shape (M, N)."""
     w = disk_load_coefficients(m_max, n_max, a, b, r0, foundation_length_m=foundation_length_m, ratio=ratio)
     m = np.arange(1, m_max + 1)[:, None]
