@@ -61,11 +61,13 @@ def propagator_ref(lam, gamma, dt):
     return np.stack([ec + g * es, es, -(lam**2) * es, ec - g * es])
 
 
-def layer_field_ref(q_l, cx, cy, mode_m, mode_n, a, b, xs, ys):
-    """Eq 2 summed directly over every mode at every grid cell inside the patch."""
+def layer_field_ref(q_l, cx, cy, mode_m, mode_n, a, b, xs, ys, angle_rad=0.0):
+    """Eq 2 summed directly over every mode at every grid cell inside the patch; ``angle_rad`` turns the patch's first
+    side from the x axis (the tension lines): a cell's patch coordinates are its offset rotated by ``-angle``."""
     X, Y = np.meshgrid(xs, ys)
-    xi = X - cx + a / 2
-    eta = Y - cy + b / 2
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    xi = c * (X - cx) + s * (Y - cy) + a / 2
+    eta = -s * (X - cx) + c * (Y - cy) + b / 2
     inside = (xi > 0) & (xi < a) & (eta > 0) & (eta < b)
     u = np.zeros_like(X)
     for qk, m, n in zip(q_l, mode_m, mode_n):

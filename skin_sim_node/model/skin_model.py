@@ -370,7 +370,9 @@ class SkinModel:
                 d[:] = 0
                 if not wanted or at_rest:
                     continue
-                ix0, ix1, iy0, iy1 = patch_box(self.xs, self.ys, *self.centre[li], *self._patch, *self._turn)
+                cx, cy = self.centre[li]
+                (a, b_side), (c, s) = self._patch, self._turn
+                ix0, ix1, iy0, iy1 = patch_box(self.xs, self.ys, cx, cy, a, b_side, c, s)
             else:
                 if not wanted or at_rest:
                     self._disp[li] = 0.0
