@@ -70,7 +70,10 @@ def test_edge_force_follows_the_overlap_monotone_and_zero_off_the_sheet(cfg):
     for x in xs:
         m, f = _pressed(cfg, float(x))
         frac, _, _, _, cx, _ = mk.footprint(float(x), 0.0, r, hx, 0.5 * cfg.sheet_size_m[1])
-        assert f == pytest.approx(frac * _pressed(wide, float(x))[1], rel=1e-9, abs=1e-12)
+        m_wide, f_wide = _pressed(wide, float(x))
+        assert f == pytest.approx(frac * f_wide, rel=1e-9, abs=1e-12)
+        if frac > 0.0:  # the contact stress is the force over the disk's part on the sheet: the full disk's
+            assert m.stress_pa == pytest.approx(m_wide.stress_pa, rel=1e-9)
         if frac == 0.0:
             assert f == 0.0 and not m.flags & FLAG_CONTACT and m.flags & FLAG_OFF_SHEET
         else:  # the layers are driven at the footprint's centroid, on the sheet

@@ -424,7 +424,9 @@ def layered_step_kernel(
     """One haptic tick of the layered form: series chain force, friction, tangent and modal state.
 
     Arguments as :func:`~.paper.paper_step_kernel` plus the tool's lateral velocity. Contact is unilateral
-    and tested against the current deformed surface (:func:`~.modal_kernels.begin_tick`). At first contact the
+    and tested against the current deformed surface (:func:`~.modal_kernels.begin_tick_reach`); at the sheet's edge the
+    force is scaled by the contact disk's fraction on the sheet (:func:`~.modal_kernels.footprint`), and the layers are
+    driven at that part's centroid. At first contact the
     chain starts from each layer's current displacement under the tool and the contact normal is
     fixed from the deformed surface's slope there (central differences over 5 um); while in contact
     every layer is driven with its own compression and rate (eq 3: ``q = c_l beta``, ``v = cdot_l
@@ -560,7 +562,7 @@ def layered_step_kernel(
         for li in range(nl):
             lstate[LS_COMP, li] = 0.0
             relax_layer(li, dt, sp, bmodes, bvec, blev, mstate, lstate, istate)
-    stress = force_n / (math.pi * a * a) if a > 0.0 else 0.0
+    stress = force_n / (frac * math.pi * a * a) if a > 0.0 and frac > 0.0 else 0.0  # over the disk's part on the sheet
     d_out = depth if touching else 0.0
     n_out = nl if touching else 0
     end_tick(force_n, stress, d_out, n_out, surface, fx, fy, fz, nx, ny, nz, a, sp, lstate, istate, out)
