@@ -49,6 +49,18 @@ def test_footprint_matches_reference(compiled, rng):
     assert fn(hx + r, 0.0, r, hx, hy)[0] == 0.0 and fn(hx + 0.8 * r, hy + 0.8 * r, r, hx, hy)[0] == 0.0
 
 
+def test_begin_tick_reach_lets_the_centre_pass_the_edge_by_the_reach(compiled, cfg):
+    """The layered form's contact test: the centre may be up to ``reach`` past the edge; beyond it, off the sheet."""
+    fn = kernel(mk.begin_tick_reach, compiled)
+    a = SkinModel(cfg)._arrays
+    arrays = (a.sp, a.bmodes, a.bvec, a.blev, a.bk, a.mstate, a.lstate, a.istate, a.sbuf)
+    hx, r = 0.5 * cfg.sheet_size_m[0], cfg.tool_radius_m
+    assert fn(hx + 0.5 * r, 0.0, -1e-3, 1e-3, r, *arrays)[::3] == (0, True)
+    assert fn(hx + 0.5 * r, 0.0, -1e-3, 1e-3, 0.0, *arrays)[::3] == (FLAG_OFF_SHEET, False)  # begin_tick's
+    assert fn(hx + 1.01 * r, 0.0, -1e-3, 1e-3, r, *arrays)[::3] == (FLAG_OFF_SHEET, False)
+    assert fn(0.0, hx + 0.99 * r, -1e-3, 1e-3, r, *arrays)[::3] == (0, True)
+
+
 def _pressed(cfg, x, depth=DEPTH_M, ticks=60):
     """A fresh model pressed at ``(x, 0)`` to ``depth`` over ``ticks`` 1 ms ticks; returns it and its last force."""
     m = SkinModel(cfg)
