@@ -140,3 +140,13 @@ def test_paper_form_keeps_contact_at_the_tool_centre():
     assert _pressed(cfg, hx - 1e-6)[1] > 0.0
     m, f = _pressed(cfg, hx + 1e-6)
     assert f == 0.0 and m.flags == FLAG_OFF_SHEET
+
+
+def test_edge_command_prints_the_figures():
+    """``python -m skin_sim_node.validation.edge``: the layered form's drop per 0.1 mm is under 5 %, the paper's 100 %."""
+    from skin_sim_node.validation import edge
+
+    s = edge.sweep(preset("default"))
+    assert s.largest_drop_n(1e-4)[0] < 0.05 * s.before_n and s.zero_from_m > 0.06
+    text = edge.report(("default",))
+    assert "largest drop per 10 um" in text and "per 0.1 mm" in text
