@@ -108,8 +108,10 @@ class NumpySkinModel:
 
     def _point(self, li, x, y):
         a, b = self.cfg.patch_size_m
-        xi = x - self.centre[li, 0] + a / 2
-        eta = y - self.centre[li, 1] + b / 2
+        c, s = np.cos(self.cfg.anisotropy_angle_rad), np.sin(self.cfg.anisotropy_angle_rad)  # the patch along the lines
+        dx, dy = x - self.centre[li, 0], y - self.centre[li, 1]
+        xi = c * dx + s * dy + a / 2
+        eta = -s * dx + c * dy + b / 2
         if not (0 < xi < a and 0 < eta < b):
             return 0.0
         bm = self.basis
@@ -181,7 +183,9 @@ class NumpySkinModel:
         bm = self.basis
         disp = np.stack(
             [
-                layer_field_ref(self.q[li], *self.centre[li], bm.mode_m, bm.mode_n, a, b, self.xs, self.ys)
+                layer_field_ref(
+                    self.q[li], *self.centre[li], bm.mode_m, bm.mode_n, a, b, self.xs, self.ys, self.cfg.anisotropy_angle_rad
+                )
                 for li in range(self.q.shape[0])
             ]
         )

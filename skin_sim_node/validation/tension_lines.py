@@ -3,7 +3,8 @@
 ``python -m skin_sim_node.validation.tension_lines`` prints, for the ``default`` (forearm tension lines) and the
 ``isotropic`` presets: each layer's membrane coefficient along and across the lines, the dent of a 2 mm flat-punch
 press on the deformation grid (its half-width at half depth along and across the lines, and the aspect ratio of its
-second moments), the normal force, and the drag (tangential force) of a 10 mm/s stroke along and across the lines.
+second moments), the normal force, and the drag (tangential force) of a 10 mm/s stroke along and across the lines;
+``--figure PATH`` also draws the dent's profiles along and across the lines (docs/figures/tension_lines_dent.png).
 Deterministic (no timing): the numbers are figures.
 
 What the model can and cannot produce (docs/model.md, "Tension lines"): the lines shape the dent (the membranes'
@@ -115,6 +116,45 @@ def stroke_forces(cfg: TissueConfig, across: bool) -> tuple[float, float]:
     return float(np.mean(normal[half:])), float(np.mean(tangential[half:]))
 
 
+def profiles(cfg: TissueConfig, depth_m: float = PRESS_DEPTH_M, half_m: float = 8e-3, n: int = 161):
+    """The dent of :func:`dent`'s press along and across the lines through the tool (pointwise, eq 2).
+
+    Returns ``(s, along, across)``: the distance from the tool (m) and the surface displacement (m, down) there.
+    """
+    m = SkinModel(cfg)
+    for i in range(200):
+        m.step((0.0, 0.0, -depth_m * min(1.0, (i + 1) / 100)), (0.0, 0.0, 0.0), 1e-3)
+    c, s_ = math.cos(cfg.anisotropy_angle_rad), math.sin(cfg.anisotropy_angle_rad)
+    s = np.linspace(-half_m, half_m, n)
+    along = np.array([m.surface_displacement_at(t * c, t * s_) for t in s])
+    across = np.array([m.surface_displacement_at(-t * s_, t * c) for t in s])
+    return s, along, across
+
+
+def figure(path, names=("default", "isotropic")) -> None:
+    """Write the dent's profiles along and across the lines for each preset to ``path`` (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    for name, colour in zip(names, ("C0", "C1", "C2", "C3")):
+        cfg = preset(name)
+        s, along, across = profiles(cfg)
+        label = f"{name} (ratio {cfg.anisotropy_ratio:g})"
+        ax.plot(s * 1e3, -along * 1e3, color=colour, label=f"{label}: along the lines")
+        ax.plot(s * 1e3, -across * 1e3, color=colour, ls="--", label=f"{label}: across")
+    ax.set_xlabel("distance from the tool's centre (mm)")
+    ax.set_ylabel("surface height (mm)")
+    ax.set_title("Dent of a 2 mm flat-punch press (r = 2.5 mm): tension lines")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def report(names=("default", "isotropic")) -> str:
     """The table the module prints: membrane coefficients, dent, normal force and drag per preset."""
     lines = [
@@ -151,9 +191,19 @@ def report(names=("default", "isotropic")) -> str:
 
 
 def main(argv=None) -> int:
-    """Print :func:`report` for the presets named on the command line (default: ``default isotropic``)."""
-    names = tuple(argv if argv is not None else sys.argv[1:]) or ("default", "isotropic")
+    """Print :func:`report` for the presets named on the command line (default: ``default isotropic``);
+    ``--figure PATH`` also writes :func:`figure` there."""
+    args = list(argv if argv is not None else sys.argv[1:])
+    path = None
+    if "--figure" in args:
+        i = args.index("--figure")
+        path = args[i + 1]
+        del args[i : i + 2]
+    names = tuple(args) or ("default", "isotropic")
     print(report(names))
+    if path:
+        figure(path, names)
+        print("wrote", path)
     return 0
 
 
