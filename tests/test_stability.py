@@ -171,7 +171,9 @@ def test_sliding_off_the_sheet_drops_force_at_the_bounded_rate(default_cfg):
     r = Run(default_cfg, max_force_rate_n_per_s=5.0).feed(press(2e-3, 0.1, x=half - 5e-3))  # 5 mN per tick: it binds
     f_on = r.forces[-1]
     xs = np.linspace(half - 5e-3, half + 5e-3, 50)  # 10 mm in 50 ms: 0.2 m/s drag over the edge
-    r.feed([(1e-3, (x, 0.0, -2e-3), (0.2, 0.0, 0.0)) for x in xs] + [(1e-3, (xs[-1], 0.0, -2e-3), (0.0, 0.0, 0.0))] * 50)
+    # the layered force follows the footprint to 2.5 mm past the edge, then falls at 5 mN per tick: 0.5 N (the most a
+    # 0.1 s press reaches at 5 N/s) needs 100 ticks
+    r.feed([(1e-3, (x, 0.0, -2e-3), (0.2, 0.0, 0.0)) for x in xs] + [(1e-3, (xs[-1], 0.0, -2e-3), (0.0, 0.0, 0.0))] * 150)
     r.check_invariants()
     assert {TOOL_OFF_SHEET, PATCH_CLIPPED, FORCE_RATE_LIMITED} <= r.events()
     assert f_on > 0.01 and r.forces[-1] == 0.0
