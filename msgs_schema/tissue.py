@@ -160,6 +160,19 @@ def _visco_specs() -> list[ParamSpec]:
     ]
 
 
+ANISOTROPY_RATIO = 1.79
+"""Default ``anisotropy.ratio``: a layer's in-plane coefficient along the tension (Langer) lines over that across
+them. Lakhani et al. 2021 (Front Bioeng Biotechnol 9:749492, doi:10.3389/fbioe.2021.749492, abstract): human forearm
+skin in vivo (12 forearms, full-field suction), linear moduli 5.52 +- 1.13 MPa along, 3.09 +- 0.47 MPa across
+(5.52 / 3.09 = 1.79; the toe moduli 0.59 / 0.52 = 1.13 bound it below); the stiff direction follows Kraissl's lines.
+The membrane coefficient of this model is ``rho_A c^2 = mu h`` (elastography's shear wave speed; docs/model.md,
+"Tension lines"), the layer's in-plane shear stiffness, so its anisotropy is the modulus's. docs/data/tension_lines.yaml
+holds the numbers and their provenance."""
+ANISOTROPY_ANGLE_RAD = 0.0
+"""Default ``anisotropy.angle_rad``: the lines along the sheet's x axis (stated choice: the sheet's x is laid along
+the lines; a person's map of lines varies, so the direction is a parameter)."""
+
+
 def critical_damping_n_s_per_m(density_kg_per_m3: float, thickness_m: float, wave_speed_m_per_s: float) -> float:
     """``b`` that critically damps a layer's fundamental release mode: ``b = 2 m11 lambda_11``.
 
@@ -290,6 +303,26 @@ def _general_specs() -> list[ParamSpec]:
             "1",
             "Coulomb friction coefficient of the tool on dry skin (layered form; Derler and Gerhardt 2012: typically 0.5)",
             max=5.0,
+            min_exclusive=False,
+        ),
+        _f(
+            "anisotropy.ratio",
+            ANISOTROPY_RATIO,
+            "1",
+            "tension (Langer) lines: each layer's membrane coefficient and in-plane modulus along the lines over "
+            "across them (T_along = T sqrt(ratio), T_across = T / sqrt(ratio), geometric mean T; the normal force "
+            "sees the geometric mean only). Forearm 1.79 (Lakhani 2021, linear moduli 5.52 / 3.09 MPa); 1: isotropic",
+            min=0.1,
+            max=10.0,
+        ),
+        _f(
+            "anisotropy.angle_rad",
+            ANISOTROPY_ANGLE_RAD,
+            "rad",
+            "direction of the tension lines from the sheet's x axis; the modal patch's first side (patch.size_x_m) "
+            "is laid along them",
+            min=-math.pi / 2,
+            max=math.pi / 2,
             min_exclusive=False,
         ),
         _f(

@@ -1,4 +1,4 @@
-"""Regenerate config/default.yaml, config/paper.yaml and docs/parameters.md from the parameter schema.
+"""Regenerate config/default.yaml, config/paper.yaml, config/isotropic.yaml and docs/parameters.md from the schema.
 
 The presets are written twice: ``config/`` at the top, where the README and the command lines point, and
 ``skin_sim_node/config/``, the package data that :func:`skin_sim_node.model.config.preset` reads in an install.
@@ -6,7 +6,8 @@ The presets are written twice: ``config/`` at the top, where the README and the 
 default: every schema default (the layered form). paper: the paper's form (Fig 3 engagement, common
 velocity), one mode, no damping, LOD levers off, the Sneddon flat-punch k of the moduli it always had,
 and each layer's tension set so that c = 0.0032 * 0.06 / (pi sqrt 2) m/s, i.e. lambda_11 = 0.0032 rad/s
-as in eq 9.
+as in eq 9; isotropic (the paper's own membrane too). isotropic: the default with no tension lines
+(``anisotropy.ratio = 1``), the model as calibrated against the isotropic neo-Hookean references.
 """
 
 import math
@@ -52,13 +53,15 @@ def write_parameter_doc(path: Path = DOCS) -> None:
     path.write_text("\n".join(rows) + "\n")
 
 
+PRESETS = ("default.yaml", "paper.yaml", "isotropic.yaml")
+"""The preset files written (``config/`` and the package copies)."""
 PRESET_KEY = "/**/" + NODE_NAME
 """The presets' top key: the node in any namespace (rcl's ``**`` wildcard). A bare ``skin_sim_node:`` matches only
 ``/skin_sim_node``, so a node started under ``-r __ns:=/s1`` (``skin-sim scale``'s sessions) silently ran without it."""
 
 
 def main(config_dir: Path = CONFIG, doc_path: Path = DOCS, package_config_dir: Path = PACKAGE_CONFIG):
-    """Write ``default.yaml`` and ``paper.yaml`` into ``config_dir`` and ``package_config_dir``, and the parameter
+    """Write :data:`PRESETS` into ``config_dir`` and ``package_config_dir``, and the parameter
     reference to ``doc_path``.
 
     Parameters
@@ -75,6 +78,7 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS, package_config_dir: P
     paper[TISSUE_PREFIX + "modes.m"] = 1
     paper[TISSUE_PREFIX + "modes.n"] = 1
     paper[TISSUE_PREFIX + "patch.foundation_length_m"] = 0.0  # the paper's bare membrane (eq 1)
+    paper[TISSUE_PREFIX + "anisotropy.ratio"] = 1.0  # the paper's isotropic membrane
     # eq 9 is one fixed mode, undamped, 6.11 um deep (below lod.tolerance_m): no level-of-detail shortcuts
     for lever in ("adaptive_modes", "affected_layers", "idle"):
         paper[f"{TISSUE_PREFIX}lod.{lever}"] = False
@@ -86,11 +90,15 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS, package_config_dir: P
         paper[p + "tension_n_per_m"] = paper[p + "density_kg_per_m3"] * paper[p + "thickness_m"] * c**2
     config_from_flat(tissue_part(paper, TISSUE_PREFIX))
     dump_yaml(paper, config_dir / "paper.yaml", PRESET_KEY)
+    isotropic = dict(default)
+    isotropic[TISSUE_PREFIX + "anisotropy.ratio"] = 1.0  # no tension lines
+    config_from_flat(tissue_part(isotropic, TISSUE_PREFIX))
+    dump_yaml(isotropic, config_dir / "isotropic.yaml", PRESET_KEY)
     package_config_dir.mkdir(parents=True, exist_ok=True)
-    for name in ("default.yaml", "paper.yaml"):
+    for name in PRESETS:
         (package_config_dir / name).write_text((config_dir / name).read_text())
     write_parameter_doc(doc_path)
-    print("wrote", config_dir / "default.yaml", config_dir / "paper.yaml", f"(copies: {package_config_dir})", doc_path)
+    print("wrote", *(config_dir / n for n in PRESETS), f"(copies: {package_config_dir})", doc_path)
 
 
 if __name__ == "__main__":

@@ -21,7 +21,9 @@ LEVERS = ("lod.adaptive_modes", "lod.affected_layers", "lod.patch_only", "lod.id
 def reference_field(compression_m, cfg, cx, cy, xs, ys):
     """``dx`` times the unit indentation shape summed over all odd modes of 60 x 60, on the patch."""
     a, b = cfg.patch_size_m
-    beta = shape_coefficients(REFERENCE_MODES, REFERENCE_MODES, a, b, cfg.tool_radius_m, cfg.foundation_length_m)
+    beta = shape_coefficients(
+        REFERENCE_MODES, REFERENCE_MODES, a, b, cfg.tool_radius_m, cfg.foundation_length_m, cfg.anisotropy_ratio
+    )
     m = np.arange(1, REFERENCE_MODES + 1)
     xi, eta = xs - cx + a / 2, ys - cy + b / 2
     sx = np.sin(np.outer(m, xi) * np.pi / a) * ((xi > 0) & (xi < a))

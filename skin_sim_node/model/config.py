@@ -119,6 +119,8 @@ class TissueConfig:
     slip_speed_m_s: float = 1e-3
     foundation_length_m: float = 0.0  # membranes' foundation decay length (modal.py); 0: bare membrane
     viscoelastic: ViscoelasticConfig = ViscoelasticConfig()  # layered form's Prony arms; default: none
+    anisotropy_ratio: float = 1.0  # membrane coefficient along / across the tension lines (modal.py); 1: isotropic
+    anisotropy_angle_rad: float = 0.0  # direction of the lines (and of the patch's first side) from the sheet's x axis
 
     @property
     def total_thickness_m(self) -> float:
@@ -245,6 +247,8 @@ def build_config(flat: dict[str, Any]) -> TissueConfig:
             g2=flat["viscoelastic.g2"],
             tau2_s=flat["viscoelastic.tau2_s"],
         ),
+        anisotropy_ratio=flat["anisotropy.ratio"],
+        anisotropy_angle_rad=flat["anisotropy.angle_rad"],
     )
     _check_geometry(cfg)
     return cfg
@@ -395,5 +399,6 @@ def preset_path(name: str) -> Path:
 
 
 def preset(name: str) -> TissueConfig:
-    """A shipped preset: ``default`` (layered form, in-vivo parameters) or ``paper`` (the paper's form, eq 9, one mode)."""
+    """A shipped preset: ``default`` (layered form, in-vivo parameters, forearm tension lines), ``isotropic`` (the
+    default without tension lines) or ``paper`` (the paper's form, eq 9, one mode)."""
     return load_tissue_config(preset_path(name))

@@ -44,6 +44,7 @@ from .layout import (
     FLAG_BOTTOMED,
     FLAG_CONTACT,
     FLAG_LAYER_BOUND,
+    FLAG_OFF_SHEET,
     FLAG_SEPARATED,
     IS_ACTIVE,
     IS_DRIVEN,
@@ -77,6 +78,8 @@ from .layout import (
     OUT_RADIUS_M,
     OUT_T,
     SP_BOTTOM,
+    SP_HALF_X,
+    SP_HALF_Y,
     SP_MODE_TOL,
     SP_MU,
     SP_SPHERE,
@@ -86,7 +89,7 @@ from .layout import (
     Form,
     KernelArrays,
 )
-from .modal_kernels import begin_tick, drive_layer, end_tick, layer_at, relax_layer
+from .modal_kernels import begin_tick_reach, drive_layer, end_tick, footprint, layer_at, relax_layer
 
 RATE_CAP_M_S = 3.0
 """Largest layer rate handed to a membrane (m/s): the node's default tool speed cap (``max_tool_speed_m_s``;
@@ -605,7 +608,9 @@ def layered_step_kernel(
     """One haptic tick of the layered form: series chain force, friction, tangent and modal state.
 
     Arguments as :func:`~.paper.paper_step_kernel` plus the tool's lateral velocity. Contact is unilateral
-    and tested against the current deformed surface (:func:`~.modal_kernels.begin_tick`). At first contact the
+    and tested against the current deformed surface (:func:`~.modal_kernels.begin_tick_reach`); at the sheet's edge the
+    force is scaled by the contact disk's fraction on the sheet (:func:`~.modal_kernels.footprint`), and the layers are
+    driven at that part's centroid. At first contact the
     chain starts from each layer's current displacement under the tool and the contact normal is
     fixed from the deformed surface's slope there (central differences over 5 um); while in contact
     every layer is driven with its own compression and rate (eq 3: ``q = c_l beta``, ``v = cdot_l
@@ -627,9 +632,15 @@ def layered_step_kernel(
         As :func:`~.paper.paper_step_kernel`, which also returns the step flags.
     """
     nl = istate.shape[1]
-    flags, was_contact, surface, touching = begin_tick(
-        tool_x, tool_y, tool_z, dt, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf
+    flags, was_contact, surface, touching = begin_tick_reach(
+        tool_x, tool_y, tool_z, dt, sp[SP_TOOL_R], sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf
     )
+    frac = 1.0  # the footprint: fraction of the contact disk on the sheet, its derivatives, its centroid
+    dfrac_x = 0.0
+    dfrac_y = 0.0
+    dfrac_a = 0.0
+    foot_x = tool_x
+    foot_y = tool_y
     depth = -tool_z
     force_n = 0.0
     t = 0.0
@@ -650,6 +661,7 @@ def layered_step_kernel(
             has_memory = True
     if touching:
         a, s, ds, da_dd = contact_geometry(depth, sp[SP_TOOL_R], sp[SP_SPHERE] > 0.0)
+        frac, dfrac_x, dfrac_y, dfrac_a, foot_x, foot_y = footprint(tool_x, tool_y, a, sp[SP_HALF_X], sp[SP_HALF_Y])
         averaged_bounds(tool_x, tool_y, a, da_dd, lp, sp[SP_BOTTOM], bounds, aux[AUX_DBX], aux[AUX_DBY], aux[AUX_DBD])
         for li in range(nl):
             thick[li] = bounds[li + 1] - bounds[li]
@@ -693,6 +705,10 @@ def layered_step_kernel(
             touching = False
             t = 0.0
             flags |= FLAG_SEPARATED
+        if frac <= 0.0:  # the contact disk is off the sheet
+            touching = False
+            t = 0.0
+            flags |= FLAG_OFF_SHEET
     nx = 0.0
     ny = 0.0
     nz = 1.0
@@ -706,7 +722,7 @@ def layered_step_kernel(
         flags |= FLAG_CONTACT
         if depth > sp[SP_BOTTOM]:
             flags |= FLAG_BOTTOMED
-        force_n = s * t
+        force_n = frac * s * t  # the footprint: the load on the part of the disk that lies on the sheet
         # gradient of the normal force: dT = (dd + sum_i H_i dh_i / G_i) / S  (implicit function theorem)
         s_inv = 0.0
         sx = 0.0
@@ -726,9 +742,9 @@ def layered_step_kernel(
             sx += hh * dhx / g[li]
             sy += hh * dhy / g[li]
             sd += hh * dhd / g[li]
-        dfx = s * sx / s_inv
-        dfy = s * sy / s_inv
-        dfz = -(ds * t + s * (1.0 + sd) / s_inv)
+        dfx = frac * s * sx / s_inv + s * t * dfrac_x
+        dfy = frac * s * sy / s_inv + s * t * dfrac_y
+        dfz = -(frac * (ds * t + s * (1.0 + sd) / s_inv) + s * t * dfrac_a * da_dd)
         nx = out[OUT_NX]
         ny = out[OUT_NY]
         nz = out[OUT_NZ]
@@ -750,12 +766,12 @@ def layered_step_kernel(
             if has_memory:  # the layers recover along their law after contact (recover_layers)
                 lstate[LS_THICK, li] = thick[li]
             rate = min(cap, max(-cap, (c_new[li] - c_old[li]) / dt_eff))  # each layer its own rate (series chain)
-            drive_layer(li, c_new[li], rate, tool_x, tool_y, sp, bmodes, bvec, blev, mstate, lstate, istate)
+            drive_layer(li, c_new[li], rate, foot_x, foot_y, sp, bmodes, bvec, blev, mstate, lstate, istate)
     else:
         out[OUT_T] = 0.0
         a = 0.0
         recover_layers(dt, restart, lp, sp, bmodes, bvec, blev, mstate, lstate, istate, ea_eff, off)
-    stress = force_n / (math.pi * a * a) if a > 0.0 else 0.0
+    stress = force_n / (frac * math.pi * a * a) if a > 0.0 and frac > 0.0 else 0.0  # over the disk's part on the sheet
     d_out = depth if touching else 0.0
     n_out = nl if touching else 0
     end_tick(force_n, stress, d_out, n_out, surface, fx, fy, fz, nx, ny, nz, a, sp, lstate, istate, out)

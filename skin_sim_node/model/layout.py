@@ -47,7 +47,7 @@ FLAG_LAYER_BOUND = 4
 FLAG_SEPARATED = 8
 """Step flag: the tool retracted faster than the tissue follows; the unilateral contact is released."""
 FLAG_OFF_SHEET = 16
-"""Step flag: the tool tip is outside the sheet's x-y extent."""
+"""Step flag: the tool tip is outside the sheet's x-y extent (layered form: its contact disk does not reach the sheet)."""
 
 OUT_FORCE_N = 0
 OUT_STRESS_PA = 1
@@ -131,7 +131,9 @@ SP_SPHERE = 9
 SP_MU = 10
 SP_V_SLIP = 11
 SP_WALL = 12
-SP_SIZE = 13
+SP_COS = 13
+SP_SIN = 14
+SP_SIZE = 15
 """Slots of ``sp``, shape (SP_SIZE,), float64: scalars of the tissue, the tool and the level of detail.
 
 ===============  ======  ==================================================================
@@ -150,6 +152,7 @@ SP_SPHERE        -       1.0: spherical tip, 0.0: flat punch
 SP_MU            -       Coulomb friction coefficient
 SP_V_SLIP        m/s     viscous regularisation speed of the friction
 SP_WALL          -       strain beyond which the compression law continues along its tangent (the wall)
+SP_COS, SP_SIN   -       cosine and sine of ``anisotropy.angle_rad``: the patch's first side along the tension lines
 ===============  ======  ==================================================================
 """
 
@@ -271,6 +274,8 @@ def pack_scalars(cfg: TissueConfig) -> np.ndarray:
     sp[SP_MU] = cfg.friction_coefficient
     sp[SP_V_SLIP] = cfg.slip_speed_m_s
     sp[SP_WALL] = WALL_STRAIN
+    sp[SP_COS] = math.cos(cfg.anisotropy_angle_rad)
+    sp[SP_SIN] = math.sin(cfg.anisotropy_angle_rad)
     return sp
 
 

@@ -23,6 +23,15 @@ in the static shape (``W_mn = p_mn / (T (kappa^2 + 1/l^2))``) and in the modal f
 as a layered solid's surface does, instead of spreading over the whole patch; ``l = 0`` (the
 ``paper`` preset) is the paper's bare membrane. ``l`` is fitted to the large-deformation
 reference's surface fields (``skin-sim calibrate``).
+
+**Tension lines** (``anisotropy.ratio = r``, ``anisotropy.angle_rad``; docs/model.md, "Tension lines"). The patch's
+first side ``a`` is laid along the lines (the kernels rotate ``(x - cx, y - cy)`` into the patch frame), and the
+membrane is ``rho_A u_tt = T_x u_xx + T_y u_yy - (T / l^2) u`` in that frame with ``T_x = T sqrt(r)``,
+``T_y = T / sqrt(r)`` (geometric mean ``T``, the layer's ``tension_n_per_m``). The sine modes stay exact; ``kappa^2``
+becomes ``sqrt(r) (m pi / a)^2 + (n pi / b)^2 / sqrt(r)`` (:func:`membrane_wavenumber2`) in ``W_mn`` and in
+``lambda_mn^2 = (T_x kx^2 + T_y ky^2 + T / l^2) / rho_A``. The foundation ``k_A = T / l^2`` keeps the geometric
+mean: it is the tissue below, pressed normally, not the membrane's in-plane coefficient. ``r = 1`` is the isotropic
+membrane, bit for bit. ``T`` still cancels from ``beta`` (one ``r`` for every layer).
 """
 
 from __future__ import annotations
@@ -40,8 +49,19 @@ def foundation_wavenumber2(foundation_length_m: float) -> float:
     return 1.0 / foundation_length_m**2 if foundation_length_m > 0 else 0.0
 
 
-def disk_load_coefficients(m_max, n_max, a, b, r0, xc=None, yc=None, foundation_length_m=0.0) -> np.ndarray:
-    """Unnormalised static-deflection coefficients ``T W_mn / p`` (units m^2), shape (M, N)."""
+def membrane_wavenumber2(m, n, a, b, ratio=1.0):
+    """``(sqrt(r) (m pi / a)^2 + (n pi / b)^2 / sqrt(r)``: the anisotropic membrane's ``kappa^2`` (1/m^2).
+
+    The wave operator ``T_x u_xx + T_y u_yy`` with ``T_x = T sqrt(r)`` along the patch's first side (the tension lines)
+    and ``T_y = T / sqrt(r)`` across, over the geometric mean ``T``; ``r = 1`` is ``pi^2 (m^2/a^2 + n^2/b^2)``.
+    """
+    sr = float(np.sqrt(ratio))
+    return np.pi**2 * (sr * (m / a) ** 2 + (n / b) ** 2 / sr)
+
+
+def disk_load_coefficients(m_max, n_max, a, b, r0, xc=None, yc=None, foundation_length_m=0.0, ratio=1.0) -> np.ndarray:
+    """Unnormalised static-deflection coefficients ``T W_mn / p`` (units m^2), shape (M, N); ``ratio``: the
+    tension ratio along / across the patch's first side (:func:`membrane_wavenumber2`)."""
     xc = a / 2 if xc is None else xc
     yc = b / 2 if yc is None else yc
     m = np.arange(1, m_max + 1)[:, None]
@@ -52,12 +72,13 @@ def disk_load_coefficients(m_max, n_max, a, b, r0, xc=None, yc=None, foundation_
     sin_y = np.sin(n * np.pi * yc / b)
     sin_x[np.abs(sin_x) < 1e-12] = 0.0  # exact nodes, e.g. even modes of a centred load
     sin_y[np.abs(sin_y) < 1e-12] = 0.0
-    return load * sin_x * sin_y / (kappa**2 + foundation_wavenumber2(foundation_length_m))
+    k2 = kappa**2 if ratio == 1.0 else membrane_wavenumber2(m, n, a, b, ratio)  # the disk's load stays isotropic
+    return load * sin_x * sin_y / (k2 + foundation_wavenumber2(foundation_length_m))
 
 
-def shape_coefficients(m_max: int, n_max: int, a: float, b: float, r0: float, foundation_length_m=0.0) -> np.ndarray:
+def shape_coefficients(m_max: int, n_max: int, a: float, b: float, r0: float, foundation_length_m=0.0, ratio=1.0) -> np.ndarray:
     """``beta_mn``: eq 3 coefficients of the unit-depth indentation shape, shape (M, N)."""
-    w = disk_load_coefficients(m_max, n_max, a, b, r0, foundation_length_m=foundation_length_m)
+    w = disk_load_coefficients(m_max, n_max, a, b, r0, foundation_length_m=foundation_length_m, ratio=ratio)
     m = np.arange(1, m_max + 1)[:, None]
     n = np.arange(1, n_max + 1)[None, :]
     centre = np.sin(m * np.pi / 2) * np.sin(n * np.pi / 2)
@@ -142,13 +163,14 @@ def modal_basis(cfg: TissueConfig) -> ModalBasis:
     adaptive = cfg.lod.adaptive_modes
     m_max, n_max = (REFERENCE_MODES, REFERENCE_MODES) if adaptive else cfg.modes
     mode_m, mode_n = _shell_modes(m_max, n_max)
-    w = disk_load_coefficients(m_max, n_max, a, b, r0, foundation_length_m=ell)
+    ratio = cfg.anisotropy_ratio
+    w = disk_load_coefficients(m_max, n_max, a, b, r0, foundation_length_m=ell, ratio=ratio)
     centre = np.sin(mode_m * np.pi / 2) * np.sin(mode_n * np.pi / 2)
     w_k = w[mode_m - 1, mode_n - 1]
     beta_k = np.ascontiguousarray(w_k / np.sum(w_k * centre))
     if adaptive:
         levels = np.arange(1, m_max + 1, 2, dtype=np.int64)
-        w_ref = disk_load_coefficients(REFERENCE_MODES, REFERENCE_MODES, a, b, r0, foundation_length_m=ell)
+        w_ref = disk_load_coefficients(REFERENCE_MODES, REFERENCE_MODES, a, b, r0, foundation_length_m=ell, ratio=ratio)
         k_prefix = np.array([((lv + 1) // 2) ** 2 for lv in levels], dtype=np.int64)
         table = np.zeros((levels.size, beta_k.size))
         for i, k in enumerate(k_prefix):
@@ -161,11 +183,16 @@ def modal_basis(cfg: TissueConfig) -> ModalBasis:
         table = beta_k[None, :].copy()
         err = np.zeros(1)  # not used: a fixed count is not chosen by tolerance
         m_lim = levels.copy()
-    kappa2 = np.pi**2 * ((mode_m / a) ** 2 + (mode_n / b) ** 2)
+    kappa2 = membrane_wavenumber2(mode_m, mode_n, a, b, ratio)
     kappa = np.sqrt(kappa2 + foundation_wavenumber2(ell))
     lam = np.array([layer.wave_speed_m_per_s * kappa for layer in cfg.layers])
-    # the foundation's dashpot keeps the fundamental's damping ratio: gamma scales as its lambda does
-    found = float(np.sqrt(1.0 + foundation_wavenumber2(ell) / (np.pi**2 * (1 / a**2 + 1 / b**2))))
+    # the foundation's dashpot keeps the fundamental's damping ratio: gamma scales as its lambda does (over the bare
+    # isotropic membrane's, which the default b critically damps); so does the tension lines' change of lambda_11
+    k11_iso = np.pi**2 * (1 / a**2 + 1 / b**2)
+    if ratio == 1.0:
+        found = float(np.sqrt(1.0 + foundation_wavenumber2(ell) / k11_iso))
+    else:
+        found = float(np.sqrt((membrane_wavenumber2(1, 1, a, b, ratio) + foundation_wavenumber2(ell)) / k11_iso))
     gamma = np.array([found * layer.damping_n_s_per_m / (2 * layer.areal_density_kg_per_m2 * a * b / 4) for layer in cfg.layers])
     return ModalBasis(
         mode_m, mode_n, beta_k, lam, gamma, np.unique(mode_m), np.unique(mode_n), levels, k_prefix, m_lim, table, err

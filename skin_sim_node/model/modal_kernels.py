@@ -42,12 +42,14 @@ from .layout import (
     OUT_SETTLED,
     OUT_STRESS_PA,
     OUT_SURFACE_M,
+    SP_COS,
     SP_HALF_X,
     SP_HALF_Y,
     SP_MODE_TOL,
     SP_PATCH_A,
     SP_PATCH_B,
     SP_SETTLE_TOL,
+    SP_SIN,
     SP_SKIP_SETTLED,
 )
 
@@ -128,7 +130,9 @@ def sine_table(theta, n_max, out):
 
 @njit(cache=True, nogil=True)
 def layer_point_displacement(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y, sx_buf, sy_buf):
-    """One layer's downward displacement (m) at ``(x, y)``: eq 2 summed over its modes.
+    """One layer's downward displacement (m) at ``(x, y)``: eq 2 summed over its modes, the patch along the axes.
+
+    :func:`layer_point_displacement_rot` at angle 0 (``cos = 1``, ``sin = 0``), which is exact there.
 
     Parameters
     ----------
@@ -150,8 +154,33 @@ def layer_point_displacement(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y
     float
         The displacement (m, down); 0 outside the patch.
     """
-    xi = x - cx + 0.5 * patch_a
-    eta = y - cy + 0.5 * patch_b
+    return layer_point_displacement_rot(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, 1.0, 0.0, x, y, sx_buf, sy_buf)
+
+
+@njit(cache=True, nogil=True)
+def layer_point_displacement_rot(q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, cos_t, sin_t, x, y, sx_buf, sy_buf):
+    """One layer's downward displacement (m) at ``(x, y)`` on a patch turned by the tension lines' angle (eq 2).
+
+    The point in the patch's frame is ``xi = cos (x - cx) + sin (y - cy) + a/2`` (along the lines) and
+    ``eta = -sin (x - cx) + cos (y - cy) + b/2`` (across); the modes are the sines of eq 2 in ``xi, eta``.
+    At ``cos = 1, sin = 0`` this is bit for bit the unturned patch.
+
+    Parameters
+    ----------
+    q_l, cx, cy, mode_m, mode_n, patch_a, patch_b, x, y, sx_buf, sy_buf
+        As :func:`layer_point_displacement`.
+    cos_t, sin_t : float
+        Cosine and sine of the angle of the patch's first side from the x axis (``SP_COS``, ``SP_SIN``).
+
+    Returns
+    -------
+    float
+        The displacement (m, down); 0 outside the patch.
+    """
+    dx = x - cx
+    dy = y - cy
+    xi = cos_t * dx + sin_t * dy + 0.5 * patch_a
+    eta = cos_t * dy - sin_t * dx + 0.5 * patch_b
     if xi <= 0.0 or xi >= patch_a or eta <= 0.0 or eta >= patch_b:
         return 0.0
     sine_table(math.pi * xi / patch_a, sx_buf.shape[0] - 1, sx_buf)
@@ -202,12 +231,13 @@ def layer_at(li, x, y, sp, blev, bk, mstate, lstate, istate, sbuf):
     Returns
     -------
     float
-        :func:`layer_point_displacement` with the layer's modes, amplitudes and patch.
+        :func:`layer_point_displacement_rot` with the layer's modes, amplitudes and patch (turned by ``SP_COS``,
+        ``SP_SIN``).
     """
     lv = istate[IS_LEVEL, li]
     nk = blev[0, lv]
     ml = blev[1, lv] + 1
-    return layer_point_displacement(
+    return layer_point_displacement_rot(
         mstate[0, li, :nk],
         lstate[LS_CX, li],
         lstate[LS_CY, li],
@@ -215,6 +245,8 @@ def layer_at(li, x, y, sp, blev, bk, mstate, lstate, istate, sbuf):
         bk[1, :nk],
         sp[SP_PATCH_A],
         sp[SP_PATCH_B],
+        sp[SP_COS],
+        sp[SP_SIN],
         x,
         y,
         sbuf[0, :ml],
@@ -246,13 +278,140 @@ def surface_at(x, y, sp, blev, bk, mstate, lstate, istate, sbuf):
 
 
 @njit(cache=True, nogil=True)
+def _disk_part(u, r):
+    """``int_0^u sqrt(r^2 - t^2) dt`` for ``u`` clamped to ``[-r, r]`` (m^2): a quarter-disk strip's area.
+
+    Parameters
+    ----------
+    u : float
+        Upper limit (m).
+    r : float
+        Disk radius (m), ``> 0``.
+
+    Returns
+    -------
+    float
+        The integral (odd in ``u``; ``pi r^2 / 4`` at ``u >= r``).
+    """
+    v = min(r, max(-r, u))
+    return 0.5 * (v * math.sqrt(max(r * r - v * v, 0.0)) + r * r * math.asin(v / r))
+
+
+@njit(cache=True, nogil=True)
+def _disk_corner(x, y, r):
+    """Area and first moment in x of the disk ``|p| <= r`` (centred at 0) cut to ``{X <= x, Y <= y}``.
+
+    The area is ``int_{-r}^{x} [min(y, s) + s]_+ dX`` with ``s = sqrt(r^2 - X^2)`` the half chord, in closed form
+    (:func:`_disk_part`); the moment ``int X (...) dX`` uses ``int X s dX = -(r^2 - X^2)^(3/2) / 3``.
+
+    Parameters
+    ----------
+    x, y : float
+        The corner (m, relative to the disk centre).
+    r : float
+        Disk radius (m), ``> 0``.
+
+    Returns
+    -------
+    area, moment_x : float
+        m^2 and m^3.
+    """
+    xc = min(r, max(-r, x))
+    yc = min(r, max(-r, y))
+    w = math.sqrt(max(r * r - yc * yc, 0.0))  # half width of the chord at height yc
+    m = min(w, max(-w, xc))
+    strip = _disk_part(m, r) + _disk_part(w, r)  # int_{-w}^{m} s
+    cube_m = -((max(r * r - m * m, 0.0)) ** 1.5) / 3.0
+    cube_w = -(abs(yc) ** 3) / 3.0  # -(r^2 - w^2)^(3/2) / 3
+    strip_x = cube_m - cube_w  # int_{-w}^{m} X s
+    lin_x = 0.5 * (m * m - w * w)  # int_{-w}^{m} X
+    if yc >= 0.0:
+        full = 2.0 * (_disk_part(xc, r) + 0.25 * math.pi * r * r)
+        full_x = -2.0 * ((max(r * r - xc * xc, 0.0)) ** 1.5) / 3.0
+        return full - (strip - yc * (m + w)), full_x - (strip_x - yc * lin_x)
+    return strip + yc * (m + w), strip_x + yc * lin_x
+
+
+@njit(cache=True, nogil=True)
+def _chord_in(x, y0, y1, r):
+    """Length (m) of the disk's chord at ``X = x`` inside ``[y0, y1]`` (disk centred at 0, radius ``r``)."""
+    if abs(x) >= r:
+        return 0.0
+    s = math.sqrt(r * r - x * x)
+    return max(0.0, min(y1, s) - max(y0, -s))
+
+
+@njit(cache=True, nogil=True)
+def footprint(x, y, r, half_x, half_y):
+    """The tool's contact disk on the sheet: overlap fraction, its derivatives and the overlap's centroid.
+
+    The disk of radius ``r`` centred at ``(x, y)`` against the sheet ``[-half_x, half_x] x [-half_y, half_y]``:
+    the exact overlap area ``A`` by inclusion-exclusion of four disk corners (:func:`_disk_corner`), the fraction
+    ``f = A / (pi r^2)``, ``df/dx = (L(x0) - L(x1)) / (pi r^2)`` with ``L`` the chord inside the sheet at its edges
+    ``x0, x1`` (and the same in y), and ``df/dr`` from Euler's theorem (``A`` is homogeneous of degree 2 in ``r`` and
+    the edge offsets). A disk wholly on the sheet returns ``(1, 0, 0, 0, x, y)`` without any of this.
+
+    Parameters
+    ----------
+    x, y : float
+        Disk centre (m).
+    r : float
+        Contact radius (m), ``> 0``.
+    half_x, half_y : float
+        Half the sheet's extents (m).
+
+    Returns
+    -------
+    frac, dfrac_dx, dfrac_dy, dfrac_dr : float
+        The fraction of the disk on the sheet (0..1) and its derivatives (1/m).
+    cx, cy : float
+        Centroid of the overlap (m); the disk centre when it is empty.
+    """
+    if abs(x) + r <= half_x and abs(y) + r <= half_y:
+        return 1.0, 0.0, 0.0, 0.0, x, y
+    x0 = -half_x - x
+    x1 = half_x - x
+    y0 = -half_y - y
+    y1 = half_y - y
+    a11, mx11 = _disk_corner(x1, y1, r)
+    a01, mx01 = _disk_corner(x0, y1, r)
+    a10, mx10 = _disk_corner(x1, y0, r)
+    a00, mx00 = _disk_corner(x0, y0, r)
+    b11, my11 = _disk_corner(y1, x1, r)  # the same corners with x and y swapped: the moments in y
+    b01, my01 = _disk_corner(y1, x0, r)
+    b10, my10 = _disk_corner(y0, x1, r)
+    b00, my00 = _disk_corner(y0, x0, r)
+    area = max(0.0, a11 - a01 - a10 + a00)
+    disk = math.pi * r * r
+    if area <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, x, y
+    mx = mx11 - mx01 - mx10 + mx00
+    my = my11 - my10 - my01 + my00
+    lx0 = _chord_in(x0, y0, y1, r)
+    lx1 = _chord_in(x1, y0, y1, r)
+    ly0 = _chord_in(y0, x0, x1, r)
+    ly1 = _chord_in(y1, x0, x1, r)
+    # Euler: 2 A = r dA/dr + x1 L(x1) - x0 L(x0) + y1 L(y1) - y0 L(y0); f = A / (pi r^2)
+    dfrac_dr = -(x1 * lx1 - x0 * lx0 + y1 * ly1 - y0 * ly0) / (disk * r)
+    cx = min(min(x + r, half_x), max(max(x - r, -half_x), x + mx / area))  # within the overlap's box (round-off
+    cy = min(min(y + r, half_y), max(max(y - r, -half_y), y + my / area))  # of a sliver's tiny area)
+    return min(1.0, area / disk), (lx0 - lx1) / disk, (ly0 - ly1) / disk, dfrac_dr, cx, cy
+
+
+@njit(cache=True, nogil=True)
 def begin_tick(tool_x, tool_y, tool_z, dt, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf):
+    """:func:`begin_tick_reach` with no reach: contact only with the tool's centre on the sheet (the paper form)."""
+    return begin_tick_reach(tool_x, tool_y, tool_z, dt, 0.0, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf)
+
+
+@njit(cache=True, nogil=True)
+def begin_tick_reach(tool_x, tool_y, tool_z, dt, reach, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf):
     """The opening both tick kernels share (section II.D.4, steps 1-2): propagators, surface and contact test.
 
     Without ``lod.affected_layers`` every layer's propagator is prepared for ``dt``, driven or not.
     Contact is unilateral and tested against the current deformed surface: the tool touches when it is
-    on the sheet, below the rest surface and either was in contact (a layer is driven) or reaches the
-    surface displacement under it.
+    on the sheet (its centre within ``reach`` of it), below the rest surface and either was in contact (a layer
+    is driven) or reaches the surface displacement under it.
 
     Parameters
     ----------
@@ -260,13 +419,17 @@ def begin_tick(tool_x, tool_y, tool_z, dt, sp, bmodes, bvec, blev, bk, mstate, l
         Tool tip (m, tissue frame, z up).
     dt : float
         Step (s).
+    reach : float
+        How far past the sheet's edge the tool's centre may be and still touch (m): 0 in the paper form (contact
+        at the tool's centre), the tool radius in the layered form, whose force then follows the footprint
+        (:func:`footprint`).
     sp, bmodes, bvec, blev, bk, mstate, lstate, istate, sbuf : ndarray
         The grouped arrays (:mod:`.layout`).
 
     Returns
     -------
     flags : int
-        ``FLAG_OFF_SHEET`` when the tool is off the sheet, else 0.
+        ``FLAG_OFF_SHEET`` when the tool is off the sheet (beyond ``reach``), else 0.
     was_contact : bool
         A layer was driven (the previous tick ended in contact).
     surface : float
@@ -282,7 +445,7 @@ def begin_tick(tool_x, tool_y, tool_z, dt, sp, bmodes, bvec, blev, bk, mstate, l
         if istate[IS_DRIVEN, li]:
             was_contact = True
     surface = surface_at(tool_x, tool_y, sp, blev, bk, mstate, lstate, istate, sbuf)
-    on_sheet = abs(tool_x) <= sp[SP_HALF_X] and abs(tool_y) <= sp[SP_HALF_Y]
+    on_sheet = abs(tool_x) <= sp[SP_HALF_X] + reach and abs(tool_y) <= sp[SP_HALF_Y] + reach
     if not on_sheet:
         flags |= FLAG_OFF_SHEET
     depth = -tool_z

@@ -61,11 +61,13 @@ def propagator_ref(lam, gamma, dt):
     return np.stack([ec + g * es, es, -(lam**2) * es, ec - g * es])
 
 
-def layer_field_ref(q_l, cx, cy, mode_m, mode_n, a, b, xs, ys):
-    """Eq 2 summed directly over every mode at every grid cell inside the patch."""
+def layer_field_ref(q_l, cx, cy, mode_m, mode_n, a, b, xs, ys, angle_rad=0.0):
+    """Eq 2 summed directly over every mode at every grid cell inside the patch; ``angle_rad`` turns the patch's first
+    side from the x axis (the tension lines): a cell's patch coordinates are its offset rotated by ``-angle``."""
     X, Y = np.meshgrid(xs, ys)
-    xi = X - cx + a / 2
-    eta = Y - cy + b / 2
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    xi = c * (X - cx) + s * (Y - cy) + a / 2
+    eta = -s * (X - cx) + c * (Y - cy) + b / 2
     inside = (xi > 0) & (xi < a) & (eta > 0) & (eta < b)
     u = np.zeros_like(X)
     for qk, m, n in zip(q_l, mode_m, mode_n):
@@ -106,8 +108,10 @@ class NumpySkinModel:
 
     def _point(self, li, x, y):
         a, b = self.cfg.patch_size_m
-        xi = x - self.centre[li, 0] + a / 2
-        eta = y - self.centre[li, 1] + b / 2
+        c, s = np.cos(self.cfg.anisotropy_angle_rad), np.sin(self.cfg.anisotropy_angle_rad)  # the patch along the lines
+        dx, dy = x - self.centre[li, 0], y - self.centre[li, 1]
+        xi = c * dx + s * dy + a / 2
+        eta = -s * dx + c * dy + b / 2
         if not (0 < xi < a and 0 < eta < b):
             return 0.0
         bm = self.basis
@@ -179,7 +183,9 @@ class NumpySkinModel:
         bm = self.basis
         disp = np.stack(
             [
-                layer_field_ref(self.q[li], *self.centre[li], bm.mode_m, bm.mode_n, a, b, self.xs, self.ys)
+                layer_field_ref(
+                    self.q[li], *self.centre[li], bm.mode_m, bm.mode_n, a, b, self.xs, self.ys, self.cfg.anisotropy_angle_rad
+                )
                 for li in range(self.q.shape[0])
             ]
         )
@@ -255,3 +261,44 @@ def contact_jacobians_ref(normal, grad, velocity, mu, slip_speed_m_s, force_n):
     stiffness = np.outer(normal - mu * vt / r, grad)
     damping = -mu * force_n * (np.eye(3) / r - np.outer(vt, vt) / r**3) @ proj
     return stiffness, damping
+
+
+def footprint_ref(x, y, r, half_x, half_y):
+    """NumPy/SciPy reference of :func:`skin_sim_node.model.modal_kernels.footprint`'s fraction and centroid.
+
+    The overlap of the disk (radius ``r`` at ``(x, y)``) with the sheet as 1D integrals over the disk's chords
+    (``scipy.integrate.quad``): area ``int L(X) dX``, moments ``int X L(X) dX`` and ``int (hi^2 - lo^2) / 2 dX``.
+    Returns ``(frac, cx, cy)``.
+    """
+    import warnings
+
+    from scipy.integrate import IntegrationWarning, quad
+
+    x0, x1, y0, y1 = -half_x - x, half_x - x, -half_y - y, half_y - y
+
+    def chord(px):
+        s = np.sqrt(max(r * r - px * px, 0.0))
+        return max(y0, -s), min(y1, s)
+
+    def length(px):
+        lo, hi = chord(px)
+        return max(0.0, hi - lo)
+
+    def moment_y(px):
+        lo, hi = chord(px)
+        return 0.5 * (hi * hi - lo * lo) if hi > lo else 0.0
+
+    lo, hi = max(x0, -r), min(x1, r)
+    if hi <= lo:
+        return 0.0, x, y
+    kinks = [sg * np.sqrt(r * r - yy * yy) for yy in (y0, y1) if abs(yy) < r for sg in (-1.0, 1.0)]  # chord meets y0, y1
+    pts = [p for p in (x0, x1, *kinks) if lo < p < hi] or None
+    kw = dict(points=pts, epsabs=0.0, epsrel=1e-12, limit=200)
+    with warnings.catch_warnings():  # quad warns of round-off at 1e-12 relative; the fraction is still ~1e-14
+        warnings.simplefilter("ignore", IntegrationWarning)
+        area = quad(length, lo, hi, **kw)[0]
+        if area <= 0.0:
+            return 0.0, x, y
+        mx = quad(lambda px: px * length(px), lo, hi, **kw)[0]
+        my = quad(moment_y, lo, hi, **kw)[0]
+    return area / (np.pi * r * r), x + mx / area, y + my / area

@@ -20,7 +20,7 @@ import numpy as np
 
 from .config import TissueConfig
 from .contact import ContactTangent
-from .grid import assemble_heights, assemble_heights_box, layer_field_box, patch_range
+from .grid import assemble_heights, assemble_heights_box, layer_field_box_rot, patch_box
 from .interfaces import interface_depths_m
 from .layered import LayeredForm
 from .layout import (
@@ -52,7 +52,7 @@ from .layout import (
     settle_tolerance_m,
 )
 from .modal import ModalBasis, modal_basis
-from .modal_kernels import layer_point_displacement, modal_energy
+from .modal_kernels import layer_point_displacement_rot, modal_energy
 from .paper import PaperForm
 
 DEGENERATE_RETURN_S = 1.0
@@ -116,6 +116,7 @@ class SkinModel:
         sx, sy = cfg.sheet_size_m
         self._half = (0.5 * sx, 0.5 * sy)
         self._patch = cfg.patch_size_m
+        self._turn = (math.cos(cfg.anisotropy_angle_rad), math.sin(cfg.anisotropy_angle_rad))  # the patch along the lines
         # the kernels' grouped arguments (.layout), with named views of the state
         self._arrays = arrays = pack(cfg, self.basis)
         self.q, self.v, self._prop = arrays.mstate[0], arrays.mstate[1], arrays.mstate[2:6]
@@ -320,7 +321,7 @@ class SkinModel:
         """Current downward displacement (m) of one layer at ``(x, y)`` (eq 2 at a point)."""
         b = self.basis
         nk = b.k_prefix[self.level[layer]]
-        return layer_point_displacement(
+        return layer_point_displacement_rot(
             self.q[layer, :nk],
             self.centre[layer, 0],
             self.centre[layer, 1],
@@ -328,6 +329,7 @@ class SkinModel:
             b.mode_n[:nk],
             self._patch[0],
             self._patch[1],
+            *self._turn,
             float(x),
             float(y),
             self._sx_buf,
@@ -382,8 +384,9 @@ class SkinModel:
                 d[:] = 0
                 if not wanted or at_rest:
                     continue
-                ix0, ix1 = patch_range(self.xs, self.centre[li, 0], self._patch[0])
-                iy0, iy1 = patch_range(self.ys, self.centre[li, 1], self._patch[1])
+                cx, cy = self.centre[li]
+                (a, b_side), (c, s) = self._patch, self._turn
+                ix0, ix1, iy0, iy1 = patch_box(self.xs, self.ys, cx, cy, a, b_side, c, s)
             else:
                 if not wanted or at_rest:
                     self._disp[li] = 0.0
@@ -392,7 +395,7 @@ class SkinModel:
             lv = self.level[li]
             nk = b.k_prefix[lv]
             m_used, n_used = self._used[lv]
-            layer_field_box(
+            layer_field_box_rot(
                 self.q[li, :nk],
                 self.centre[li, 0],
                 self.centre[li, 1],
@@ -402,6 +405,7 @@ class SkinModel:
                 n_used,
                 self._patch[0],
                 self._patch[1],
+                *self._turn,
                 self.xs,
                 self.ys,
                 ix0,
