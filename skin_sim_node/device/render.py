@@ -226,6 +226,10 @@ class ContactRenderer:
         Least regularisation speed of the rendered friction law (m/s): raise it above the model's ``v_s`` for a
         device whose measured velocity is noisier than that near rest (the law's sign would follow the noise). 0: the
         model's own ``v_s``.
+    max_friction_slope_n_s_per_m : float
+        Cap of the rendered friction law's steepest slope ``mu F_n / v_r`` (N s/m, at ``v_t = 0``): the law is
+        regularised at ``v_r >= mu F_n0 / cap``. ``inf`` (default): the model's own law (see ``docs/devices.md``, "The
+        friction law at the device", for the closed-loop stick chatter this trades against the render error).
     velocity_estimate_window_s : float
         The friction law's velocity when :meth:`render` gets none: the pose difference over this window (s); 0: no
         estimate, the linear form (:data:`VELOCITY_ESTIMATE_WINDOW_S`).
@@ -258,6 +262,7 @@ class ContactRenderer:
         max_tick_s: float = MAX_TICK_S,
         friction_law: bool = True,
         slip_speed_floor_m_s: float = 0.0,
+        max_friction_slope_n_s_per_m: float = math.inf,
         velocity_estimate_window_s: float = VELOCITY_ESTIMATE_WINDOW_S,
     ):
         for name, val in (
@@ -266,6 +271,7 @@ class ContactRenderer:
             ("max_damping_n_s_per_m", max_damping_n_s_per_m),
             ("friction_cone_floor", friction_cone_floor),
             ("slip_speed_floor_m_s", slip_speed_floor_m_s),
+            ("max_friction_slope_n_s_per_m", max_friction_slope_n_s_per_m),
             ("velocity_estimate_window_s", velocity_estimate_window_s),
         ):
             if math.isnan(val) or val < 0:
@@ -274,6 +280,7 @@ class ContactRenderer:
             raise ValueError("need fade_s > 0, 0 < crossfade_min_s <= crossfade_max_s and max_tick_s > 0")
         self.friction_law = bool(friction_law)
         self.slip_floor = float(slip_speed_floor_m_s)
+        self.max_slope = float(max_friction_slope_n_s_per_m)
         self.velocity_window_s = float(velocity_estimate_window_s)
         self._poses: deque = deque(maxlen=256)  # (device time, x) of the recent finite poses: the velocity estimate
         self.max_force_n = float(max_force_n)
@@ -370,7 +377,8 @@ class ContactRenderer:
             gain = float(np.linalg.norm(g)) * math.sqrt(1.0 + mu * mu)
             grad = g * (self.max_k / gain) if gain > self.max_k else g.copy()
             residual = m.f0_n - friction_law_force(m.normal, m.normal_force_n, mu, m.slip_speed_m_s, m.v0_m_s)
-            slip = max(m.slip_speed_m_s, self.slip_floor)
+            # the law's steepest slope, mu F_n / v_r at v_t = 0, at most max_slope: v_r >= mu F_n0 / max_slope
+            slip = max(m.slip_speed_m_s, self.slip_floor, mu * max(m.normal_force_n, 0.0) / self.max_slope)
             slot = _Slot(m, rx, K, D, fn0, max(ratio0, mu), True, grad, residual, slip)
         else:
             slot = _Slot(m, rx, K, D, fn0, max(ratio0, self.cone_floor))
