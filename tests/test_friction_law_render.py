@@ -73,7 +73,7 @@ def test_paper_form_and_stale_ticks_carry_no_law(default_cfg):
     from dataclasses import replace
 
     cfg = replace(default_cfg, form="paper")
-    for r, m in drag_results(cfg, n=400):
+    for _, m in drag_results(cfg, n=400):
         assert m.friction_coefficient == 0.0 and m.slip_speed_m_s == 0.0
     s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0))
     r = s.tick(T0, MS)  # no input: stale

@@ -137,9 +137,7 @@ class _Slot:
     residual: np.ndarray | None = None
     slip: float = 0.0
 
-    def force(
-        self, x: np.ndarray, v: np.ndarray | None, v_law: np.ndarray | None = None
-    ) -> np.ndarray:
+    def force(self, x: np.ndarray, v: np.ndarray | None, v_law: np.ndarray | None = None) -> np.ndarray:
         """The model's force at ``x``, ``v``, one-sided along the normal and inside the model's friction cone.
 
         The friction law at velocity ``v_law`` (default ``v``; :func:`friction_law_force`, regularised at ``slip``)

@@ -108,7 +108,11 @@ def _plain_contact_model_msg():
 
 
 def device_drag(
-    rate_hz: float, latency_ticks: int = 1, renderer_kw: dict | None = None, device_velocity: bool = True, periods: int = DRAG_PERIODS
+    rate_hz: float,
+    latency_ticks: int = 1,
+    renderer_kw: dict | None = None,
+    device_velocity: bool = True,
+    periods: int = DRAG_PERIODS,
 ) -> dict:
     """Render error of the bench-device drag, offline and deterministic (no DDS, no scheduler).
 
@@ -184,7 +188,8 @@ def print_device_drag(rates=DRAG_RATES_HZ, latency_ticks: int = 1) -> dict:
         "  velocity: the device's (CRTK measured_cv), or none (the bridge's default then: the linear form), or the "
         "renderer's pose difference over 2/5/10 ms (exact positions)"
     )
-    print(f"  {'server Hz':>9s} | {'velocity':13s} | {'law p50 / p99':>14s} | {'linear p50 / p99':>16s} | {'hold-last p50 / p99':>19s}")
+    head = f"{'law p50 / p99':>14s} | {'linear p50 / p99':>16s} | {'hold-last p50 / p99':>19s}"
+    print(f"  {'server Hz':>9s} | {'velocity':13s} | {head}")
     res = {}
     cases = [("device", True, {}), ("none", False, {})] + [
         (f"estimate {w * 1e3:.0f} ms", False, {"velocity_estimate_window_s": w}) for w in (0.002, 0.005, 0.01)
