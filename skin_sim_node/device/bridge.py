@@ -63,6 +63,7 @@ from .stylus import DeviceParams
 
 SOURCES = ("model", "wrench")
 STABILISERS = ("none", "passivity")
+FRICTION_RENDERS = ("law", "linear")
 TWIST_MAX_SKEW_NS = 5_000_000  # a device twist this close to the pose's stamp is the pose's velocity (as the node's 5 ms)
 HOLD_RADIUS_M = 1.0  # wrench source: a held force does not depend on the pose (any pose on a Touch's workspace)
 AGE_RING = 4096  # model ages kept for the diagnostics window (4 s at 1 kHz)
@@ -205,6 +206,21 @@ class BridgeNode(DeviceNode):
             1e4,
         ),
         Param(
+            "friction_render",
+            "law",
+            "law: evaluate the contact model's friction law at the device's velocity (CRTK measured_cv) every tick; "
+            "linear: f0 + K dx + D dv (D capped), as a consumer without the law",
+            choices=FRICTION_RENDERS,
+        ),
+        Param(
+            "max_friction_slope_n_s_per_m",
+            0.0,
+            "cap of the rendered friction law's slope at zero slip, mu F_n / v_r (N*s/m); 0: the model's own law. "
+            "0.6 m / T (27 N*s/m for a 45 g stylus at 1 kHz) ends the stick chatter of a light stylus, at a render error",
+            0.0,
+            1e6,
+        ),
+        Param(
             "node_ns",
             DEFAULTS["node_ns"],
             "namespace of the node's topics (tool/pose, tool/twist, tool/contact_model, tool/wrench), e.g. /skin1; "
@@ -291,6 +307,10 @@ class BridgeNode(DeviceNode):
             max_damping_n_s_per_m=p.max_damping_n_s_per_m / gain if gain > 0 else math.inf,  # F_dev / v_dev: the same gain
             fade_s=p.fade_s,
             passivity_mass_kg=p.device_mass_kg / gain if p.stabiliser == "passivity" and gain > 0 else None,
+            friction_law=p.friction_render == "law",
+            max_friction_slope_n_s_per_m=(p.max_friction_slope_n_s_per_m / gain if gain > 0 else math.inf)
+            if p.max_friction_slope_n_s_per_m > 0
+            else math.inf,
         )
         self.model_source = p.force_source == "model"
         self.watchdog_ns = int(p.watchdog_s * 1e9)
@@ -365,7 +385,8 @@ class BridgeNode(DeviceNode):
             f"{self.resolve_topic_name(dev(force_key))}; "
             f"offset {self.mapping.offset_m} m, scale {self.mapping.scale}, axes {self.mapping.axes}, clamp {p.max_force_n} N, "
             f"stiffness cap {p.max_stiffness_n_per_m:g} N/m, damping cap {p.max_damping_n_s_per_m:g} N s/m, "
-            f"stabiliser {p.stabiliser}"
+            f"stabiliser {p.stabiliser}, friction {p.friction_render}"
+            + (f" (slope cap {p.max_friction_slope_n_s_per_m:g} N s/m)" if p.max_friction_slope_n_s_per_m > 0 else "")
         )
         (self.get_logger().info if self.rt_message.startswith("device path") else self.get_logger().warning)(self.rt_message)
         if self.TRANSPORT_NOTE:

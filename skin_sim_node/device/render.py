@@ -453,7 +453,7 @@ class ContactRenderer:
         vl = vd
         if v is None and finite_x and self.use_damping and self.velocity_window_s > 0:
             vl = self._estimate_velocity(raw, x)
-        if finite_x:
+        if finite_x and self.velocity_window_s > 0:  # kept only for the estimate: no per-tick allocation otherwise
             self._poses.append((raw, x))
         pc_gain = 1.0  # the passivity controller acts on a rendered model only
         if valid:

@@ -33,6 +33,7 @@ Command (until registered in ``skin_sim_node/cli.py`` as ``bench-device``):
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import math
 import os
@@ -143,17 +144,31 @@ def emulate(phase_s: float, out: Path) -> int:
     pub_cp = publisher(node, "crtk_measured_cp", name="device/measured_cp")
     pub_cv = publisher(node, "crtk_measured_cv", name="device/measured_cv")
     pub_cf = publisher(node, "crtk_measured_cf", name="device/measured_cf")
-    cmds: list[tuple] = []
-    wrenches: list[tuple] = []
+    total_s = phase_windows(phase_s)["kill"][1]
+    n = int(total_s * 1e9 / PERIOD_NS)
+    # records in preallocated arrays, not a tuple per message: the tuples lived to the end of the run, so Python's
+    # cyclic GC rescanned a heap that grew by ~2000 objects/s; a full (gen-2) pass over it held the GIL 10-20 ms,
+    # long enough for the servo loop to skip slots (issue 19: one 16-19 ms command gap per phase)
+    cmds = np.zeros((2 * n + 1000, 5))
+    wrenches = np.zeros((2 * n + 1000, 4))
+    n_rec = [0, 0]  # commands, wrenches recorded
     held = [(0.0, 0.0, 0.0)]
 
     def on_cmd(msg):
         f = read_wrench(msg)[2]
         held[0] = f
-        cmds.append((time.monotonic_ns(), stamp_ns(msg.header), *f))
+        i = n_rec[0]
+        if i < len(cmds):
+            cmds[i, 0], cmds[i, 1] = time.monotonic_ns(), stamp_ns(msg.header)
+            cmds[i, 2:5] = f
+            n_rec[0] = i + 1
 
     def on_wrench(msg):
-        wrenches.append((time.monotonic_ns(), *read_wrench(msg)[2]))
+        i = n_rec[1]
+        if i < len(wrenches):
+            wrenches[i, 0] = time.monotonic_ns()
+            wrenches[i, 1:4] = read_wrench(msg)[2]
+            n_rec[1] = i + 1
 
     from rclpy.qos import QoSProfile
 
@@ -174,19 +189,24 @@ def emulate(phase_s: float, out: Path) -> int:
         set_process_realtime(EMULATOR_RT_PRIORITY - 1)
         set_realtime(EMULATOR_RT_PRIORITY)
     time.sleep(1.0)  # discovery of the bridge (already running)
-    total_s = phase_windows(phase_s)["kill"][1]
-    n = int(total_s * 1e9 / PERIOD_NS)
     slots = np.zeros((n, 10))  # deadline, published (mono ns), stamp (ns), x, y, z, vx, vy, vz, late flag
     pose, twist, cf = PoseStamped(), TwistStamped(), WrenchStamped()
     offset = np.array(DEFAULT_OFFSET_M)
     t0 = time.monotonic_ns() + 200_000_000
     print(f"EMULATOR t0_ns={t0} rt={'granted' if rt is None else rt}", flush=True)
+    # no cyclic GC pass inside the timed loop: the start-up heap is frozen (never rescanned) and automatic collection
+    # is off until the end (the loop and the callbacks make no reference cycles; what they allocate is freed by
+    # reference counting), as a C++ driver's loop would not stop for a collector
+    gc.collect()
+    gc.freeze()
+    gc.disable()
     k = 0
     while k < n:
         deadline = t0 + k * PERIOD_NS
         sleep_until_ns(deadline)
         now = time.monotonic_ns()
-        if now - deadline > PERIOD_NS:  # a whole period late: skip to the current slot (marked late)
+        skipped = now - deadline > PERIOD_NS
+        if skipped:  # a whole period late: skip to the current slot, marked late (the gap is the emulator's own)
             k = min(n - 1, (now - t0) // PERIOD_NS)
             deadline = t0 + k * PERIOD_NS
         x, v = hand((deadline - t0) * 1e-9, phase_s)
@@ -199,12 +219,13 @@ def emulate(phase_s: float, out: Path) -> int:
         pub_cf.publish(cf)
         pub_cp.publish(pose)
         pub_t = time.monotonic_ns()
-        slots[k] = (deadline, pub_t, stamp, *x, *v, float(pub_t - deadline > LATE_SLOT_NS))
+        slots[k] = (deadline, pub_t, stamp, *x, *v, float(skipped or pub_t - deadline > LATE_SLOT_NS))
         k += 1
     time.sleep(0.2)
     stop.set()
     th.join(timeout=1.0)
-    np.savez(out, slots=slots, cmds=np.array(cmds, dtype=float).reshape(-1, 5), wrenches=np.array(wrenches).reshape(-1, 4), t0=t0)
+    gc.enable()
+    np.savez(out, slots=slots, cmds=cmds[: n_rec[0]].copy(), wrenches=wrenches[: n_rec[1]].copy(), t0=t0)
     node.destroy_node()
     rclpy.try_shutdown()
     return 0
