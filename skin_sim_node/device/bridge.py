@@ -33,6 +33,7 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 
 import numpy as np
 import rclpy
@@ -98,7 +99,18 @@ class ServerLink:
     pose goes out from this link's thread (a latest-value hand-off), so a dead node cannot stall the servo path.
     """
 
-    def __init__(self, bridge: BridgeNode, ros_args: list[str], on_model, twist: bool, node_ns: str = "", rt_priority: int = 0):
+    def __init__(
+        self,
+        bridge: BridgeNode,
+        ros_args: list[str],
+        on_model,
+        twist: bool,
+        node_ns: str = "",
+        rt_priority: int = 0,
+        periodic: tuple[float, Callable[[], None]] | None = None,
+    ):
+        self._periodic = periodic
+        self._periodic_failed = False
         self.ctx = rclpy.Context()
         rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
         self.node = rclpy.create_node(f"{bridge.get_name()}_server", context=self.ctx, namespace=node_ns or None)
@@ -139,8 +151,19 @@ class ServerLink:
         spin_context(self._executor, self.ctx, self._stop)
 
     def _publish_loop(self) -> None:
+        """Publish the newest pose and twist; between them, the ``periodic`` call (the bridge's diagnostics) when due."""
         self._realtime()
+        period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
+        next_ns = time.monotonic_ns() + period_ns  # the first after one period: the bridge finishes its start first
         while not self._stop.is_set():
+            if self._periodic is not None and time.monotonic_ns() >= next_ns:
+                next_ns = time.monotonic_ns() + period_ns
+                try:
+                    self._periodic[1]()
+                except Exception as exc:  # never let it stop the tool pose going to the node
+                    if not self._periodic_failed:
+                        self._periodic_failed = True
+                        print(f"skin-sim bridge: diagnostics failed: {exc!r} (reported once)", flush=True)
             if not self._wake.wait(0.05):
                 continue
             self._wake.clear()
@@ -338,6 +361,11 @@ class BridgeNode(DeviceNode):
         self._cf_tissue: np.ndarray | None = None
         self._cf_stamp_ns = -1
         self.node_ns = normalize_namespace(p.node_ns)
+        self._ages_ms = np.zeros(AGE_RING)
+        self._n_age = 0
+        self._win = {"rendered": 0, "models": 0, "t_ns": time.monotonic_ns(), "age_from": 0, "period_max_ns": 0}
+        # the diagnostics (percentiles, ~20 key-values, a publish: about a millisecond once a second) run on the node
+        # link's publishing thread, not on the servo executor: no device pose waits for them (issue 19, gaps)
         self.server = ServerLink(
             self,
             self.ROS_ARGS,
@@ -345,6 +373,7 @@ class BridgeNode(DeviceNode):
             bool(twist_key),
             self.node_ns,
             p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0,
+            periodic=(p.diagnostics_period_s, self._publish_diagnostics),
         )
         self._v_tissue: np.ndarray | None = None
         self._v_stamp_ns = 0
@@ -367,16 +396,12 @@ class BridgeNode(DeviceNode):
             "rendered_outside_radius": 0,
             "device_gaps_2ms": 0,
         }
-        self._ages_ms = np.zeros(AGE_RING)
-        self._n_age = 0
-        self._win = {"rendered": 0, "models": 0, "t_ns": time.monotonic_ns(), "age_from": 0, "period_max_ns": 0}
         self._first_model = False
         self._no_node_since: int | None = None  # monotonic ns of the first device pose while no model came
         self._no_node_hinted = False
         self.max_model_age_ms = 0.0
         self._rejected_logged: set[str] = set()
         self.create_timer(1.0 / p.watchdog_rate_hz, self._watchdog)
-        self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)
         src = self.server.node.resolve_topic_name(TOPICS["contact_model" if self.model_source else "tool_wrench"].name)
         src = f"{src} rendered per device tick" if self.model_source else src
         tool_pose = self.server.node.resolve_topic_name(TOPICS["tool_pose"].name)
