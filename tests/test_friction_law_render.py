@@ -17,9 +17,9 @@ import pytest
 from msgs_schema.contact_model import LocalModel, fill_contact_model_from_tick, read_contact_model
 from skin_sim_node.device.mapping import TOUCH_MAX_STIFFNESS_N_PER_M, TOUCH_PEAK_FORCE_N
 from skin_sim_node.device.render import ContactRenderer, friction_law_force
-from skin_sim_node.device.stylus import DeviceParams, SimulatedDevice
+from skin_sim_node.device.stylus import DeviceParams
 from skin_sim_node.model import SkinModel
-from skin_sim_node.perf.force_path import _plain_contact_model_msg, device_drag
+from skin_sim_node.perf.force_path import CLOSED_LOOP_DRAG_S, _plain_contact_model_msg, closed_loop_drag, device_drag, stick_flips
 from skin_sim_node.session import HapticSession, SessionParams
 
 MS = 1_000_000
@@ -189,47 +189,20 @@ def test_friction_is_passive_back_and_forth_by_the_energy_observer(default_cfg):
     assert r.passivity.energy_j > 0  # friction dissipated
 
 
-def closed_loop_drag(default_cfg, **renderer_kw):
-    """The product's force path with a stylus in the loop: SimulatedDevice on the drag path (a 45 g stylus on a
-    300 N/m hand), server at 250 Hz through the message, renderer with the passivity controller, command applied
-    the tick after. Returns the tangential force and the renderer."""
-    dev = SimulatedDevice("drag")
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0))
-    r = ContactRenderer(passivity_mass_kg=dev.params.mass_kg, **renderer_kw)
-    msg = _plain_contact_model_msg()
-    n = int(round(dev.hand_path.duration_s / 1e-3))
-    fx = np.zeros(n)
-    prev = None
-    for k in range(n):
-        p, v = dev.pos_tissue, dev.vel_tissue
-        stamp = T0 + k * MS
-        if k % 4 == 0:
-            s.on_twist(stamp, "tissue", tuple(v))
-            s.on_pose(stamp, "tissue", tuple(p))
-            res = s.tick(stamp, 0 if prev is None else stamp - prev)
-            prev = stamp
-            r.set_model(read_contact_model(fill_contact_model_from_tick(msg, res, stamp, "tissue")), stamp * 1e-9)
-        f = r.render(stamp * 1e-9, p, v)
-        fx[k] = f[0]
-        dev.step(dev.mapping.force_to_device(tuple(f)), 1e-3)
-    return fx, r
-
-
-def test_closed_loop_stick_chatter_is_dissipative_and_the_slope_cap_removes_it(default_cfg):
+def test_closed_loop_stick_chatter_is_dissipative_and_the_slope_cap_removes_it():
     """The model's law is steep (mu F_n / v_s, hundreds of N s/m at v_t = 0); with a light stylus in the loop the
     friction can flip each few ticks in stick (a limit cycle bounded by mu F_n), as the linear form's did. It stays
     passive (the observer's energy >= 0, its controller idle), and the slope cap at the stability limit of a damper
     acting two ticks late on the stylus mass (0.6 m / T) removes every flip while keeping most of the friction."""
-    sl = slice(700, 2900)  # the drag
     for law in (True, False):
-        fx, r = closed_loop_drag(default_cfg, friction_law=law)
+        _, r = closed_loop_drag({"friction_law": law})
         assert r.passivity.energy_j > 0 and r.passivity.active_ticks == 0
-    free, _ = closed_loop_drag(default_cfg)
+    free, _ = closed_loop_drag()
     cap = 0.6 * DeviceParams.mass_kg / 1e-3
-    capped, r = closed_loop_drag(default_cfg, max_friction_slope_n_s_per_m=cap)
-    flips = int(np.sum(np.sign(capped[sl][1:]) * np.sign(capped[sl][:-1]) < 0))
-    assert flips == 0
-    assert np.abs(capped[sl]).mean() > 0.8 * np.abs(free[sl]).mean()
+    capped, _ = closed_loop_drag({"max_friction_slope_n_s_per_m": cap})
+    assert stick_flips(capped[:, 0]) == 0
+    a, b = (int(t * 1e3) for t in CLOSED_LOOP_DRAG_S)
+    assert np.abs(capped[a:b, 0]).mean() > 0.8 * np.abs(free[a:b, 0]).mean()
 
 
 @pytest.mark.parametrize("rate_hz", [1000.0, 250.0])

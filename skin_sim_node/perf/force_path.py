@@ -178,6 +178,76 @@ def device_drag(
     return out
 
 
+def closed_loop_drag(renderer_kw: dict | None = None, every: int = 4) -> tuple[np.ndarray, ContactRenderer]:
+    """The force path with a stylus in the loop, offline: :class:`SimulatedDevice` on the ``drag`` path (a 45 g stylus
+    on a 300 N/m hand), a :class:`HapticSession` answering every ``every``-th tick through the contact model message,
+    the bridge's renderer (Touch caps, passivity controller), the command applied the tick after. Returns the
+    commanded forces (n, 3) and the renderer (its passivity observer's energy)."""
+    from msgs_schema.contact_model import fill_contact_model_from_tick, read_contact_model
+
+    from ..bags.offline import load_params
+    from ..device.stylus import SimulatedDevice
+    from ..session import HapticSession
+
+    sp, cfg = load_params()
+    dev = SimulatedDevice("drag")
+    s = HapticSession(SkinModel(cfg), sp)
+    r = ContactRenderer(passivity_mass_kg=dev.params.mass_kg, **(renderer_kw or {}))
+    msg = _plain_contact_model_msg()
+    n = int(round(dev.hand_path.duration_s * DEVICE_HZ))
+    f = np.zeros((n, 3))
+    prev = None
+    t0_ns = 1_700_000_000 * 1_000_000_000
+    for k in range(n):
+        p, v = dev.pos_tissue, dev.vel_tissue
+        stamp = t0_ns + k * 1_000_000
+        if k % every == 0:
+            s.on_twist(stamp, sp.tissue_frame, tuple(v))
+            s.on_pose(stamp, sp.tissue_frame, tuple(p))
+            res = s.tick(stamp, 0 if prev is None else stamp - prev)
+            prev = stamp
+            r.set_model(read_contact_model(fill_contact_model_from_tick(msg, res, stamp, sp.tissue_frame)), stamp * 1e-9)
+        f[k] = r.render(stamp * 1e-9, p, v)
+        dev.step(dev.mapping.force_to_device(tuple(f[k])), 1.0 / DEVICE_HZ)
+    return f, r
+
+
+CLOSED_LOOP_DRAG_S = (0.7, 2.9)
+"""The drag of the ``drag`` path (s): pressed, sliding, before the lift."""
+
+
+def stick_flips(fx: np.ndarray) -> int:
+    """Sign changes of the tangential force ``fx`` over :data:`CLOSED_LOOP_DRAG_S` (a chatter counts each flip)."""
+    a, b = (int(round(t * DEVICE_HZ)) for t in CLOSED_LOOP_DRAG_S)
+    seg = fx[a:b]
+    return int(np.sum(np.sign(seg[1:]) * np.sign(seg[:-1]) < 0))
+
+
+def print_closed_loop() -> None:
+    """Print the closed-loop drag's friction flips and mean friction: linear form, law, law with slope caps."""
+    from ..device.stylus import DeviceParams
+
+    cap = 0.6 * DeviceParams.mass_kg * DEVICE_HZ
+    print(
+        "  closed loop (SimulatedDevice drag: 45 g stylus on a 300 N/m hand; server 250 Hz; passivity controller): "
+        "sign flips of F_x over the slide, mean |F_x|, the passivity observer's energy"
+    )
+    a, b = (int(round(t * DEVICE_HZ)) for t in CLOSED_LOOP_DRAG_S)
+    for label, kw in (
+        ("linear form", {"friction_law": False}),
+        ("friction law", {}),
+        (f"law, slope cap 0.6 m/T = {cap:.0f} N s/m", {"max_friction_slope_n_s_per_m": cap}),
+        ("law, slope cap 5 N s/m (the D cap)", {"max_friction_slope_n_s_per_m": 5.0}),
+    ):
+        f, r = closed_loop_drag(kw)
+        assert r.passivity is not None
+        print(
+            f"  {label:38s} flips {stick_flips(f[:, 0]):4d}  mean |F_x| {np.abs(f[a:b, 0]).mean():.4f} N  "
+            f"energy {r.passivity.energy_j * 1e3:.2f} mJ, controller active {r.passivity.active_ticks} ticks",
+            flush=True,
+        )
+
+
 def print_device_drag(rates=DRAG_RATES_HZ, latency_ticks: int = 1) -> dict:
     """Print the offline bench-device drag's render error, law and linear renderers and hold-last, per server rate."""
     print(
@@ -318,6 +388,7 @@ def main(argv=None) -> int:
     if args.device_drag:
         print("skin-sim force-path --device-drag: the bridge's render error on the bench-device drag, offline ...", flush=True)
         print_device_drag(latency_ticks=max(int(round(args.latency_ms)), 0))
+        print_closed_loop()
         return 0
     if args.msg_cost:
         print("skin-sim force-path --msg-cost: contact model message candidates ...", flush=True)
