@@ -244,6 +244,14 @@ class BridgeNode(DeviceNode):
             1e6,
         ),
         Param(
+            "slip_speed_floor_m_s",
+            0.0,
+            "least regularisation speed of the rendered friction law, in the device's velocity (m/s): raise it to the "
+            "noise of the driver's measured_cv near rest; 0: the model's own v_s",
+            0.0,
+            1.0,
+        ),
+        Param(
             "node_ns",
             DEFAULTS["node_ns"],
             "namespace of the node's topics (tool/pose, tool/twist, tool/contact_model, tool/wrench), e.g. /skin1; "
@@ -331,6 +339,7 @@ class BridgeNode(DeviceNode):
             fade_s=p.fade_s,
             passivity_mass_kg=p.device_mass_kg / gain if p.stabiliser == "passivity" and gain > 0 else None,
             friction_law=p.friction_render == "law",
+            slip_speed_floor_m_s=p.slip_speed_floor_m_s * p.scale,  # device m/s -> tissue m/s
             max_friction_slope_n_s_per_m=(p.max_friction_slope_n_s_per_m / gain if gain > 0 else math.inf)
             if p.max_friction_slope_n_s_per_m > 0
             else math.inf,
