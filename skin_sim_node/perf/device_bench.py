@@ -26,8 +26,9 @@ It is a benchmark, not a CI test: its figures depend on the machine. It assumes 
 prints what it found (cores, load average before and after, whether real-time priority was granted); ``--hog`` adds
 a busy process per core. ``--phase-s 4`` is a short run (about 40 s in all).
 
-Command (until registered in ``skin_sim_node/cli.py`` as ``bench-device``):
-``python -m skin_sim_node.perf.device_bench [--phase-s 30] [--hog]``.
+Command: ``skin-sim bench-device [--phase-s 30] [--hog]`` (``python -m skin_sim_node.perf.device_bench``). Its
+offline, scheduler-free counterpart for the render error is ``skin-sim force-path --device-drag``
+(:func:`skin_sim_node.perf.force_path.device_drag`).
 """
 
 from __future__ import annotations
@@ -233,17 +234,9 @@ def emulate(phase_s: float, out: Path) -> int:
 
 # --- ground truth -----------------------------------------------------------------------------------
 def truth_vector(result) -> np.ndarray:
-    """The true force of one offline tick (N, tissue frame), the whole vector.
-
-    The session's published ``force_n`` when it carries a tangential part (the full vector, issue 19 item 1);
-    until it does (it is ``(0, 0, F_z)`` today), the model's own vector (``tangent.force_n``: friction and tilted
-    normal) scaled to the session's normal force, so the session's safety limits still define the magnitude.
-    """
-    f = np.asarray(result.force_n, dtype=float)
-    if abs(f[0]) > 0 or abs(f[1]) > 0:
-        return f
-    m = np.asarray(result.tangent.force_n, dtype=float)
-    return m * (f[2] / m[2]) if m[2] > 0 else f
+    """The true force of one offline tick (N, tissue frame): the session's published ``force_n``, the whole vector
+    (the model's normal along the deformed surface plus friction, after the session's safety limits)."""
+    return np.asarray(result.force_n, dtype=float)
 
 
 def ground_truth(slots: np.ndarray) -> np.ndarray:
@@ -566,8 +559,8 @@ def main(argv=None) -> int:
     print(
         "columns: x = commands per device pose; own late = the emulator's late slots (the scheduling baseline; gaps>5 "
         "excludes gaps that contain one); max/F = largest |command| / |F_true| where |F_true| > 0.05 N; x p99 = render "
-        "p99 / hold-last p99 (same run); F_z p99: the normal component's error alone (the vector's error less what "
-        "the server leaves out of f0; the whole vector is issue 19's server half); kill: render error before the kill"
+        "p99 / hold-last p99 (same run); F_z p99: the normal component's error alone (the rest of the vector's error "
+        "is the friction's); kill: render error before the kill"
     )
     if args.json:
         args.json.write_text(json.dumps(ph, indent=2))
