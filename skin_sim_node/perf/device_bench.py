@@ -316,6 +316,7 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
             "gaps_5ms": int(np.sum((gaps > 5e6) & ~own_late)),
             "gaps_5ms_with_own_late": int(np.sum(gaps > 5e6)),
             "gap_max_ms": float(gaps.max() * 1e-6) if gaps.size else float("nan"),
+            "gaps_5ms_where": gap_sources(ct, gaps, own_late, slots, lo),
             "over_true": over_true,
             "over_limit": int(np.sum(mag[answered] > TOUCH_PEAK_FORCE_N * (1 + 1e-9))),
             "max_over_true": float(np.max(mag[big] / tmag[big])) if big.any() else float("nan"),
@@ -330,6 +331,22 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
         if name == "kill" and kill_ns is not None:
             ph.update(kill_fade(cmds, kill_ns))
         out[name] = ph
+    return out
+
+
+def gap_sources(ct: np.ndarray, gaps: np.ndarray, own_late: np.ndarray, slots: np.ndarray, phase_start_ns: float) -> list:
+    """Where each counted gap over 5 ms came from: ``[t_s, gap_ms, poses_published, first_answer_latency_ms]`` with
+    ``t_s`` from the phase's start, the emulator's poses published on time inside the gap (0: the emulator itself
+    published nothing, e.g. a stall it did not flag) and how long after its pose the first command after the gap
+    arrived (the bridge and DDS path's delay)."""
+    out = []
+    pub = slots[slots[:, 2] > 0]
+    for i in np.flatnonzero((gaps > 5e6) & ~own_late):
+        inside = pub[(pub[:, 1] > ct[i]) & (pub[:, 1] < ct[i + 1])]
+        first = float((ct[i + 1] - inside[0, 1]) * 1e-6) if len(inside) else float("nan")
+        out.append(
+            [round(float((ct[i] - phase_start_ns) * 1e-9), 3), round(float(gaps[i] * 1e-6), 1), len(inside), round(first, 1)]
+        )
     return out
 
 
@@ -562,6 +579,12 @@ def main(argv=None) -> int:
         "p99 / hold-last p99 (same run); F_z p99: the normal component's error alone (the rest of the vector's error "
         "is the friction's); kill: render error before the kill"
     )
+    for name, p in ph.items():
+        for t_s, gap_ms, n_pub, lat_ms in p.get("gaps_5ms_where", []):
+            print(
+                f"  gap {name} +{t_s:.3f} s: {gap_ms:.1f} ms without a command; {n_pub} device poses published on time in it, "
+                f"the first command after it {lat_ms:.1f} ms after the first of them"
+            )
     if args.json:
         args.json.write_text(json.dumps(ph, indent=2))
     missed = missed_aims(ph)
