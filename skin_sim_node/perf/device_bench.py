@@ -147,9 +147,8 @@ def emulate(phase_s: float, out: Path) -> int:
     pub_cf = publisher(node, "crtk_measured_cf", name="device/measured_cf")
     total_s = phase_windows(phase_s)["kill"][1]
     n = int(total_s * 1e9 / PERIOD_NS)
-    # records in preallocated arrays, not a tuple per message: the tuples lived to the end of the run, so Python's
-    # cyclic GC rescanned a heap that grew by ~2000 objects/s; a full (gen-2) pass over it held the GIL 10-20 ms,
-    # long enough for the servo loop to skip slots (issue 19: one 16-19 ms command gap per phase)
+    # records in preallocated arrays, not a growing list of tuples: nothing the collector would have to scan, and with
+    # automatic collection off in the timed loop (below) no collector pass can stall the servo loop
     cmds = np.zeros((2 * n + 1000, 5))
     wrenches = np.zeros((2 * n + 1000, 4))
     n_rec = [0, 0]  # commands, wrenches recorded
