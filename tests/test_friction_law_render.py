@@ -214,3 +214,28 @@ def test_offline_bench_drag_renders_the_whole_vector_better_than_hold_last(rate_
     assert res["render_p99_pct"] <= 5.0
     assert res["render_p99_pct"] < res["hold_p99_pct"]
     assert res["render_p50_pct"] <= res["hold_p50_pct"]
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_random_law_models_respect_the_clamp_the_normal_and_the_cone(seed):
+    rng = np.random.default_rng(seed)
+    for _ in range(40):
+        mu = float(rng.uniform(0.0, 2.0))
+        m = law_model(
+            fn0=float(rng.uniform(0.0, 5.0)),
+            grad=rng.normal(scale=3000.0, size=3),
+            mu=mu,
+            vs=float(rng.uniform(1e-4, 1e-2)),
+            v0=(*rng.normal(scale=0.05, size=2), 0.0),
+        )
+        r = ContactRenderer()
+        t = settle(r, m, ticks=5)
+        for k in range(20):
+            x = m.x0_m + rng.normal(scale=5e-4, size=3)
+            v = rng.normal(scale=0.05, size=3)
+            f = r.render(t + k * 1e-3, x, v)
+            assert np.all(np.isfinite(f))
+            assert np.linalg.norm(f) <= TOUCH_PEAK_FORCE_N * (1 + 1e-12)
+            fn = float(f @ m.normal)
+            assert fn >= -1e-12
+            assert np.linalg.norm(f - fn * m.normal) <= max(mu, 1e-12) * fn * (1 + 1e-9) + 1e-12
