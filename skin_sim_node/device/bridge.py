@@ -59,7 +59,7 @@ from .mapping import (
     normalize_namespace,
     without_namespace_remap,
 )
-from .render import FADE_S, ContactRenderer
+from .render import FADE_S, SERVO_PERIOD_S, ContactRenderer, stable_damping_n_s_per_m
 from .stylus import DeviceParams
 
 SOURCES = ("model", "wrench")
@@ -244,6 +244,13 @@ class BridgeNode(DeviceNode):
             1e6,
         ),
         Param(
+            "chatter_guard",
+            "on",
+            "on: while the device's tangential velocity reverses twice within 10 ms (stick on a light stylus, or "
+            "velocity noise), cap the friction law's slope at the device's stable damping, 2 sin(pi/10) device_mass_kg / 1 ms",
+            choices=("on", "off"),
+        ),
+        Param(
             "slip_speed_floor_m_s",
             0.0,
             "least regularisation speed of the rendered friction law, in the device's velocity (m/s): raise it to the "
@@ -340,6 +347,9 @@ class BridgeNode(DeviceNode):
             passivity_mass_kg=p.device_mass_kg / gain if p.stabiliser == "passivity" and gain > 0 else None,
             friction_law=p.friction_render == "law",
             slip_speed_floor_m_s=p.slip_speed_floor_m_s * p.scale,  # device m/s -> tissue m/s
+            stick_slope_n_s_per_m=stable_damping_n_s_per_m(p.device_mass_kg, SERVO_PERIOD_S) / gain
+            if p.chatter_guard == "on" and gain > 0
+            else math.inf,
             max_friction_slope_n_s_per_m=(p.max_friction_slope_n_s_per_m / gain if gain > 0 else math.inf)
             if p.max_friction_slope_n_s_per_m > 0
             else math.inf,

@@ -93,6 +93,34 @@ positions (no counts), a 2/5/10 ms window gave p99 1.4/4.2/9.2 % of peak against
 one count per window (``slip_speed_floor_m_s``, as a Touch would need) 37/31/26 % (``skin-sim force-path
 --device-drag``, issue 19 closing note). A device that reports no velocity is better served by the linear form."""
 
+SERVO_PERIOD_S = 1e-3
+"""The device's servo period the bridge's chatter guard assumes (s): a Touch's OpenHaptics servo loop runs at 1 kHz."""
+
+CHATTER_WINDOW_S = 0.01
+"""The chatter guard's window (s): :data:`CHATTER_FLIPS` reversals of the device's tangential velocity within 10 ms
+is not a stroke (a hand reverses a few times a second; the bench drag once a second) but the stick limit cycle of a
+steep friction law on a light stylus, a tick or two late (a period of 4-6 ms, measured closed-loop in ``skin-sim
+force-path --device-drag``), or velocity noise near rest. Either way the law's sign is not the motion's."""
+
+CHATTER_FLIPS = 2
+"""Reversals within :data:`CHATTER_WINDOW_S` that engage the guard (a stroke's own reversal is one)."""
+
+CHATTER_HOLD_S = 0.1
+"""How long the guard holds after the last reversal (s): it stays on through a stick (where the velocity keeps
+crossing zero) and lets go once the device slides one way for 100 ms. Closed-loop drag (``skin-sim force-path
+--device-drag``): 2 reversals and 100 ms left 6 friction sign flips over the slide, 3 and 50 ms 16, 2 and 200 ms 4,
+none of them changing the offline bench drag's render error."""
+
+
+def stable_damping_n_s_per_m(mass_kg: float, period_s: float, delay_ticks: int = 2) -> float:
+    """The largest damping ``B`` a sampled device of mass ``mass_kg`` renders stably when the force acts
+    ``delay_ticks`` periods late: ``v_{k+1} = v_k - (B T / m) v_{k-d}`` is stable for ``B T / m < 2 sin(pi / (2 (2d + 1)))``
+    (2 without delay, 1 for one tick, 0.618 for two: the bridge's :data:`PASSIVITY_DELAY_TICKS`). 27.8 N s/m for a
+    45 g Touch stylus at 1 kHz, two ticks late."""
+    d = max(int(delay_ticks), 0)
+    return 2.0 * math.sin(math.pi / (2 * (2 * d + 1))) * mass_kg / period_s
+
+
 STATES = ("none", "model", "crossfade", "fade")
 
 
@@ -137,11 +165,14 @@ class _Slot:
     residual: np.ndarray | None = None
     slip: float = 0.0
 
-    def force(self, x: np.ndarray, v: np.ndarray | None, v_law: np.ndarray | None = None) -> np.ndarray:
+    def force(
+        self, x: np.ndarray, v: np.ndarray | None, v_law: np.ndarray | None = None, stick_slope: float = math.inf
+    ) -> np.ndarray:
         """The model's force at ``x``, ``v``, one-sided along the normal and inside the model's friction cone.
 
-        The friction law at velocity ``v_law`` (default ``v``; :func:`friction_law_force`, regularised at ``slip``)
-        when the model carries one and a velocity is known, else
+        The friction law at velocity ``v_law`` (default ``v``; :func:`friction_law_force`, regularised at ``slip``, and
+        at least at ``mu F_n0 / stick_slope``: the chatter guard's slope cap) when the model carries one and a velocity
+        is known, else
         ``f0 + K (x - x0) + D (v - v0)`` (without ``v``: no ``D`` term).
         """
         m = self.m
@@ -153,7 +184,10 @@ class _Slot:
             fn = m.normal_force_n + float(self.grad @ (x - m.x0_m))
             if fn <= 0.0:
                 return np.zeros(3)
-            f = friction_law_force(n, fn, m.friction_coefficient, self.slip, v_law)
+            slip = self.slip
+            if stick_slope < math.inf:
+                slip = max(slip, m.friction_coefficient * max(m.normal_force_n, 0.0) / stick_slope)
+            f = friction_law_force(n, fn, m.friction_coefficient, slip, v_law)
             if m.normal_force_n > 0.0:  # f0's part beyond the law, shrinking with the normal force as friction does
                 f = f + self.residual * min(fn / m.normal_force_n, 1.0)
             fn = float(n @ f)
@@ -228,6 +262,10 @@ class ContactRenderer:
         Cap of the rendered friction law's steepest slope ``mu F_n / v_r`` (N s/m, at ``v_t = 0``): the law is
         regularised at ``v_r >= mu F_n0 / cap``. ``inf`` (default): the model's own law (see ``docs/devices.md``, "The
         friction law at the device", for the closed-loop stick chatter this trades against the render error).
+    stick_slope_n_s_per_m : float
+        The chatter guard (:data:`CHATTER_WINDOW_S`): while the device's tangential velocity keeps reversing, the law's
+        slope at zero slip is capped at this (N s/m); ``inf``: no guard. The bridge sets
+        :func:`stable_damping_n_s_per_m` of the device's mass at 1 kHz.
     velocity_estimate_window_s : float
         The friction law's velocity when :meth:`render` gets none: the pose difference over this window (s); 0: no
         estimate, the linear form (:data:`VELOCITY_ESTIMATE_WINDOW_S`).
@@ -261,6 +299,7 @@ class ContactRenderer:
         friction_law: bool = True,
         slip_speed_floor_m_s: float = 0.0,
         max_friction_slope_n_s_per_m: float = math.inf,
+        stick_slope_n_s_per_m: float = math.inf,
         velocity_estimate_window_s: float = VELOCITY_ESTIMATE_WINDOW_S,
     ):
         for name, val in (
@@ -270,6 +309,7 @@ class ContactRenderer:
             ("friction_cone_floor", friction_cone_floor),
             ("slip_speed_floor_m_s", slip_speed_floor_m_s),
             ("max_friction_slope_n_s_per_m", max_friction_slope_n_s_per_m),
+            ("stick_slope_n_s_per_m", stick_slope_n_s_per_m),
             ("velocity_estimate_window_s", velocity_estimate_window_s),
         ):
             if math.isnan(val) or val < 0:
@@ -279,6 +319,11 @@ class ContactRenderer:
         self.friction_law = bool(friction_law)
         self.slip_floor = float(slip_speed_floor_m_s)
         self.max_slope = float(max_friction_slope_n_s_per_m)
+        self.stick_slope = float(stick_slope_n_s_per_m)
+        self._flips: deque = deque(maxlen=CHATTER_FLIPS)  # device times of the last tangential reversals
+        self._vt_last: np.ndarray | None = None
+        self._guard_until = -math.inf  # device time until which the chatter guard holds
+        self.counts_chatter = 0  # times the guard engaged
         self.velocity_window_s = float(velocity_estimate_window_s)
         self._poses: deque = deque(maxlen=256)  # (device time, x) of the recent finite poses: the velocity estimate
         self.max_force_n = float(max_force_n)
@@ -402,6 +447,22 @@ class ContactRenderer:
         self._blend_T = duration_s
         self._fade_t0 = None
 
+    def _chatter_guard(self, now: float, v: np.ndarray | None, slot: _Slot | None) -> float:
+        """The slope cap of this tick: :attr:`stick_slope` while the guard holds (:data:`CHATTER_WINDOW_S`), else inf."""
+        if v is not None and slot is not None and slot.law:
+            n = slot.m.normal
+            vt = v - float(n @ v) * n
+            if self._vt_last is not None and float(vt @ self._vt_last) < 0.0:
+                self._flips.append(now)
+                if len(self._flips) == CHATTER_FLIPS and now - self._flips[0] <= CHATTER_WINDOW_S:
+                    if now > self._guard_until:
+                        self.counts_chatter += 1
+                    self._guard_until = now + CHATTER_HOLD_S
+                elif now <= self._guard_until:  # a reversal while held (stick): hold on
+                    self._guard_until = now + CHATTER_HOLD_S
+            self._vt_last = vt
+        return self.stick_slope if now <= self._guard_until else math.inf
+
     def _estimate_velocity(self, now: float, x: np.ndarray) -> np.ndarray | None:
         """Pose difference over the oldest recent pose within :attr:`velocity_window_s` of device time (m/s); None
         without an earlier pose. A pose gap longer than the window: the difference over the gap (the last pose)."""
@@ -455,15 +516,16 @@ class ContactRenderer:
             vl = self._estimate_velocity(raw, x)
         if finite_x and self.velocity_window_s > 0:  # kept only for the estimate: no per-tick allocation otherwise
             self._poses.append((raw, x))
+        stick = self._chatter_guard(raw, vl, slot) if self.stick_slope < math.inf else math.inf
         pc_gain = 1.0  # the passivity controller acts on a rendered model only
         if valid:
             assert slot is not None  # valid: a fresh model under the tool
             if self._fade_t0 is not None:  # back inside / model fresh again after a fade: blend from the faded force
                 self._begin_blend(d, self.cf_min if self._blend_T <= 0 else self._blend_T, keep_from=False)
-            f = slot.force(x, vd, vl)
+            f = slot.force(x, vd, vl, stick)
             w = (d - self._blend_t0) / self._blend_T if self._blend_T > 0 else 1.0
             if w < 1.0:
-                f_from = self._offset + (self._from.force(x, vd, vl) if self._from is not None else 0.0)
+                f_from = self._offset + (self._from.force(x, vd, vl, stick) if self._from is not None else 0.0)
                 f = f_from + max(w, 0.0) * (f - f_from)
                 self.state = "crossfade"
             else:

@@ -107,6 +107,14 @@ def _plain_contact_model_msg():
     )
 
 
+def bridge_renderer_kw(mass_kg: float) -> dict:
+    """The renderer as ``skin-sim bridge`` builds it by default for a stylus of ``mass_kg`` (unit scales): the Touch
+    caps, the passivity controller and the chatter guard."""
+    from ..device.render import SERVO_PERIOD_S, stable_damping_n_s_per_m
+
+    return {"passivity_mass_kg": mass_kg, "stick_slope_n_s_per_m": stable_damping_n_s_per_m(mass_kg, SERVO_PERIOD_S)}
+
+
 def device_drag(
     rate_hz: float,
     latency_ticks: int = 1,
@@ -135,7 +143,7 @@ def device_drag(
 
     sp, cfg = load_params()
     truth_s, srv = HapticSession(SkinModel(cfg), sp), HapticSession(SkinModel(cfg), sp)
-    kw = {"passivity_mass_kg": DeviceParams.mass_kg, **(renderer_kw or {})}
+    kw = {**bridge_renderer_kw(DeviceParams.mass_kg), **(renderer_kw or {})}
     render, hold = ContactRenderer(**kw), HoldLastRenderer()
     msg = _plain_contact_model_msg()
     phase_s = DRAG_PERIOD_S * periods
@@ -192,7 +200,7 @@ def closed_loop_drag(renderer_kw: dict | None = None, every: int = 4) -> tuple[n
     sp, cfg = load_params()
     dev = SimulatedDevice("drag")
     s = HapticSession(SkinModel(cfg), sp)
-    r = ContactRenderer(passivity_mass_kg=dev.params.mass_kg, **(renderer_kw or {}))
+    r = ContactRenderer(**{**bridge_renderer_kw(dev.params.mass_kg), **(renderer_kw or {})})
     msg = _plain_contact_model_msg()
     n = int(round(dev.hand_path.duration_s * DEVICE_HZ))
     f = np.zeros((n, 3))
@@ -224,10 +232,12 @@ def stick_flips(fx: np.ndarray) -> int:
 
 
 def print_closed_loop() -> None:
-    """Print the closed-loop drag's friction flips and mean friction: linear form, law, law with slope caps."""
+    """Print the closed-loop drag's friction flips and mean friction: linear form, law with and without the chatter
+    guard, law with slope caps."""
+    from ..device.render import SERVO_PERIOD_S, stable_damping_n_s_per_m
     from ..device.stylus import DeviceParams
 
-    cap = 0.6 * DeviceParams.mass_kg * DEVICE_HZ
+    cap = stable_damping_n_s_per_m(DeviceParams.mass_kg, SERVO_PERIOD_S)
     print(
         "  closed loop (SimulatedDevice drag: 45 g stylus on a 300 N/m hand; server 250 Hz; passivity controller): "
         "sign flips of F_x over the slide, mean |F_x|, the passivity observer's energy"
@@ -235,15 +245,17 @@ def print_closed_loop() -> None:
     a, b = (int(round(t * DEVICE_HZ)) for t in CLOSED_LOOP_DRAG_S)
     for label, kw in (
         ("linear form", {"friction_law": False}),
-        ("friction law", {}),
-        (f"law, slope cap 0.6 m/T = {cap:.0f} N s/m", {"max_friction_slope_n_s_per_m": cap}),
-        ("law, slope cap 5 N s/m (the D cap)", {"max_friction_slope_n_s_per_m": 5.0}),
+        ("friction law, no chatter guard", {"stick_slope_n_s_per_m": math.inf}),
+        ("friction law + chatter guard (bridge)", {}),
+        (f"law, slope cap {cap:.1f} N s/m always", {"max_friction_slope_n_s_per_m": cap, "stick_slope_n_s_per_m": math.inf}),
+        ("law, slope cap 5 N s/m (the D cap)", {"max_friction_slope_n_s_per_m": 5.0, "stick_slope_n_s_per_m": math.inf}),
     ):
         f, r = closed_loop_drag(kw)
         assert r.passivity is not None
         print(
             f"  {label:38s} flips {stick_flips(f[:, 0]):4d}  mean |F_x| {np.abs(f[a:b, 0]).mean():.4f} N  "
-            f"energy {r.passivity.energy_j * 1e3:.2f} mJ, controller active {r.passivity.active_ticks} ticks",
+            f"energy {r.passivity.energy_j * 1e3:.2f} mJ, controller active {r.passivity.active_ticks} ticks, "
+            f"guard engaged {r.counts_chatter} times",
             flush=True,
         )
 
@@ -252,7 +264,7 @@ def print_device_drag(rates=DRAG_RATES_HZ, latency_ticks: int = 1) -> dict:
     """Print the offline bench-device drag's render error, law and linear renderers and hold-last, per server rate."""
     print(
         "  bench-device drag offline (press 1.5 mm, 10 mm back and forth, 2 periods; device 1 kHz, model delivered "
-        f"{latency_ticks} tick(s) after its pose; Touch caps, passivity controller): |F - F_true| whole vector, % of peak"
+        f"{latency_ticks} tick(s) after its pose; Touch caps, passivity controller, chatter guard): |F - F_true|, % of peak"
     )
     print(
         "  velocity: the device's (CRTK measured_cv), or none (the bridge's default then: the linear form), or the "
