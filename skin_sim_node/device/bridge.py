@@ -613,6 +613,7 @@ class BridgeNode(DeviceNode):
             "model_age_ms_p99": f"{np.percentile(ages, 99):.2f}" if ages.size else "nan",
             "model_age_ms_max": f"{ages.max():.2f}" if ages.size else "nan",
             "render_state": self.renderer.state,
+            "chatter_guard_engaged_total": str(self.renderer.counts_chatter),
             "force_source": self.p.force_source,
         }
         values.update({f"{k}_total": str(v) for k, v in c.items()})
