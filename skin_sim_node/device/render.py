@@ -24,7 +24,9 @@ where the device's velocity crosses zero, whatever the server's rate.
 - a crossfade from the force being rendered to each new model, over the interval between models;
 - once the model is older than its time-to-live, or the tool leaves its validity radius, a linear
   fade of the last force to zero over ``fade_s``: never a step;
-- optionally the time-domain passivity controller (:mod:`.passivity`) on the rendered force.
+- optionally the time-domain passivity controller (:mod:`.passivity`) on the rendered force;
+- optionally the chatter guard (:data:`CHATTER_WINDOW_S`): while the device's tangential velocity keeps reversing
+  (stick on a light stylus, or velocity noise), the friction law's slope is capped at the stylus' stable damping.
 
 Units: SI, tissue frame (the bridge maps the device pose in and the force out, see
 :class:`skin_sim_node.device.bridge.DeviceMapping`). Times are seconds on the device's clock (its pose stamps;
