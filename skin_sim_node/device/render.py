@@ -352,6 +352,7 @@ class ContactRenderer:
         self._last_x: np.ndarray | None = None
         self._last_v: np.ndarray | None = None
         self._last_law_v: np.ndarray | None = None  # the friction law's velocity at the last tick
+        self._last_stick = math.inf  # the chatter guard's slope cap at the last tick
         self._last_t: float | None = None  # stamp of the last tick with a finite pose (passivity's dt)
         self._stamp_last: float | None = None  # the last tick's stamp (s)
         self._s_last: float | None = None  # device time at the last tick: the stamps' forward steps summed (s)
@@ -441,7 +442,7 @@ class ContactRenderer:
         self._from = self._model if keep_from else None
         base = np.zeros(3)
         if self._from is not None and self._last_x is not None:
-            base = self._from.force(self._last_x, self._last_v if self.use_damping else None, self._last_law_v)
+            base = self._from.force(self._last_x, self._last_v if self.use_damping else None, self._last_law_v, self._last_stick)
         self._offset = self._last_out - base
         # the blend starts where that force was rendered, so the next tick already moves towards the new model
         d = self._d_last
@@ -567,7 +568,7 @@ class ContactRenderer:
         if finite_x:
             self._sent.append((applied, f))
             self._last_x, self._last_v, self._last_t = x, v, raw
-            self._last_law_v = vl
+            self._last_law_v, self._last_stick = vl, stick
         self._stamp_last, self._s_last, self._d_last = now_s, raw, d
         return applied
 
