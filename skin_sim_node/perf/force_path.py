@@ -121,6 +121,9 @@ def device_drag(
     renderer_kw: dict | None = None,
     device_velocity: bool = True,
     periods: int = DRAG_PERIODS,
+    jitter_ticks: int = 0,
+    drop: float = 0.0,
+    seed: int = 0,
 ) -> dict:
     """Render error of the bench-device drag, offline and deterministic (no DDS, no scheduler).
 
@@ -132,7 +135,8 @@ def device_drag(
     later. The bridge renders every device tick with the bridge's renderer (Touch caps, passivity controller), and
     the hold-last baseline holds the newest ``f0`` (the published wrench). The *truth* is a second session stepped
     on every pose (bench-device's ground truth). Errors: ``|F - F_true|``, whole vector, % of the peak ``|F_true|``
-    over the drag.
+    over the drag. ``jitter_ticks`` adds a uniform 0..jitter extra delay per model and ``drop`` loses that share of
+    the models (seeded ``seed``: DDS's irregular delivery, deterministic), for both bridges alike.
     """
     from msgs_schema.contact_model import fill_contact_model_from_tick, read_contact_model
 
@@ -153,6 +157,7 @@ def device_drag(
     t0_ns = 1_700_000_000 * 1_000_000_000
     f_true, f_ren, f_hold = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
     pending: list[tuple[int, LocalModel]] = []
+    rng = np.random.default_rng(seed)
     prev_srv = None
     for k in range(n):
         t = k / DEVICE_HZ
@@ -167,7 +172,11 @@ def device_drag(
             srv.on_pose(stamp, sp.tissue_frame, x)
             rs = srv.tick(stamp, 0 if prev_srv is None else stamp - prev_srv)
             prev_srv = stamp
-            pending.append((k + latency_ticks, read_contact_model(fill_contact_model_from_tick(msg, rs, stamp, sp.tissue_frame))))
+            m_new = read_contact_model(fill_contact_model_from_tick(msg, rs, stamp, sp.tissue_frame))
+            if rng.random() >= drop:
+                extra = int(rng.integers(0, jitter_ticks + 1)) if jitter_ticks > 0 else 0
+                pending.append((k + latency_ticks + extra, m_new))
+                pending.sort(key=lambda e: e[0])
         ts = stamp * 1e-9
         while pending and pending[0][0] <= k:
             m = pending.pop(0)[1]
@@ -287,6 +296,17 @@ def print_device_drag(rates=DRAG_RATES_HZ, latency_ticks: int = 1) -> dict:
                 f"{law['hold_p99_pct']:6.2f}",
                 flush=True,
             )
+    for r in rates:
+        law = device_drag(r, latency_ticks, jitter_ticks=8, drop=0.1)
+        lin = device_drag(r, latency_ticks, {"friction_law": False}, jitter_ticks=8, drop=0.1)
+        res[(r, "jitter")] = (law, lin)
+        print(
+            f"  {r:9.0f} | {'dev, DDS-like':13s} | {law['render_p50_pct']:5.2f} / {law['render_p99_pct']:5.2f}"
+            f"  | {lin['render_p50_pct']:6.2f} / {lin['render_p99_pct']:6.2f}   | {law['hold_p50_pct']:7.2f} / "
+            f"{law['hold_p99_pct']:6.2f}",
+            flush=True,
+        )
+    print("  (dev, DDS-like: the device's velocity; each model 0-8 ticks later still, 10 % of them lost, seeded)")
     return res
 
 
