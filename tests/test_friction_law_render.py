@@ -204,6 +204,8 @@ def test_closed_loop_stick_chatter_is_dissipative_and_the_chatter_guard_stops_it
     assert r.passivity.energy_j > 0 and r.counts_chatter > 0
     assert stick_flips(guarded[:, 0]) * 4 <= min(stick_flips(unguarded[:, 0]), stick_flips(linear[:, 0]))
     assert np.abs(guarded[a:b, 0]).mean() > 0.9 * np.abs(unguarded[a:b, 0]).mean()
+    # engaging and letting go (gradually) leave smaller tick-to-tick changes than the chatter it stops
+    assert np.abs(np.diff(guarded[a:b, 0])).max() < 0.5 * np.abs(np.diff(unguarded[a:b, 0])).max()
     cap = stable_damping_n_s_per_m(DeviceParams.mass_kg, 1e-3)
     capped, _ = closed_loop_drag({"max_friction_slope_n_s_per_m": cap, "stick_slope_n_s_per_m": math.inf})
     assert stick_flips(capped[:, 0]) == 0

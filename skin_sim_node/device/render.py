@@ -110,8 +110,15 @@ CHATTER_FLIPS = 2
 CHATTER_HOLD_S = 0.1
 """How long the guard holds after the last reversal (s): it stays on through a stick (where the velocity keeps
 crossing zero) and lets go once the device slides one way for 100 ms. Closed-loop drag (``skin-sim force-path
---device-drag``): 2 reversals and 100 ms left 6 friction sign flips over the slide, 3 and 50 ms 16, 2 and 200 ms 4,
-none of them changing the offline bench drag's render error."""
+--device-drag``, with :data:`CHATTER_RELEASE_S`): 2 reversals and 100 ms left 4 friction sign flips over the slide,
+2 and 50 ms 8, 3 and 50 ms 12, 2 and 200 ms 4 (with less friction), none of them changing the offline bench drag's
+render error."""
+
+
+CHATTER_RELEASE_S = 0.02
+"""After the hold the guard lets go over this long (s): the regularisation ``mu F_n / cap`` falls linearly to the
+model's ``v_s``, so the friction returns to the law's without a step (at once it rose by up to a third of ``mu F_n``
+in one tick at a 10 mm/s slide)."""
 
 
 def stable_damping_n_s_per_m(mass_kg: float, period_s: float, delay_ticks: int = 2) -> float:
@@ -464,7 +471,10 @@ class ContactRenderer:
                 elif now <= self._guard_until:  # a reversal while held (stick): hold on
                     self._guard_until = now + CHATTER_HOLD_S
             self._vt_last = vt
-        return self.stick_slope if now <= self._guard_until else math.inf
+        if now <= self._guard_until:
+            return self.stick_slope
+        u = (now - self._guard_until) / CHATTER_RELEASE_S  # let go gradually: v_r falls linearly to the model's
+        return self.stick_slope / (1.0 - u) if u < 1.0 else math.inf
 
     def _estimate_velocity(self, now: float, x: np.ndarray) -> np.ndarray | None:
         """Pose difference over the oldest recent pose within :attr:`velocity_window_s` of device time (m/s); None
