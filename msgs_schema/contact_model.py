@@ -2,8 +2,14 @@
 
 The node publishes ``skin_sim_msgs/msg/ContactModel`` on ``tool/contact_model`` (QoS class
 ``haptic``: best-effort, keep-last 1; a lost model is covered by the previous one until its
-time-to-live runs out). The bridge renders ``F(x, v) = f0 + K (x - x0) + D (v - v0)`` from the
-device's own pose stream every servo tick (:mod:`skin_sim_node.device.render`). The message
+time-to-live runs out). The bridge renders it from the device's own pose and velocity every servo tick
+(:mod:`skin_sim_node.device.render`): with a friction law (``friction_coefficient > 0``, issue 19)::
+
+    F(x, v) = F_n(x) (n - mu v_t / sqrt(|v_t|^2 + v_s^2)) + (f0 - F_law(x0, v0)),
+    F_n(x) = F_n0 + grad(F_n) . (x - x0),   v_t = (I - n n^T) v,
+
+else ``F(x, v) = f0 + K (x - x0) + D (v - v0)``. ``K`` and ``D`` are always the law's linearisation at ``x0``,
+``v0``, for consumers that render only them. The message
 definition is ``interfaces/skin_sim_msgs/msg/ContactModel.msg``, built by ``scripts/setup.sh``; why a
 package and not a layout in standard messages: ``docs/devices.md``.
 
@@ -15,7 +21,7 @@ on ``rosbags`` dataclasses alike. This module imports no ROS code.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -43,6 +49,8 @@ class LocalModel:
 
     ``stiffness_n_per_m`` and ``damping_n_s_per_m`` are (3, 3) with the force on the tool as
     output: ``normal . K . normal <= 0`` for a tissue that pushes back harder the deeper it is pressed.
+    ``normal_force_n``, ``normal_force_gradient_n_per_m`` (3,), ``friction_coefficient`` and ``slip_speed_m_s``
+    carry the friction law (module docstring); all zero (the defaults): no law, the linear form.
     """
 
     sequence: int
@@ -56,9 +64,14 @@ class LocalModel:
     normal: np.ndarray
     validity_radius_m: float = DEFAULT_VALIDITY_RADIUS_M
     time_to_live_s: float = DEFAULT_TTL_S
+    normal_force_n: float = 0.0
+    normal_force_gradient_n_per_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    friction_coefficient: float = 0.0
+    slip_speed_m_s: float = 0.0
 
     def __post_init__(self):
         for name, shape in (
+            ("normal_force_gradient_n_per_m", (3,)),
             ("x0_m", (3,)),
             ("v0_m_s", (3,)),
             ("f0_n", (3,)),
@@ -72,8 +85,13 @@ class LocalModel:
     def finite(self) -> bool:
         """True if every number is finite and the radius and time-to-live are >= 0."""
         arrays = (self.x0_m, self.v0_m_s, self.f0_n, self.stiffness_n_per_m, self.damping_n_s_per_m, self.normal)
+        law = (self.normal_force_n, self.friction_coefficient, self.slip_speed_m_s)
         return (
             all(bool(np.isfinite(a).all()) for a in arrays)
+            and bool(np.isfinite(self.normal_force_gradient_n_per_m).all())
+            and all(math.isfinite(c) for c in law)
+            and self.friction_coefficient >= 0
+            and self.slip_speed_m_s >= 0
             and math.isfinite(self.validity_radius_m)
             and self.validity_radius_m >= 0
             and math.isfinite(self.time_to_live_s)
@@ -94,6 +112,10 @@ def fill_contact_model(msg, m: LocalModel):
     msg.normal[:] = m.normal
     msg.validity_radius_m = float(m.validity_radius_m)
     msg.time_to_live_s = float(m.time_to_live_s)
+    msg.normal_force_n = float(m.normal_force_n)
+    msg.normal_force_gradient_n_per_m[:] = m.normal_force_gradient_n_per_m
+    msg.friction_coefficient = float(m.friction_coefficient)
+    msg.slip_speed_m_s = float(m.slip_speed_m_s)
     return msg
 
 
@@ -111,6 +133,10 @@ def read_contact_model(msg) -> LocalModel:
         normal=np.array(msg.normal, dtype=float),
         validity_radius_m=float(msg.validity_radius_m),
         time_to_live_s=float(msg.time_to_live_s),
+        normal_force_n=float(msg.normal_force_n),
+        normal_force_gradient_n_per_m=np.array(msg.normal_force_gradient_n_per_m, dtype=float),
+        friction_coefficient=float(msg.friction_coefficient),
+        slip_speed_m_s=float(msg.slip_speed_m_s),
     )
 
 
@@ -120,7 +146,9 @@ def fill_contact_model_from_tick(
     """``tool/contact_model`` from a haptic tick's result (``skin_sim_node.session.TickResult``, read by attribute).
 
     ``f0`` is the published force (after the session's clamp, rate bound and watchdog); ``K``, ``D`` and the
-    normal are the model's tangent (:class:`skin_sim_node.model.contact.ContactTangent`). A stale tick (no
+    normal are the model's tangent (:class:`skin_sim_node.model.contact.ContactTangent`), scaled as the force was;
+    the friction law's ``F_n0 = n . f0`` and ``grad F_n = K^T n`` come from the same published tangent, so the law
+    gives ``f0`` at ``x0``, ``v0`` and its linearisation there is ``K``, ``D``. A stale tick (no
     valid tool input; the session reports the tool lifted 1 m away) sends a zero model valid anywhere
     (:data:`STALE_RADIUS_M`): the node says "no force" and the bridge renders that, fresh, rather than fading.
     """
@@ -134,9 +162,20 @@ def fill_contact_model_from_tick(
     if result.stale:
         msg.stiffness_n_per_m[:] = 0.0
         msg.damping_n_s_per_m[:] = 0.0
+        msg.normal_force_n = 0.0
+        msg.normal_force_gradient_n_per_m[:] = 0.0
+        msg.friction_coefficient = 0.0
+        msg.slip_speed_m_s = 0.0
     else:
-        msg.stiffness_n_per_m[:] = np.asarray(tg.stiffness_n_per_m).ravel()
+        k = np.asarray(tg.stiffness_n_per_m)
+        n = np.asarray(tg.normal, dtype=float)
+        msg.stiffness_n_per_m[:] = k.ravel()
         msg.damping_n_s_per_m[:] = np.asarray(tg.damping_n_s_per_m).ravel()
+        msg.normal_force_n = float(n @ np.asarray(result.force_n, dtype=float))
+        msg.normal_force_gradient_n_per_m[:] = k.T @ n
+        mu = float(getattr(tg, "friction_coefficient", 0.0))
+        msg.friction_coefficient = mu
+        msg.slip_speed_m_s = float(getattr(tg, "slip_speed_m_s", 0.0)) if mu > 0.0 else 0.0
     msg.normal[:] = tg.normal
     msg.validity_radius_m = float(STALE_RADIUS_M if result.stale else radius_m)
     msg.time_to_live_s = float(ttl_s)

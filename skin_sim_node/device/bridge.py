@@ -33,6 +33,7 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 
 import numpy as np
 import rclpy
@@ -58,11 +59,12 @@ from .mapping import (
     normalize_namespace,
     without_namespace_remap,
 )
-from .render import FADE_S, ContactRenderer
+from .render import FADE_S, SERVO_PERIOD_S, ContactRenderer, stable_damping_n_s_per_m
 from .stylus import DeviceParams
 
 SOURCES = ("model", "wrench")
 STABILISERS = ("none", "passivity")
+FRICTION_RENDERS = ("law", "linear")
 TWIST_MAX_SKEW_NS = 5_000_000  # a device twist this close to the pose's stamp is the pose's velocity (as the node's 5 ms)
 HOLD_RADIUS_M = 1.0  # wrench source: a held force does not depend on the pose (any pose on a Touch's workspace)
 AGE_RING = 4096  # model ages kept for the diagnostics window (4 s at 1 kHz)
@@ -97,7 +99,18 @@ class ServerLink:
     pose goes out from this link's thread (a latest-value hand-off), so a dead node cannot stall the servo path.
     """
 
-    def __init__(self, bridge: BridgeNode, ros_args: list[str], on_model, twist: bool, node_ns: str = "", rt_priority: int = 0):
+    def __init__(
+        self,
+        bridge: BridgeNode,
+        ros_args: list[str],
+        on_model,
+        twist: bool,
+        node_ns: str = "",
+        rt_priority: int = 0,
+        periodic: tuple[float, Callable[[], None]] | None = None,
+    ):
+        self._periodic = periodic
+        self._periodic_failed = False
         self.ctx = rclpy.Context()
         rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
         self.node = rclpy.create_node(f"{bridge.get_name()}_server", context=self.ctx, namespace=node_ns or None)
@@ -138,8 +151,19 @@ class ServerLink:
         spin_context(self._executor, self.ctx, self._stop)
 
     def _publish_loop(self) -> None:
+        """Publish the newest pose and twist; between them, the ``periodic`` call (the bridge's diagnostics) when due."""
         self._realtime()
+        period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
+        next_ns = time.monotonic_ns() + period_ns  # the first after one period: the bridge finishes its start first
         while not self._stop.is_set():
+            if self._periodic is not None and time.monotonic_ns() >= next_ns:
+                next_ns = time.monotonic_ns() + period_ns
+                try:
+                    self._periodic[1]()
+                except Exception as exc:  # never let it stop the tool pose going to the node
+                    if not self._periodic_failed:
+                        self._periodic_failed = True
+                        print(f"skin-sim bridge: diagnostics failed: {exc!r} (reported once)", flush=True)
             if not self._wake.wait(0.05):
                 continue
             self._wake.clear()
@@ -203,6 +227,36 @@ class BridgeNode(DeviceNode):
             "cap of the rendered damping at the device (N*s/m); sawSensablePhantom's largest servo damping on a Touch",
             0.0,
             1e4,
+        ),
+        Param(
+            "friction_render",
+            "law",
+            "law: evaluate the contact model's friction law at the device's velocity (CRTK measured_cv) every tick; "
+            "linear: f0 + K dx + D dv (D capped), as a consumer without the law",
+            choices=FRICTION_RENDERS,
+        ),
+        Param(
+            "max_friction_slope_n_s_per_m",
+            0.0,
+            "cap of the rendered friction law's slope at zero slip, mu F_n / v_r (N*s/m); 0: the model's own law. "
+            "0.6 m / T (27 N*s/m for a 45 g stylus at 1 kHz) ends the stick chatter of a light stylus, at a render error",
+            0.0,
+            1e6,
+        ),
+        Param(
+            "chatter_guard",
+            "on",
+            "on: while the device's tangential velocity reverses twice within 10 ms (stick on a light stylus, or "
+            "velocity noise), cap the friction law's slope at the device's stable damping, 2 sin(pi/10) device_mass_kg / 1 ms",
+            choices=("on", "off"),
+        ),
+        Param(
+            "slip_speed_floor_m_s",
+            0.0,
+            "least regularisation speed of the rendered friction law, in the device's velocity (m/s): raise it to the "
+            "noise of the driver's measured_cv near rest; 0: the model's own v_s",
+            0.0,
+            1.0,
         ),
         Param(
             "node_ns",
@@ -291,6 +345,14 @@ class BridgeNode(DeviceNode):
             max_damping_n_s_per_m=p.max_damping_n_s_per_m / gain if gain > 0 else math.inf,  # F_dev / v_dev: the same gain
             fade_s=p.fade_s,
             passivity_mass_kg=p.device_mass_kg / gain if p.stabiliser == "passivity" and gain > 0 else None,
+            friction_law=p.friction_render == "law",
+            slip_speed_floor_m_s=p.slip_speed_floor_m_s * p.scale,  # device m/s -> tissue m/s
+            stick_slope_n_s_per_m=stable_damping_n_s_per_m(p.device_mass_kg, SERVO_PERIOD_S) / gain
+            if p.chatter_guard == "on" and gain > 0
+            else math.inf,
+            max_friction_slope_n_s_per_m=(p.max_friction_slope_n_s_per_m / gain if gain > 0 else math.inf)
+            if p.max_friction_slope_n_s_per_m > 0
+            else math.inf,
         )
         self.model_source = p.force_source == "model"
         self.watchdog_ns = int(p.watchdog_s * 1e9)
@@ -318,6 +380,11 @@ class BridgeNode(DeviceNode):
         self._cf_tissue: np.ndarray | None = None
         self._cf_stamp_ns = -1
         self.node_ns = normalize_namespace(p.node_ns)
+        self._ages_ms = np.zeros(AGE_RING)
+        self._n_age = 0
+        self._win = {"rendered": 0, "models": 0, "t_ns": time.monotonic_ns(), "age_from": 0, "period_max_ns": 0}
+        # the diagnostics (percentiles, ~20 key-values, a publish: about a millisecond once a second) run on the node
+        # link's publishing thread, not on the servo executor: no device pose waits for them (issue 19, gaps)
         self.server = ServerLink(
             self,
             self.ROS_ARGS,
@@ -325,6 +392,7 @@ class BridgeNode(DeviceNode):
             bool(twist_key),
             self.node_ns,
             p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0,
+            periodic=(p.diagnostics_period_s, self._publish_diagnostics),
         )
         self._v_tissue: np.ndarray | None = None
         self._v_stamp_ns = 0
@@ -347,16 +415,12 @@ class BridgeNode(DeviceNode):
             "rendered_outside_radius": 0,
             "device_gaps_2ms": 0,
         }
-        self._ages_ms = np.zeros(AGE_RING)
-        self._n_age = 0
-        self._win = {"rendered": 0, "models": 0, "t_ns": time.monotonic_ns(), "age_from": 0, "period_max_ns": 0}
         self._first_model = False
         self._no_node_since: int | None = None  # monotonic ns of the first device pose while no model came
         self._no_node_hinted = False
         self.max_model_age_ms = 0.0
         self._rejected_logged: set[str] = set()
         self.create_timer(1.0 / p.watchdog_rate_hz, self._watchdog)
-        self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)
         src = self.server.node.resolve_topic_name(TOPICS["contact_model" if self.model_source else "tool_wrench"].name)
         src = f"{src} rendered per device tick" if self.model_source else src
         tool_pose = self.server.node.resolve_topic_name(TOPICS["tool_pose"].name)
@@ -365,7 +429,8 @@ class BridgeNode(DeviceNode):
             f"{self.resolve_topic_name(dev(force_key))}; "
             f"offset {self.mapping.offset_m} m, scale {self.mapping.scale}, axes {self.mapping.axes}, clamp {p.max_force_n} N, "
             f"stiffness cap {p.max_stiffness_n_per_m:g} N/m, damping cap {p.max_damping_n_s_per_m:g} N s/m, "
-            f"stabiliser {p.stabiliser}"
+            f"stabiliser {p.stabiliser}, friction {p.friction_render}"
+            + (f" (slope cap {p.max_friction_slope_n_s_per_m:g} N s/m)" if p.max_friction_slope_n_s_per_m > 0 else "")
         )
         (self.get_logger().info if self.rt_message.startswith("device path") else self.get_logger().warning)(self.rt_message)
         if self.TRANSPORT_NOTE:
@@ -548,6 +613,7 @@ class BridgeNode(DeviceNode):
             "model_age_ms_p99": f"{np.percentile(ages, 99):.2f}" if ages.size else "nan",
             "model_age_ms_max": f"{ages.max():.2f}" if ages.size else "nan",
             "render_state": self.renderer.state,
+            "chatter_guard_engaged_total": str(self.renderer.counts_chatter),
             "force_source": self.p.force_source,
         }
         values.update({f"{k}_total": str(v) for k, v in c.items()})

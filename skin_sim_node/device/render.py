@@ -7,15 +7,26 @@ systems": plane-and-probe; sawSensablePhantom ``servo_ci``; SOFA ``LCPForceFeedb
 
     F(x, v) = f0 + K (x - x0) + D (v - v0)
 
+or, when the model carries the tissue's friction law (``friction_coefficient > 0``; issue 19), that law itself at the
+device's own velocity (:func:`friction_law_force`)::
+
+    F(x, v) = F_n(x) (n - mu v_t / sqrt(|v_t|^2 + v_r^2)) + (f0 - F_law(x0, v0)),   F_n(x) = F_n0 + grad(F_n) . (x - x0)
+
+The linear form cannot follow the friction's reversal: the regularised Coulomb law flips sign over ``+-v_s`` (1 mm/s),
+a slope ``mu F_n / v_s`` (hundreds of N s/m) that no damping cap passes; the law renders the flip at the device tick
+where the device's velocity crosses zero, whatever the server's rate.
+
 - one-sided along the contact normal: the tissue pushes, never pulls; the tangential part shrinks
   with the normal force when that drops below the model's (no step at separation);
-- ``K`` and ``D`` capped (spectral norm, the largest gain in any direction) at the device's passive limits, the
-  tangential part inside the model's friction cone (:data:`FRICTION_CONE_FLOOR`), ``|F|`` at the device's force
-  limit by scaling the vector;
+- ``K`` and ``D`` capped (spectral norm, the largest gain in any direction) at the device's passive limits (the law's
+  normal-force gradient so that its ``K`` meets the same cap), the tangential part inside the model's friction cone
+  (:data:`FRICTION_CONE_FLOOR`), ``|F|`` at the device's force limit by scaling the vector;
 - a crossfade from the force being rendered to each new model, over the interval between models;
 - once the model is older than its time-to-live, or the tool leaves its validity radius, a linear
   fade of the last force to zero over ``fade_s``: never a step;
-- optionally the time-domain passivity controller (:mod:`.passivity`) on the rendered force.
+- optionally the time-domain passivity controller (:mod:`.passivity`) on the rendered force;
+- optionally the chatter guard (:data:`CHATTER_WINDOW_S`): while the device's tangential velocity keeps reversing
+  (stick on a light stylus, or velocity noise), the friction law's slope is capped at the stylus' stable damping.
 
 Units: SI, tissue frame (the bridge maps the device pose in and the force out, see
 :class:`skin_sim_node.device.bridge.DeviceMapping`). Times are seconds on the device's clock (its pose stamps;
@@ -69,6 +80,56 @@ mean more friction than ``mu`` times the normal force; the cone of a model is th
 ``f0`` (``mu |g|`` while sliding, whatever ``mu`` is configured) and this floor (a stroke that starts from rest,
 until the next model says how fast it slides)."""
 
+TOUCH_POSITION_RESOLUTION_M = 0.055e-3
+"""Nominal position resolution of a Touch (m): 3D Systems' specification, > 450 dpi (about 0.055 mm)."""
+
+VELOCITY_ESTIMATE_WINDOW_S = 0.0
+"""Window of the renderer's own velocity estimate for the friction law (s); 0 (the default): none. The law needs the
+device's velocity (CRTK ``measured_cv``); without it the renderer renders the linear form ``f0 + K dx`` (the friction
+the server computed at ``v0``, as before issue 19's law). Why no estimate by default: the law flips over ``+-v_s``
+(1 mm/s), a slope ``mu F_n / v_s`` of hundreds of N s/m, so it needs a velocity that is both fresh and quiet, and a
+pose difference is neither. A one-tick difference of a Touch's encoder counts moves by
+:data:`TOUCH_POSITION_RESOLUTION_M` / 1 ms = 55 mm/s per count (the law would flip its full ``mu F_n`` on every
+count: a chatter); a longer window lags by half its length. Offline, on the bench-device drag at 250 Hz with exact
+positions (no counts), a 2/5/10 ms window gave p99 1.4/4.2/9.2 % of peak against hold-last's 4.8 %; regularised at
+one count per window (``slip_speed_floor_m_s``, as a Touch would need) 37/31/26 % (``skin-sim force-path
+--device-drag``, issue 19 closing note). A device that reports no velocity is better served by the linear form."""
+
+SERVO_PERIOD_S = 1e-3
+"""The device's servo period the bridge's chatter guard assumes (s): a Touch's OpenHaptics servo loop runs at 1 kHz."""
+
+CHATTER_WINDOW_S = 0.01
+"""The chatter guard's window (s): :data:`CHATTER_FLIPS` reversals of the device's tangential velocity within 10 ms
+is not a stroke (a hand reverses a few times a second; the bench drag once a second) but the stick limit cycle of a
+steep friction law on a light stylus, a tick or two late (a period of 4-6 ms, measured closed-loop in ``skin-sim
+force-path --device-drag``), or velocity noise near rest. Either way the law's sign is not the motion's."""
+
+CHATTER_FLIPS = 2
+"""Reversals within :data:`CHATTER_WINDOW_S` that engage the guard (a stroke's own reversal is one)."""
+
+CHATTER_HOLD_S = 0.1
+"""How long the guard holds after the last reversal (s): it stays on through a stick (where the velocity keeps
+crossing zero) and lets go once the device slides one way for 100 ms. Closed-loop drag (``skin-sim force-path
+--device-drag``, with :data:`CHATTER_RELEASE_S`): 2 reversals and 100 ms left 4 friction sign flips over the slide,
+2 and 50 ms 8, 3 and 50 ms 12, 2 and 200 ms 4 (with less friction), none of them changing the offline bench drag's
+render error."""
+
+
+CHATTER_RELEASE_S = 0.02
+"""After the hold the guard lets go over this long (s): the regularisation ``mu F_n / cap`` falls linearly to the
+model's ``v_s``, so the friction returns to the law's without a step (at once it rose by up to a third of ``mu F_n``
+in one tick at a 10 mm/s slide)."""
+
+
+def stable_damping_n_s_per_m(mass_kg: float, period_s: float, delay_ticks: int = 2) -> float:
+    """The largest damping ``B`` a sampled device of mass ``mass_kg`` renders stably when the force acts
+    ``delay_ticks`` periods late: ``v_{k+1} = v_k - (B T / m) v_{k-d}`` is stable for ``B T / m < 2 sin(pi / (2 (2d + 1)))``
+    (2 without delay, 1 for one tick, 0.618 for two: the bridge's :data:`PASSIVITY_DELAY_TICKS`). 27.8 N s/m for a
+    45 g Touch stylus at 1 kHz, two ticks late."""
+    d = max(int(delay_ticks), 0)
+    return 2.0 * math.sin(math.pi / (2 * (2 * d + 1))) * mass_kg / period_s
+
+
 STATES = ("none", "model", "crossfade", "fade")
 
 
@@ -76,11 +137,30 @@ def _finite(v) -> bool:
     return bool(np.isfinite(v).all())
 
 
+def friction_law_force(normal, fn: float, mu: float, slip_speed_m_s: float, v) -> np.ndarray:
+    """``F_n (n - mu v_t / sqrt(|v_t|^2 + v_s^2))``, ``v_t = (I - n n^T) v`` (N): the layered form's contact force
+    (:func:`skin_sim_node.model.layered.contact_jacobians`) at normal force ``fn`` and tool velocity ``v``.
+
+    Its tangential part opposes ``v_t`` (``F . v_t = -mu F_n |v_t|^2 / r <= 0``: it only dissipates) and is at most
+    ``mu F_n``. ``slip_speed_m_s`` 0 with ``v_t`` 0: no friction (the sign is undefined; the law's limit is 0).
+    """
+    n = normal
+    f = fn * n
+    if mu <= 0.0 or v is None:
+        return f
+    vt = v - float(n @ v) * n
+    r = math.sqrt(float(vt @ vt) + slip_speed_m_s * slip_speed_m_s)
+    return f - (fn * mu / r) * vt if r > 0.0 else f
+
+
 @dataclass
 class _Slot:
     """A model ready to evaluate: bounded matrices, the normal force at x0 and the friction cone.
 
-    ``rx_s``: arrival on the device clock (pose stamps, s); None until the first device tick.
+    ``rx_s``: arrival on the device clock (pose stamps, s); None until the first device tick. With a friction law
+    (``law``): ``grad`` is the normal force's gradient capped as ``K`` is, ``residual`` what ``f0`` holds beyond the
+    law at ``x0``, ``v0`` (zero from skin_sim_node's session, float rounding aside) and ``slip`` the regularisation
+    speed the renderer evaluates the law with.
     """
 
     m: LocalModel
@@ -89,14 +169,47 @@ class _Slot:
     D: np.ndarray
     fn0: float
     cone: float
+    law: bool = False
+    grad: np.ndarray | None = None
+    residual: np.ndarray | None = None
+    slip: float = 0.0
 
-    def force(self, x: np.ndarray, v: np.ndarray | None) -> np.ndarray:
-        """``f0 + K (x - x0) + D (v - v0)``, one-sided along the normal and inside the model's friction cone."""
+    def force(
+        self, x: np.ndarray, v: np.ndarray | None, v_law: np.ndarray | None = None, stick_slope: float = math.inf
+    ) -> np.ndarray:
+        """The model's force at ``x``, ``v``, one-sided along the normal and inside the model's friction cone.
+
+        The friction law at velocity ``v_law`` (default ``v``; :func:`friction_law_force`, regularised at ``slip``, and
+        at least at ``mu F_n0 / stick_slope``: the chatter guard's slope cap) when the model carries one and a velocity
+        is known, else
+        ``f0 + K (x - x0) + D (v - v0)`` (without ``v``: no ``D`` term).
+        """
         m = self.m
+        n = m.normal
+        if v_law is None:
+            v_law = v
+        if self.law and v_law is not None:
+            assert self.grad is not None and self.residual is not None  # set with law
+            fn = m.normal_force_n + float(self.grad @ (x - m.x0_m))
+            if fn <= 0.0:
+                return np.zeros(3)
+            slip = self.slip
+            if stick_slope < math.inf:
+                slip = max(slip, m.friction_coefficient * max(m.normal_force_n, 0.0) / stick_slope)
+            f = friction_law_force(n, fn, m.friction_coefficient, slip, v_law)
+            if m.normal_force_n > 0.0:  # f0's part beyond the law, shrinking with the normal force as friction does
+                f = f + self.residual * min(fn / m.normal_force_n, 1.0)
+            fn = float(n @ f)
+            if fn <= 0.0:
+                return np.zeros(3)
+            t = f - fn * n
+            t_n = float(np.linalg.norm(t))
+            if t_n > self.cone * fn:
+                t = t * (self.cone * fn / t_n)
+            return fn * n + t
         f = m.f0_n + self.K @ (x - m.x0_m)
         if v is not None:
             f = f + self.D @ (v - m.v0_m_s)
-        n = m.normal
         fn = float(n @ f)
         if fn <= 0.0 or self.fn0 <= 0.0:
             return np.zeros(3) if fn <= 0.0 else fn * n
@@ -147,6 +260,24 @@ class ContactRenderer:
         :data:`FRICTION_CONE_FLOOR`.
     max_tick_s : float
         :data:`MAX_TICK_S`.
+    friction_law : bool
+        Evaluate a model's friction law (``friction_coefficient > 0``) at the device's velocity; False: render every
+        model's linear form ``f0 + K dx + D dv`` (``D`` capped).
+    slip_speed_floor_m_s : float
+        Least regularisation speed of the rendered friction law (m/s): raise it above the model's ``v_s`` for a
+        device whose measured velocity is noisier than that near rest (the law's sign would follow the noise). 0: the
+        model's own ``v_s``.
+    max_friction_slope_n_s_per_m : float
+        Cap of the rendered friction law's steepest slope ``mu F_n / v_r`` (N s/m, at ``v_t = 0``): the law is
+        regularised at ``v_r >= mu F_n0 / cap``. ``inf`` (default): the model's own law (see ``docs/devices.md``, "The
+        friction law at the device", for the closed-loop stick chatter this trades against the render error).
+    stick_slope_n_s_per_m : float
+        The chatter guard (:data:`CHATTER_WINDOW_S`): while the device's tangential velocity keeps reversing, the law's
+        slope at zero slip is capped at this (N s/m); ``inf``: no guard. The bridge sets
+        :func:`stable_damping_n_s_per_m` of the device's mass at 1 kHz.
+    velocity_estimate_window_s : float
+        The friction law's velocity when :meth:`render` gets none: the pose difference over this window (s); 0: no
+        estimate, the linear form (:data:`VELOCITY_ESTIMATE_WINDOW_S`).
 
     Attributes
     ----------
@@ -174,17 +305,36 @@ class ContactRenderer:
         use_damping: bool = True,
         friction_cone_floor: float = FRICTION_CONE_FLOOR,
         max_tick_s: float = MAX_TICK_S,
+        friction_law: bool = True,
+        slip_speed_floor_m_s: float = 0.0,
+        max_friction_slope_n_s_per_m: float = math.inf,
+        stick_slope_n_s_per_m: float = math.inf,
+        velocity_estimate_window_s: float = VELOCITY_ESTIMATE_WINDOW_S,
     ):
         for name, val in (
             ("max_force_n", max_force_n),
             ("max_stiffness_n_per_m", max_stiffness_n_per_m),
             ("max_damping_n_s_per_m", max_damping_n_s_per_m),
             ("friction_cone_floor", friction_cone_floor),
+            ("slip_speed_floor_m_s", slip_speed_floor_m_s),
+            ("max_friction_slope_n_s_per_m", max_friction_slope_n_s_per_m),
+            ("stick_slope_n_s_per_m", stick_slope_n_s_per_m),
+            ("velocity_estimate_window_s", velocity_estimate_window_s),
         ):
             if math.isnan(val) or val < 0:
                 raise ValueError(f"{name} must be >= 0, got {val}")
         if not (fade_s > 0 and 0 < crossfade_min_s <= crossfade_max_s and max_tick_s > 0):
             raise ValueError("need fade_s > 0, 0 < crossfade_min_s <= crossfade_max_s and max_tick_s > 0")
+        self.friction_law = bool(friction_law)
+        self.slip_floor = float(slip_speed_floor_m_s)
+        self.max_slope = float(max_friction_slope_n_s_per_m)
+        self.stick_slope = float(stick_slope_n_s_per_m)
+        self._flips: deque = deque(maxlen=CHATTER_FLIPS)  # device times of the last tangential reversals
+        self._vt_last: np.ndarray | None = None
+        self._guard_until = -math.inf  # device time until which the chatter guard holds
+        self.counts_chatter = 0  # times the guard engaged
+        self.velocity_window_s = float(velocity_estimate_window_s)
+        self._poses: deque = deque(maxlen=256)  # (device time, x) of the recent finite poses: the velocity estimate
         self.max_force_n = float(max_force_n)
         self.max_k = float(max_stiffness_n_per_m)
         self.max_d = float(max_damping_n_s_per_m)
@@ -208,6 +358,8 @@ class ContactRenderer:
         self._last_out = np.zeros(3)
         self._last_x: np.ndarray | None = None
         self._last_v: np.ndarray | None = None
+        self._last_law_v: np.ndarray | None = None  # the friction law's velocity at the last tick
+        self._last_stick = math.inf  # the chatter guard's slope cap at the last tick
         self._last_t: float | None = None  # stamp of the last tick with a finite pose (passivity's dt)
         self._stamp_last: float | None = None  # the last tick's stamp (s)
         self._s_last: float | None = None  # device time at the last tick: the stamps' forward steps summed (s)
@@ -271,7 +423,18 @@ class ContactRenderer:
         fn0 = float(m.normal @ m.f0_n)
         ratio0 = float(np.linalg.norm(m.f0_n - fn0 * m.normal)) / fn0 if fn0 > 0 else 0.0
         K, D = self.bounded(m)
-        slot = _Slot(m, rx, K, D, fn0, max(ratio0, self.cone_floor))
+        if self.friction_law and m.friction_coefficient > 0.0:
+            mu = m.friction_coefficient
+            # the law's K at any velocity is (n - mu g) grad^T, of spectral norm <= sqrt(1 + mu^2) |grad|: capped so
+            g = m.normal_force_gradient_n_per_m
+            gain = float(np.linalg.norm(g)) * math.sqrt(1.0 + mu * mu)
+            grad = g * (self.max_k / gain) if gain > self.max_k else g.copy()
+            residual = m.f0_n - friction_law_force(m.normal, m.normal_force_n, mu, m.slip_speed_m_s, m.v0_m_s)
+            # the law's steepest slope, mu F_n / v_r at v_t = 0, at most max_slope: v_r >= mu F_n0 / max_slope
+            slip = max(m.slip_speed_m_s, self.slip_floor, mu * max(m.normal_force_n, 0.0) / self.max_slope)
+            slot = _Slot(m, rx, K, D, fn0, max(ratio0, mu), True, grad, residual, slip)
+        else:
+            slot = _Slot(m, rx, K, D, fn0, max(ratio0, self.cone_floor))
         # model to model: one servo tick (the models are linearisations of one force; a longer blend lags the new
         # one by half its length: at 250 Hz it made the rendered force worse than hold-last's, p99 7.6 against 4.8 %
         # of peak, at friction reversals the capped D cannot predict); from zero or a fade: cf_max
@@ -286,7 +449,7 @@ class ContactRenderer:
         self._from = self._model if keep_from else None
         base = np.zeros(3)
         if self._from is not None and self._last_x is not None:
-            base = self._from.force(self._last_x, self._last_v if self.use_damping else None)
+            base = self._from.force(self._last_x, self._last_v if self.use_damping else None, self._last_law_v, self._last_stick)
         self._offset = self._last_out - base
         # the blend starts where that force was rendered, so the next tick already moves towards the new model
         d = self._d_last
@@ -294,12 +457,44 @@ class ContactRenderer:
         self._blend_T = duration_s
         self._fade_t0 = None
 
+    def _chatter_guard(self, now: float, v: np.ndarray | None, slot: _Slot | None) -> float:
+        """The slope cap of this tick: :attr:`stick_slope` while the guard holds (:data:`CHATTER_WINDOW_S`), else inf."""
+        if v is not None and slot is not None and slot.law:
+            n = slot.m.normal
+            vt = v - float(n @ v) * n
+            if self._vt_last is not None and float(vt @ self._vt_last) < 0.0:
+                self._flips.append(now)
+                if len(self._flips) == CHATTER_FLIPS and now - self._flips[0] <= CHATTER_WINDOW_S:
+                    if now > self._guard_until:
+                        self.counts_chatter += 1
+                    self._guard_until = now + CHATTER_HOLD_S
+                elif now <= self._guard_until:  # a reversal while held (stick): hold on
+                    self._guard_until = now + CHATTER_HOLD_S
+            self._vt_last = vt
+        if now <= self._guard_until:
+            return self.stick_slope
+        u = (now - self._guard_until) / CHATTER_RELEASE_S  # let go gradually: v_r falls linearly to the model's
+        return self.stick_slope / (1.0 - u) if u < 1.0 else math.inf
+
+    def _estimate_velocity(self, now: float, x: np.ndarray) -> np.ndarray | None:
+        """Pose difference over the oldest recent pose within :attr:`velocity_window_s` of device time (m/s); None
+        without an earlier pose. A pose gap longer than the window: the difference over the gap (the last pose)."""
+        ref = None
+        for t, xp in reversed(self._poses):
+            if now - t > self.velocity_window_s and ref is not None:
+                break
+            ref = (t, xp)
+        if ref is None or not now > ref[0]:
+            return None
+        return (x - ref[1]) / (now - ref[0])
+
     # --- the servo tick -------------------------------------------------------------------
     def render(self, now_s: float, x, v=None, applied_over_dx=None) -> np.ndarray:
         """The force (N, tissue frame) to command for the coming servo tick at tool position ``x`` (m).
 
         ``now_s``: the device pose's stamp (s): the renderer's clock. ``v`` (m/s): the device's measured velocity;
-        None differentiates the positions for the passivity controller and renders no ``D`` term. A non-finite
+        None differentiates the positions for the passivity controller and the friction law (over
+        ``velocity_window_s``) and renders no ``D`` term. A non-finite
         ``x`` fades out like a stale model. ``applied_over_dx`` (N, tissue frame): the force the device reports it
         applied while moving from the previous ``x`` to this one (CRTK ``measured_cf``); the passivity observer
         books it exactly, else it assumes the force rendered ``passivity_delay_ticks`` ago.
@@ -327,15 +522,23 @@ class ContactRenderer:
             if not valid and self._fade_t0 is None:
                 self.counts["fades_ttl" if not fresh else "fades_radius"] += 1
         vd = v if self.use_damping else None
+        # the friction law's velocity: the device's, else (opt-in) the renderer's estimate from the poses; None: the
+        # linear form (VELOCITY_ESTIMATE_WINDOW_S); use_damping False renders no velocity term at all
+        vl = vd
+        if v is None and finite_x and self.use_damping and self.velocity_window_s > 0:
+            vl = self._estimate_velocity(raw, x)
+        if finite_x and self.velocity_window_s > 0:  # kept only for the estimate: no per-tick allocation otherwise
+            self._poses.append((raw, x))
+        stick = self._chatter_guard(raw, vl, slot) if self.stick_slope < math.inf else math.inf
         pc_gain = 1.0  # the passivity controller acts on a rendered model only
         if valid:
             assert slot is not None  # valid: a fresh model under the tool
             if self._fade_t0 is not None:  # back inside / model fresh again after a fade: blend from the faded force
                 self._begin_blend(d, self.cf_min if self._blend_T <= 0 else self._blend_T, keep_from=False)
-            f = slot.force(x, vd)
+            f = slot.force(x, vd, vl, stick)
             w = (d - self._blend_t0) / self._blend_T if self._blend_T > 0 else 1.0
             if w < 1.0:
-                f_from = self._offset + (self._from.force(x, vd) if self._from is not None else 0.0)
+                f_from = self._offset + (self._from.force(x, vd, vl, stick) if self._from is not None else 0.0)
                 f = f_from + max(w, 0.0) * (f - f_from)
                 self.state = "crossfade"
             else:
@@ -375,6 +578,7 @@ class ContactRenderer:
         if finite_x:
             self._sent.append((applied, f))
             self._last_x, self._last_v, self._last_t = x, v, raw
+            self._last_law_v, self._last_stick = vl, stick
         self._stamp_last, self._s_last, self._d_last = now_s, raw, d
         return applied
 

@@ -33,6 +33,13 @@ class ContactTangent:
         Unit contact normal, out of the tissue (``+z`` on an undeformed flat sheet).
     contact_radius_m : float
         Radius of the contact patch (m); 0 out of contact.
+    friction_coefficient : float
+        ``mu`` of the friction law ``F = F_n (n - mu v_t / sqrt(|v_t|^2 + v_s^2))`` the force follows (1); 0: the
+        force has no friction term (the paper form; a tangent built without the law). The forms leave it 0; the
+        session fills it from the tissue configuration for the layered form, whose force is that law
+        (:func:`skin_sim_node.model.layered.contact_jacobians`).
+    slip_speed_m_s : float
+        The law's regularisation speed ``v_s`` (m/s); 0 with ``friction_coefficient`` 0.
     """
 
     force_n: np.ndarray
@@ -40,11 +47,27 @@ class ContactTangent:
     damping_n_s_per_m: np.ndarray
     normal: np.ndarray
     contact_radius_m: float
+    friction_coefficient: float = 0.0
+    slip_speed_m_s: float = 0.0
 
     @property
     def in_contact(self) -> bool:
         """True if the tool touches the tissue (a contact radius > 0)."""
         return self.contact_radius_m > 0.0
+
+    @property
+    def normal_force_n(self) -> float:
+        """``F_n = n . f0`` (N): the normal part of the force (the friction term is tangential, ``n . v_t = 0``)."""
+        return float(self.normal @ self.force_n)
+
+    @property
+    def normal_force_gradient_n_per_m(self) -> np.ndarray:
+        """``grad F_n = K^T n`` (N/m), the normal force's gradient in the tool position.
+
+        Exact for both forms: the layered form's ``K = (n - mu g) grad(F_n)^T`` with ``n . g = 0``, the paper
+        form's ``K = -k z z^T`` with ``n = z``.
+        """
+        return self.stiffness_n_per_m.T @ self.normal
 
 
 def normal_tangent(force_z_n: float, k_normal_n_per_m: float, b_normal_n_s_per_m: float, radius_m: float) -> ContactTangent:

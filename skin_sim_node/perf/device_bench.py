@@ -26,13 +26,15 @@ It is a benchmark, not a CI test: its figures depend on the machine. It assumes 
 prints what it found (cores, load average before and after, whether real-time priority was granted); ``--hog`` adds
 a busy process per core. ``--phase-s 4`` is a short run (about 40 s in all).
 
-Command (until registered in ``skin_sim_node/cli.py`` as ``bench-device``):
-``python -m skin_sim_node.perf.device_bench [--phase-s 30] [--hog]``.
+Command: ``skin-sim bench-device [--phase-s 30] [--hog]`` (``python -m skin_sim_node.perf.device_bench``). Its
+offline, scheduler-free counterpart for the render error is ``skin-sim force-path --device-drag``
+(:func:`skin_sim_node.perf.force_path.device_drag`).
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import math
 import os
@@ -143,17 +145,30 @@ def emulate(phase_s: float, out: Path) -> int:
     pub_cp = publisher(node, "crtk_measured_cp", name="device/measured_cp")
     pub_cv = publisher(node, "crtk_measured_cv", name="device/measured_cv")
     pub_cf = publisher(node, "crtk_measured_cf", name="device/measured_cf")
-    cmds: list[tuple] = []
-    wrenches: list[tuple] = []
+    total_s = phase_windows(phase_s)["kill"][1]
+    n = int(total_s * 1e9 / PERIOD_NS)
+    # records in preallocated arrays, not a growing list of tuples: nothing the collector would have to scan, and with
+    # automatic collection off in the timed loop (below) no collector pass can stall the servo loop
+    cmds = np.zeros((2 * n + 1000, 5))
+    wrenches = np.zeros((2 * n + 1000, 4))
+    n_rec = [0, 0]  # commands, wrenches recorded
     held = [(0.0, 0.0, 0.0)]
 
     def on_cmd(msg):
         f = read_wrench(msg)[2]
         held[0] = f
-        cmds.append((time.monotonic_ns(), stamp_ns(msg.header), *f))
+        i = n_rec[0]
+        if i < len(cmds):
+            cmds[i, 0], cmds[i, 1] = time.monotonic_ns(), stamp_ns(msg.header)
+            cmds[i, 2:5] = f
+            n_rec[0] = i + 1
 
     def on_wrench(msg):
-        wrenches.append((time.monotonic_ns(), *read_wrench(msg)[2]))
+        i = n_rec[1]
+        if i < len(wrenches):
+            wrenches[i, 0] = time.monotonic_ns()
+            wrenches[i, 1:4] = read_wrench(msg)[2]
+            n_rec[1] = i + 1
 
     from rclpy.qos import QoSProfile
 
@@ -174,19 +189,24 @@ def emulate(phase_s: float, out: Path) -> int:
         set_process_realtime(EMULATOR_RT_PRIORITY - 1)
         set_realtime(EMULATOR_RT_PRIORITY)
     time.sleep(1.0)  # discovery of the bridge (already running)
-    total_s = phase_windows(phase_s)["kill"][1]
-    n = int(total_s * 1e9 / PERIOD_NS)
     slots = np.zeros((n, 10))  # deadline, published (mono ns), stamp (ns), x, y, z, vx, vy, vz, late flag
     pose, twist, cf = PoseStamped(), TwistStamped(), WrenchStamped()
     offset = np.array(DEFAULT_OFFSET_M)
     t0 = time.monotonic_ns() + 200_000_000
     print(f"EMULATOR t0_ns={t0} rt={'granted' if rt is None else rt}", flush=True)
+    # no cyclic GC pass inside the timed loop: the start-up heap is frozen (never rescanned) and automatic collection
+    # is off until the end (the loop and the callbacks make no reference cycles; what they allocate is freed by
+    # reference counting), as a C++ driver's loop would not stop for a collector
+    gc.collect()
+    gc.freeze()
+    gc.disable()
     k = 0
     while k < n:
         deadline = t0 + k * PERIOD_NS
         sleep_until_ns(deadline)
         now = time.monotonic_ns()
-        if now - deadline > PERIOD_NS:  # a whole period late: skip to the current slot (marked late)
+        skipped = now - deadline > PERIOD_NS
+        if skipped:  # a whole period late: skip to the current slot, marked late (the gap is the emulator's own)
             k = min(n - 1, (now - t0) // PERIOD_NS)
             deadline = t0 + k * PERIOD_NS
         x, v = hand((deadline - t0) * 1e-9, phase_s)
@@ -199,12 +219,13 @@ def emulate(phase_s: float, out: Path) -> int:
         pub_cf.publish(cf)
         pub_cp.publish(pose)
         pub_t = time.monotonic_ns()
-        slots[k] = (deadline, pub_t, stamp, *x, *v, float(pub_t - deadline > LATE_SLOT_NS))
+        slots[k] = (deadline, pub_t, stamp, *x, *v, float(skipped or pub_t - deadline > LATE_SLOT_NS))
         k += 1
     time.sleep(0.2)
     stop.set()
     th.join(timeout=1.0)
-    np.savez(out, slots=slots, cmds=np.array(cmds, dtype=float).reshape(-1, 5), wrenches=np.array(wrenches).reshape(-1, 4), t0=t0)
+    gc.enable()
+    np.savez(out, slots=slots, cmds=cmds[: n_rec[0]].copy(), wrenches=wrenches[: n_rec[1]].copy(), t0=t0)
     node.destroy_node()
     rclpy.try_shutdown()
     return 0
@@ -212,17 +233,9 @@ def emulate(phase_s: float, out: Path) -> int:
 
 # --- ground truth -----------------------------------------------------------------------------------
 def truth_vector(result) -> np.ndarray:
-    """The true force of one offline tick (N, tissue frame), the whole vector.
-
-    The session's published ``force_n`` when it carries a tangential part (the full vector, issue 19 item 1);
-    until it does (it is ``(0, 0, F_z)`` today), the model's own vector (``tangent.force_n``: friction and tilted
-    normal) scaled to the session's normal force, so the session's safety limits still define the magnitude.
-    """
-    f = np.asarray(result.force_n, dtype=float)
-    if abs(f[0]) > 0 or abs(f[1]) > 0:
-        return f
-    m = np.asarray(result.tangent.force_n, dtype=float)
-    return m * (f[2] / m[2]) if m[2] > 0 else f
+    """The true force of one offline tick (N, tissue frame): the session's published ``force_n``, the whole vector
+    (the model's normal along the deformed surface plus friction, after the session's safety limits)."""
+    return np.asarray(result.force_n, dtype=float)
 
 
 def ground_truth(slots: np.ndarray) -> np.ndarray:
@@ -302,6 +315,7 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
             "gaps_5ms": int(np.sum((gaps > 5e6) & ~own_late)),
             "gaps_5ms_with_own_late": int(np.sum(gaps > 5e6)),
             "gap_max_ms": float(gaps.max() * 1e-6) if gaps.size else float("nan"),
+            "gaps_5ms_where": gap_sources(ct, gaps, own_late, slots, lo),
             "over_true": over_true,
             "over_limit": int(np.sum(mag[answered] > TOUCH_PEAK_FORCE_N * (1 + 1e-9))),
             "max_over_true": float(np.max(mag[big] / tmag[big])) if big.any() else float("nan"),
@@ -316,6 +330,22 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
         if name == "kill" and kill_ns is not None:
             ph.update(kill_fade(cmds, kill_ns))
         out[name] = ph
+    return out
+
+
+def gap_sources(ct: np.ndarray, gaps: np.ndarray, own_late: np.ndarray, slots: np.ndarray, phase_start_ns: float) -> list:
+    """Where each counted gap over 5 ms came from: ``[t_s, gap_ms, poses_published, first_answer_latency_ms]`` with
+    ``t_s`` from the phase's start, the emulator's poses published on time inside the gap (0: the emulator itself
+    published nothing, e.g. a stall it did not flag) and how long after its pose the first command after the gap
+    arrived (the bridge and DDS path's delay)."""
+    out = []
+    pub = slots[slots[:, 2] > 0]
+    for i in np.flatnonzero((gaps > 5e6) & ~own_late):
+        inside = pub[(pub[:, 1] > ct[i]) & (pub[:, 1] < ct[i + 1])]
+        first = float((ct[i + 1] - inside[0, 1]) * 1e-6) if len(inside) else float("nan")
+        out.append(
+            [round(float((ct[i] - phase_start_ns) * 1e-9), 3), round(float(gaps[i] * 1e-6), 1), len(inside), round(first, 1)]
+        )
     return out
 
 
@@ -545,9 +575,15 @@ def main(argv=None) -> int:
     print(
         "columns: x = commands per device pose; own late = the emulator's late slots (the scheduling baseline; gaps>5 "
         "excludes gaps that contain one); max/F = largest |command| / |F_true| where |F_true| > 0.05 N; x p99 = render "
-        "p99 / hold-last p99 (same run); F_z p99: the normal component's error alone (the vector's error less what "
-        "the server leaves out of f0; the whole vector is issue 19's server half); kill: render error before the kill"
+        "p99 / hold-last p99 (same run); F_z p99: the normal component's error alone (the rest of the vector's error "
+        "is the friction's); kill: render error before the kill"
     )
+    for name, p in ph.items():
+        for t_s, gap_ms, n_pub, lat_ms in p.get("gaps_5ms_where", []):
+            print(
+                f"  gap {name} +{t_s:.3f} s: {gap_ms:.1f} ms without a command; {n_pub} device poses published on time in it, "
+                f"the first command after it {lat_ms:.1f} ms after the first of them"
+            )
     if args.json:
         args.json.write_text(json.dumps(ph, indent=2))
     missed = missed_aims(ph)

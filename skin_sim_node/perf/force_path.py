@@ -56,8 +56,10 @@ SCENES = (
 
 
 def tangent_model(model: SkinModel, seq: int, stamp_ns: int, x, v) -> LocalModel:
-    """The server's answer to a pose, as the node publishes it."""
+    """The server's answer to a pose, as the node publishes it (the layered form's friction law included)."""
     t = model.tangent()
+    cfg = model.cfg
+    mu, vs = (cfg.friction_coefficient, cfg.slip_speed_m_s) if cfg.form == "layered" else (0.0, 0.0)
     return LocalModel(
         seq,
         stamp_ns,
@@ -70,7 +72,242 @@ def tangent_model(model: SkinModel, seq: int, stamp_ns: int, x, v) -> LocalModel
         t.normal,
         DEFAULT_VALIDITY_RADIUS_M,
         DEFAULT_TTL_S,
+        normal_force_n=t.normal_force_n,
+        normal_force_gradient_n_per_m=t.normal_force_gradient_n_per_m,
+        friction_coefficient=mu,
+        slip_speed_m_s=vs if mu > 0 else 0.0,
     )
+
+
+# --- the device benchmark's drag, offline (issue 19): the bridge's render error without a scheduler ------------
+DRAG_RATES_HZ = (1000.0, 250.0)
+DRAG_PERIODS = 2
+"""Back-and-forth periods of the bench-device drag counted (4 s: four friction reversals)."""
+
+
+def _plain_contact_model_msg():
+    """A ``ContactModel``-shaped object (attribute access, arrays) for :func:`fill_contact_model_from_tick` without ROS."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(
+        header=SimpleNamespace(stamp=SimpleNamespace(sec=0, nanosec=0), frame_id=""),
+        sequence=0,
+        x0_m=np.zeros(3),
+        v0_m_s=np.zeros(3),
+        f0_n=np.zeros(3),
+        stiffness_n_per_m=np.zeros(9),
+        damping_n_s_per_m=np.zeros(9),
+        normal=np.zeros(3),
+        validity_radius_m=0.0,
+        time_to_live_s=0.0,
+        normal_force_n=0.0,
+        normal_force_gradient_n_per_m=np.zeros(3),
+        friction_coefficient=0.0,
+        slip_speed_m_s=0.0,
+    )
+
+
+def bridge_renderer_kw(mass_kg: float) -> dict:
+    """The renderer as ``skin-sim bridge`` builds it by default for a stylus of ``mass_kg`` (unit scales): the Touch
+    caps, the passivity controller and the chatter guard."""
+    from ..device.render import SERVO_PERIOD_S, stable_damping_n_s_per_m
+
+    return {"passivity_mass_kg": mass_kg, "stick_slope_n_s_per_m": stable_damping_n_s_per_m(mass_kg, SERVO_PERIOD_S)}
+
+
+def device_drag(
+    rate_hz: float,
+    latency_ticks: int = 1,
+    renderer_kw: dict | None = None,
+    device_velocity: bool = True,
+    periods: int = DRAG_PERIODS,
+    jitter_ticks: int = 0,
+    drop: float = 0.0,
+    seed: int = 0,
+) -> dict:
+    """Render error of the bench-device drag, offline and deterministic (no DDS, no scheduler).
+
+    The device ticks at 1 kHz along :func:`skin_sim_node.perf.device_bench.hand` (press at 1.5 mm, 10 mm back and
+    forth every 2 s) and reports its exact velocity, as the emulator's ``measured_cv`` (``device_velocity`` False:
+    none, the renderer estimates it). The *server*, a :class:`HapticSession` as the node's, answers every
+    ``1000 / rate_hz``-th pose; its :class:`TickResult` goes through :func:`fill_contact_model_from_tick` and
+    :func:`read_contact_model` (the node's and the bridge's code, no CDR) and reaches the bridge ``latency_ticks``
+    later. The bridge renders every device tick with the bridge's renderer (Touch caps, passivity controller), and
+    the hold-last baseline holds the newest ``f0`` (the published wrench). The *truth* is a second session stepped
+    on every pose (bench-device's ground truth). Errors: ``|F - F_true|``, whole vector, % of the peak ``|F_true|``
+    over the drag. ``jitter_ticks`` adds a uniform 0..jitter extra delay per model and ``drop`` loses that share of
+    the models (seeded ``seed``: DDS's irregular delivery, deterministic), for both bridges alike.
+    """
+    from msgs_schema.contact_model import fill_contact_model_from_tick, read_contact_model
+
+    from ..bags.offline import load_params
+    from ..device.stylus import DeviceParams
+    from ..session import HapticSession
+    from .device_bench import DRAG_PERIOD_S, WARM_S, hand
+
+    sp, cfg = load_params()
+    truth_s, srv = HapticSession(SkinModel(cfg), sp), HapticSession(SkinModel(cfg), sp)
+    kw = {**bridge_renderer_kw(DeviceParams.mass_kg), **(renderer_kw or {})}
+    render, hold = ContactRenderer(**kw), HoldLastRenderer()
+    msg = _plain_contact_model_msg()
+    phase_s = DRAG_PERIOD_S * periods
+    n = int(round((WARM_S + phase_s) * DEVICE_HZ))
+    every = max(int(round(DEVICE_HZ / rate_hz)), 1)
+    ms = 1_000_000
+    t0_ns = 1_700_000_000 * 1_000_000_000
+    f_true, f_ren, f_hold = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    pending: list[tuple[int, LocalModel]] = []
+    rng = np.random.default_rng(seed)
+    prev_srv = None
+    for k in range(n):
+        t = k / DEVICE_HZ
+        stamp = t0_ns + k * ms
+        x, v = hand(t, phase_s)
+        truth_s.on_twist(stamp, sp.tissue_frame, v)
+        truth_s.on_pose(stamp, sp.tissue_frame, x)
+        r = truth_s.tick(stamp, ms)
+        f_true[k] = r.force_n
+        if k % every == 0:
+            srv.on_twist(stamp, sp.tissue_frame, v)
+            srv.on_pose(stamp, sp.tissue_frame, x)
+            rs = srv.tick(stamp, 0 if prev_srv is None else stamp - prev_srv)
+            prev_srv = stamp
+            m_new = read_contact_model(fill_contact_model_from_tick(msg, rs, stamp, sp.tissue_frame))
+            if rng.random() >= drop:
+                extra = int(rng.integers(0, jitter_ticks + 1)) if jitter_ticks > 0 else 0
+                pending.append((k + latency_ticks + extra, m_new))
+                pending.sort(key=lambda e: e[0])
+        ts = stamp * 1e-9
+        while pending and pending[0][0] <= k:
+            m = pending.pop(0)[1]
+            render.set_model(m, ts)
+            hold.set_model(m, ts)
+        f_ren[k] = render.render(ts, x, v if device_velocity else None)
+        f_hold[k] = hold.render(ts, x, v)
+    sl = slice(int(round(WARM_S * DEVICE_HZ)), n)
+    peak = float(np.linalg.norm(f_true[sl], axis=1).max())
+    out = {"peak_n": peak, "f_true": f_true[sl], "f_render": f_ren[sl], "f_hold": f_hold[sl]}
+    for key, f in (("render", f_ren), ("hold", f_hold)):
+        err = np.linalg.norm(f[sl] - f_true[sl], axis=1)
+        for q in (50, 99):
+            out[f"{key}_p{q}_pct"] = 100.0 * float(np.percentile(err, q)) / peak
+        out[f"{key}_max_pct"] = 100.0 * float(err.max()) / peak
+    return out
+
+
+def closed_loop_drag(renderer_kw: dict | None = None, every: int = 4) -> tuple[np.ndarray, ContactRenderer]:
+    """The force path with a stylus in the loop, offline: :class:`SimulatedDevice` on the ``drag`` path (a 45 g stylus
+    on a 300 N/m hand), a :class:`HapticSession` answering every ``every``-th tick through the contact model message,
+    the bridge's renderer (Touch caps, passivity controller), the command applied the tick after. Returns the
+    commanded forces (n, 3) and the renderer (its passivity observer's energy)."""
+    from msgs_schema.contact_model import fill_contact_model_from_tick, read_contact_model
+
+    from ..bags.offline import load_params
+    from ..device.stylus import SimulatedDevice
+    from ..session import HapticSession
+
+    sp, cfg = load_params()
+    dev = SimulatedDevice("drag")
+    s = HapticSession(SkinModel(cfg), sp)
+    r = ContactRenderer(**{**bridge_renderer_kw(dev.params.mass_kg), **(renderer_kw or {})})
+    msg = _plain_contact_model_msg()
+    n = int(round(dev.hand_path.duration_s * DEVICE_HZ))
+    f = np.zeros((n, 3))
+    prev = None
+    t0_ns = 1_700_000_000 * 1_000_000_000
+    for k in range(n):
+        p, v = dev.pos_tissue, dev.vel_tissue
+        stamp = t0_ns + k * 1_000_000
+        if k % every == 0:
+            s.on_twist(stamp, sp.tissue_frame, tuple(v))
+            s.on_pose(stamp, sp.tissue_frame, tuple(p))
+            res = s.tick(stamp, 0 if prev is None else stamp - prev)
+            prev = stamp
+            r.set_model(read_contact_model(fill_contact_model_from_tick(msg, res, stamp, sp.tissue_frame)), stamp * 1e-9)
+        f[k] = r.render(stamp * 1e-9, p, v)
+        dev.step(dev.mapping.force_to_device(tuple(f[k])), 1.0 / DEVICE_HZ)
+    return f, r
+
+
+CLOSED_LOOP_DRAG_S = (0.7, 2.9)
+"""The drag of the ``drag`` path (s): pressed, sliding, before the lift."""
+
+
+def stick_flips(fx: np.ndarray) -> int:
+    """Sign changes of the tangential force ``fx`` over :data:`CLOSED_LOOP_DRAG_S` (a chatter counts each flip)."""
+    a, b = (int(round(t * DEVICE_HZ)) for t in CLOSED_LOOP_DRAG_S)
+    seg = fx[a:b]
+    return int(np.sum(np.sign(seg[1:]) * np.sign(seg[:-1]) < 0))
+
+
+def print_closed_loop() -> None:
+    """Print the closed-loop drag's friction flips and mean friction: linear form, law with and without the chatter
+    guard, law with slope caps."""
+    from ..device.render import SERVO_PERIOD_S, stable_damping_n_s_per_m
+    from ..device.stylus import DeviceParams
+
+    cap = stable_damping_n_s_per_m(DeviceParams.mass_kg, SERVO_PERIOD_S)
+    print(
+        "  closed loop (SimulatedDevice drag: 45 g stylus on a 300 N/m hand; server 250 Hz; passivity controller): "
+        "sign flips of F_x over the slide, mean |F_x|, the passivity observer's energy"
+    )
+    a, b = (int(round(t * DEVICE_HZ)) for t in CLOSED_LOOP_DRAG_S)
+    for label, kw in (
+        ("linear form", {"friction_law": False}),
+        ("friction law, no chatter guard", {"stick_slope_n_s_per_m": math.inf}),
+        ("friction law + chatter guard (bridge)", {}),
+        (f"law, slope cap {cap:.1f} N s/m always", {"max_friction_slope_n_s_per_m": cap, "stick_slope_n_s_per_m": math.inf}),
+        ("law, slope cap 5 N s/m (the D cap)", {"max_friction_slope_n_s_per_m": 5.0, "stick_slope_n_s_per_m": math.inf}),
+    ):
+        f, r = closed_loop_drag(kw)
+        assert r.passivity is not None
+        print(
+            f"  {label:38s} flips {stick_flips(f[:, 0]):4d}  mean |F_x| {np.abs(f[a:b, 0]).mean():.4f} N  "
+            f"energy {r.passivity.energy_j * 1e3:.2f} mJ, controller active {r.passivity.active_ticks} ticks, "
+            f"guard engaged {r.counts_chatter} times",
+            flush=True,
+        )
+
+
+def print_device_drag(rates=DRAG_RATES_HZ, latency_ticks: int = 1) -> dict:
+    """Print the offline bench-device drag's render error, law and linear renderers and hold-last, per server rate."""
+    print(
+        "  bench-device drag offline (press 1.5 mm, 10 mm back and forth, 2 periods; device 1 kHz, model delivered "
+        f"{latency_ticks} tick(s) after its pose; Touch caps, passivity controller, chatter guard): |F - F_true|, % of peak"
+    )
+    print(
+        "  velocity: the device's (CRTK measured_cv), or none (the bridge's default then: the linear form), or the "
+        "renderer's pose difference over 2/5/10 ms (exact positions)"
+    )
+    head = f"{'law p50 / p99':>14s} | {'linear p50 / p99':>16s} | {'hold-last p50 / p99':>19s}"
+    print(f"  {'server Hz':>9s} | {'velocity':13s} | {head}")
+    res = {}
+    cases = [("device", True, {}), ("none", False, {})] + [
+        (f"estimate {w * 1e3:.0f} ms", False, {"velocity_estimate_window_s": w}) for w in (0.002, 0.005, 0.01)
+    ]
+    for r in rates:
+        for name, dv, kw in cases:
+            law = device_drag(r, latency_ticks, kw, device_velocity=dv)
+            lin = device_drag(r, latency_ticks, {**kw, "friction_law": False}, device_velocity=dv)
+            res[(r, name)] = (law, lin)
+            print(
+                f"  {r:9.0f} | {name:13s} | {law['render_p50_pct']:5.2f} / {law['render_p99_pct']:5.2f}"
+                f"  | {lin['render_p50_pct']:6.2f} / {lin['render_p99_pct']:6.2f}   | {law['hold_p50_pct']:7.2f} / "
+                f"{law['hold_p99_pct']:6.2f}",
+                flush=True,
+            )
+    for r in rates:
+        law = device_drag(r, latency_ticks, jitter_ticks=8, drop=0.1)
+        lin = device_drag(r, latency_ticks, {"friction_law": False}, jitter_ticks=8, drop=0.1)
+        res[(r, "jitter")] = (law, lin)
+        print(
+            f"  {r:9.0f} | {'dev, DDS-like':13s} | {law['render_p50_pct']:5.2f} / {law['render_p99_pct']:5.2f}"
+            f"  | {lin['render_p50_pct']:6.2f} / {lin['render_p99_pct']:6.2f}   | {law['hold_p50_pct']:7.2f} / "
+            f"{law['hold_p99_pct']:6.2f}",
+            flush=True,
+        )
+    print("  (dev, DDS-like: the device's velocity; each model 0-8 ticks later still, 10 % of them lost, seeded)")
+    return res
 
 
 def run_scene(cfg, scene: ForceScene, rate_hz: float, latency_ticks: int, renderer_kw: dict) -> dict:
@@ -173,7 +410,18 @@ def main(argv=None) -> int:
     ap.add_argument("--chart", type=Path, default=REPO / "docs" / "figures" / "force_path_rate.png")
     ap.add_argument("--no-chart", action="store_true")
     ap.add_argument("--msg-cost", action="store_true", help="measure the contact model message types instead (about 10 s)")
+    ap.add_argument(
+        "--device-drag",
+        action="store_true",
+        help="the bench-device drag offline instead: render error of the bridge (friction law, linear) and hold-last at "
+        "1 kHz and 250 Hz server rates (deterministic, about 30 s)",
+    )
     args = ap.parse_args(argv)
+    if args.device_drag:
+        print("skin-sim force-path --device-drag: the bridge's render error on the bench-device drag, offline ...", flush=True)
+        print_device_drag(latency_ticks=max(int(round(args.latency_ms)), 0))
+        print_closed_loop()
+        return 0
     if args.msg_cost:
         print("skin-sim force-path --msg-cost: contact model message candidates ...", flush=True)
         print_msg_cost(5.0)

@@ -206,6 +206,10 @@ class HapticSession:
                 f"return (c = {min(la.wave_speed_m_per_s for la in model.cfg.layers):.3g} m/s); released from rest",
             )
         cfg = model.cfg
+        # the friction law the model's force follows, carried in the local contact model so the device can evaluate
+        # it at its own velocity (issue 19): the layered form's F_n (n - mu v_t / sqrt(|v_t|^2 + v_s^2)); the paper
+        # form's force has no friction term
+        self._friction = (cfg.friction_coefficient, cfg.slip_speed_m_s) if cfg.form == "layered" else (0.0, 0.0)
         self._patch_free = (0.5 * (cfg.sheet_size_m[0] - cfg.patch_size_m[0]), 0.5 * (cfg.sheet_size_m[1] - cfg.patch_size_m[1]))
 
     # --- inputs (the policy's) --------------------------------------------------------------
@@ -322,6 +326,8 @@ class HapticSession:
                 damping_n_s_per_m=t.damping_n_s_per_m * scale,
                 normal=t.normal,
                 contact_radius_m=t.contact_radius_m,
+                friction_coefficient=self._friction[0],
+                slip_speed_m_s=self._friction[1],
             )
         self.last = TickResult(
             seq=self._seq,
