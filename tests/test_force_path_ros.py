@@ -22,7 +22,7 @@ from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from msgs_schema.contact_model import DEFAULT_TTL_S  # noqa: E402
 from msgs_schema.convert import read_wrench  # noqa: E402
 from msgs_schema.qos import PROFILES  # noqa: E402
-from skin_sim_node.device.render import FADE_S, MAX_TICK_S  # noqa: E402
+from skin_sim_node.device.render import FADE_S  # noqa: E402
 from skin_sim_node.scenes import Scene  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
@@ -111,11 +111,14 @@ def test_killed_node_force_fades_on_the_device_clock_and_never_steps(scene):
     i_zero = int(np.argmax(mags == 0.0))
     assert np.all(mags[i_zero:] == 0.0)
     # never a step: each command differs from the one before by at most the fade's slope over the device time
-    # between them (their stamps, at most MAX_TICK_S of it per tick), plus a tenth of the force for the hold's jitter
+    # between them (their stamps; the renderer advances at most MAX_TICK_S of it per tick, but this observer is a
+    # DDS reader that can miss commands under load, so two observed commands may be several ticks apart: the
+    # stamps' whole difference is allowed), plus a tenth of the force for the hold's jitter. test_device_caps checks
+    # the per-tick cap on the renderer itself, with every tick seen.
     seq = np.concatenate([before[-50:], after])
     m = np.linalg.norm(seq[:, 2:], axis=1)
     steps = np.abs(np.diff(m))
-    dt_s = np.minimum(np.maximum(np.diff(seq[:, 1]) * 1e-9, 0.0), MAX_TICK_S)
+    dt_s = np.maximum(np.diff(seq[:, 1]) * 1e-9, 0.0)
     allowed = f_kill * (1.5 * np.maximum(dt_s, 1e-3) / FADE_S + 0.1)
     worst = int(np.argmax(steps - allowed))
     ctx = [(round((seq[i, 1] - seq[0, 1]) * 1e-6, 1), round(float(m[i]), 4)) for i in range(max(worst - 3, 0), worst + 4)]
