@@ -67,7 +67,7 @@ TOPICS = {
         "velocity = compression rate (m/s), effort = layer stress (Pa, 0 when not affected).",
     ),
     "contact_model": TopicSpec(
-        "tool/contact_model", "skin_sim_msgs/msg/ContactModel", "haptic", "m, N, N/m, N*s/m, s", FRAMES["tissue"],
+        "tool/contact_model", "skin_sim_msgs/msg/ContactModel", "haptic", "m, m/s, N, N/m, N*s/m, 1, s", FRAMES["tissue"],
         "with each force (haptic rate), while read",
         "Local contact model for the device bridge (msgs_schema/contact_model.py, docs/devices.md): the answered pose "
         "x0, force f0, K = dF/dx, D = dF/dv, normal, validity radius, time-to-live, sequence number.",
