@@ -22,7 +22,7 @@ COMMANDS = {
         "device benchmark: CRTK emulator at 1 kHz vs node + bridge, per phase, vs offline ground truth",
     ),
     "perf-lod": ("skin_sim_node.perf.lod", "node CPU in four scenes with the level-of-detail levers off and on"),
-    "force-path": ("skin_sim_node.perf.force_path", "offline: device force error vs server rate, model vs hold-last (~10-30 s)"),
+    "force-path": ("skin_sim_node.perf.force_path", "offline: device force error vs server rate, model vs hold-last (~10 s on 2 cores)"),
     "soak": ("skin_sim_node.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),
     "scale": ("skin_sim_node.perf.scale", "how many 1 kHz sessions (node + bridge + device, own namespaces) one machine holds"),
     "netns-role": ("skin_sim_node.perf.netns", "netns_scale.sh helper: device side (bridge, device, observer); comparison"),
