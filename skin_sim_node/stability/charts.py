@@ -223,12 +223,12 @@ def main(argv=None) -> int:
     ap.add_argument("--only", choices=("numerics", "haptic", "stiffening"), help="regenerate one group")
     args = ap.parse_args(argv)
     what = {
-        "numerics": "explicit-solver maps (~30 s)",
-        "haptic": "haptic-loop sweeps (~1-2 min)",
-        "stiffening": "tangent stiffness vs depth and loop limits (~1 min)",
+        "numerics": "explicit-solver maps (~35 s)",
+        "haptic": "haptic-loop sweeps (~45 s)",
+        "stiffening": "tangent stiffness vs depth and loop limits (~30 s)",
     }
     todo = [k for k in what if args.only in (None, k)]
-    print("chart stability: " + "; ".join(what[k] for k in todo) + f" -> {args.out}", flush=True)
+    print("chart stability: " + "; ".join(what[k] for k in todo) + f" (durations measured on 2 cores) -> {args.out}", flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
     paths = []
     if args.only in (None, "numerics"):
