@@ -68,7 +68,8 @@ def draw_cross_section(
                 transform=ax.transAxes,
                 fontsize=7,
                 va="top",
-                bbox={"fc": "w", "alpha": 0.8, "lw": 0},
+                bbox={"fc": "w", "alpha": 0.9, "lw": 0},
+                zorder=7,  # over the tool, which would otherwise hide part of the note
             )
     ax.set_xlim((x0 - half) * 1e3, (x0 + half) * 1e3)
     ax.set_xlabel("x (mm)")
