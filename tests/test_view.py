@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import time
 import urllib.request
 from pathlib import Path
@@ -298,11 +299,16 @@ def test_bag_page_force_arrow_tool_cut_and_scale(bag_page, tmp_path):
     src, b = bag_page
     d = src.data
     b.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "the first grid")
-    peak = int(np.argmax(d.wrench[:, 2]))
+    # the picture shows the grid of the instant it names: the strongest press among the bag's grid instants (the hold
+    # at 4 mm), not the first peak wrench, which falls between two grids (0.3 s after the last one)
+    at_grids = [int(np.argmin(np.abs(d.wrench_t - g))) for g in d.grid_t]
+    peak = max(at_grids, key=lambda i: d.wrench[i, 2])
+    assert d.wrench[peak, 2] >= 0.99 * d.wrench[:, 2].max()
     low = int(np.argmax(d.wrench[:, 2] > 0.15 * d.wrench[peak, 2]))  # on the way down, at 15 % of the peak
     _seek(b, float(d.wrench_t[low]), d.wrench[low, 2])
     at_low = _scene_pixels(b.screenshot(tmp_path / "low.png"))
     _seek(b, float(d.wrench_t[peak]), d.wrench[peak, 2])
+    assert abs(b.evaluate("window.skinView.gridDtS")) < 1e-3  # the grid drawn is the tool's instant
     SHOTS.mkdir(parents=True, exist_ok=True)
     shot = b.screenshot(SHOTS / "view_bag_peak.png")
     at_peak = _scene_pixels(shot)
@@ -366,19 +372,26 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
             # screenshot while pressing: the canvas shows the tissue
             pressed = float(np.median([f for f in forces if f > 0.01]))  # the hold force (the press may start with a spike)
             SHOTS.mkdir(parents=True, exist_ok=True)
-            for _ in range(5):  # a shot taken while the page still shows the press (the page lags on a loaded CPU)
-                try:  # the docs picture: a grid close in time to the tool (the overlay prints the offset either way)
-                    b.wait_for(
-                        f"window.skinView.force > 0.8 * {pressed} && Math.abs(window.skinView.gridDtS) < 0.05",
-                        20,
-                        "a pressed frame with a recent grid",
-                    )
+            # the docs picture shows a press with the grid of that instant: pressed and the grid within 50 ms of the
+            # tool, both before and after the shot. On a loaded CPU the display worker's grids can lag the tool by
+            # up to a second; then the shot stays in tmp_path (the docs keep theirs) and the test says so.
+            pressed_now = f"window.skinView.force > 0.8 * {pressed} && Math.abs(window.skinView.gridDtS) < 0.05"
+            shot, good = tmp_path / "view_live.png", False
+            for _ in range(6):
+                try:
+                    b.wait_for(pressed_now, 20, "a pressed frame with a grid within 50 ms of the tool")
                 except TimeoutError:
                     b.wait_for(f"window.skinView.force > 0.8 * {pressed}", 20, "a pressed frame")
                 _rendered(b)
-                shot = b.screenshot(SHOTS / "view_live.png")
-                if b.evaluate(f"window.skinView.force > 0.5 * {pressed}"):
+                before = b.evaluate(pressed_now)
+                shot = b.screenshot(tmp_path / "view_live.png")
+                if before and b.evaluate(pressed_now):
+                    good = True
                     break
+            if good:
+                shutil.copyfile(shot, SHOTS / "view_live.png")
+            else:
+                print(f"view_live.png not saved to {SHOTS}: no pressed frame with a grid within 50 ms of the tool (load?)")
             not_bg, skin = _tissue_pixels(shot)
             assert not_bg > 0.08 and skin > 0.05, (not_bg, skin)
             assert b.evaluate("document.getElementById('mode').textContent") == f"live {ns}"
