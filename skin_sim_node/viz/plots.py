@@ -78,6 +78,12 @@ def draw_cross_section(
     ax.set_title(title, fontsize=9)
 
 
+def cross_section_legend(ax) -> None:
+    """The layers and the tool of :func:`draw_cross_section`, below the axes: inside, a deep press puts the tool's
+    corner and the fat under any corner of the legend."""
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=7, frameon=False)
+
+
 def draw_surface(ax, model: SkinModel, title: str, tool_xy: tuple[float, float] | None = None) -> None:
     """Surface height map (mm) of ``model``'s display grid; ``tool_xy``: the tool's footprint drawn dashed."""
     from matplotlib.patches import Circle
