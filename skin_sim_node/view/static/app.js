@@ -364,7 +364,10 @@ $("step-fwd").addEventListener("click", () => step(1));
 
 // --- stream -------------------------------------------------------------------------------
 let fpsCount = 0;
-setInterval(() => { $("fps").textContent = fpsCount; state.fps = fpsCount; fpsCount = 0; }, 1000);
+setInterval(() => { // held for a screenshot: the overlay keeps the rate it had, not the frames the hold let in
+  if (!state.hold) { $("fps").textContent = fpsCount; state.fps = fpsCount; }
+  fpsCount = 0;
+}, 1000);
 const heldQueue = [];
 window.skinViewRelease = () => { state.hold = false; heldQueue.splice(0).forEach(onFrame); state.heldFrames = 0; return true; };
 function onFrame(buf) {
