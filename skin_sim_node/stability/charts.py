@@ -223,7 +223,12 @@ def max_stable_stabilised(res, rate_hz: float, k_max: float = 200e3) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart stability", description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=DOCS, help="output folder (default docs/stability)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=DOCS,
+        help="output folder (skin-sim chart stability: out/chart/stability; --docs: docs/stability)",
+    )
     ap.add_argument("--only", choices=("numerics", "haptic", "stiffening"), help="regenerate one group")
     args = ap.parse_args(argv)
     what = {
