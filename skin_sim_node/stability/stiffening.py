@@ -170,26 +170,13 @@ def figures(out: Path, cfg: TissueConfig | None = None) -> list[Path]:
         ax.plot(
             p.depth_m * 1e3, max(p.tangent_n_per_m * 1e-3, 1e-6), "s" if ok else "X", color="g" if ok else "r", ms=11, mfc="none"
         )
-    if any(p.naive_stable and p.passivity_stable for p in pts):  # a legend entry only for a mark drawn
-        ax.plot(
-            [],
-            [],
-            "s",
-            color="g",
-            ms=9,
-            mfc="none",
-            label=LOOP_LABEL + "held, naive and with passivity",
-        )
-    if not all(p.naive_stable and p.passivity_stable for p in pts):
-        ax.plot(
-            [],
-            [],
-            "X",
-            color="r",
-            ms=9,
-            mfc="none",
-            label=LOOP_LABEL + "unstable, naive or with passivity",
-        )
+    held = [p.naive_stable and p.passivity_stable for p in pts]
+    for shown, mark, colour, what in (
+        (any(held), "s", "g", "held, naive and with passivity"),
+        (not all(held), "X", "r", "unstable, naive or with passivity"),
+    ):
+        if shown:  # a legend entry only for a mark drawn
+            ax.plot([], [], mark, color=colour, ms=9, mfc="none", label=LOOP_LABEL + what)
     ax.set_xlabel("press depth, settled (mm)")
     ax.set_ylabel("stiffness -dF_z/dz (N/mm, log)")
     ax.set_title(
