@@ -338,6 +338,11 @@ def test_bag_page_force_arrow_tool_cut_and_scale(bag_page, tmp_path):
     assert all(n > 300 for n in at_peak["layers"]), at_peak["layers"]
     legend = b.evaluate("document.getElementById('legend').textContent")
     assert all(name in legend for name in ("epidermis", "dermis", "fat"))
+    # each checkbox sits on one line with its label (a wrapped label left the box alone on the line above)
+    boxes = b.evaluate("""(() => [...document.querySelectorAll('label')].filter((l) => l.querySelector('input[type=checkbox]'))
+        .map((l) => { const c = l.querySelector('input').getBoundingClientRect(), r = l.getBoundingClientRect();
+                      return {text: l.textContent.trim(), one_line: r.height < 2 * Math.max(c.height, 12)}; }))()""")
+    assert len(boxes) >= 4 and all(x["one_line"] for x in boxes), boxes
     # without the cut, the bands go: the colours came from the cut
     b.evaluate("(() => { const c = document.getElementById('cutaway'); c.click(); return c.checked; })()")
     b.wait_for("window.skinView.renderedCut === false", 20, "a render without the cut")
