@@ -158,7 +158,8 @@ def figures(out: Path, cfg: TissueConfig | None = None) -> list[Path]:
         [max(r["model_tangent_n_per_mm"], 1e-6) for r in rows],
         "^--",
         color="#ff7f0e",
-        label="model, tangent one 1 kHz tick sees (that slope with the dampers' b/dt in series)",
+        label="model, tangent one 1 kHz tick sees: that slope plus the rate terms of one tick\n"
+        "(the dampers' b/dt in series; the viscoelastic arms' instantaneous stiffness where the tissue has them)",
     )
     ax.semilogy(
         d, [r["reference_tangent_n_per_mm"] for r in rows], "k-", lw=2, alpha=0.6, label="large-deformation reference, slope"
@@ -181,7 +182,7 @@ def figures(out: Path, cfg: TissueConfig | None = None) -> list[Path]:
     ax.set_ylabel("stiffness -dF_z/dz (N/mm, log)")
     ax.set_title(
         f"Stiffness against depth, {form} form, flat punch at the origin: the model's quasi-static slope, the tangent a\n"
-        "1 kHz tick sees (b/dt included), the reference's slope, and the 1 kHz loop limits",
+        "1 kHz tick sees (its rate terms b/dt included), the reference's slope, and the 1 kHz loop limits",
         fontsize=9,
     )
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=1, frameon=False)
