@@ -308,11 +308,12 @@ def test_bag_page_force_arrow_tool_cut_and_scale(bag_page, tmp_path):
     src, b = bag_page
     d = src.data
     b.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "the first grid")
-    # the picture shows the grid of the instant it names: the strongest press among the bag's grid instants (the hold
-    # at 4 mm), not the first peak wrench, which falls between two grids (0.3 s after the last one)
+    # the picture shows the grid of the instant it names: the deepest press among the bag's grid instants (the hold at
+    # 4 mm), not the largest wrench, which comes at the end of the press, between two grids (0.2-0.3 s after the last)
     at_grids = [int(np.argmin(np.abs(d.wrench_t - g))) for g in d.grid_t]
-    peak = max(at_grids, key=lambda i: d.wrench[i, 2])
-    assert d.wrench[peak, 2] >= 0.99 * d.wrench[:, 2].max()
+    peak = min(at_grids, key=lambda i: (d.header_at(d.wrench_t[i])["tool"][2], -d.wrench[i, 2]))
+    z_deepest = d.header_at(d.wrench_t[int(np.argmax(d.wrench[:, 2]))])["tool"][2]  # the press's end
+    assert d.header_at(d.wrench_t[peak])["tool"][2] <= z_deepest + 1e-6 and d.wrench[peak, 2] > 0
     low = int(np.argmax(d.wrench[:, 2] > 0.15 * d.wrench[peak, 2]))  # on the way down, at 15 % of the peak
     _seek(b, float(d.wrench_t[low]), d.wrench[low, 2])
     at_low = _scene_pixels(b.screenshot(tmp_path / "low.png"))
