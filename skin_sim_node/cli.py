@@ -26,7 +26,10 @@ COMMANDS = {
         "device benchmark: CRTK emulator at 1 kHz vs node + bridge, per phase, vs offline ground truth",
     ),
     "perf-lod": ("skin_sim_node.perf.lod", "node CPU in four scenes with the level-of-detail levers off and on"),
-    "force-path": ("skin_sim_node.perf.force_path", "offline: device force error vs server rate, model vs hold-last (~10-30 s)"),
+    "force-path": (
+        "skin_sim_node.perf.force_path",
+        "offline: device force error vs server rate, model vs hold-last (~10 s on 2 cores)",
+    ),
     "soak": ("skin_sim_node.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),
     "scale": ("skin_sim_node.perf.scale", "how many 1 kHz sessions (node + bridge + device, own namespaces) one machine holds"),
     "netns-role": ("skin_sim_node.perf.netns", "netns_scale.sh helper: device side (bridge, device, observer); comparison"),
@@ -47,7 +50,7 @@ COMMANDS = {
 CHART_TARGETS = {
     "model": ("skin_sim_node.viz.figures", "model figures: deformation, layers, modes (docs/figures)"),
     "validation": ("skin_sim_node.validation.charts", "FEM reference, speed-accuracy chart, calibration, Table II"),
-    "stability": ("skin_sim_node.stability.charts", "numerical and haptic-loop stability maps (~2 min on 2 cores)"),
+    "stability": ("skin_sim_node.stability.charts", "numerical and haptic-loop stability maps (~1.5-2 min measured on 2 cores)"),
     "performance": ("skin_sim_node.perf.charts", "cost growth against modes and grid size"),
 }
 

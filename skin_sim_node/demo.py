@@ -115,14 +115,14 @@ def deepest_figure(model, tool_xyz, path: Path, title: str, note: str) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .viz.plots import draw_cross_section, draw_surface, save_figure
+    from .viz.plots import cross_section_legend, draw_cross_section, draw_surface, save_figure
 
     x, y, z = tool_xyz
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1, 1.5]})
     draw_surface(a0, model, "surface height at that instant", tool_xy=(x, y))
     half = max(4 * model.cfg.tool_radius_m, 8e-3)
     draw_cross_section(a1, model, x, y, z, f"cross-section at y = {y * 1e3:.1f} mm, same instant", half_m=half)
-    a1.legend(loc="lower right", fontsize=7)
+    cross_section_legend(a1)
     fig.text(0.5, 0.01, note, ha="center", fontsize=8)
     fig.subplots_adjust(bottom=0.14)
     return save_figure(fig, path, title, rect=(0, 0.05, 1, 1))

@@ -35,3 +35,22 @@ def test_chart_docs_and_out_together_is_an_error(tmp_path):
     p = run(tmp_path, "model", "--docs", "--out", str(tmp_path / "x"))
     assert p.returncode == 2 and "give --docs or --out, not both" in p.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_force_path_draws_to_out_unless_told_docs(tmp_path):
+    """``skin-sim force-path`` draws its chart under out/ by default; ``--docs`` with ``--chart`` is refused."""
+    from skin_sim_node.perf import force_path
+
+    assert not force_path.OUT_CHART.is_absolute() and force_path.OUT_CHART.parts[0] == "out"
+    assert force_path.DOCS_CHART == REPO / "docs" / "figures" / "force_path_rate.png"
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    p = subprocess.run(
+        [sys.executable, "-m", "skin_sim_node.cli", "force-path", "--docs", "--chart", str(tmp_path / "x.png")],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert p.returncode == 2 and "give --docs or --chart, not both" in p.stderr
+    assert not (tmp_path / "x.png").exists()

@@ -5,10 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from skin_sim_node.bags.inputs import InputOptions, read_inputs
 from skin_sim_node.bags.offline import replay
-from skin_sim_node.bags.report import depth_layer
+from skin_sim_node.bags.report import _shaded_ms, depth_layer
 from skin_sim_node.model import SkinModel, preset
 from skin_sim_node.viz.figures import press
 from skin_sim_node.viz.plots import punch_face_gap_m
@@ -24,6 +25,10 @@ def test_report_shading_follows_the_tool_depth_not_the_layers_acting():
     assert res.n_affected[touching[0]] == 3  # what the old shading used: "fat" from the first touch
     assert layer[touching[0]] == 0 and layer[res.peak_index] == 2 and layer[0] == -1
     assert set(np.unique(layer)) == {-1, 0, 1, 2}
+    # the legend tells each band's time, the epidermis's few ms included; the bands and the lifted time fill the run
+    t = (res.stamps_ns - res.stamps_ns[0]) * 1e-9
+    shaded = [_shaded_ms(t, layer == li) for li in (-1, 0, 1, 2)]
+    assert all(ms > 0 for ms in shaded) and sum(shaded) == pytest.approx(1e3 * t[-1])
 
 
 def test_flat_punch_gap_is_measured_where_the_figure_notes_it():

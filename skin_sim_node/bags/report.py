@@ -21,7 +21,7 @@ def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..viz.plots import LAYER_COLOURS, draw_cross_section, draw_surface
+    from ..viz.plots import LAYER_COLOURS, cross_section_legend, draw_cross_section, draw_surface
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -47,7 +47,7 @@ def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
                     alpha=0.6,
                     lw=0,
                     step="mid",
-                    label=f"tool depth in the {name}'s rest depths",
+                    label=f"tool depth in the {name}'s rest depths ({_shaded_ms(t, where):.0f} ms in all)",
                 )
         ax.axvline(t[res.peak_index], color="r", lw=0.8, ls="--", label=f"peak {res.peak_force_n:.3f} N")
         ax.set_ylim(0, top)
@@ -62,11 +62,20 @@ def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
     a1 = fig.add_subplot(gs[1, 1])
     half = max(4 * model.cfg.tool_radius_m, 8e-3)
     draw_cross_section(a1, model, x, y, z, f"cross-section at y = {y * 1e3:.1f} mm, same tick (tool offset 0 ms)", half_m=half)
-    a1.legend(loc="lower right", fontsize=7)
+    cross_section_legend(a1)
     fig.tight_layout()
     fig.savefig(out_dir / "report.png", dpi=100)
     plt.close(fig)
     return summary
+
+
+def _shaded_ms(t_s: np.ndarray, where: np.ndarray) -> float:
+    """Time (ms) that ``fill_between(..., where=where, step="mid")`` shades: a thin band (the 75 um epidermis is
+    crossed in a few ms) is told by its legend entry, even where it is narrower than a pixel."""
+    if t_s.size < 2:
+        return 0.0
+    edges = np.concatenate([[t_s[0]], 0.5 * (t_s[1:] + t_s[:-1]), [t_s[-1]]])
+    return 1e3 * float(np.sum(np.diff(edges)[where]))
 
 
 def depth_layer(res: ReplayResult) -> np.ndarray:

@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from ..model import SkinModel, preset
 from .bench_model import LOD_OFF
@@ -81,11 +82,10 @@ def sweep(force_ticks: int, grid_ticks: int, repeats: int = 3) -> dict:
     }
     runs = {(axis, x): ([], []) for axis, lst in cfgs.items() for x, _ in lst}
     fpath, gpath = growth_path(force_ticks), growth_path(grid_ticks)
-    for _ in range(repeats):
-        for axis, lst in cfgs.items():
-            for x, cfg in lst:
-                runs[(axis, x)][0].append(time_steps(cfg, fpath, False))
-                runs[(axis, x)][1].append(time_steps(cfg, gpath, True))
+    points = [(axis, x, cfg) for _ in range(repeats) for axis, lst in cfgs.items() for x, cfg in lst]
+    for axis, x, cfg in tqdm(points, desc="timing points (mode counts, grid sizes; interleaved passes)", leave=False):
+        runs[(axis, x)][0].append(time_steps(cfg, fpath, False))
+        runs[(axis, x)][1].append(time_steps(cfg, gpath, True))
     rows = {"modes": [], "grid": []}
     for axis, lst in cfgs.items():
         for x, cfg in lst:
@@ -179,10 +179,20 @@ def _stats(us: np.ndarray) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart performance", description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=DOCS, help="output folder (default docs/performance)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=DOCS,
+        help="output folder (skin-sim chart performance: out/chart/performance; --docs: docs/performance)",
+    )
     ap.add_argument("--force-ticks", type=int, default=1500, help="ticks per force-path point (default 1500)")
     ap.add_argument("--grid-ticks", type=int, default=300, help="ticks per full-grid point (default 300)")
     args = ap.parse_args(argv)
+    print(
+        f"chart performance: this machine's thread CPU time per model step over {len(MODES)} mode counts and {len(GRIDS)} "
+        f"grid sizes, 3 interleaved passes -> {args.out} (timings: run it on a quiet machine)",
+        flush=True,
+    )
     rows = sweep(args.force_ticks, args.grid_ticks)
     slopes = fits(rows)
     print("step CPU time per tick, microseconds (median / p99), LOD levers off, jittered 1 kHz ticks, one run")

@@ -115,7 +115,7 @@ def haptic_figures(out: Path) -> list[Path]:
     p = DeviceParams()
     b_dev, b_all = p.damping_n_s_per_m, p.damping_n_s_per_m + p.hand_damping_n_s_per_m
     rates = np.geomspace(80, 5000, 60)
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
     for ax, stab in zip(axes, ("none", "passivity")):
         for r in CHART_RATES_HZ:
             for k in CHART_STIFFNESSES:
@@ -146,8 +146,9 @@ def haptic_figures(out: Path) -> list[Path]:
             f"{'naive coupling' if stab == 'none' else 'device-side passivity controller'}: dot stable, x unstable", fontsize=9
         )
     axes[0].set_ylabel("rendered wall stiffness K (N/mm)")
-    axes[0].legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()  # below the panels: inside, it hid swept points
+    fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=3, frameon=False)
+    fig.tight_layout(rect=(0, 0.1, 1, 1))
     p1 = out / "haptic_map.png"
     fig.savefig(p1, dpi=110)
     plt.close(fig)
@@ -186,6 +187,8 @@ def haptic_figures(out: Path) -> list[Path]:
     for a_ in (ax, bx):
         a_.set_xscale("log")
         a_.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ticks = [0.2, 0.5, 1.0, 2.0, 5.0]  # the swept range, 0.2-5 N/mm: a log axis alone labels only 10^0
+        a_.set_xticks(ticks, [f"{t:g}" for t in ticks])
         a_.set_xlabel("rendered wall stiffness K (N/mm)")
         a_.legend(fontsize=7)
     ax.axhline(1.0, color="k", ls="--", lw=0.8)
@@ -194,7 +197,8 @@ def haptic_figures(out: Path) -> list[Path]:
     bx.axhline(0.0, color="k", ls="--", lw=0.8)
     bx.set_ylabel("damping felt (N*s/m)")
     bx.set_title("damping felt: the delayed wall's own (negative) and the controller's", fontsize=9)
-    fig.tight_layout()
+    fig.text(0.5, 0.01, "x inside o: naive and passivity controller give the same figure at that K", ha="center", fontsize=7)
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
     p2 = out / "transparency.png"
     fig.savefig(p2, dpi=110)
     plt.close(fig)
@@ -219,16 +223,21 @@ def max_stable_stabilised(res, rate_hz: float, k_max: float = 200e3) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart stability", description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=DOCS, help="output folder (default docs/stability)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=DOCS,
+        help="output folder (skin-sim chart stability: out/chart/stability; --docs: docs/stability)",
+    )
     ap.add_argument("--only", choices=("numerics", "haptic", "stiffening"), help="regenerate one group")
     args = ap.parse_args(argv)
     what = {
-        "numerics": "explicit-solver maps (~30 s)",
-        "haptic": "haptic-loop sweeps (~1-2 min)",
-        "stiffening": "tangent stiffness vs depth and loop limits (~1 min)",
+        "numerics": "explicit-solver maps (~35 s)",
+        "haptic": "haptic-loop sweeps (~45 s)",
+        "stiffening": "tangent stiffness vs depth and loop limits (~30 s)",
     }
     todo = [k for k in what if args.only in (None, k)]
-    print("chart stability: " + "; ".join(what[k] for k in todo) + f" -> {args.out}", flush=True)
+    print("chart stability: " + "; ".join(what[k] for k in todo) + f" (durations measured on 2 cores) -> {args.out}", flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
     paths = []
     if args.only in (None, "numerics"):

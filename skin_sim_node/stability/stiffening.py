@@ -29,7 +29,7 @@ from tqdm import tqdm
 from ..device.stylus import DeviceParams
 from ..model import SkinModel, TissueConfig, preset
 from ..session import SessionParams
-from ..validation.methods import static_dt_s
+from ..validation.methods import static_dt_s, static_force_n
 from ..validation.references import axisym
 from . import haptic_loop as hl
 
@@ -56,6 +56,20 @@ def model_tangent_n_per_m(model: SkinModel, depth_m: float, x_m: float = 0.0, y_
     f = tick_force_n(model, depth_m, 0.0, x_m, y_m)
     t = model.tangent()
     return f, float(-np.asarray(t.stiffness_n_per_m)[2, 2])
+
+
+LOOP_LABEL = "closed loop at that depth (on the tick tangent): "
+STATIC_SLOPE_STEP_M = 1e-6
+"""Half-width of the central difference of :func:`model_static_slope_n_per_m`: 1 um, 0.4 % of the shallowest depth
+charted, so the curvature of the force adds at most ~1e-5 relative (the force's second derivative is smooth there)."""
+
+
+def model_static_slope_n_per_m(model: SkinModel, depth_m: float, x_m: float = 0.0, y_m: float = 0.0) -> float:
+    """Quasi-static slope ``dF/dd`` of the model's own settled force (a press held still, dampers relaxed:
+    :func:`~skin_sim_node.validation.methods.static_force_n`), by a central difference of
+    :data:`STATIC_SLOPE_STEP_M`. It is the springs' stiffening alone, without the dampers' ``b/dt``."""
+    h = STATIC_SLOPE_STEP_M
+    return (static_force_n(model, x_m, y_m, depth_m + h) - static_force_n(model, x_m, y_m, depth_m - h)) / (2 * h)
 
 
 def reference_tangent_n_per_m(depths_m) -> np.ndarray:
@@ -98,7 +112,13 @@ def table(cfg: TissueConfig | None = None, progress: bool = True) -> tuple[list[
     for d, kr in zip(DEPTHS_M, k_ref):
         f, k = model_tangent_n_per_m(model, d)
         rows.append(
-            {"depth_mm": d * 1e3, "force_n": f, "model_tangent_n_per_mm": k * 1e-3, "reference_tangent_n_per_mm": kr * 1e-3}
+            {
+                "depth_mm": d * 1e3,
+                "force_n": f,
+                "model_static_slope_n_per_mm": model_static_slope_n_per_m(model, d) * 1e-3,
+                "model_tangent_n_per_mm": k * 1e-3,
+                "reference_tangent_n_per_mm": kr * 1e-3,
+            }
         )
     limits = {
         "naive_exact_n_per_mm": hl.linear_k_max(RATE_HZ) * 1e-3,
@@ -115,31 +135,57 @@ def table(cfg: TissueConfig | None = None, progress: bool = True) -> tuple[list[
 
 
 def figures(out: Path, cfg: TissueConfig | None = None) -> list[Path]:
-    """Draw ``stiffening.png`` in ``out`` (model and reference tangent against depth, loop limits), print the table; the paths."""
+    """Draw ``stiffening.png`` in ``out`` and print its table; the paths.
+
+    Plotted against depth: the model's quasi-static slope (its settled force's ``dF/dd``), the tangent one 1 kHz
+    tick sees (that slope with the dampers' ``b/dt`` in series: what the loop's stability depends on), the
+    large-deformation reference's slope, the loop limits, and the closed-loop verdicts at :data:`LOOP_DEPTHS_M`.
+    """
     cfg = cfg or preset("default")
     rows, pts, limits = table(cfg)
-    form = cfg.as_flat().get("form", cfg.as_flat().get("tissue.form", "paper"))
-    fig, ax = plt.subplots(figsize=(7, 4.2))
+    form = cfg.form
+    fig, ax = plt.subplots(figsize=(8, 6.2))
     d = [r["depth_mm"] for r in rows]
-    ax.semilogy(d, [max(r["model_tangent_n_per_mm"], 1e-6) for r in rows], "o-", label=f"model dF/dx (form: {form})")
-    ax.semilogy(d, [r["reference_tangent_n_per_mm"] for r in rows], "k-", lw=2, alpha=0.6, label="large-deformation reference")
+    ax.semilogy(
+        d,
+        [max(r["model_static_slope_n_per_mm"], 1e-6) for r in rows],
+        "o-",
+        color="#1f77b4",
+        label=f"model ({form}), quasi-static slope dF/dd of its settled force",
+    )
+    ax.semilogy(
+        d,
+        [max(r["model_tangent_n_per_mm"], 1e-6) for r in rows],
+        "^--",
+        color="#ff7f0e",
+        label="model, tangent one 1 kHz tick sees: that slope plus the rate terms of one tick\n"
+        "(the dampers' b/dt in series; the viscoelastic arms' instantaneous stiffness where the tissue has them)",
+    )
+    ax.semilogy(
+        d, [r["reference_tangent_n_per_mm"] for r in rows], "k-", lw=2, alpha=0.6, label="large-deformation reference, slope"
+    )
     ax.axhline(limits["naive_exact_n_per_mm"], color="r", ls="--", lw=1, label="naive loop limit, 1 kHz (exact, 1-tick delay)")
     ax.axhline(limits["colgate_device_b_n_per_mm"], color="r", ls=":", lw=1, label="Colgate 2b/T, device damping only")
     for p in pts:
+        ok = p.naive_stable and p.passivity_stable
         ax.plot(
-            p.depth_m * 1e3,
-            max(p.tangent_n_per_m * 1e-3, 1e-6),
-            "s" if p.passivity_stable else "x",
-            color="g" if p.passivity_stable else "r",
-            ms=9,
-            mfc="none",
+            p.depth_m * 1e3, max(p.tangent_n_per_m * 1e-3, 1e-6), "s" if ok else "X", color="g" if ok else "r", ms=11, mfc="none"
         )
-    ax.set_xlabel("press depth (mm)")
-    ax.set_ylabel("tangent stiffness (N/mm)")
+    held = [p.naive_stable and p.passivity_stable for p in pts]
+    for shown, mark, colour, what in (
+        (any(held), "s", "g", "held, naive and with passivity"),
+        (not all(held), "X", "r", "unstable, naive or with passivity"),
+    ):
+        if shown:  # a legend entry only for a mark drawn
+            ax.plot([], [], mark, color=colour, ms=9, mfc="none", label=LOOP_LABEL + what)
+    ax.set_xlabel("press depth, settled (mm)")
+    ax.set_ylabel("stiffness -dF_z/dz (N/mm, log)")
     ax.set_title(
-        "tangent stiffness the haptic loop sees, against the loop limits (squares: loop with passivity stable)", fontsize=8
+        f"Stiffness against depth, {form} form, flat punch at the origin: the model's quasi-static slope, the tangent a\n"
+        "1 kHz tick sees (its rate terms b/dt included), the reference's slope, and the 1 kHz loop limits",
+        fontsize=9,
     )
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=1, frameon=False)
     fig.tight_layout()
     path = out / "stiffening.png"
     fig.savefig(path, dpi=110)
@@ -148,13 +194,13 @@ def figures(out: Path, cfg: TissueConfig | None = None) -> list[Path]:
         f"loop limits at {RATE_HZ:.0f} Hz: naive exact {limits['naive_exact_n_per_mm']:.3f} N/mm, "
         f"Colgate 2b/T (device b) {limits['colgate_device_b_n_per_mm']:.3f} N/mm"
     )
-    print("  depth mm | force N | model K N/mm | reference K N/mm")
+    print("  depth mm | force N | model quasi-static slope N/mm | model 1 kHz tick tangent N/mm | reference slope N/mm")
     for r in rows:
         print(
-            f"  {r['depth_mm']:8.2f} | {r['force_n']:7.4f} | {r['model_tangent_n_per_mm']:12.4f} "
-            f"| {r['reference_tangent_n_per_mm']:.4f}"
+            f"  {r['depth_mm']:8.2f} | {r['force_n']:7.4f} | {r['model_static_slope_n_per_mm']:29.4f} "
+            f"| {r['model_tangent_n_per_mm']:29.4f} | {r['reference_tangent_n_per_mm']:.4f}"
         )
-    print("  closed loop (session with force-rate limiter): depth mm | K N/mm | naive | passivity | max dF/dt N/s")
+    print("  closed loop (session with force-rate limiter): depth mm | tick tangent N/mm | naive | passivity | max dF/dt N/s")
     for p in pts:
         print(
             f"  {p.depth_m * 1e3:.2f} | {p.tangent_n_per_m * 1e-3:.4f} | {'stable' if p.naive_stable else 'UNSTABLE'} | "

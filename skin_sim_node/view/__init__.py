@@ -124,8 +124,8 @@ def _screenshot(server, path: Path, after_s: float, when_force_n: float = 0.0) -
             if when_force_n > 0:
                 b.wait_for(f"window.skinView.force > {when_force_n}", 60, f"a force above {when_force_n} N")
             time.sleep(after_s)
-            if when_force_n > 0:  # the picture shows the press it names: a grid within SHOT_GRID_DT_S of the tool, rendered
-                b.wait_for(
+            if when_force_n > 0:  # the picture shows the press it names: a grid within SHOT_GRID_DT_S of the tool, held
+                b.hold_when(  # the page keeps that frame until the shot (it moved on before: a 0 N picture)
                     f"window.skinView.force > {when_force_n} && Math.abs(window.skinView.gridDtS) < {SHOT_GRID_DT_S}",
                     60,
                     f"a pressed frame whose grid is within {SHOT_GRID_DT_S * 1e3:.0f} ms of the tool",
@@ -135,6 +135,7 @@ def _screenshot(server, path: Path, after_s: float, when_force_n: float = 0.0) -
             dt = b.evaluate("window.skinView.gridDtS")
             f = b.evaluate("window.skinView.force")
             shot = b.screenshot(path)
+            b.release()
             offset = f"grid {dt * 1e3:+.0f} ms from the tool" if isinstance(dt, (int, float)) else "no grid time offset known"
             print(f"skin-sim view: screenshot {shot} (force {f:.3f} N, {offset})", flush=True)
     except (OSError, RuntimeError, TimeoutError) as exc:

@@ -140,6 +140,20 @@ class Browser:
                 raise TimeoutError(f"page: {what or expression} not true within {timeout_s} s")
             time.sleep(0.1)
 
+    def hold_when(self, condition: str, timeout_s: float = 30.0, what: str = "") -> None:
+        """Wait until ``condition`` (JS over ``window.skinView``) holds, and in the same evaluation hold the page:
+        it then takes no new frame, so a screenshot shows the frame the condition was true for. :meth:`release`
+        lets frames in again."""
+        self.wait_for(
+            f"(() => {{ if ({condition}) {{ window.skinView.hold = true; return true; }} return false; }})()",
+            timeout_s,
+            what or condition,
+        )
+
+    def release(self) -> None:
+        """Let the page take frames again after :meth:`hold_when`; the frames that came meanwhile are applied in order."""
+        self.evaluate("window.skinViewRelease()")
+
     def screenshot(self, path: Path) -> Path:
         data = self.call("Page.captureScreenshot", format="png")["data"]
         path = Path(path)

@@ -127,7 +127,9 @@ def force_depth_and_release(out: Path) -> Path:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart model", description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=DOCS, help="output folder (default docs/figures)")
+    ap.add_argument(
+        "--out", type=Path, default=DOCS, help="output folder (skin-sim chart model: out/chart/model; --docs: docs/figures)"
+    )
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     for p in (fig4_cross_sections(args.out), force_depth_and_release(args.out)):

@@ -68,13 +68,20 @@ def draw_cross_section(
                 transform=ax.transAxes,
                 fontsize=7,
                 va="top",
-                bbox={"fc": "w", "alpha": 0.8, "lw": 0},
+                bbox={"fc": "w", "alpha": 0.9, "lw": 0},
+                zorder=7,  # over the tool, which would otherwise hide part of the note
             )
     ax.set_xlim((x0 - half) * 1e3, (x0 + half) * 1e3)
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("z (mm)")
     ax.set_ylim(-model.cfg.total_thickness_m * 1e3 * 1.05, 2.2)
     ax.set_title(title, fontsize=9)
+
+
+def cross_section_legend(ax) -> None:
+    """The layers and the tool of :func:`draw_cross_section`, below the axes: inside, a deep press puts the tool's
+    corner and the fat under any corner of the legend."""
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=7, frameon=False)
 
 
 def draw_surface(ax, model: SkinModel, title: str, tool_xy: tuple[float, float] | None = None) -> None:

@@ -364,8 +364,16 @@ $("step-fwd").addEventListener("click", () => step(1));
 
 // --- stream -------------------------------------------------------------------------------
 let fpsCount = 0;
-setInterval(() => { $("fps").textContent = fpsCount; state.fps = fpsCount; fpsCount = 0; }, 1000);
+setInterval(() => { // held for a screenshot: the overlay keeps the rate it had, not the frames the hold let in
+  if (!state.hold) { $("fps").textContent = fpsCount; state.fps = fpsCount; }
+  fpsCount = 0;
+}, 1000);
+const heldQueue = [];
+window.skinViewRelease = () => { state.hold = false; heldQueue.splice(0).forEach(onFrame); state.heldFrames = 0; return true; };
 function onFrame(buf) {
+  // held (state.hold, set by Browser.hold_when for a screenshot): keep the frame shown and queue the new ones; a
+  // frame sends its grid only when the grid changed, so a dropped frame would leave a stale grid after the hold
+  if (state.hold) { heldQueue.push(buf); state.heldFrames = heldQueue.length; return; }
   const dv = new DataView(buf), n = dv.getUint32(4, true);
   const h = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 8, n)));
   if (h.grid) {
