@@ -21,7 +21,7 @@ def geometry(request):
 def _cached(setup):
     path = sph.CACHE_DIR / f"sphere-{setup.key()}.npz"
     if not path.exists():
-        pytest.skip(f"sphere reference not cached ({path.name}): python -m skin_sim_node.validation.sphere_study")
+        pytest.skip(f"sphere reference not cached ({path.name}): python -m skin_sim_node.validation.sphere")
     return sph.reference(setup, progress=False)
 
 

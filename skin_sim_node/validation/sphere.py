@@ -333,3 +333,57 @@ def contact_checks(res: SphereResult) -> dict[str, float]:
         "free_surface_force_over_force": float(np.max(res.free_surface_force_n / res.forces_n)),
         "min_force_n": float(res.forces_n.min()),
     }
+
+
+STUDY_LEVELS = (0, 1)
+"""Mesh levels of the sphere's convergence study (level 2, ~17k DOFs, did not fit the time on the shared machine)."""
+
+
+def study(fresh: bool = False, progress: bool = True) -> str:
+    """The sphere reference's checks, as markdown: mesh convergence over :data:`STUDY_LEVELS` (force at the check
+    depths), the contact checks of each solve, and Hertz on a homogeneous block (linear law, level 0)."""
+    out = ["| level | DOFs | " + " | ".join(f"F {d * 1e3:g} mm (N)" for d in CHECK_DEPTHS_M) + " | a / sqrt(R d) at 0.05, 1 mm |"]
+    out.append("|---" * (len(CHECK_DEPTHS_M) + 3) + "|")
+    checks = []
+    for lvl in STUDY_LEVELS:
+        r = reference(sphere_setup(None, lvl), progress=progress, fresh=fresh)
+        rad = [
+            r.contact_radius_m[np.argmin(np.abs(r.depths_m - d))] / np.sqrt(r.setup.axi.tool_radius_m * d)
+            for d in (0.05e-3, 1e-3)
+        ]
+        out.append(
+            f"| {lvl} | {r.n_dofs} | "
+            + " | ".join(f"{float(r.force_n(d)):.5g}" for d in CHECK_DEPTHS_M)
+            + f" | {rad[0]:.2f}, {rad[1]:.2f} |"
+        )
+        checks.append((lvl, contact_checks(r), r.newton_iterations, r.solve_s))
+    out.append("")
+    for lvl, c, it, s in checks:
+        out.append(
+            f"- level {lvl}: largest penetration {c['max_penetration_over_depth']:.1e} of the depth, largest force on a free "
+            f"surface node {c['free_surface_force_over_force']:.1e} of the tool force, smallest force {c['min_force_n']:.3g} N "
+            f"(compressive); {it} Newton iterations, {s:.0f} s"
+        )
+    h = reference(homogeneous_setup(), progress=progress, fresh=fresh)
+    ax = h.setup.axi
+    dd = np.array([0.05e-3, 0.1e-3, 0.2e-3, 0.5e-3])
+    ratio = h.force_n(dd) / hertz_force_n(dd, ax.tool_radius_m, ax.moduli_pa[0], ax.poisson)
+    out.append(
+        f"- Hertz check (one material E = {ax.moduli_pa[0] / 1e3:g} kPa, {sum(ax.thickness_m) * 1e3:g} mm deep, linear law, "
+        "level 0): F / F_Hertz at " + ", ".join(f"{d * 1e3:g} mm: {x:.3f}" for d, x in zip(dd, ratio))
+    )
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    import argparse
+
+    ap = argparse.ArgumentParser(description="the sphere reference: convergence, contact checks, Hertz (cached solves)")
+    ap.add_argument("--fresh", action="store_true", help="solve again and overwrite the cache")
+    a = ap.parse_args(argv)
+    print(study(a.fresh))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
