@@ -336,7 +336,7 @@ SPHERE_MIN_DEPTH_M = 1e-15
 """Depth floor of the sphere's contact radius: ``R d`` underflows to 0 for a subnormal depth (found by the property
 test at d = 5e-324), and ``da/dd = R / 2a`` would divide by it. Far below any resolvable indentation."""
 
-SPHERE_LOAD_FACTOR = 0.560
+SPHERE_LOAD_FACTOR = 0.567
 """``C`` of the sphere's load scale ``s = C (2/3) sqrt(d / R)`` (:func:`contact_geometry`): the sphere's force over the
 flat punch's of the same radius at the same depth, in units of Hertz's half-space ratio ``(2/3) a / R``. 1 on a
 half-space; on the default stack the neo-Hookean sphere reference over the flat-punch reference is
