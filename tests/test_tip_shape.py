@@ -97,3 +97,35 @@ def test_model_sphere_is_softer_than_the_punch_and_monotone():
     fs, ks = model_curve(base.replace(**{"tool.shape": "sphere"}))
     ff, _ = model_curve(base)
     assert np.all(fs < ff) and np.all(np.diff(fs) > 0) and np.all(ks > 0)
+
+
+def test_flat_punch_stiffness_follows_the_reference():
+    """Issue 20 item 3a: the default's quasi-static dF/dd within 10 % of the punch reference over 0.5-3 mm, its
+    small-strain stiffness within 5 % of the reference's linear-law stiffness, its force within 5 % (origin)."""
+    from skin_sim_node.validation.fit_law import curve_slope
+    from skin_sim_node.validation.references import axisym
+    from skin_sim_node.validation.tip_check import SMALL_STRAIN_DEPTH_M
+
+    ref = axisym(None, progress=False)
+    lin = axisym(None, law="linear", progress=False)
+    depths = (0.5e-3, 1e-3, 1.5e-3, 2e-3, 2.5e-3, 3e-3)
+    f, k = model_curve(preset("default"), depths)
+    kr = np.array([curve_slope(ref.depths_m, ref.forces_n, d) for d in depths])
+    assert np.all(np.abs(k / kr - 1) < 0.10), k / kr
+    assert np.all(np.abs(f / ref.force_n(np.array(depths)) - 1) < 0.05)
+    k0 = model_curve(preset("default"), (SMALL_STRAIN_DEPTH_M,))[1][0]
+    assert k0 == pytest.approx(float(lin.force_n(1e-3) / 1e-3), rel=0.05)
+
+
+def test_fit_law_reproduces_the_defaults():
+    """The committed fit script's chain at the schema defaults gives the same force as the model (same law, same
+    thicknesses), so its printed fit is the source of the defaults."""
+    from msgs_schema import tissue as schema
+    from skin_sim_node.validation.fit_law import Chain
+
+    ch = Chain()
+    s = [schema.LOAD_SPREADING[la.name] for la in ch.cfg.layers]
+    d = np.array([0.5e-3, 1e-3, 3e-3])
+    f_chain = ch.forces(s, schema.STIFFENING_EXPONENT, schema.WALL_STRAIN, d)
+    f_model, _ = model_curve(preset("default"), tuple(d))
+    np.testing.assert_allclose(f_chain, f_model, rtol=1e-5)  # the static step leaves dampers at ~1e-6 (STATIC_DT_S)
