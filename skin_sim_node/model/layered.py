@@ -14,7 +14,7 @@ membrane per layer (eqs 1-3) - with four changes (docs/model.md, "The layered fo
    for every layer and ``sum c_i = d``, integrated by backward Euler (:func:`chain_solve`), which
    is passive for any ``dt``.
 4. Coulomb friction with a viscous regularisation along the tangent plane of the deformed surface,
-   and a flat or spherical tip (Hertz-like contact radius ``a = sqrt(R d)``).
+   and a flat or spherical tip (Hertz contact radius ``a = sqrt(R d)``, load ``C (2/3) sqrt(d/R)`` of the punch's).
 
 The kernels are ``@njit(cache=True, nogil=True)``, allocate nothing and are tested compiled and
 as ``.py_func`` against the NumPy/SciPy reference in :mod:`skin_sim_node.model.reference`;
@@ -458,15 +458,27 @@ SPHERE_MIN_DEPTH_M = 1e-15
 """Depth floor of the sphere's contact radius: ``R d`` underflows to 0 for a subnormal depth (found by the property
 test at d = 5e-324), and ``da/dd = R / 2a`` would divide by it. Far below any resolvable indentation."""
 
+SPHERE_LOAD_FACTOR = 0.567
+"""``C`` of the sphere's load scale ``s = C (2/3) sqrt(d / R)`` (:func:`contact_geometry`): the sphere's force over the
+flat punch's of the same radius at the same depth, in units of Hertz's half-space ratio ``(2/3) a / R``. 1 on a
+half-space; on the default stack the neo-Hookean sphere reference over the flat-punch reference is
+0.55-0.61 of Hertz's ratio at every depth from 0.05 to 3 mm (docs/validation.md, "Tip shapes"): the stiff epidermis
+shrinks the contact below ``sqrt(R d)`` at small depth (0.6 of it at 0.05 mm), the sphere's lower strains stiffen it
+less than the punch at large depth. Fitted to the model's own chain force against the sphere reference
+(least squares in ``log F`` at the check depths; ``python -m skin_sim_node.validation.tip_check --fit-sphere``)."""
+
 
 @njit(cache=True, nogil=True)
 def contact_geometry(depth, radius, sphere):
     """Contact radius ``a`` (m), load scale ``s`` and their depth derivatives for a tool ``depth`` > 0.
 
-    Flat punch: ``a = R``, ``s = 1``. Sphere of radius ``R``: ``a = sqrt(R d)`` (Hertz) up to
-    ``d = R``; on a Winkler (column) foundation the paraboloid's load is the flat punch's over the
-    contact area at half the depth, so ``s = pi a^2 / (2 pi R^2) = d / (2 R)``, and
-    ``dF/dd = k(a)``, the column stiffness of the current contact area. Scales the chain force of eq 4.
+    Flat punch: ``a = R``, ``s = 1``. Sphere of radius ``R`` (docs/model.md, "Tip"): contact radius ``a = sqrt(R d)``
+    (Hertz) up to ``d = R``, then ``R`` (the tool's shaft). The load scale follows Hertz's ratio of a sphere's
+    force to the flat punch's of its radius on a half-space, ``F_sphere / F_punch = (4/3) E* sqrt(R) d^1.5 /
+    (2 E* R d) = (2/3) sqrt(d / R)``, times the stack's factor :data:`SPHERE_LOAD_FACTOR`:
+    ``s = C (2/3) sqrt(d / R)``, capped at 1 (the punch) far below the stack. The chain force ``T(d)`` (the punch's,
+    eq 4) is linear at small depth, so ``F = s T ~ d^1.5`` (Hertz's exponent), and carries the stack's stiffening at
+    depth. Scales the chain force of eq 4.
 
     Parameters
     ----------
@@ -484,10 +496,16 @@ def contact_geometry(depth, radius, sphere):
     """
     if not sphere:
         return radius, 1.0, 0.0, 0.0
+    d = max(depth, SPHERE_MIN_DEPTH_M)
+    c = SPHERE_LOAD_FACTOR * 2.0 / 3.0
+    s = c * math.sqrt(d / radius)
+    ds_dd = 0.5 * s / d
+    if s >= 1.0:
+        s, ds_dd = 1.0, 0.0
     if depth >= radius:
-        return radius, 0.5, 0.0, 0.0
-    a = math.sqrt(radius * max(depth, SPHERE_MIN_DEPTH_M))
-    return a, depth / (2.0 * radius), 1.0 / (2.0 * radius), 0.5 * radius / a
+        return radius, s, ds_dd, 0.0
+    a = math.sqrt(radius * d)
+    return a, s, ds_dd, 0.5 * radius / a
 
 
 @njit(cache=True, nogil=True)
