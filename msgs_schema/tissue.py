@@ -122,6 +122,17 @@ material flows out from under the punch), which a law that stiffens without boun
 (best fit with the wall at 0.99: ``dF/dd`` -19 % to +27 %). Trade-off, stated: the bottom is no longer a steep wall -
 below the 5.275 mm stack the force keeps rising at about 0.9 N/mm, not 63 N/mm; a bottom wall now needs its own term in
 the law (issue 20 notes). The chain's Newton solve stays well conditioned (the law is linear past the wall)."""
+BONE_STRAIN = 0.97
+"""Layer strain at which the bottom (fascia on muscle and bone) starts to stop the tool: the compression law gains
+``K_bone (eps - 0.97)^2 / 2`` (:data:`BONE_STIFFNESS`) up to full compression and continues along its tangent past
+it. 0.97: the default layers reach it only at the stack's bottom (the fitted law has the dermis at strain 0.90 at
+3 mm and 0.94 at 4.5 mm; the wall engages between 5.0 and 5.275 mm), so the fitted force and ``dF/dd`` over
+0.05-3 mm are unchanged."""
+BONE_STIFFNESS = 10000.0
+"""``K_bone`` (dimensionless, in units of the layer's small-strain stiffness): the wall's slope grows as
+``K_bone (eps - 0.97)``, so at full compression a layer is 300 x its small-strain stiffness and the force rises at
+about 95 N/mm below the stack (``bench-model --physics`` prints the curve; the 0.99-wall law gave 63 N/mm). A
+steep, finite, C1 wall, never a clamp (stated choice)."""
 FRICTION_COEFFICIENT = 0.5
 """Dry skin: friction coefficients above 0.2 and typically around 0.5, pressure-independent (Derler and Gerhardt
 2012, Tribol Lett 45:1, review of the published measurements); moist skin is higher (> 1)."""

@@ -73,7 +73,9 @@ def test_held_indentation_relaxes_to_the_equilibrium_force(cfg):
 
 def test_recovery_after_release_is_monotone_with_two_time_scales(cfg):
     """After a 1 s hold the surface returns with no overshoot: part at once, the rest over the slow arm."""
-    peak, end, _, r50, r90, s0 = ve.relaxation_and_recovery(cfg)
+    peak, end, _, r50, r90, s0, surf = ve.relaxation_and_recovery(cfg)
+    tf, ts, inst = ve.recovery_time_constants(surf, s0)
+    assert 0.003 <= tf <= 0.03 and 0.1 <= ts <= 1.0 and 0.0 < inst < 0.5  # PMID 23604906: about 10 ms and 0.1-1 s
     assert peak > end > 0.0 and s0 == pytest.approx(2e-3, rel=1e-3)
     m = SkinModel(cfg)
     ve._press(m, 0.01)
@@ -86,9 +88,9 @@ def test_recovery_after_release_is_monotone_with_two_time_scales(cfg):
     s = np.array(surf)
     assert np.all(np.diff(s) <= 1e-9)  # no overshoot while the layers recover along their law
     assert s.min() >= -1e-6 and abs(s[-1]) < 1e-6  # back at rest within 6 s
-    assert r50 < 0.05 < 0.1 < r90 < 1.5
+    assert r50 < r90 < 1.5
     # without arms the layers are let go at once: the old release, which returns in a few ms
-    _, _, _, r50_el, r90_el, _ = ve.relaxation_and_recovery(elastic(cfg))
+    _, _, _, r50_el, r90_el, _, _ = ve.relaxation_and_recovery(elastic(cfg))
     assert r90_el < 0.02 < r90
 
 

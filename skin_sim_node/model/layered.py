@@ -28,6 +28,8 @@ import math
 import numpy as np
 from numba import njit
 
+from msgs_schema.tissue import BONE_STIFFNESS, BONE_STRAIN
+
 from .config import TissueConfig
 from .contact import ContactTangent, normal_tangent
 from .layout import (
@@ -166,8 +168,9 @@ def compression_law(eps, n, wall):
 
     ``phi = ((1 - eps)^-n - 1) / n`` (``n = 0``: ``-ln(1 - eps)``, the Hencky strain): ``phi'(0) = 1``
     so a layer's small-strain stiffness is its ``k``; ``phi -> inf`` as ``eps -> 1``; convex for any
-    ``n >= 0``. Beyond ``wall`` it continues along its tangent (a finite, steep wall). The layer's spring of
-    eq 6, made strain-stiffening: ``f_i = EA_i phi(c_i / h_i)``.
+    ``n >= 0``. Beyond ``wall`` it continues along its tangent (the fitted law's slope saturates there, as the
+    neo-Hookean punch's does); beyond :data:`BONE_STRAIN` the bottom adds ``K_bone (eps - eps_b)^2 / 2``, a steep,
+    finite wall, linear past full compression. The layer's spring of eq 6, made strain-stiffening: ``f_i = EA_i phi(c_i / h_i)``.
 
     Parameters
     ----------
@@ -194,6 +197,10 @@ def compression_law(eps, n, wall):
         dphi = 1.0 / lam
     if eps > wall:
         phi += dphi * (eps - wall)
+    if eps > BONE_STRAIN:  # the bottom: a steep, finite, C1 wall, linear past full compression
+        x = min(eps, 1.0) - BONE_STRAIN
+        phi += BONE_STIFFNESS * x * (0.5 * x + max(eps - 1.0, 0.0))
+        dphi += BONE_STIFFNESS * x
     return phi, dphi
 
 
@@ -749,7 +756,7 @@ def layered_step_kernel(
         for li in range(nl):
             h = thick[li]
             eps = c_new[li] / h
-            if eps > wall:
+            if eps > BONE_STRAIN:
                 flags |= FLAG_LAYER_BOUND
             phi, dphi = compression_law(eps, lp[LP_N, li], wall)
             hh = -ea_eff[li] * dphi * eps / h  # d(residual)/dh at fixed c

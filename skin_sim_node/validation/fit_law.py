@@ -88,7 +88,7 @@ class Chain:
         g = np.empty_like(ea)
         out = []
         for d in depths_m:
-            out.append(chain_solve(d, 0.0, ea, nn, b, STATIC_DT_S, np.zeros_like(ea), self.h, wall, c, g))
+            out.append(chain_solve(d, 0.0, ea, nn, b, STATIC_DT_S, np.zeros_like(ea), self.h, wall, np.zeros_like(ea), c, g))
         return np.array(out)
 
     def slopes(self, spreading, n, wall, depths_m, h: float = 1e-7) -> np.ndarray:
@@ -102,7 +102,8 @@ class Chain:
         nn = np.broadcast_to(np.asarray(n, dtype=float), ea.shape).copy()
         c = np.empty_like(ea)
         g = np.empty_like(ea)
-        chain_solve(depth_m, 0.0, ea, nn, np.zeros_like(ea), STATIC_DT_S, np.zeros_like(ea), self.h, wall, c, g)
+        zero = np.zeros_like(ea)  # no dampers, no old compression, no viscoelastic arms: the equilibrium law
+        chain_solve(depth_m, 0.0, ea, nn, zero, STATIC_DT_S, zero, self.h, wall, zero, c, g)
         return c / self.h
 
     def k0(self, spreading) -> float:
