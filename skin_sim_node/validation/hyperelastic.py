@@ -50,6 +50,7 @@ from tqdm import tqdm
 from msgs_schema.tissue import LOAD_SPREADING, POISSON_RATIO
 from skin_sim_node.model.config import TissueConfig, preset
 
+from .cache import cached
 from .fem import axis_nodes
 
 HYPER_VERSION = 1  # bump when the discretisation or solver changes: part of the cache key
@@ -402,9 +403,11 @@ def _result(s, pb, depths, forces, prof_d, prof_ur, prof_dn, slips, iters, wall)
 def reference(s: AxiSetup, cache_dir: Path | None = CACHE_DIR, progress: bool = True, fresh: bool = False) -> AxiResult:
     """:func:`solve` with an on-disk cache keyed by the hash of ``s`` (``fresh``: solve and overwrite)."""
     path = None if cache_dir is None else Path(cache_dir) / f"{s.key()}.npz"
-    if path is not None and path.exists() and not fresh:
-        z = np.load(path)
-        return AxiResult(
+    return cached(
+        path,
+        fresh,
+        lambda: solve(s, progress),
+        lambda z: AxiResult(
             s,
             z["depths"],
             z["forces"],
@@ -416,12 +419,8 @@ def reference(s: AxiSetup, cache_dir: Path | None = CACHE_DIR, progress: bool = 
             int(z["n_dofs"]),
             int(z["iters"]),
             float(z["solve_s"]),
-        )
-    res = solve(s, progress)
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(
-            path,
+        ),
+        lambda res: dict(
             depths=res.depths_m,
             forces=res.forces_n,
             surface_r=res.surface_r_m,
@@ -433,5 +432,5 @@ def reference(s: AxiSetup, cache_dir: Path | None = CACHE_DIR, progress: bool = 
             iters=res.newton_iterations,
             solve_s=res.solve_s,
             setup=json.dumps(asdict(s)),
-        )
-    return res
+        ),
+    )

@@ -30,6 +30,7 @@ from tqdm import tqdm
 
 from skin_sim_node.model import TissueConfig, preset
 
+from .cache import cached
 from .fem import FemSetup, _geometry_key, _modulus_field, build_mesh, mesh_levels, sparse_solve
 from .hyperelastic import CACHE_DIR, HYPER_VERSION, _lame, layer_moduli_pa, march
 
@@ -200,16 +201,14 @@ def solve(s3: Setup3D, progress: bool = True, sample_step_m: float = 0.5e-3) -> 
 def reference(s3: Setup3D, cache_dir: Path | None = CACHE_DIR, progress: bool = True, fresh: bool = False) -> Result3D:
     """:func:`solve` with the on-disk cache (``3d-<hash>.npz``)."""
     path = None if cache_dir is None else Path(cache_dir) / f"3d-{s3.key()}.npz"
-    if path is not None and path.exists() and not fresh:
-        z = np.load(path)
-        return Result3D(
+    return cached(
+        path,
+        fresh,
+        lambda: solve(s3, progress),
+        lambda z: Result3D(
             s3, z["depths"], z["forces"], z["sx"], z["sy"], z["field"], int(z["n_dofs"]), int(z["iters"]), float(z["solve_s"])
-        )
-    res = solve(s3, progress)
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(
-            path,
+        ),
+        lambda res: dict(
             depths=res.depths_m,
             forces=res.forces_n,
             sx=res.sample_x_m,
@@ -219,5 +218,5 @@ def reference(s3: Setup3D, cache_dir: Path | None = CACHE_DIR, progress: bool = 
             iters=res.newton_iterations,
             solve_s=res.solve_s,
             setup=json.dumps(asdict(s3), default=str),
-        )
-    return res
+        ),
+    )

@@ -40,6 +40,7 @@ from tqdm import tqdm
 from msgs_schema.tissue import POISSON_RATIO
 from skin_sim_node.model.config import TissueConfig, preset
 
+from .cache import cached
 from .hyperelastic import CACHE_DIR, HYPER_VERSION, AxiProblem, AxiSetup, layer_moduli_pa
 
 SPHERE_VERSION = 3  # bump when the contact treatment changes: part of the cache key
@@ -289,9 +290,11 @@ def solve(s: SphereSetup, progress: bool = True) -> SphereResult:
 def reference(s: SphereSetup, cache_dir: Path | None = CACHE_DIR, progress: bool = True, fresh: bool = False) -> SphereResult:
     """:func:`solve` with an on-disk cache (``sphere-<key>.npz``; ``fresh``: solve and overwrite)."""
     path = None if cache_dir is None else Path(cache_dir) / f"sphere-{s.key()}.npz"
-    if path is not None and path.exists() and not fresh:
-        z = np.load(path)
-        return SphereResult(
+    return cached(
+        path,
+        fresh,
+        lambda: solve(s, progress),
+        lambda z: SphereResult(
             s,
             z["depths"],
             z["forces"],
@@ -301,12 +304,8 @@ def reference(s: SphereSetup, cache_dir: Path | None = CACHE_DIR, progress: bool
             int(z["n_dofs"]),
             int(z["iters"]),
             float(z["solve_s"]),
-        )
-    res = solve(s, progress)
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(
-            path,
+        ),
+        lambda res: dict(
             depths=res.depths_m,
             forces=res.forces_n,
             contact_radius=res.contact_radius_m,
@@ -316,8 +315,8 @@ def reference(s: SphereSetup, cache_dir: Path | None = CACHE_DIR, progress: bool
             iters=res.newton_iterations,
             solve_s=res.solve_s,
             setup=json.dumps(asdict(s)),
-        )
-    return res
+        ),
+    )
 
 
 def hertz_force_n(depth_m, radius_m: float, modulus_pa: float, poisson: float = POISSON_RATIO):
