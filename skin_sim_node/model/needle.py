@@ -44,7 +44,8 @@ import numpy as np
 
 from msgs_schema.tissue import LAYER_DEFAULTS, LAYER_NAMES, TOOL_RADIUS_M
 
-from .config import TissueConfig
+from .config import WALL_STRAIN, TissueConfig
+from .interfaces import interface_depths_m
 from .layered import chain_solve
 from .layout import LP_EA, LP_N, pack_layers
 from .physics import equilibrium
@@ -160,9 +161,7 @@ class NeedleModel:
             return 0.0
         if j >= len(self._h):
             return self.cfg.total_thickness_m
-        i = self.cfg.interfaces[j - 1]
-        kx, ky = 2 * math.pi / i.wavelength_x_m, 2 * math.pi / i.wavelength_y_m
-        return i.mean_depth_m - i.amplitude_m * math.cos(kx * x) * math.cos(ky * y)
+        return float(interface_depths_m(self.cfg, x, y)[j - 1])
 
     def _crossing(self, j: int) -> float:
         """Axis length from the entry to the first point where the axis meets layer ``j``'s top (m): the first sign
@@ -208,7 +207,7 @@ class NeedleModel:
         n = self._h[sub].size
         c, g = np.zeros(n), np.zeros(n)
         t = chain_solve(w_m * down, 0.0, self._ea[sub].copy(), self._n[sub].copy(), np.zeros(n), 1.0,
-                        np.zeros(n), self._h[sub].copy(), 0.99, np.zeros(n), c, g)  # fmt: skip
+                        np.zeros(n), self._h[sub].copy(), WALL_STRAIN, np.zeros(n), c, g)  # fmt: skip
         return self._scale * max(t, 0.0) * down
 
     def step(self, tip_m, axis) -> NeedleTick:
