@@ -716,7 +716,7 @@ def layered_step_kernel(
                     c_old[li] = lstate[LS_COMP, li]
                 else:
                     clear_memory(lstate, li)
-                    phi0, _ = compression_law(c_old[li] / thick[li], lp[LP_N, li], sp[SP_WALL])
+                    phi0, _ = compression_law(c_old[li] / thick[li], lp[LP_N, li], wall)
                     lstate[LS_FE, li] = lp[LP_EA, li] * phi0
             # surface height -U(x, y) (z up): outward normal ~ (dU/dx, dU/dy, 1)
             norm = math.sqrt(gx * gx + gy * gy + 1.0)

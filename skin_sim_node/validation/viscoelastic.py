@@ -29,6 +29,7 @@ import numpy as np
 
 from skin_sim_node.model import SkinModel, TissueConfig
 from skin_sim_node.model.config import load_tissue_config, preset
+from skin_sim_node.model.physics import press
 from skin_sim_node.validation.methods import static_force_n
 
 DEPTH_M = 2e-3
@@ -69,8 +70,10 @@ class Figures:
 
 
 def _press(m: SkinModel, speed: float, depth: float = DEPTH_M) -> list[float]:
-    n = max(1, round(depth / (speed * DT_S)))
-    return [m.step((0.0, 0.0, -depth * (i + 1) / n), (0.0, 0.0, -speed), DT_S) for i in range(n)]
+    """The forces of :func:`~skin_sim_node.model.physics.press` at the centre, tick by tick (N)."""
+    forces: list[float] = []
+    press(m, 0.0, 0.0, depth, speed, DT_S, on_tick=forces.append)
+    return forces
 
 
 def static_force(cfg: TissueConfig, depth: float = DEPTH_M) -> float:
