@@ -8,7 +8,9 @@ time-to-live runs out). The bridge renders it from the device's own pose and vel
     F(x, v) = F_n(x) (n - mu v_t / sqrt(|v_t|^2 + v_s^2)) + (f0 - F_law(x0, v0)),
     F_n(x) = F_n0 + grad(F_n) . (x - x0),   v_t = (I - n n^T) v,
 
-else ``F(x, v) = f0 + K (x - x0) + D (v - v0)``. ``K`` and ``D`` are always the law's linearisation at ``x0``,
+else ``F(x, v) = f0 + K (x - x0) + D (v - v0)``. With a needle law (:class:`NeedleLaw`, issue 22) the axial part
+follows the needle's piecewise law with its rupture ahead and its Dahl friction (``ContactModel.msg`` spells it out)
+and the rest ``f0 + (I - u u^T) K (x - x0)``. ``K`` and ``D`` are always the law's linearisation at ``x0``,
 ``v0``, for consumers that render only them. The message
 definition is ``interfaces/skin_sim_msgs/msg/ContactModel.msg``, built by ``scripts/setup.sh``; why a
 package and not a layout in standard messages: ``docs/devices.md``.
@@ -21,7 +23,7 @@ on ``rosbags`` dataclasses alike. This module imports no ROS code.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -41,6 +43,62 @@ the layer thicknesses (dermis ~1.3 mm, docs/model.md); 2 mm is 20 periods of a b
 STALE_RADIUS_M = 10.0
 """Validity radius of the zero model a stale tick sends (m): larger than any device workspace (a Touch's is
 160 x 120 x 70 mm), so the bridge renders the zero force wherever the tool is."""
+
+
+@dataclass(frozen=True)
+class NeedleLaw:
+    """The needle's axial law at ``x0`` (fields and equations as the needle block of ``ContactModel.msg``).
+
+    Along the track's unit axis ``axis`` (toward the tip), ``s = axis . (x - x0)``; the axial resistance (N, > 0
+    resists insertion) is ``R_e(s) + F_c(s) z(s)``: ``R_e`` linear in ``s`` up to ``rupture_distance_m`` and, from
+    the first ``s`` that reaches it, the post-rupture line (latched); ``F_c`` the Dahl friction's Coulomb level,
+    growing with the inserted length; ``z`` the Dahl state, integrated over the device's own moves.
+    """
+
+    axis: tuple[float, float, float]
+    axial_force_n: float = 0.0
+    axial_gradient_n_per_m: float = 0.0
+    rupture_distance_m: float = 0.0
+    post_rupture_force_n: float = 0.0
+    post_rupture_gradient_n_per_m: float = 0.0
+    friction_capacity_n: float = 0.0
+    friction_capacity_gradient_n_per_m: float = 0.0
+    friction_state: float = 0.0
+    dahl_length_m: float = 1e-3
+
+    FIELDS = (
+        "axial_force_n",
+        "axial_gradient_n_per_m",
+        "rupture_distance_m",
+        "post_rupture_force_n",
+        "post_rupture_gradient_n_per_m",
+        "friction_capacity_n",
+        "friction_capacity_gradient_n_per_m",
+        "friction_state",
+        "dahl_length_m",
+    )
+    """The scalar fields, named as in the message."""
+
+    def scaled(self, k: float) -> NeedleLaw:
+        """The law with every force and gradient times ``k`` (the session's limits scale the whole force)."""
+        forces = {f: getattr(self, f) * k for f in self.FIELDS if f.endswith(("_n", "_n_per_m"))}
+        return replace(self, **forces)
+
+    @property
+    def resistance_n(self) -> float:
+        """``R(0)``: the axial resistance at ``x0``, friction included (N)."""
+        return self.axial_force_n + self.friction_capacity_n * self.friction_state
+
+    @property
+    def finite(self) -> bool:
+        """Every number finite, the axis a unit vector, ``|z| <= 1`` and ``x_0 > 0``."""
+        vals = (*self.axis, *(getattr(self, f) for f in self.FIELDS))
+        return (
+            all(math.isfinite(v) for v in vals)
+            and abs(math.hypot(*self.axis) - 1.0) < 1e-6
+            and abs(self.friction_state) <= 1.0
+            and self.dahl_length_m > 0.0
+        )
 
 
 @dataclass(frozen=True)
@@ -68,6 +126,7 @@ class LocalModel:
     normal_force_gradient_n_per_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
     friction_coefficient: float = 0.0
     slip_speed_m_s: float = 0.0
+    needle: NeedleLaw | None = None
 
     def __post_init__(self):
         for name, shape in (
@@ -96,6 +155,7 @@ class LocalModel:
             and self.validity_radius_m >= 0
             and math.isfinite(self.time_to_live_s)
             and self.time_to_live_s >= 0
+            and (self.needle is None or self.needle.finite)
         )
 
 
@@ -116,7 +176,23 @@ def fill_contact_model(msg, m: LocalModel):
     msg.normal_force_gradient_n_per_m[:] = m.normal_force_gradient_n_per_m
     msg.friction_coefficient = float(m.friction_coefficient)
     msg.slip_speed_m_s = float(m.slip_speed_m_s)
+    fill_needle_law(msg, m.needle)
     return msg
+
+
+def fill_needle_law(msg, law: NeedleLaw | None) -> None:
+    """The needle block of a ``ContactModel`` message (all zeros for ``None``: no needle law)."""
+    msg.needle_axis[:] = (0.0, 0.0, 0.0) if law is None else law.axis
+    for f in NeedleLaw.FIELDS:
+        setattr(msg, f, 0.0 if law is None else float(getattr(law, f)))
+
+
+def read_needle_law(msg) -> NeedleLaw | None:
+    """The needle block of a ``ContactModel`` message; ``None`` when its axis is zero (no needle law)."""
+    axis = tuple(float(c) for c in msg.needle_axis)
+    if not any(axis):
+        return None
+    return NeedleLaw(axis, **{f: float(getattr(msg, f)) for f in NeedleLaw.FIELDS})  # type: ignore[arg-type]
 
 
 def read_contact_model(msg) -> LocalModel:
@@ -137,6 +213,7 @@ def read_contact_model(msg) -> LocalModel:
         normal_force_gradient_n_per_m=np.array(msg.normal_force_gradient_n_per_m, dtype=float),
         friction_coefficient=float(msg.friction_coefficient),
         slip_speed_m_s=float(msg.slip_speed_m_s),
+        needle=read_needle_law(msg),
     )
 
 
@@ -176,6 +253,7 @@ def fill_contact_model_from_tick(
         mu = float(getattr(tg, "friction_coefficient", 0.0))
         msg.friction_coefficient = mu
         msg.slip_speed_m_s = float(getattr(tg, "slip_speed_m_s", 0.0)) if mu > 0.0 else 0.0
+    fill_needle_law(msg, None if result.stale else getattr(tg, "needle", None))
     msg.normal[:] = tg.normal
     msg.validity_radius_m = float(STALE_RADIUS_M if result.stale else radius_m)
     msg.time_to_live_s = float(ttl_s)

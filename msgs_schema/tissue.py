@@ -311,8 +311,9 @@ def _general_specs() -> list[ParamSpec]:
         _s(
             "tool.shape",
             "flat",
-            "tool tip: 'flat' punch of tool.radius_m, or 'sphere' of that radius (contact radius sqrt(R d); layered form)",
-            ("flat", "sphere"),
+            "tool tip: 'flat' punch of tool.radius_m, 'sphere' of that radius (contact radius sqrt(R d); layered form), or "
+            "'needle' of needle.outer_diameter_m along the pose's orientation (punctures the layers; layered form)",
+            ("flat", "sphere", "needle"),
         ),
         _f(
             "contact.friction_coefficient",
@@ -351,8 +352,34 @@ def _general_specs() -> list[ParamSpec]:
     ]
 
 
+NEEDLE_OUTER_DIAMETER_M = 0.819e-3
+"""Default ``needle.outer_diameter_m``: a 21 G hypodermic, nominal outer diameter of normal-wall tubing (ISO
+9626:2016, table 1): the common gauge of venepuncture and intramuscular injection (stated choice)."""
+
+
+def _needle_specs() -> list[ParamSpec]:
+    return [
+        _f(
+            "needle.outer_diameter_m",
+            NEEDLE_OUTER_DIAMETER_M,
+            "m",
+            "needle outer diameter (tool.shape 'needle'): 18 G 1.270e-3, 21 G 0.819e-3, 25 G 0.514e-3, 27 G 0.413e-3, "
+            "30 G 0.311e-3 (ISO 9626); the puncture thresholds, cutting and shaft friction scale with it",
+            min=0.1e-3,
+            max=2.0e-3,
+            min_exclusive=False,
+        ),
+        _b(
+            "needle.lubricated",
+            True,
+            "siliconised needle (commercial hypodermics are); false: a dry needle, 2 x the puncture, cutting and "
+            "friction forces (Schneider 1978: dry 1.5-3 x)",
+        ),
+    ]
+
+
 TISSUE_PARAMETERS: tuple[ParamSpec, ...] = tuple(
-    _general_specs() + _layer_specs() + _visco_specs() + _interface_specs() + _lod_specs()
+    _general_specs() + _layer_specs() + _visco_specs() + _interface_specs() + _lod_specs() + _needle_specs()
 )
 """Every tissue parameter, named without the ``tissue.`` prefix the node declares them with
 (:data:`msgs_schema.parameters.SPEC_BY_NAME` looks them up)."""

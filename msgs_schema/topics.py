@@ -49,7 +49,9 @@ TOPICS = {
     # --- inputs of skin_sim_node
     "tool_pose": TopicSpec(
         "tool/pose", "geometry_msgs/msg/PoseStamped", "haptic", "m", FRAMES["tissue"], "device rate (1 kHz)",
-        "Tool tip pose in the tissue frame. Orientation is carried but not used by the model.",
+        "Tool tip pose in the tissue frame. The orientation is used by the needle (tool.shape 'needle'): its axis toward "
+        "the tip is the orientation applied to (0, 0, -1), so the identity points straight down into the tissue; a "
+        "needle pose with a non-finite or non-unit quaternion is rejected. The flat punch and the sphere ignore it.",
     ),
     "tool_twist": TopicSpec(
         "tool/twist", "geometry_msgs/msg/TwistStamped", "haptic", "m/s, rad/s", FRAMES["tissue"], "device rate",
@@ -83,6 +85,11 @@ TOPICS = {
     "mesh": TopicSpec(
         "tissue/mesh", "visualization_msgs/msg/Marker", "display", "m", FRAMES["tissue"], "mesh_rate_hz, while read",
         "TRIANGLE_LIST mesh of the deformed surface, coloured by the deepest affected layer under each vertex.",
+    ),
+    "needle": TopicSpec(
+        "tissue/needle", "skin_sim_msgs/msg/NeedleState", "display", "m, N", FRAMES["tissue"], "display rate, while read",
+        "The needle (tool.shape 'needle'): tip, axis, track entry, insertion, dimple, punctured layers, the layers' "
+        "crossings along the track and the axial force's parts (interfaces/skin_sim_msgs/msg/NeedleState.msg).",
     ),
     "diagnostics": TopicSpec(
         "diagnostics", "diagnostic_msgs/msg/DiagnosticArray", "diagnostics", "-", "", "1 Hz",

@@ -114,13 +114,15 @@ class TissueConfig:
     lod: LodConfig
     flat: tuple[tuple[str, Any], ...]  # the validated dotted parameters it came from
     form: str = "layered"  # "layered" or "paper"
-    tool_shape: str = "flat"  # "flat" or "sphere"
+    tool_shape: str = "flat"  # "flat", "sphere" or "needle"
     friction_coefficient: float = 0.0
     slip_speed_m_s: float = 1e-3
     foundation_length_m: float = 0.0  # membranes' foundation decay length (modal.py); 0: bare membrane
     viscoelastic: ViscoelasticConfig = ViscoelasticConfig()  # layered form's Prony arms; default: none
     anisotropy_ratio: float = 1.0  # membrane coefficient along / across the tension lines (modal.py); 1: isotropic
     anisotropy_angle_rad: float = 0.0  # direction of the lines (and of the patch's first side) from the sheet's x axis
+    needle_outer_diameter_m: float = 0.819e-3  # tool.shape 'needle' (needle.py)
+    needle_lubricated: bool = True
 
     @property
     def total_thickness_m(self) -> float:
@@ -249,6 +251,8 @@ def build_config(flat: dict[str, Any]) -> TissueConfig:
         ),
         anisotropy_ratio=flat["anisotropy.ratio"],
         anisotropy_angle_rad=flat["anisotropy.angle_rad"],
+        needle_outer_diameter_m=flat["needle.outer_diameter_m"],
+        needle_lubricated=flat["needle.lubricated"],
     )
     _check_geometry(cfg)
     return cfg
@@ -260,6 +264,8 @@ def _check_geometry(cfg: TissueConfig) -> None:
     px, py = cfg.patch_size_m
     if px > sx or py > sy:
         raise ConfigError(f"patch {px * 1e3:.1f} x {py * 1e3:.1f} mm is larger than the sheet {sx * 1e3:.1f} x {sy * 1e3:.1f} mm")
+    if cfg.tool_shape == "needle" and cfg.form != "layered":
+        raise ConfigError("tool.shape 'needle' needs form 'layered' (its dimple is the layered form's chain)")
     if cfg.tool_radius_m >= 0.5 * min(px, py):
         raise ConfigError(f"tool.radius_m = {cfg.tool_radius_m} m must be smaller than half the patch side")
     # Exact bound: each egg-carton reaches mean +- amplitude somewhere on a large sheet, and two

@@ -93,7 +93,11 @@ def _plain_contact_model_msg():
     """A ``ContactModel``-shaped object (attribute access, arrays) for :func:`fill_contact_model_from_tick` without ROS."""
     from types import SimpleNamespace
 
+    from msgs_schema.contact_model import NeedleLaw
+
     return SimpleNamespace(
+        needle_axis=np.zeros(3),
+        **dict.fromkeys(NeedleLaw.FIELDS, 0.0),
         header=SimpleNamespace(stamp=SimpleNamespace(sec=0, nanosec=0), frame_id=""),
         sequence=0,
         x0_m=np.zeros(3),
