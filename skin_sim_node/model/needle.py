@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from msgs_schema.contact_model import NeedleLaw
 from msgs_schema.tissue import LAYER_DEFAULTS, LAYER_NAMES, TOOL_RADIUS_M
 
 from .config import WALL_STRAIN, TissueConfig
@@ -209,6 +210,78 @@ class NeedleModel:
         t = chain_solve(w_m * down, 0.0, self._ea[sub].copy(), self._n[sub].copy(), np.zeros(n), 1.0,
                         np.zeros(n), self._h[sub].copy(), WALL_STRAIN, np.zeros(n), c, g)  # fmt: skip
         return self._scale * max(t, 0.0) * down
+
+    def rupture_insertion_m(self) -> float:
+        """Insertion ``L`` (m) at which the next intact layer ruptures: its dimple force reaches ``F_p`` (bisection
+        on the monotone dimple law); inf when every layer is ruptured or the dimple never reaches it."""
+        k = self.ruptured
+        if not self.inserted or k >= len(self._h):
+            return math.inf
+        fp = self.params.puncture_force_n(k)
+        hi = 1e-4
+        while self.dimple_force_n(k, hi) < fp:
+            hi *= 2.0
+            if hi > 1.0:
+                return math.inf
+        lo = 0.0
+        for _ in range(48):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if self.dimple_force_n(k, mid) < fp else (lo, mid)
+        return float(self.crossings[k] + hi)
+
+    def copy(self) -> NeedleModel:
+        """An independent copy (state arrays included) for look-ahead."""
+        c = object.__new__(NeedleModel)
+        c.__dict__.update(self.__dict__)
+        for name in ("entry", "axis", "crossings", "dahl"):
+            setattr(c, name, getattr(self, name).copy())
+        return c
+
+    def law(self, tick: NeedleTick, tip_m) -> NeedleLaw | None:
+        """The axial law at the tip ``tip_m`` after ``tick`` (the last :meth:`step`), for the local contact model:
+        ``R_e`` and its slope, the rupture ahead and the line past it, and the Dahl friction's level, slope and state
+        (``ContactModel.msg``). None out of the tissue."""
+        if not self.inserted:
+            return None
+        pr = self.params
+        ins = tick.insertion_m
+        h = 1e-6
+        re0 = tick.dimple_n + tick.cutting_n
+        ahead = self.copy()
+        t1 = ahead.step(np.asarray(tip_m) + h * self.axis, self.axis)
+        slope = (t1.dimple_n + t1.cutting_n - re0) / h if t1.ruptured == tick.ruptured else 0.0
+        lr = self.rupture_insertion_m()
+        dist = post = post_slope = 0.0
+        if math.isfinite(lr):
+            dist = max(lr - ins, 0.0) + 1e-9
+            after = self.copy()
+            base = np.asarray(tip_m) + (dist + 1e-7) * self.axis
+            a1 = after.step(base, self.axis)
+            a2 = after.step(base + h * self.axis, self.axis)
+            post = a1.dimple_n + a1.cutting_n
+            post_slope = (a2.dimple_n + a2.cutting_n - post) / h
+        lam = pr.lubrication_factor
+        per_length = lam * pr.shaft_shear_pa * math.pi * pr.outer_diameter_m
+        cap, grows = 0.0, 0.0
+        for i in range(self.ruptured):
+            length = min(max(ins, self.crossings[i]), self.crossings[i + 1]) - self.crossings[i]
+            cap += per_length * length
+            grows += per_length if self.crossings[i] < ins < self.crossings[i + 1] else 0.0
+        if self.ruptured == len(self._h) and ins >= self.crossings[-1]:
+            grows = 0.0
+        z = min(max(tick.friction_n / cap, -1.0), 1.0) if cap > 0.0 else 0.0
+        return NeedleLaw(
+            axis=tuple(float(c) for c in self.axis),  # type: ignore[arg-type]
+            axial_force_n=re0,
+            axial_gradient_n_per_m=slope,
+            rupture_distance_m=dist,
+            post_rupture_force_n=post,
+            post_rupture_gradient_n_per_m=post_slope,
+            friction_capacity_n=cap,
+            friction_capacity_gradient_n_per_m=grows,
+            friction_state=z,
+            dahl_length_m=pr.dahl_length_m,
+        )
 
     def step(self, tip_m, axis) -> NeedleTick:
         """Advance to the tip position ``tip_m`` (m) with the needle along ``axis`` (unit vector toward the tip)."""
