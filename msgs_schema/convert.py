@@ -74,6 +74,19 @@ def read_stamped_vec3_cdr(data: bytes):
     return sec * NS + nsec, frame, struct.unpack_from(e + "3d", data, off)
 
 
+def read_pose_cdr(data: bytes):
+    """Serialized PoseStamped -> (stamp_ns, frame_id, position, orientation ``(x, y, z, w)``).
+
+    Raises ``ValueError`` with one line for a buffer that is not such a message (as :func:`read_stamped_vec3_cdr`).
+    """
+    stamp, frame, xyz = read_stamped_vec3_cdr(data)
+    e = "<" if data[1] == 1 else ">"
+    off = 4 + _align8(12 + struct.unpack_from(e + "I", data, 12)[0]) + 24
+    if off + 32 > len(data):
+        raise ValueError(f"truncated CDR pose ({len(data)} bytes): no orientation")
+    return stamp, frame, xyz, struct.unpack_from(e + "4d", data, off)
+
+
 class WrenchCdr:
     """Serialized ``geometry_msgs/WrenchStamped`` for one frame, rewritten in place (no message objects)."""
 
@@ -255,3 +268,19 @@ def fill_mesh_marker(marker, point_cls, color_cls, t_ns, frame, verts, colours, 
     marker.points = pts
     marker.colors = cols
     return marker
+
+
+def fill_needle_state(msg, state: dict, t_ns: int, frame: str):
+    """``tissue/needle`` (``skin_sim_msgs/NeedleState``) from the model's needle read-out (a dict of the message's
+    field names, ``skin_sim_node.model.needle_skin.NeedleSkin.needle_state``); attribute access only."""
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(t_ns), NS)
+    msg.header.frame_id = frame
+    msg.inserted = bool(state["inserted"])
+    for name in ("tip_m", "axis", "entry_m", "force_n"):
+        getattr(msg, name)[:] = [float(c) for c in state[name]]
+    for name in ("insertion_m", "dimple_m", "dimple_force_n", "cutting_force_n", "friction_force_n"):
+        setattr(msg, name, float(state[name]))
+    msg.ruptured_layers = int(state["ruptured_layers"])
+    msg.crossing_m = [float(c) for c in state["crossing_m"]]
+    return msg
+

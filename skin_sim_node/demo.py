@@ -95,12 +95,12 @@ def model_at(inputs, params, stamp_ns: int):
     sp, cfg = load_params(params)
     session = HapticSession(SkinModel(cfg), sp)
     prev, last = None, None
-    for stamp, rank, frame, xyz in inputs.events:
+    for stamp, rank, frame, xyz, quat in inputs.events:
         if stamp > stamp_ns:
             break
         if rank != POSE:
             session.on_twist(stamp, frame, xyz)
-        elif session.on_pose(stamp, frame, xyz) is None:
+        elif session.on_pose(stamp, frame, xyz, quat=quat) is None:
             last = session.tick(stamp, 0 if prev is None else stamp - prev)
             prev = stamp
     model = SkinModel(cfg)

@@ -74,14 +74,14 @@ class InputOptions:
 class Inputs:
     """Tool inputs in the tissue frame, merged in stamp order.
 
-    ``events``: ``(stamp_ns, rank, frame, xyz)`` with rank :data:`TWIST_FIRST` (a twist, xyz
-    is the velocity) or :data:`POSE`. ``first_bag_ns``: bag time of the first input.
+    ``events``: ``(stamp_ns, rank, frame, xyz, quat)`` with rank :data:`TWIST_FIRST` (a twist, xyz
+    is the velocity; quat None) or :data:`POSE` (quat: the orientation x, y, z, w). ``first_bag_ns``: bag time of the first input.
     """
 
     bag: Path
     pose_topic: str
     twist_topic: str | None
-    events: list[tuple[int, int, str, tuple[float, float, float]]]
+    events: list[tuple[int, int, str, tuple[float, float, float], tuple[float, float, float, float] | None]]
     n_poses: int
     n_twists: int
     first_bag_ns: int
@@ -103,7 +103,7 @@ class Inputs:
     @property
     def poses(self):
         """The pose events only: ``(stamp_ns, frame_id, xyz)`` in bag order."""
-        return [(s, f, x) for s, r, f, x in self.events if r == POSE]
+        return [(e[0], e[2], e[3]) for e in self.events if e[1] == POSE]
 
 
 def _find(types: dict[str, str], topic: str) -> str | None:
@@ -156,13 +156,16 @@ def read_inputs(bag, opts: InputOptions, tissue_frame: str = FRAMES["tissue"]) -
         m = opts.mapping if opts.convention else None
         for topic, _, t_ns, msg in iter_messages(bag, reader, [pose_topic, twist_topic] if twist_topic else [pose_topic]):
             first = t_ns if first is None else first
+            quat = None
             if topic == pose_topic:
                 stamp, frame, xyz = cv.read_pose(msg)
+                o = msg.pose.orientation
+                quat = (float(o.x), float(o.y), float(o.z), float(o.w))
                 rank = POSE
                 n_pose += 1
                 frames[frame] += 1
                 if m is not None:
-                    xyz, frame = m.to_tissue(xyz), tissue_frame
+                    xyz, frame, quat = m.to_tissue(xyz), tissue_frame, m.orientation_to_tissue(quat)
             else:
                 stamp, frame, xyz = cv.read_twist(msg)
                 rank = TWIST_FIRST
@@ -171,7 +174,8 @@ def read_inputs(bag, opts: InputOptions, tissue_frame: str = FRAMES["tissue"]) -
                     xyz, frame = m.velocity_to_tissue(xyz), tissue_frame
             if opts.frame is not None and frame == opts.frame:
                 frame = tissue_frame
-            events.append((stamp or t_ns, rank, frame, tuple(float(c) for c in xyz)))  # stamp 0: bag time, as the bridge
+            # stamp 0: bag time, as the bridge; the orientation (x, y, z, w) rides along (the needle's axis), None for a twist
+            events.append((stamp or t_ns, rank, frame, tuple(float(c) for c in xyz), quat))
     if n_pose == 0:
         raise EmptyTopicError(
             f"{bag}: pose topic '{pose_topic}' holds no messages ({n_twist} on the twist topic); nothing to replay. "

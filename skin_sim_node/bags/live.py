@@ -54,6 +54,7 @@ def _events_file(inputs: Inputs, path: Path) -> None:
         frame_names=np.array(names),
         frame_ids=np.array([names.index(e[2]) for e in inputs.events], dtype=np.int32),
         xyz=np.array([e[3] for e in inputs.events], dtype=np.float64).reshape(-1, 3),
+        quat=np.array([e[4] or (0.0, 0.0, 0.0, 1.0) for e in inputs.events], dtype=np.float64).reshape(-1, 4),
     )
 
 

@@ -25,7 +25,7 @@ HANDSHAKE_PERIOD_S = 0.01
 WATCHDOG_WAIT_S = 0.1  # > the node's 50 ms watchdog
 
 
-def stream(pose_pub, twist_pub, stamps, ranks, frames, xyz, speed: float) -> tuple[float, np.ndarray]:
+def stream(pose_pub, twist_pub, stamps, ranks, frames, xyz, speed: float, quat=None) -> tuple[float, np.ndarray]:
     """Publish every input at its recorded time / speed; returns wall time (s) and pose lateness (s)."""
     from geometry_msgs.msg import PoseStamped, TwistStamped
 
@@ -33,14 +33,15 @@ def stream(pose_pub, twist_pub, stamps, ranks, frames, xyz, speed: float) -> tup
     late = []
     first = int(stamps[0])
     t0 = time.perf_counter_ns()
-    for stamp, rank, frame, p in zip(stamps.tolist(), ranks.tolist(), frames, xyz.tolist()):
+    quats = quat.tolist() if quat is not None else [(0.0, 0.0, 0.0, 1.0)] * len(stamps)
+    for stamp, rank, frame, p, q in zip(stamps.tolist(), ranks.tolist(), frames, xyz.tolist(), quats):
         due = t0 + int((stamp - first) / speed)
         rem = due - time.perf_counter_ns()
         if rem > 200_000:
             time.sleep(rem * 1e-9)
         if rank:
             late.append(time.perf_counter_ns() - due)
-            pose_pub.publish(cv.fill_pose(pose, stamp, frame, p))
+            pose_pub.publish(cv.fill_pose(pose, stamp, frame, p, q))
         else:
             twist_pub.publish(cv.fill_twist(twist, stamp, frame, p))
     return (time.perf_counter_ns() - t0) * 1e-9, np.array(late) * 1e-9
@@ -71,7 +72,8 @@ def main(argv=None) -> int:
     msg = PoseStamped()
     i = 0
     while not select.select([sys.stdin], [], [], HANDSHAKE_PERIOD_S)[0]:
-        pose_pub.publish(cv.fill_pose(msg, args.handshake_base_ns + i * 1_000_000, frames[i0], lifted))
+        q0 = tuple(float(c) for c in d["quat"][i0]) if "quat" in d else (0.0, 0.0, 0.0, 1.0)
+        pose_pub.publish(cv.fill_pose(msg, args.handshake_base_ns + i * 1_000_000, frames[i0], lifted, q0))
         i += 1
     if not sys.stdin.readline().startswith("go"):
         return 1
@@ -79,7 +81,7 @@ def main(argv=None) -> int:
     gc.collect()
     gc.disable()
     sys.setswitchinterval(2e-4)
-    wall, late = stream(pose_pub, twist_pub, stamps, ranks, frames, xyz, args.speed)
+    wall, late = stream(pose_pub, twist_pub, stamps, ranks, frames, xyz, args.speed, d["quat"] if "quat" in d else None)
     print(
         json.dumps(
             {

@@ -144,11 +144,11 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
     prev = None
     n_grids = 0
     wq, cq = qos_profiles("tool_wrench"), qos_profiles("contact")
-    for stamp, rank, fr, xyz in inputs.events:
+    for stamp, rank, fr, xyz, quat in inputs.events:
         if rank != POSE:
             session.on_twist(stamp, fr, xyz)
             continue
-        if session.on_pose(stamp, fr, xyz) is not None:
+        if session.on_pose(stamp, fr, xyz, quat=quat) is not None:
             continue
         r = session.tick(stamp, 0 if prev is None else stamp - prev)
         prev = stamp

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from msgs_schema.contact_model import NeedleLaw
+
 Z_UP = np.array([0.0, 0.0, 1.0])
 _ZZ = np.outer(Z_UP, Z_UP)
 
@@ -40,6 +42,9 @@ class ContactTangent:
         (:func:`skin_sim_node.model.layered.contact_jacobians`).
     slip_speed_m_s : float
         The law's regularisation speed ``v_s`` (m/s); 0 with ``friction_coefficient`` 0.
+    needle : NeedleLaw or None
+        The needle's axial law (``tool.shape`` 'needle', issue 22): rupture ahead, post-rupture line, Dahl friction;
+        None for the other tools.
     """
 
     force_n: np.ndarray
@@ -49,6 +54,7 @@ class ContactTangent:
     contact_radius_m: float
     friction_coefficient: float = 0.0
     slip_speed_m_s: float = 0.0
+    needle: NeedleLaw | None = None
 
     @property
     def in_contact(self) -> bool:

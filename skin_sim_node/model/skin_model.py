@@ -100,6 +100,13 @@ class SkinModel:
     surface at z = 0; the tool depth is ``-z``. The reaction force acts along +z.
     """
 
+    def __new__(cls, cfg: TissueConfig):
+        if cls is SkinModel and cfg.tool_shape == "needle":  # the needle's model (issue 22): one class for callers
+            from .needle_skin import NeedleSkin
+
+            cls = NeedleSkin
+        return super().__new__(cls)
+
     def __init__(self, cfg: TissueConfig):
         self.cfg = cfg
         self.basis: ModalBasis = modal_basis(cfg)
@@ -217,7 +224,7 @@ class SkinModel:
         self.driven[:] = 0
         self._out[OUT_T] = 0.0
 
-    def step(self, tool_xyz, tool_velocity, dt: float, restart: bool = False) -> float:
+    def step(self, tool_xyz, tool_velocity, dt: float, restart: bool = False, axis=None) -> float:
         """Advance one tick with the tool at ``tool_xyz`` (m) moving at ``tool_velocity`` (m/s).
 
         Returns the normal reaction force magnitude in newtons (>= 0; along +z in the paper form,
@@ -225,7 +232,8 @@ class SkinModel:
         :attr:`force_vector_n`). ``dt`` (s) is the time since the previous tick; the release dynamics
         are exact for any ``dt >= 0`` and the layered form's chain is implicit (passive for any ``dt``).
         ``restart``: contact restarts after an unknown time (a first pose, a stale spell, a teleport), so the layered
-        form's viscoelastic arms start relaxed.
+        form's viscoelastic arms start relaxed. ``axis``: the tool's unit axis toward the tip, used by the needle
+        (:class:`~.needle_skin.NeedleSkin`) only.
         """
         x, y, z = tool_xyz
         if self._idle_ok and z >= 0.0 and self._out[OUT_SETTLED]:

@@ -161,6 +161,8 @@ class SkinSimNode(Node):
         self._model_msg = ContactModel()
         self._pub_model = publisher(self, "contact_model")
         self._pub_diag = publisher(self, "diagnostics")
+        self._pub_needle = publisher(self, "needle")
+        self._needle_msg = self._pub_needle.msg_type()
         self._readers_checked_ns = -READERS_CHECK_NS
         self._contact_read = self._model_read = True
         self._accepted: tuple[dict, dict, NodeParams, TissueConfig] | None = None  # on_set's validated set, for post_set
@@ -238,10 +240,10 @@ class SkinSimNode(Node):
         return self.get_clock().now().nanoseconds if self._sim_time else time.time_ns()
 
     def _decode(self, key: str, data: bytes):
-        """(stamp_ns, frame, vector) of a serialized pose or twist; None for a buffer that is not one
-        (dropped, counted in diagnostics, logged once)."""
+        """(stamp_ns, frame, position, orientation) of a serialized pose or (stamp_ns, frame, linear) of a twist; None
+        for a buffer that is not one (dropped, counted in diagnostics, logged once)."""
         try:
-            return cv.read_stamped_vec3_cdr(data)
+            return cv.read_pose_cdr(data) if key == "tool_pose" else cv.read_stamped_vec3_cdr(data)
         except ValueError as exc:
             self._n_undecodable += 1
             if self._n_undecodable == 1:
@@ -261,10 +263,10 @@ class SkinSimNode(Node):
     def _on_pose(self, data: bytes) -> None:
         if (pose := self._decode("tool_pose", data)) is None:
             return
-        stamp, frame, xyz = pose
+        stamp, frame, xyz, quat = pose
         with self._lock:
             rx = time.perf_counter_ns()
-            rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx)
+            rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx, quat=quat)
             if rejected is None and self.params.loop_mode == "input" and self._throttle.due(stamp):
                 self._tick(rx, pose_driven=True)
 
@@ -316,6 +318,7 @@ class SkinSimNode(Node):
         if now_ns >= self._next_display_ns and self.params.display_rate_hz > 0:
             self._next_display_ns = now_ns + self._display_period_ns()
             self._snapshot_display()  # after the publishes: the wrench never waits for it
+            self._publish_needle()
 
     # --- display (built and published by the display worker process) -------------------
     def _display_settings(self) -> dict:
@@ -339,6 +342,12 @@ class SkinSimNode(Node):
             return  # lod: the model did not change since the last snapshot (idle)
         self._display_key = key
         self._display.write(self.session.display_state())
+
+    def _publish_needle(self) -> None:
+        """``tissue/needle`` at the display rate, for a needle with readers (a few us; under the lock)."""
+        if (state := self.session.needle_state()) is None or self._pub_needle.get_subscription_count() == 0:
+            return
+        self._pub_needle.publish(cv.fill_needle_state(self._needle_msg, state, self._ros_now_ns(), self._frame))
 
     # --- diagnostics ------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:

@@ -8,6 +8,7 @@ from collections.abc import Callable
 # Rejection / event kinds (diagnostics keys).
 NON_FINITE = "non_finite_input"
 OUTSIDE_WORKSPACE = "outside_workspace"
+BAD_ORIENTATION = "bad_orientation"
 UNKNOWN_FRAME = "unknown_frame"
 STAMP_BACKWARDS = "stamp_backwards"
 STAMP_DUPLICATE = "stamp_duplicate"

@@ -209,19 +209,26 @@ class HapticSession:
         # the friction law the model's force follows, carried in the local contact model so the device can evaluate
         # it at its own velocity (issue 19): the layered form's F_n (n - mu v_t / sqrt(|v_t|^2 + v_s^2)); the paper
         # form's force has no friction term
-        self._friction = (cfg.friction_coefficient, cfg.slip_speed_m_s) if cfg.form == "layered" else (0.0, 0.0)
+        self._needle = cfg.tool_shape == "needle"
+        self.inputs.orientation_required = self._needle
+        self._friction = (
+            (cfg.friction_coefficient, cfg.slip_speed_m_s) if cfg.form == "layered" and not self._needle else (0.0, 0.0)
+        )
         self._patch_free = (0.5 * (cfg.sheet_size_m[0] - cfg.patch_size_m[0]), 0.5 * (cfg.sheet_size_m[1] - cfg.patch_size_m[1]))
 
     # --- inputs (the policy's) --------------------------------------------------------------
-    def on_pose(self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None, rx_ns: int | None = None) -> str | None:
-        """Validate and store a tool pose: :meth:`.inputs.InputPolicy.on_pose` (its parameters and return).
+    def on_pose(
+        self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None, rx_ns: int | None = None, quat=None
+    ) -> str | None:
+        """Validate and store a tool pose: :meth:`.inputs.InputPolicy.on_pose` (its parameters and return; ``quat``
+        the orientation ``(x, y, z, w)``, used by the needle).
 
         Returns
         -------
         str or None
             None if accepted, else the rejection kind.
         """
-        return self.inputs.on_pose(stamp_ns, frame, xyz, now_ns, rx_ns)
+        return self.inputs.on_pose(stamp_ns, frame, xyz, now_ns, rx_ns, quat)
 
     def on_twist(self, stamp_ns: int, frame: str, linear) -> str | None:
         """Validate and store a tool twist: :meth:`.inputs.InputPolicy.on_twist` (its parameters and return).
@@ -262,7 +269,7 @@ class HapticSession:
         self.velocity = ti.velocity
         if ti.release:
             model.release()
-        model.step(ti.pos, ti.velocity, ti.dt_s, ti.restart)
+        model.step(ti.pos, ti.velocity, ti.dt_s, ti.restart, ti.axis)
         self._ticks += 1
         self._regime_events(ti.pos)
         # the whole vector (normal along the deformed surface plus friction): the limits act on its magnitude and
@@ -270,7 +277,7 @@ class HapticSession:
         raw = model.force_vector_n
         magnitude = math.sqrt(float(raw @ raw))
         check = self._state_finite if self._ticks % STATE_CHECK_TICKS == 0 else None
-        published, reset = self.limits.apply(magnitude, ti.rate_dt_ns, ti.stale, check)
+        published, reset = self.limits.apply(magnitude, ti.rate_dt_ns, ti.stale, check, rises_only=self._needle)
         if reset:
             model.reset()
         return self._result(ti.answered, ti.pos, ti.velocity, *self._published_vector(raw, magnitude, published), ti.stale)
@@ -328,6 +335,7 @@ class HapticSession:
                 contact_radius_m=t.contact_radius_m,
                 friction_coefficient=self._friction[0],
                 slip_speed_m_s=self._friction[1],
+                needle=None if t.needle is None else t.needle.scaled(scale),
             )
         self.last = TickResult(
             seq=self._seq,
@@ -377,6 +385,11 @@ class HapticSession:
     def build_grid(self):
         """The display grid of the current deformation (:meth:`SkinModel.build_grid`)."""
         return self.model.build_grid()
+
+    def needle_state(self) -> dict | None:
+        """The needle's read-out (``NeedleState.msg`` fields) for the view; None for the other tools."""
+        read = getattr(self.model, "needle_state", None)
+        return read() if read is not None else None
 
     def state(self) -> dict:
         """A copy of the model's dynamic state (see :meth:`SkinModel.state`), e.g. at peak force."""

@@ -20,6 +20,19 @@ LIFTED = (0.0, 0.0, 1.0)
 
 AT_REST = (0.0, 0.0, 0.0)
 
+DOWN = (0.0, 0.0, -1.0)
+"""The tool axis of an identity orientation: straight down into the tissue (``tool_pose`` in msgs_schema/topics.py)."""
+QUATERNION_NORM_TOLERANCE = 1e-3
+"""How far a pose's quaternion norm may be from 1 for a tool that uses its orientation (the needle): a driver's
+double-precision rotation is within 1e-12, a float32 one within 1e-6; a norm off by more is an uninitialised or
+corrupt orientation (the all-zero quaternion of a default-constructed message among them), rejected rather than
+guessed (stated choice)."""
+
+
+def quaternion_axis(qx: float, qy: float, qz: float, qw: float) -> tuple[float, float, float]:
+    """The unit quaternion ``(x, y, z, w)`` applied to ``(0, 0, -1)``: minus the rotation matrix's third column."""
+    return (-2.0 * (qx * qz + qw * qy), -2.0 * (qy * qz - qw * qx), -(1.0 - 2.0 * (qx * qx + qy * qy)))
+
 
 class TickInput(NamedTuple):
     """What one tick runs the model at (:meth:`InputPolicy.take`).
@@ -48,6 +61,8 @@ class TickInput(NamedTuple):
         Contact restarts (the first pose after a start, a resync or a stale spell, or a teleport): the tool has been
         where it is for an unknown time, so the model starts from the quasi-static state (dampers and viscoelastic
         arms relaxed).
+    axis : tuple of 3 float
+        The tool's unit axis toward its tip, from the pose's orientation (:func:`quaternion_axis`; the needle's).
     """
 
     answered: bool
@@ -59,6 +74,7 @@ class TickInput(NamedTuple):
     hold: bool = False
     rate_dt_ns: int = 0
     restart: bool = False
+    axis: tuple[float, float, float] = DOWN
 
 
 def velocity_estimate(
@@ -124,6 +140,8 @@ class InputPolicy:
         self._event = event
         self.pose_stamp_ns: int | None = None  # last accepted pose
         self.pose = LIFTED
+        self.axis = DOWN  # the last accepted pose's tool axis
+        self.orientation_required = False  # the tool uses the orientation (the needle): a bad quaternion is rejected
         self.pose_rx_ns: int | None = None  # caller clock when it arrived
         self._prev_pose_stamp_ns: int | None = None
         self._prev_pose = LIFTED
@@ -136,7 +154,9 @@ class InputPolicy:
         self.stale = True
         self.answered_stamp_ns = 0
 
-    def on_pose(self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None, rx_ns: int | None = None) -> str | None:
+    def on_pose(
+        self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None, rx_ns: int | None = None, quat=None
+    ) -> str | None:
         """Validate and store a tool pose.
 
         Parameters
@@ -152,6 +172,10 @@ class InputPolicy:
             as offline replay does).
         rx_ns : int, optional
             Arrival time on the clock that :meth:`take` gets (default ``now_ns``, else the stamp).
+        quat : sequence of 4 float, optional
+            The pose's orientation ``(x, y, z, w)`` (default identity). Non-finite: rejected; with
+            :attr:`orientation_required` (the needle) a norm off 1 by more than :data:`QUATERNION_NORM_TOLERANCE` is
+            rejected too, and the tool axis is :func:`quaternion_axis` of the normalised quaternion.
 
         Returns
         -------
@@ -170,6 +194,20 @@ class InputPolicy:
             )
         if frame != p.tissue_frame:
             return self._event(ev.UNKNOWN_FRAME, f"rejected tool pose in frame '{frame}', expected '{p.tissue_frame}'")
+        axis = DOWN
+        if quat is not None:
+            qx, qy, qz, qw = (float(c) for c in quat)
+            norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+            if not math.isfinite(norm):
+                return self._event(ev.NON_FINITE, f"rejected tool pose with non-finite orientation ({qx}, {qy}, {qz}, {qw})")
+            if self.orientation_required:
+                if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+                    return self._event(
+                        ev.BAD_ORIENTATION,
+                        f"rejected tool pose: orientation quaternion ({qx:.3g}, {qy:.3g}, {qz:.3g}, {qw:.3g}) has norm "
+                        f"{norm:.4g}, not 1 (the needle's axis comes from it)",
+                    )
+                axis = quaternion_axis(qx / norm, qy / norm, qz / norm, qw / norm)
         if now_ns is not None and p.max_stamp_age_s > 0:
             age = (now_ns - stamp_ns) * 1e-9
             if age > p.max_stamp_age_s:
@@ -201,7 +239,7 @@ class InputPolicy:
                 self._teleported = True
                 self._event(ev.TELEPORT, f"tool jumped {dist * 1e3:.1f} mm in {dt * 1e3:.2f} ms: contact restarted")
         self._prev_pose_stamp_ns, self._prev_pose = self.pose_stamp_ns, self.pose
-        self.pose_stamp_ns, self.pose = stamp_ns, (x, y, z)
+        self.pose_stamp_ns, self.pose, self.axis = stamp_ns, (x, y, z), axis
         self.pose_rx_ns = rx_ns if rx_ns is not None else (now_ns if now_ns is not None else stamp_ns)
         self._pending = True
         return None
@@ -288,7 +326,9 @@ class InputPolicy:
             if answered and not restart:  # a released tissue relaxing, or a restart, in steps of max_dt_s is no event
                 self._event(ev.TICK_CLAMPED, f"tick interval {dt * 1e3:.1f} ms advanced as max_dt_s = {p.max_dt_s * 1e3:.0f} ms")
             dt = p.max_dt_s
-        return TickInput(answered, stale, pos, v, dt, release, hold=False, rate_dt_ns=max(rate_dt_ns, 0), restart=restart)
+        return TickInput(
+            answered, stale, pos, v, dt, release, hold=False, rate_dt_ns=max(rate_dt_ns, 0), restart=restart, axis=self.axis
+        )
 
 
 ANSWER_ALL_HZ = 1000.0

@@ -48,7 +48,12 @@ class ForceLimits:
         self._rate_budget_n = math.inf  # force-rate token bucket, capped at each tick
 
     def apply(
-        self, force: float, elapsed_ns: int, stale: bool, state_finite: Callable[[], bool] | None = None
+        self,
+        force: float,
+        elapsed_ns: int,
+        stale: bool,
+        state_finite: Callable[[], bool] | None = None,
+        rises_only: bool = False,
     ) -> tuple[float, bool]:
         """The force to publish for the model's ``force``, and whether the model must be reset to rest.
 
@@ -63,6 +68,9 @@ class ForceLimits:
         state_finite : callable() -> bool, optional
             Asked (only while the force is finite) whether the model's state is still finite; None skips it
             (the session asks every 64 ticks).
+        rises_only : bool
+            The rate bound limits rises only (the needle, issue 22): a falling force takes energy from no one, and a
+            needle's puncture drop is the event the hand must feel within one tick, not spread over several.
 
         Returns
         -------
@@ -83,14 +91,15 @@ class ForceLimits:
             rate = p.max_force_rate_n_per_s
             elapsed_s = max(elapsed_ns, 0) * 1e-9
             budget = min(self._rate_budget_n + rate * elapsed_s, rate * max(elapsed_s, RATE_ALLOWANCE_S))
-            if abs(force - self.force_n) > budget:
+            if abs(force - self.force_n) > budget and not (rises_only and force < self.force_n):
                 self._event(
                     FORCE_RATE_LIMITED,
                     f"force step {self.force_n:.3f} -> {force:.3f} N after {max(elapsed_ns, 0) * 1e-6:.2f} ms limited "
                     f"to {budget:.3f} N by max_force_rate_n_per_s = {rate:g} N/s",
                 )
                 force = self.force_n + math.copysign(budget, force - self.force_n)
-            self._rate_budget_n = budget - abs(force - self.force_n)
+            change = max(force - self.force_n, 0.0) if rises_only else abs(force - self.force_n)
+            self._rate_budget_n = budget - change
             force = min(force, p.max_force_n)  # the clamp is the hard limit, also right after a live lowering
         if stale:
             force = 0.0  # a safety stop is not rate limited

@@ -1,0 +1,164 @@
+"""``NeedleSkin``: the skin model under a needle (``tool.shape`` 'needle', issue 22).
+
+The force is the needle's (:class:`~.needle.NeedleModel`: dimple, puncture, cutting, shaft friction, lateral bed
+along the track). The layered kernel of :class:`~.skin_model.SkinModel` still runs, for the deformation only: it is
+driven at the tip with the dimple's normal depth while a layer ahead is intact, so the grid shows the dimple before
+the puncture, and it is lifted off once every layer is cut, so the grid shows the release (the layers recover along
+their own law, the paper's return to rest). Its own force is not published. The kernel's tool radius is the needle's.
+
+``SkinModel(cfg)`` returns a ``NeedleSkin`` for a needle configuration, so every caller gets the needle through the
+one model class.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .config import TissueConfig
+from .contact import ContactTangent
+from .layout import FLAG_CONTACT, FLAG_OFF_SHEET
+from .needle import LATERAL_FACTOR, NeedleModel, NeedleParams, NeedleTick
+from .skin_model import SkinModel
+
+DOWN = (0.0, 0.0, -1.0)
+"""The needle axis of an identity orientation: straight down into the tissue (msgs_schema/topics.py, tool_pose)."""
+LIFT_M = 1e-3
+"""Height (m) the deformation kernel's tool is lifted to once no layer ahead is dimpled: off the tissue."""
+
+
+class NeedleSkin(SkinModel):
+    """The layered skin under a needle of ``cfg.needle_outer_diameter_m`` (module docstring).
+
+    Parameters
+    ----------
+    cfg : TissueConfig
+        A validated needle configuration (``tool_shape == 'needle'``, layered form).
+    """
+
+    def __init__(self, cfg: TissueConfig):
+        radius = 0.5 * cfg.needle_outer_diameter_m
+        super().__init__(dataclasses.replace(cfg, tool_radius_m=radius))
+        self.cfg = cfg
+        self.needle = NeedleModel(
+            cfg, NeedleParams(outer_diameter_m=cfg.needle_outer_diameter_m, lubricated=cfg.needle_lubricated)
+        )
+        self._radius = radius
+        self._tip = np.zeros(3)
+        self.last_needle = NeedleTick(np.zeros(3))
+
+    def reset(self) -> None:
+        """Return to rest and withdraw the needle (no track)."""
+        super().reset()
+        if hasattr(self, "needle"):
+            self.needle.reset()
+            self.last_needle = NeedleTick(np.zeros(3))
+
+    def release(self) -> None:
+        """End contact now (a teleport or a stale input): the tissue relaxes and the track is forgotten."""
+        super().release()
+        self.needle.reset()
+        self.last_needle = NeedleTick(np.zeros(3))
+
+    def step(self, tool_xyz, tool_velocity, dt: float, restart: bool = False, axis=DOWN) -> float:
+        """Advance one tick with the needle's tip at ``tool_xyz`` (m) along the unit ``axis`` (toward the tip).
+
+        Returns the magnitude of the force on the needle (N); :attr:`force_vector_n` is the vector.
+        """
+        tip = np.asarray(tool_xyz, dtype=float)
+        self._tip = tip
+        t = self.last_needle = self.needle.step(tip, axis)
+        u = self.needle.axis
+        ahead = self.needle.inserted and t.ruptured < len(self.cfg.layers) and t.dimple_m > 0.0
+        depth = t.dimple_m * abs(u[2]) if ahead else -LIFT_M
+        v = tool_velocity if ahead else (0.0, 0.0, 0.0)
+        super().step((tip[0], tip[1], -depth), v, dt, restart)
+        self.flags = FLAG_CONTACT if self.needle.inserted else (self.flags & FLAG_OFF_SHEET)
+        return self.force_n
+
+    # --- the needle's force and its tangent -------------------------------------------------
+    @property
+    def force_n(self) -> float:
+        """Magnitude of the force on the needle (N) of the last step."""
+        f = self.last_needle.force_n
+        return float(math.sqrt(float(f @ f)))
+
+    @property
+    def force_vector_n(self) -> np.ndarray:
+        """Force on the needle (N, tissue frame) of the last step: ``-R u`` along the track plus the lateral bed."""
+        return np.asarray(self.last_needle.force_n, dtype=float).copy()
+
+    @property
+    def contact_normal(self) -> np.ndarray:
+        """``-u``: the direction the axial resistance pushes the needle (``+z`` out of the tissue)."""
+        return -self.needle.axis.copy() if self.needle.inserted else np.array([0.0, 0.0, 1.0])
+
+    @property
+    def contact_radius_m(self) -> float:
+        """The needle's radius while it is in the tissue (m), else 0."""
+        return self._radius if self.needle.inserted else 0.0
+
+    @property
+    def depth_m(self) -> float:
+        """Depth of the tip below the rest surface (m), 0 out of the tissue."""
+        return max(-float(self._tip[2]), 0.0) if self.needle.inserted else 0.0
+
+    @property
+    def n_affected(self) -> int:
+        """Layers the needle has cut, plus the one it dimples."""
+        t = self.last_needle
+        return min(t.ruptured + (1 if t.dimple_m > 0.0 else 0), len(self.cfg.layers)) if self.needle.inserted else 0
+
+    @property
+    def in_contact(self) -> bool:
+        """True while the needle is in the tissue (a track)."""
+        return self.needle.inserted
+
+    def lateral_stiffness_n_per_m(self) -> float:
+        """Stiffness of the bed that holds the shaft in its track, at the tip (N/m): ``0.5 sum_i k_l E_i l_i``."""
+        nd, t = self.needle, self.last_needle
+        c = nd.crossings
+        k = 0.0
+        for i in range(nd.ruptured):
+            k += LATERAL_FACTOR * nd._moduli[i] * (min(max(t.insertion_m, c[i]), c[i + 1]) - c[i])
+        return 0.5 * k
+
+    def tangent(self) -> ContactTangent:
+        """The needle's force and its local derivatives: ``K = -k_a u u^T - k_l (I - u u^T)``, ``D = 0`` (position
+        laws: the dimple's equilibrium chain, the cutting ramp and Dahl's friction are rate-independent), and the
+        axial law for the device (:meth:`NeedleModel.law`).
+
+        ``k_a`` is the slope of the axial resistance: the dimple's or cutting ramp's plus Dahl's presliding slope
+        ``F_c (1 - |z|) / x_0`` and the capacity's growth ``z dF_c/ds``.
+        """
+        t = self.last_needle
+        law = self.needle.law(t, self._tip)
+        f = np.asarray(t.force_n, dtype=float).copy()
+        if law is None:
+            return ContactTangent(f, np.zeros((3, 3)), np.zeros((3, 3)), np.array([0.0, 0.0, 1.0]), 0.0)
+        u = np.asarray(law.axis)
+        uu = np.outer(u, u)
+        cap, z = law.friction_capacity_n, law.friction_state
+        k_a = law.axial_gradient_n_per_m + cap * (1.0 - abs(z)) / law.dahl_length_m + z * law.friction_capacity_gradient_n_per_m
+        k = -max(k_a, 0.0) * uu - self.lateral_stiffness_n_per_m() * (np.eye(3) - uu)
+        return ContactTangent(f, k, np.zeros((3, 3)), -u, self._radius, needle=law)
+
+    def needle_state(self) -> dict:
+        """The needle for the view, charts and bags (``NeedleState.msg`` fields)."""
+        nd, t = self.needle, self.last_needle
+        return {
+            "inserted": nd.inserted,
+            "tip_m": self._tip.copy(),
+            "axis": nd.axis.copy(),
+            "entry_m": nd.entry.copy(),
+            "insertion_m": t.insertion_m,
+            "dimple_m": t.dimple_m,
+            "ruptured_layers": t.ruptured,
+            "crossing_m": nd.crossings.copy() if nd.inserted else np.zeros(0),
+            "dimple_force_n": t.dimple_n,
+            "cutting_force_n": t.cutting_n,
+            "friction_force_n": t.friction_n,
+            "force_n": np.asarray(t.force_n, dtype=float).copy(),
+        }
