@@ -283,4 +283,3 @@ def fill_needle_state(msg, state: dict, t_ns: int, frame: str):
     msg.ruptured_layers = int(state["ruptured_layers"])
     msg.crossing_m = [float(c) for c in state["crossing_m"]]
     return msg
-

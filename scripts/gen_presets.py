@@ -1,4 +1,5 @@
-"""Regenerate config/default.yaml, config/paper.yaml, config/isotropic.yaml and docs/parameters.md from the schema.
+"""Regenerate config/default.yaml, config/paper.yaml, config/isotropic.yaml, config/needle.yaml and docs/parameters.md
+from the schema.
 
 The presets are written twice: ``config/`` at the top, where the README and the command lines point, and
 ``skin_sim_node/config/``, the package data that :func:`skin_sim_node.model.config.preset` reads in an install.
@@ -7,7 +8,8 @@ default: every schema default (the layered form). paper: the paper's form (Fig 3
 velocity), one mode, no damping, LOD levers off, the Sneddon flat-punch k of the moduli it always had,
 and each layer's tension set so that c = 0.0032 * 0.06 / (pi sqrt 2) m/s, i.e. lambda_11 = 0.0032 rad/s
 as in eq 9; isotropic (the paper's own membrane too). isotropic: the default with no tension lines
-(``anisotropy.ratio = 1``), the model as calibrated against the isotropic neo-Hookean references.
+(``anisotropy.ratio = 1``), the model as calibrated against the isotropic neo-Hookean references. needle: the
+default under a 21 G needle (``tool.shape`` 'needle').
 """
 
 import math
@@ -53,7 +55,7 @@ def write_parameter_doc(path: Path = DOCS) -> None:
     path.write_text("\n".join(rows) + "\n")
 
 
-PRESETS = ("default.yaml", "paper.yaml", "isotropic.yaml")
+PRESETS = ("default.yaml", "paper.yaml", "isotropic.yaml", "needle.yaml")
 """The preset files written (``config/`` and the package copies)."""
 PRESET_KEY = "/**/" + NODE_NAME
 """The presets' top key: the node in any namespace (rcl's ``**`` wildcard). A bare ``skin_sim_node:`` matches only
@@ -94,6 +96,10 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS, package_config_dir: P
     isotropic[TISSUE_PREFIX + "anisotropy.ratio"] = 1.0  # no tension lines
     config_from_flat(tissue_part(isotropic, TISSUE_PREFIX))
     dump_yaml(isotropic, config_dir / "isotropic.yaml", PRESET_KEY)
+    needle = dict(default)
+    needle[TISSUE_PREFIX + "tool.shape"] = "needle"  # the default tissue under a 21 G needle (issue 22)
+    config_from_flat(tissue_part(needle, TISSUE_PREFIX))
+    dump_yaml(needle, config_dir / "needle.yaml", PRESET_KEY)
     package_config_dir.mkdir(parents=True, exist_ok=True)
     for name in PRESETS:
         (package_config_dir / name).write_text((config_dir / name).read_text())

@@ -13,7 +13,7 @@ import yaml
 from msgs_schema import convert as cv
 from msgs_schema.topics import TOPICS
 from skin_sim_node.bags import compare, replay
-from skin_sim_node.bags.golden import GRID_RATE_HZ, SCENES, write_trajectory_bag
+from skin_sim_node.bags.golden import GRID_RATE_HZ, SCENE_PARAMS, SCENES, write_trajectory_bag
 from skin_sim_node.bags.inputs import InputOptions, read_inputs
 from skin_sim_node.bags.io import (
     BagNotFoundError,
@@ -30,6 +30,7 @@ from skin_sim_node.bags.io import (
 from skin_sim_node.bags.offline import bag_topic, replay_to_bag
 from skin_sim_node.bags.offline import replay as replay_offline
 from skin_sim_node.device.mapping import DeviceMapping
+from skin_sim_node.scenes import DEFAULT_PARAMS
 
 DATA = Path(__file__).parent / "data"
 PRESS = DATA / "press_hold_release" / "input"
@@ -107,7 +108,8 @@ def test_offline_replay_is_deterministic(tmp_path):
 @pytest.mark.parametrize("scene", SCENES)
 def test_golden_regression(tmp_path, scene):
     out = tmp_path / "out"
-    res = replay_to_bag(read_inputs(DATA / scene / "input", InputOptions()), out, grid_rate_hz=GRID_RATE_HZ)
+    inputs = read_inputs(DATA / scene / "input", InputOptions())
+    res = replay_to_bag(inputs, out, SCENE_PARAMS.get(scene, DEFAULT_PARAMS), grid_rate_hz=GRID_RATE_HZ)
     d = compare.diff_outputs(compare.read_outputs(DATA / scene / "expected"), compare.read_outputs(out))
     assert compare.verdict(d, compare.EXACT) == []
     assert d.matched == res.stamps_ns.size > 2000 and d.grids_matched >= 4

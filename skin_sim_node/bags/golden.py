@@ -29,8 +29,10 @@ from .offline import bag_topic, replay_to_bag
 T0_NS = 1_700_000_000 * 1_000_000_000
 """Stamp of the first sample: a fixed epoch, so the bags are reproducible byte for byte."""
 
-SCENES = ("press_hold_release", "press_all_layers", "edge_press", "drag")
-"""press/hold/release, all three layers, edge, drag."""
+SCENES = ("press_hold_release", "press_all_layers", "edge_press", "drag", "needle_oblique_30")
+"""press/hold/release, all three layers, edge, drag, and a 21 G needle at 30 degrees through every layer."""
+SCENE_PARAMS = {"needle_oblique_30": DEFAULT_PARAMS.parent / "needle.yaml"}
+"""The parameter file of a scene that does not run the default (the needle's preset)."""
 
 GRID_RATE_HZ = 2.0
 """Grid frames in the expected outputs: 2 per second keeps tests/data under 2 MB (a
@@ -68,9 +70,10 @@ def write_trajectory_bag(
         for k in range(n):
             stamp = t0_ns + k * period_ns
             xyz, v = traj.sample(k * period_ns * 1e-9)
+            q = traj.orientation
             if mapping is not None:
-                xyz, v = mapping.to_device(xyz), mapping.velocity_to_device(v)
-            w.write(pt, TOPICS["tool_pose"].type, stamp, cv.fill_pose(pose, stamp, frame, xyz), qos_profiles("tool_pose"))
+                xyz, v, q = mapping.to_device(xyz), mapping.velocity_to_device(v), mapping.orientation_to_device(q)
+            w.write(pt, TOPICS["tool_pose"].type, stamp, cv.fill_pose(pose, stamp, frame, xyz, q), qos_profiles("tool_pose"))
             w.write(tt, TOPICS["tool_twist"].type, stamp, cv.fill_twist(twist, stamp, frame, v), qos_profiles("tool_twist"))
     return path
 
@@ -85,7 +88,11 @@ def make_golden(out_dir: Path, scenes=SCENES, params=DEFAULT_PARAMS) -> dict[str
         d.mkdir(parents=True)
         write_trajectory_bag(d / "input", name)
         res = replay_to_bag(
-            read_inputs(d / "input", InputOptions()), d / "expected", params, grid_rate_hz=GRID_RATE_HZ, compress=True
+            read_inputs(d / "input", InputOptions()),
+            d / "expected",
+            SCENE_PARAMS.get(name, params),
+            grid_rate_hz=GRID_RATE_HZ,
+            compress=True,
         )
         summaries[name] = res.summary()
     return summaries

@@ -212,6 +212,14 @@ class DeviceMapping:
             return (0.0, 0.0, 0.0, 1.0)
         return _quat_mul(self._q, q_device)
 
+    def orientation_to_device(self, q_tissue: Sequence[float]) -> Quat:
+        """Tissue orientation quaternion (x, y, z, w) -> device; inverse of :meth:`orientation_to_tissue` (identity for
+        an improper ``R``)."""
+        if self._q is None or not _finite(q_tissue):
+            return (0.0, 0.0, 0.0, 1.0)
+        qx, qy, qz, qw = self._q
+        return _quat_mul((-qx, -qy, -qz, qw), q_tissue)
+
     def force_to_device(self, f_tissue: Sequence[float]) -> Vec3:
         """Tissue force (N) -> device force command (N): ``force_scale * R^T f``, magnitude clamped.
 

@@ -83,7 +83,7 @@ class MockToolNode(ScriptedNode):
         # twist first: a receiver that ticks on the pose then finds the twist of the same stamp
         if self._twist_pub is not None:
             publish_while_ok(self, self._twist_pub, fill_twist(self._twist, stamp, self.frame, vel))
-        if not publish_while_ok(self, self._pose_pub, fill_pose(self._pose, stamp, self.frame, pos)):
+        if not publish_while_ok(self, self._pose_pub, fill_pose(self._pose, stamp, self.frame, pos, self.traj.orientation)):
             return
         if self.p.exit_when_done and self.clock.done(t):
             self.finish("trajectory done: shutting down")

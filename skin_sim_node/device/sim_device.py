@@ -137,7 +137,9 @@ class SimDeviceNode(ScriptedNode):
             publish_while_ok(self, self._twist_pub, fill_twist(self._twist, stamp, self.p.frame_id, vel))
         if self._cf_pub is not None:
             publish_while_ok(self, self._cf_pub, fill_wrench(self._cf, stamp, self.p.frame_id, self.device.applied_force_n))
-        if not publish_while_ok(self, self._pose_pub, fill_pose(self._pose, stamp, self.p.frame_id, pos)):
+        if not publish_while_ok(
+            self, self._pose_pub, fill_pose(self._pose, stamp, self.p.frame_id, pos, self.device.orientation)
+        ):
             return
         if self.p.exit_when_done and self.device.done:
             self.finish(f"hand path done ({self.commands} force commands received): shutting down")

@@ -152,6 +152,12 @@ class SimulatedDevice:
         return self.mapping.to_device(p), self.mapping.velocity_to_device(v)
 
     @property
+    def orientation(self) -> tuple[float, float, float, float]:
+        """The stylus orientation ``(x, y, z, w)`` in the device frame: the hand path's (the hand holds the tool's
+        angle; only its position is simulated)."""
+        return self.mapping.orientation_to_device(self.hand_path.orientation)
+
+    @property
     def done(self) -> bool:
         """True once the hand path's last run and tail are over."""
         return self.script.done(self.t_s)

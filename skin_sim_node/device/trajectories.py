@@ -35,12 +35,16 @@ class Trajectory:
         Each segment ramps from the previous point to ``target_m`` in ``duration_s``;
         ``target_m`` equal to the previous point is a hold.
     description : str
+    orientation : tuple of 4 float
+        The tool's orientation ``(x, y, z, w)`` over the whole path (tissue frame; identity: a needle points
+        straight down). Only the needle (``tool.shape`` 'needle') uses it.
     """
 
     name: str
     start_m: Vec3
     segments: tuple[tuple[float, Vec3], ...]
     description: str = ""
+    orientation: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
     _t0: tuple[float, ...] = field(init=False, repr=False, compare=False)
     _p0: tuple[Vec3, ...] = field(init=False, repr=False, compare=False)
 
@@ -89,6 +93,43 @@ def _press(name: str, x_m: float, depth_m: float, press_s: float, hold_s: float,
     up = (x_m, 0.0, LIFT_Z_M)
     down = (x_m, 0.0, -depth_m)
     return Trajectory(name, up, ((press_s, down), (hold_s, down), (release_s, up), (lifted_s, up)), desc)
+
+
+NEEDLE_DEPTH_M = 4.5e-3
+"""Deepest tip of the needle paths below the rest surface (m): past the skin's puncture for 18-30 G (1.8-3.9 mm of
+tip travel, docs/needle.md) and inside the 5.275 mm stack (the model has no tissue below it)."""
+NEEDLE_START_M = 0.5e-3
+"""Tip height above the surface where the needle paths start and end their insertion (m)."""
+
+
+def needle_orientation(elevation_rad: float) -> tuple[float, float, float, float]:
+    """Orientation ``(x, y, z, w)`` of a needle inclined ``elevation_rad`` above the sheet (pi/2: vertical), pointing
+    along +x and down: the rotation about y taking ``(0, 0, -1)`` to ``(cos e, 0, -sin e)``."""
+    half = -0.5 * (0.5 * math.pi - elevation_rad)
+    return (0.0, math.sin(half), 0.0, math.cos(half))
+
+
+def _needle(name: str, elevation_deg: float, speed_m_s: float, stops: tuple[float, ...], desc: str) -> Trajectory:
+    """A needle path along its own axis through the entry at the origin: from ``NEEDLE_START_M`` above the surface to
+    each vertical depth in ``stops`` in turn (m, > 0 down) at the mean speed ``speed_m_s`` along the axis, holding
+    0.3 s at each, then back out and lifted."""
+    e = math.radians(elevation_deg)
+    u = (math.cos(e), 0.0, -math.sin(e))
+
+    def at(depth_m: float) -> Vec3:
+        s = depth_m / math.sin(e)
+        return (s * u[0], 0.0, s * u[2])
+
+    lift = (-LIFT_Z_M * u[0] / math.sin(e), 0.0, LIFT_Z_M)
+    start = at(-NEEDLE_START_M)
+    segs: list[tuple[float, Vec3]] = [(0.5, start)]
+    here = -NEEDLE_START_M
+    for depth in (*stops, -NEEDLE_START_M):
+        segs.append((abs(depth - here) / math.sin(e) / speed_m_s, at(depth)))
+        segs.append((0.3, at(depth)))
+        here = depth
+    segs.append((0.3, lift))
+    return Trajectory(name, lift, tuple(segs), desc, needle_orientation(e))
 
 
 def _build() -> dict[str, Trajectory]:
@@ -176,6 +217,52 @@ def _build() -> dict[str, Trajectory]:
             ),
             "press 3 mm, release to +0.5 mm in 15 ms, come back down to 1 mm 30 ms after the release "
             "started (the tissue is still relaxing: fat release time constant is tens of ms), hold, lift",
+        ),
+        _needle(
+            "needle_straight",
+            90.0,
+            5e-3,
+            (NEEDLE_DEPTH_M,),
+            "needle (tool.shape 'needle'), vertical at the origin (an egg-carton peak): insert at 5 mm/s mean to 4.5 mm "
+            "deep, hold 0.3 s, withdraw, lift",
+        ),
+        _needle(
+            "needle_oblique_30",
+            30.0,
+            5e-3,
+            (NEEDLE_DEPTH_M,),
+            "needle at 30 deg to the skin surface, pointing along +x, entering at the origin: insert at 5 mm/s mean along "
+            "its axis to 4.5 mm below the surface (9 mm of track), hold, withdraw, lift",
+        ),
+        _needle(
+            "needle_oblique_60",
+            60.0,
+            5e-3,
+            (NEEDLE_DEPTH_M,),
+            "needle at 60 deg to the skin surface, along +x, entering at the origin: to 4.5 mm deep at 5 mm/s mean",
+        ),
+        _needle(
+            "needle_reinsert",
+            90.0,
+            5e-3,
+            (NEEDLE_DEPTH_M, 1.5e-3, NEEDLE_DEPTH_M, -NEEDLE_START_M, NEEDLE_DEPTH_M),
+            "needle, vertical: insert to 4.5 mm, retract to 1.5 mm (still in the track), re-insert to 4.5 mm (no second "
+            "puncture: the track is latched), withdraw out of the skin, insert again (a new track: the peak returns)",
+        ),
+        _needle(
+            "needle_slow",
+            90.0,
+            1e-3,
+            (NEEDLE_DEPTH_M,),
+            "needle, vertical: insert at 1 mm/s mean to 4.5 mm, hold, withdraw (with needle_fast: the skin peak's speed "
+            "dependence)",
+        ),
+        _needle(
+            "needle_fast",
+            90.0,
+            20e-3,
+            (NEEDLE_DEPTH_M,),
+            "needle, vertical: insert at 20 mm/s mean to 4.5 mm, hold, withdraw",
         ),
     ]
     return {t.name: t for t in trajs}

@@ -4,6 +4,7 @@ from .config import ConfigError, TissueConfig, config_from_flat, load_tissue_con
 from .contact import ContactTangent, normal_tangent
 from .interfaces import classify, interface_depths_m
 from .layout import FLAG_BOTTOMED, FLAG_CONTACT, FLAG_LAYER_BOUND, FLAG_OFF_SHEET, FLAG_SEPARATED
+from .needle_skin import NeedleSkin  # registers the needle's model with SkinModel
 from .skin_model import DEGENERATE_RETURN_S, Grid, SkinModel, warm_up
 
 __all__ = [
@@ -16,6 +17,7 @@ __all__ = [
     "ConfigError",
     "ContactTangent",
     "Grid",
+    "NeedleSkin",
     "SkinModel",
     "TissueConfig",
     "classify",

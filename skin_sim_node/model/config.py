@@ -406,5 +406,6 @@ def preset_path(name: str) -> Path:
 
 def preset(name: str) -> TissueConfig:
     """A shipped preset: ``default`` (layered form, in-vivo parameters, forearm tension lines), ``isotropic`` (the
-    default without tension lines) or ``paper`` (the paper's form, eq 9, one mode)."""
+    default without tension lines), ``needle`` (the default under a 21 G needle) or ``paper`` (the paper's form, eq 9,
+    one mode)."""
     return load_tissue_config(preset_path(name))

@@ -13,7 +13,8 @@ Per tick the axial resistance ``R`` (N, along ``u_e``, positive against insertio
 
 - **dimple** (before the next layer ``k`` ruptures): the tip presses layer ``k``'s top ``w = L - t_k`` ahead of
   it; the stack below, layers ``k..L-1``, answers with the layered form's equilibrium series chain (its fitted
-  law, :func:`~.layered.chain_solve`) at the normal compression ``w |u_z|``, scaled from the calibrated 2.5 mm
+  law, :func:`~.layered.chain_solve`) at the normal compression ``w |u_z|``, acting along the axis (the column along
+  the needle, strained as the normal compression strains the stack), scaled from the calibrated 2.5 mm
   punch to the *tent's* radius ``a + l_f`` as a half-space is (Sneddon: force proportional to the contact radius),
   and projected on the axis. ``a`` is the needle's radius and ``l_f`` the layers' own spread length
   (``patch.foundation_length_m``, 1.63 mm, fitted to the 3D reference's dent: how far a load spreads from the tool):
@@ -205,7 +206,10 @@ class NeedleModel:
 
     # --- laws ---------------------------------------------------------------------------------
     def dimple_force_n(self, layer: int, w_m: float) -> float:
-        """Axial force (N) of the stack below ``layer``'s top pressed ``w_m`` along the axis by the needle's tip."""
+        """Axial force (N) of the stack below ``layer``'s top pressed ``w_m`` along the axis by the needle's tip: the
+        column along the needle, its layers ``h / |u_z|`` long, strained as the normal compression ``w |u_z|`` strains
+        the stack, so the force at puncture does not depend on the angle (Schneider 1978: "relatively insensitive to
+        penetration velocity or angle")."""
         if w_m <= 0.0:
             return 0.0
         down = -self.axis[2]
@@ -214,7 +218,7 @@ class NeedleModel:
         c, g = np.zeros(n), np.zeros(n)
         t = chain_solve(w_m * down, 0.0, self._ea[sub].copy(), self._n[sub].copy(), np.zeros(n), 1.0,
                         np.zeros(n), self._h[sub].copy(), WALL_STRAIN, np.zeros(n), c, g)  # fmt: skip
-        return self._scale * max(t, 0.0) * down
+        return self._scale * max(t, 0.0)
 
     def rupture_insertion_m(self) -> float:
         """Insertion ``L`` (m) at which the next intact layer ruptures: its dimple force reaches ``F_p`` (bisection

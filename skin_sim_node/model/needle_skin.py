@@ -162,3 +162,6 @@ class NeedleSkin(SkinModel):
             "friction_force_n": t.friction_n,
             "force_n": np.asarray(t.force_n, dtype=float).copy(),
         }
+
+
+SkinModel.TOOL_MODELS["needle"] = NeedleSkin

@@ -100,11 +100,13 @@ class SkinModel:
     surface at z = 0; the tool depth is ``-z``. The reaction force acts along +z.
     """
 
-    def __new__(cls, cfg: TissueConfig):
-        if cls is SkinModel and cfg.tool_shape == "needle":  # the needle's model (issue 22): one class for callers
-            from .needle_skin import NeedleSkin
+    TOOL_MODELS: dict[str, type] = {}
+    """Subclasses by ``tool_shape`` that ``SkinModel(cfg)`` returns instead (the needle's registers itself in
+    :mod:`.needle_skin`, which the package imports): one model class for every caller."""
 
-            cls = NeedleSkin
+    def __new__(cls, cfg: TissueConfig):
+        if cls is SkinModel:
+            cls = SkinModel.TOOL_MODELS.get(cfg.tool_shape, SkinModel)
         return super().__new__(cls)
 
     def __init__(self, cfg: TissueConfig):

@@ -269,7 +269,10 @@ class HapticSession:
         self.velocity = ti.velocity
         if ti.release:
             model.release()
-        model.step(ti.pos, ti.velocity, ti.dt_s, ti.restart, ti.axis)
+        if self._needle:
+            model.step(ti.pos, ti.velocity, ti.dt_s, ti.restart, ti.axis)
+        else:
+            model.step(ti.pos, ti.velocity, ti.dt_s, ti.restart)
         self._ticks += 1
         self._regime_events(ti.pos)
         # the whole vector (normal along the deformed surface plus friction): the limits act on its magnitude and
