@@ -59,8 +59,9 @@ def test_the_paths_orientation_is_the_needles_axis(deg):
 @pytest.mark.parametrize("path", ["needle_straight", "needle_oblique_30", "needle_oblique_60"])
 def test_published_force_is_the_models_vector_and_its_law_gives_f0(path):
     s = _session()
-    seen_law = 0
+    seen_law = most = 0
     for r, _ in _insert(s, path):
+        most = max(most, s.model.needle.ruptured)
         f = np.array(r.force_n)
         law = r.tangent.needle
         assert np.isfinite(f).all()
@@ -73,7 +74,7 @@ def test_published_force_is_the_models_vector_and_its_law_gives_f0(path):
         assert u @ r.tangent.stiffness_n_per_m @ u <= 1e-9
         assert law.finite
     assert seen_law > 100
-    assert s.model.needle.ruptured == 3  # every layer cut by 4.5 mm deep
+    assert most == 3  # every layer cut by 4.5 mm deep
 
 
 def test_puncture_drop_is_published_within_one_tick_and_not_rate_limited():
