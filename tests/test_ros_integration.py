@@ -55,6 +55,7 @@ class PoseSource:
         self.pose_pub, self.twist_pub = monitor.publisher("tool_pose"), monitor.publisher("tool_twist")
         self.pose, self.twist = PoseStamped(), TwistStamped()
         self.sent: list[tuple[int, tuple, tuple]] = []
+        self.pose_quat = (0.0, 0.0, 0.0, 1.0)
         self.t0 = None
         self.loop = PeriodicLoop(int(1e9 / rate_hz), self._tick, name="test-source")
 
@@ -64,7 +65,7 @@ class PoseSource:
         xyz, v = self.path((now_ns - self.t0) * 1e-9)
         stamp = self.mon.now_ns()
         self.twist_pub.publish(cv.fill_twist(self.twist, stamp, self.frame, v))  # twist first, as documented
-        self.pose_pub.publish(cv.fill_pose(self.pose, stamp, self.frame, xyz))
+        self.pose_pub.publish(cv.fill_pose(self.pose, stamp, self.frame, xyz, self.pose_quat))
         self.sent.append((stamp, xyz, v))
 
     def handshake(self, timeout_s=20.0):
@@ -72,7 +73,7 @@ class PoseSource:
         end = time.monotonic() + timeout_s
         while time.monotonic() < end:
             stamp = self.mon.now_ns()
-            self.pose_pub.publish(cv.fill_pose(self.pose, stamp, self.frame, (0.0, 0.0, 0.01)))
+            self.pose_pub.publish(cv.fill_pose(self.pose, stamp, self.frame, (0.0, 0.0, 0.01), self.pose_quat))
             time.sleep(0.01)
             if any(s == stamp for _, s, _ in list(self.mon.wrench)[-20:]):
                 time.sleep(0.06)  # past the watchdog, so the scripted path starts from a known state
@@ -385,3 +386,38 @@ def test_closed_loop_with_simulated_device_closes_and_stays_in_the_device_limit(
         print(f"hold over DDS: mean {fz[hold].mean():.4f} N, std {fz[hold].std():.5f} N ({hold.sum()} wrenches)")
     assert fz[contact].mean() > 0.005
     assert np.all(np.abs(f[:, 2]) <= 3.3 + 1e-9)
+
+
+def test_needle_over_dds_answers_as_offline_and_publishes_its_track(scene, monitor):
+    """A 21 G needle (tool.shape 'needle') at 60 degrees, its orientation in the poses: every answered pose gets the
+    offline session's answer to the answered poses, and tissue/needle shows the track with every layer cut."""
+    from msgs_schema.qos import subscription
+    from skin_sim_node.device.trajectories import TRAJECTORIES
+
+    traj = TRAJECTORIES["needle_oblique_60"]
+    states = []
+    subscription(monitor.node, "needle", lambda m: states.append((m.ruptured_layers, tuple(m.entry_m), tuple(m.axis))))
+    start_node(scene, "watchdog_s:=1.0", "input_queue_depth:=1000", "tissue.tool.shape:=needle")
+    src = PoseSource(monitor, lambda t: traj.sample(t))
+    src.pose_quat = traj.orientation
+    src.run(traj.duration_s)
+    time.sleep(0.3)
+    live = {s: f for _, s, f in list(monitor.wrench)}
+    answered = [(stamp, xyz, v) for stamp, xyz, v in src.sent if stamp in live]
+    cfg = load_tissue_config(DEFAULT_PARAMS).replace(**{"tool.shape": "needle"})
+    session = HapticSession(SkinModel(cfg), SessionParams(max_stamp_age_s=0.0))
+    offline, prev = {}, None
+    for stamp, xyz, v in answered:
+        session.on_pose(stamp, "tissue", xyz, quat=traj.orientation)
+        session.on_twist(stamp, "tissue", v)
+        offline[stamp] = session.tick(stamp, 0 if prev is None else stamp - prev).force_z_n
+        prev = stamp
+    print(f"answered {len(answered)} of {len(src.sent)} poses; {len(states)} needle states")
+    a = np.array([live[s] for s, _, _ in answered])
+    b = np.array([offline[s] for s, _, _ in answered])
+    assert len(answered) >= 100 and b.max() > 0.5
+    assert np.max(np.abs(a - b)) <= 0.01 * b.max(), f"max |dF| {np.max(np.abs(a - b)):.4g} N"
+    assert max(r for r, _, _ in states) == 3  # every layer cut, as the view shows it
+    _, entry, axis = next(s for s in states if s[0] == 3)
+    assert np.allclose(entry, (0.0, 0.0, 0.0), atol=1e-4)
+    assert np.allclose(axis, (0.5, 0.0, -math.sqrt(3) / 2), atol=1e-6)
