@@ -127,3 +127,11 @@ def test_contact_model_message_carries_the_needle_law():
     assert (
         lm.needle.post_rupture_force_n < lm.needle.axial_force_n + lm.needle.axial_gradient_n_per_m * lm.needle.rupture_distance_m
     )
+
+
+def test_needle_check_passes_its_data_checks(capsys):
+    from skin_sim_node.validation import needle_check
+
+    assert needle_check.main([]) == 0
+    out = capsys.readouterr().out
+    assert "needle_check PASS: 6 checks" in out

@@ -58,11 +58,11 @@ from .physics import equilibrium
 
 GAUGE_OUTER_DIAMETER_M = {18: 1.270e-3, 21: 0.819e-3, 25: 0.514e-3, 27: 0.413e-3, 30: 0.311e-3}
 """Nominal outer diameters of normal-wall hypodermic tubing (ISO 9626:2016, table 1, nominal OD)."""
-TOUGHNESS_J_PER_M2 = {"epidermis": 1.1e3, "dermis": 2.2e3, "fat": 0.44e3}
+TOUGHNESS_J_PER_M2 = {"epidermis": 1.1e3, "dermis": 2.2e3, "fat": 0.33e3}
 """Effective puncture toughness ``Gamma`` per layer (N/m): dermis 2.2 kJ/m^2 from the cadaver skin peak 2.75-2.80 N
 (J Endourol, doi 10.1089/end.2016.0342) over an 18 G diameter (gauge assumed: not in the abstract), bracketed by
 Mohammadi et al. 2021's cohesive 1.6 kJ/m^2 and Roemgens et al. 2014's F/d of 4.5 kJ/m^2; epidermis half of it and
-fat 20 % of it: design choices (the issue's fat peak < 20 % of skin's; no measured fat peak found).
+fat 15 % of it: design choices (the issue's fat peak < 20 % of skin's, with a margin; no measured fat peak found).
 docs/data/needle/model_notes.md section 1."""
 DRY_FACTOR = 2.0
 """``lambda`` for a dry (unlubricated) needle: Schneider 1978, dry needles need 1.5-3 x the force of lubricated
