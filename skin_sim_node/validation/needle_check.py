@@ -190,8 +190,8 @@ def main(argv=None) -> int:
         worst = max(worst, d)
         name = ("epidermis/dermis", "dermis/fat")[r["interface"] - 1]
         print(
-            f"   {r['site']:7s} {r['elevation_deg']:5.0f}  {name:16s} {r['reference_m'] * 1e3:14.4f}  {r['model_m'] * 1e3:10.4f}  "
-            f"{d * 1e6:11.2f}  {r['tip_travel_at_rupture_m'] * 1e3:10.3f}"
+            f"   {r['site']:7s} {r['elevation_deg']:5.0f}  {name:16s} {r['reference_m'] * 1e3:14.4f}  "
+            f"{r['model_m'] * 1e3:10.4f}  {d * 1e6:11.2f}  {r['tip_travel_at_rupture_m'] * 1e3:10.3f}"
         )
     if worst > SITE_TOLERANCE_M:
         fails.append(f"puncture site off by {worst * 1e3:.3f} mm")
@@ -210,7 +210,7 @@ def main(argv=None) -> int:
         _figures(a.figures, rows, fric)
     for f in fails:
         print(f"FAIL {f}")
-    print(f"needle_check {'FAIL' if fails else 'PASS'}: {len(fails)} of 6 checks failed" if fails else "needle_check PASS: 6 checks")
+    print(f"needle_check FAIL: {len(fails)} of 6 checks failed" if fails else "needle_check PASS: 6 checks")
     return 1 if fails else 0
 
 
