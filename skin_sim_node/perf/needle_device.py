@@ -161,9 +161,9 @@ def insertion(
     peak = float(np.linalg.norm(f_true, axis=1).max())
     out: dict = {"gauge": gauge, "peak_n": peak, "f_true": f_true, "f_render": f_ren, "f_hold": f_hold, "axial": axial}
     events = []
-    for k in np.flatnonzero(np.diff(ruptured) > 0) + 1:
+    for k in (int(i) + 1 for i in np.flatnonzero(np.diff(ruptured) > 0)):
         drop = float(axial["true"][k - 1] - axial["true"][k])
-        ev = {"tick": int(k), "layers": tuple(range(ruptured[k - 1], ruptured[k])), "drop_n": drop}
+        ev = {"tick": k, "layers": tuple(range(int(ruptured[k - 1]), int(ruptured[k]))), "drop_n": drop}
         for key in ("render", "hold"):
             ev[key] = drop_tick(axial[key], int(k), drop)
         # the renderer's latch of this rupture: the first whose rupture point lies on the truth's step over it
@@ -260,10 +260,15 @@ def main(argv=None) -> int:
         ok = ok and generated <= 0.0 and r["render_over"] == 0
     # what a device clamp below the peak loses, and what --force-scale keeps (18 G: the largest peak)
     g = max(a.gauges, key=lambda q: -q)  # the thickest needle given (smallest gauge number)
-    print(f"device clamp {SAW_MAX_FORCE_N:g} N (sawSensablePhantom's default), {g} G, in device N:")
+    print(
+        f"device clamp {SAW_MAX_FORCE_N:g} N (sawSensablePhantom's default), {g} G, in device N (axial K cap off, so the "
+        "peak the clamp meets is the law's):"
+    )
     peak_true = None
     for scale in (1.0, SAW_MAX_FORCE_N / TOUCH_PEAK_FORCE_N):
-        r = insertion(g, a.server_hz, max_force_n=SAW_MAX_FORCE_N, force_scale=scale)
+        r = insertion(
+            g, a.server_hz, max_force_n=SAW_MAX_FORCE_N, force_scale=scale, renderer_kw={"max_stiffness_n_per_m": math.inf}
+        )
         peak_true = r["peak_n"]
         big = max(r["events"], key=lambda e: e["drop_n"])
         k = big["tick"]
