@@ -30,6 +30,10 @@ COMMANDS = {
         "skin_sim_node.perf.force_path",
         "offline: device force error vs server rate, model vs hold-last (~10 s on 2 cores)",
     ),
+    "needle-device": (
+        "skin_sim_node.perf.needle_device",
+        "offline: needle insertion rendered at 1 kHz from a 250 Hz server vs truth and hold-last (~10 s)",
+    ),
     "soak": ("skin_sim_node.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),
     "scale": ("skin_sim_node.perf.scale", "how many 1 kHz sessions (node + bridge + device, own namespaces) one machine holds"),
     "netns-role": ("skin_sim_node.perf.netns", "netns_scale.sh helper: device side (bridge, device, observer); comparison"),

@@ -212,7 +212,14 @@ class BridgeNode(DeviceNode):
         Param("offset_m", DEFAULTS["offset_m"], "tissue-frame position of the device origin (m)"),
         Param("scale", DEFAULTS["scale"], "motion scale: tissue m per device m", 1e-3, 1e3),
         Param("axes", DEFAULTS["axes"], "tissue x, y, z as signed device axes, e.g. xyz, or x-zy for a Touch base frame"),
-        Param("force_scale", DEFAULTS["force_scale"], "force scale: F_device = force_scale * R^T F_tissue", 0.0, 100.0),
+        Param(
+            "force_scale",
+            DEFAULTS["force_scale"],
+            "force scale: F_device = force_scale * R^T F_tissue, before the clamp (a needle's puncture peak above the "
+            "clamp is flattened at scale 1; e.g. 0.6 keeps an 18 G peak, 2.7 N, under sawSensablePhantom's 2 N)",
+            0.0,
+            100.0,
+        ),
         Param("max_force_n", DEFAULTS["max_force_n"], "device force clamp (N); Touch peak 3.3 N", 0.0, 100.0),
         Param(
             "max_stiffness_n_per_m",
@@ -427,7 +434,8 @@ class BridgeNode(DeviceNode):
         self.get_logger().info(
             f"bridge {p.convention}: {self.resolve_topic_name(dev(pose_key))} -> {tool_pose}; {src} -> "
             f"{self.resolve_topic_name(dev(force_key))}; "
-            f"offset {self.mapping.offset_m} m, scale {self.mapping.scale}, axes {self.mapping.axes}, clamp {p.max_force_n} N, "
+            f"offset {self.mapping.offset_m} m, scale {self.mapping.scale}, axes {self.mapping.axes}, "
+            f"force scale {p.force_scale:g} (device N per tissue N), clamp {p.max_force_n} N, "
             f"stiffness cap {p.max_stiffness_n_per_m:g} N/m, damping cap {p.max_damping_n_s_per_m:g} N s/m, "
             f"stabiliser {p.stabiliser}, friction {p.friction_render}"
             + (f" (slope cap {p.max_friction_slope_n_s_per_m:g} N s/m)" if p.max_friction_slope_n_s_per_m > 0 else "")
@@ -531,6 +539,7 @@ class BridgeNode(DeviceNode):
             with self._render_lock:
                 why = self.renderer.set_model(m)  # at the latest device tick: the renderer's clock is the device's
         if why is None:
+            self._check_needle_peak(m)
             self.counts["models"] += 1
             self._win["models"] += 1
             self._first_model = True
@@ -540,6 +549,22 @@ class BridgeNode(DeviceNode):
         if kind not in self._rejected_logged:
             self._rejected_logged.add(kind)
             self.get_logger().warning(f"contact model dropped: {why} (logged once per kind)")
+
+    def _check_needle_peak(self, m: LocalModel) -> None:
+        """Say once when a needle's puncture peak ahead, times the force scale, is above the device clamp: the clamp
+        flattens it (the user feels a plateau at the clamp and a smaller drop), ``--force-scale`` keeps its shape."""
+        law = m.needle
+        if law is None or "needle_peak" in self._rejected_logged or law.rupture_distance_m <= 0.0:
+            return
+        peak = law.axial_force_n + max(law.axial_gradient_n_per_m, 0.0) * law.rupture_distance_m
+        k, clamp = self.p.force_scale, self.p.max_force_n
+        if k * peak > clamp:
+            self._rejected_logged.add("needle_peak")
+            self.get_logger().warning(
+                f"needle puncture peak ahead {peak:.2f} N x force scale {k:g} = {k * peak:.2f} N is above the device "
+                f"clamp {clamp:g} N: the clamp flattens the peak and shrinks the drop; --force-scale {clamp / peak:.2f} "
+                "or less renders its shape (logged once)"
+            )
 
     def _on_wrench(self, msg) -> None:
         """Wrench source: the node's force as a model with no stiffness (held until the next, faded after watchdog_s)."""
@@ -615,6 +640,9 @@ class BridgeNode(DeviceNode):
             "render_state": self.renderer.state,
             "chatter_guard_engaged_total": str(self.renderer.counts_chatter),
             "force_source": self.p.force_source,
+            "force_scale": f"{self.p.force_scale:g}",
+            "force_clamp_n": f"{self.p.max_force_n:g}",
+            "force_clamped_ticks_total": str(self.renderer.counts_clamped),
         }
         values.update({f"{k}_total": str(v) for k, v in c.items()})
         values.update({f"{k}_total": str(v) for k, v in self.renderer.counts.items() if k.startswith("fades_")})
@@ -622,7 +650,7 @@ class BridgeNode(DeviceNode):
         st = DiagnosticStatus()
         st.name = f"{self.get_fully_qualified_name()}: device render"
         st.hardware_id = "skin_sim_bridge"
-        st.level, st.message = DiagnosticStatus.OK, f"rendering ({self.renderer.state})"
+        st.level, st.message = DiagnosticStatus.OK, f"rendering ({self.renderer.state}, force x{self.p.force_scale:g})"
         st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         set_stamp(self._diag.header, ros_now_ns(self))
         self._diag.status = [st]
@@ -638,7 +666,8 @@ class BridgeNode(DeviceNode):
             f"model, {c['rendered_no_model']} without one after the first model: {c['rendered_stale_model']} with it older than "
             f"its TTL, {c['rendered_outside_radius']} outside its radius), max model age {self.max_model_age_ms:.2f} ms, "
             f"{c['device_gaps_2ms']} device pose gaps > 2 ms, {c['wrenches']} wrenches ({c['forwarded']} forwarded), "
-            f"{c['zeros']} watchdog zero commands, {c['non_finite_pose']} non-finite poses"
+            f"{c['zeros']} watchdog zero commands, {c['non_finite_pose']} non-finite poses; force scale {self.p.force_scale:g}, "
+            f"{self.renderer.counts_clamped} ticks clamped at {self.p.max_force_n:g} N"
         )
 
 

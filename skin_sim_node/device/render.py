@@ -25,6 +25,10 @@ where the device's velocity crosses zero, whatever the server's rate.
 - once the model is older than its time-to-live, or the tool leaves its validity radius, a linear
   fade of the last force to zero over ``fade_s``: never a step;
 - optionally the time-domain passivity controller (:mod:`.passivity`) on the rendered force;
+- with a needle law (:class:`msgs_schema.contact_model.NeedleLaw`, issue 22) the axial part follows the needle's
+  piecewise law (:class:`NeedleRender`: the rupture ahead latched at the first tick that reaches it, the Dahl shaft
+  friction integrated over the device's own moves) and the rest ``f0 + (I - u u^T) K (x - x0)``; the safety chain
+  applies as :class:`NeedleRender` states;
 - optionally the chatter guard (:data:`CHATTER_WINDOW_S`): while the device's tangential velocity keeps reversing
   (stick on a light stylus, or velocity noise), the friction law's slope is capped at the stylus' stable damping.
 
@@ -41,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from msgs_schema.contact_model import LocalModel
+from msgs_schema.contact_model import LocalModel, NeedleLaw
 from msgs_schema.tissue import FRICTION_COEFFICIENT
 
 from .mapping import TOUCH_MAX_DAMPING_N_S_PER_M, TOUCH_MAX_STIFFNESS_N_PER_M, TOUCH_PEAK_FORCE_N
@@ -153,6 +157,87 @@ def friction_law_force(normal, fn: float, mu: float, slip_speed_m_s: float, v) -
     return f - (fn * mu / r) * vt if r > 0.0 else f
 
 
+class NeedleRender:
+    """A model's needle law as the renderer evaluates it, with its own state (issue 22; ``ContactModel.msg``).
+
+    Along the track's axis ``u``, ``s = u . (x - x0)``::
+
+        F(x) = f0 + (I - u u^T) K (x - x0) + (I - u u^T) D (v - v0) - u (R(s) - R(0)),
+        R(s) = max(R_e(s), 0) + F_c(s) z(s),   F_c(s) = max(F_c0 + F_c' s, 0),
+
+    ``R_e`` the line ``axial_force_n + g s`` until the first ``s >= rupture_distance_m``, from then (latched for the
+    rest of this model: a step back does not undo a rupture, so nothing toggles at the threshold) the post-rupture
+    line. ``z`` is the Dahl state: it starts from the model's ``friction_state`` at ``x0`` (``s = 0``) and follows the
+    device's own axial moves, ``z <- sigma + (z - sigma) exp(-|ds| / x_0)``, exact for any step (rate-independent),
+    ``|z| <= 1``. A new model starts a new state (its own ``z`` at its own ``x0``, no latch).
+
+    Physics first, clamps last; how each stage of the renderer's chain applies:
+
+    - **K cap** (the device's largest stable stiffness): ``K`` is capped as for every model before it is projected
+      off the axis (so ``(I - u u^T) K`` is within the cap); the axial slopes ``g`` before and after the rupture are
+      each capped at it in magnitude (the dimple before a rupture is a stiff spring along the axis, up to
+      3.2 N/mm for 18 G: rendered at more than the device holds, it is the active sampled spring the cap exists for);
+      the Dahl stick stiffness, at most ``2 F_c / x_0`` at a reversal, is kept under the cap by rendering with
+      ``x_0 >= 2 F_c,max / K_cap`` (``F_c,max`` the capacity at the validity radius). The threshold stays where
+      the law puts it (``rupture_distance_m``): the cap lowers a steep peak between server updates, never moves the
+      drop;
+    - **one-sided rule and friction cone**: not applied. The needle is inside the tissue: on retraction the shaft
+      friction pulls the tool in, which the flat and sphere paths' "the tissue never pulls" would erase;
+      ``max(R_e, 0)`` is the physical one-sidedness of the dimple and the cutting (they only resist insertion);
+    - **D**: only its part off the axis; the axial law is rate-independent (Dahl, position laws);
+    - **validity radius, time-to-live, fade, crossfade**: unchanged, on the whole vector (a stale or left needle
+      model fades out over ``fade_s`` on the device's clock);
+    - **magnitude limit**: unchanged, last, on the whole vector (a puncture peak above it is flattened: the bridge's
+      ``--force-scale`` scales the vector before it, see ``docs/devices.md``);
+    - **passivity observer and controller**: unchanged on the whole vector, except that the controller's damping is
+      not projected off the normal (the needle's force may pull along it). The drop itself is passive: the resistance
+      falls while the tool advances against it, so the energy the tissue absorbed before it is not returned.
+    """
+
+    __slots__ = ("law", "u", "grad", "post_grad", "dahl_length_m", "r0", "z", "s_last", "latched")
+
+    def __init__(self, law: NeedleLaw, max_k: float, radius_m: float):
+        self.law = law
+        u = np.asarray(law.axis, dtype=float)
+        self.u = u / float(np.linalg.norm(u))
+        self.grad = float(np.clip(law.axial_gradient_n_per_m, -max_k, max_k))
+        self.post_grad = float(np.clip(law.post_rupture_gradient_n_per_m, -max_k, max_k))
+        fc_max = law.friction_capacity_n + abs(law.friction_capacity_gradient_n_per_m) * radius_m
+        self.dahl_length_m = max(law.dahl_length_m, 2.0 * fc_max / max_k if max_k > 0 else math.inf)
+        self.r0 = law.resistance_n
+        self.z = float(law.friction_state)
+        self.s_last = 0.0
+        self.latched = False
+
+    def resistance(self, s: float) -> float:
+        """``R(s)`` (N, > 0 resists insertion) after moving the state to ``s`` (m): Dahl over ``s - s_last``, then the
+        latch. Evaluating twice at the same ``s`` gives the same value (no move, no change)."""
+        ds = s - self.s_last
+        if ds != 0.0:
+            sigma = 1.0 if ds > 0.0 else -1.0
+            self.z = sigma + (self.z - sigma) * math.exp(-abs(ds) / self.dahl_length_m)
+            self.s_last = s
+        law = self.law
+        if not self.latched and law.rupture_distance_m > 0.0 and s >= law.rupture_distance_m:
+            self.latched = True
+        if self.latched:
+            re = law.post_rupture_force_n + self.post_grad * (s - law.rupture_distance_m)
+        else:
+            re = law.axial_force_n + self.grad * s
+        fc = max(law.friction_capacity_n + law.friction_capacity_gradient_n_per_m * s, 0.0)
+        return max(re, 0.0) + fc * self.z
+
+    def force(self, m: LocalModel, K: np.ndarray, D: np.ndarray, x: np.ndarray, v: np.ndarray | None) -> np.ndarray:
+        """The needle model's force at ``x`` (and ``v`` for the off-axis ``D`` term), moving the state to ``x``."""
+        u = self.u
+        dx = x - m.x0_m
+        lat = K @ dx
+        if v is not None:
+            lat = lat + D @ (v - m.v0_m_s)
+        lat = lat - float(u @ lat) * u
+        return m.f0_n + lat - u * (self.resistance(float(u @ dx)) - self.r0)
+
+
 @dataclass
 class _Slot:
     """A model ready to evaluate: bounded matrices, the normal force at x0 and the friction cone.
@@ -173,6 +258,7 @@ class _Slot:
     grad: np.ndarray | None = None
     residual: np.ndarray | None = None
     slip: float = 0.0
+    needle: NeedleRender | None = None
 
     def force(
         self, x: np.ndarray, v: np.ndarray | None, v_law: np.ndarray | None = None, stick_slope: float = math.inf
@@ -186,6 +272,8 @@ class _Slot:
         """
         m = self.m
         n = m.normal
+        if self.needle is not None:
+            return self.needle.force(m, self.K, self.D, x, v)
         if v_law is None:
             v_law = v
         if self.law and v_law is not None:
@@ -333,6 +421,7 @@ class ContactRenderer:
         self._vt_last: np.ndarray | None = None
         self._guard_until = -math.inf  # device time until which the chatter guard holds
         self.counts_chatter = 0  # times the guard engaged
+        self.counts_clamped = 0  # ticks whose force was scaled down to max_force_n (the peak flattened)
         self.velocity_window_s = float(velocity_estimate_window_s)
         self._poses: deque = deque(maxlen=256)  # (device time, x) of the recent finite poses: the velocity estimate
         self.max_force_n = float(max_force_n)
@@ -390,6 +479,11 @@ class ContactRenderer:
         return 0.0 if slot.rx_s is None or now is None else now - slot.rx_s
 
     @property
+    def needle(self) -> NeedleRender | None:
+        """The current model's needle law and its state (latch, Dahl ``z``), or None."""
+        return self._model.needle if self._model else None
+
+    @property
     def model(self) -> LocalModel | None:
         """The current local contact model, or None before the first."""
         return self._model.m if self._model else None
@@ -423,7 +517,9 @@ class ContactRenderer:
         fn0 = float(m.normal @ m.f0_n)
         ratio0 = float(np.linalg.norm(m.f0_n - fn0 * m.normal)) / fn0 if fn0 > 0 else 0.0
         K, D = self.bounded(m)
-        if self.friction_law and m.friction_coefficient > 0.0:
+        if m.needle is not None:  # the needle law: its own state per model (Dahl from friction_state, no latch)
+            slot = _Slot(m, rx, K, D, fn0, 0.0, needle=NeedleRender(m.needle, self.max_k, m.validity_radius_m))
+        elif self.friction_law and m.friction_coefficient > 0.0:
             mu = m.friction_coefficient
             # the law's K at any velocity is (n - mu g) grad^T, of spectral norm <= sqrt(1 + mu^2) |grad|: capped so
             g = m.normal_force_gradient_n_per_m
@@ -550,6 +646,8 @@ class ContactRenderer:
             f = g * self._fade_from
             pc_gain = 0.0  # the environment is being removed: the controller stands aside, the fade stays a ramp
             self.state = "fade" if slot is not None else "none"
+        if float(np.linalg.norm(f)) > self.max_force_n:
+            self.counts_clamped += 1
         f = clamp_vec(f, self.max_force_n)
         if not _finite(f):  # cannot happen with finite models and x; never send it
             f = np.zeros(3)
@@ -569,7 +667,7 @@ class ContactRenderer:
                 vel = np.zeros(3)
             damped = np.array(self.passivity.force(tuple(f), tuple(vel), dt))
             applied = clamp_vec(f + pc_gain * (damped - f), self.max_force_n)
-            if slot is not None:  # the controller's damping may not pull the tool into the tissue either
+            if slot is not None and slot.needle is None:  # its damping may not pull the tool into the tissue either
                 an = float(slot.m.normal @ applied)
                 if an < 0.0:
                     applied = applied - an * slot.m.normal
