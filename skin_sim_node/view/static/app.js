@@ -229,6 +229,9 @@ function tube(mat, order) {
 const needleTubes = [tube(needleMat, 12), tube(needleMat, 12)]; // tip to the rest surface, and above it (unscaled z)
 const trackTube = tube(trackMat, 10);
 const segTubes = [0, 1, 2].map((i) => tube(segMats[i], 11));
+const edgeMat = new THREE.MeshBasicMaterial({ color: 0x15181d, depthTest: false }); // a dark rim: told apart from the cut's bands
+const edgeTubes = [0, 1, 2].map(() => tube(edgeMat, 10));
+const EDGE_MM = 0.12;
 const Y_AXIS = new THREE.Vector3(0, 1, 0);
 function placeTube(m, a, b, r) { // the unit cylinder (along its y) from a to b (drawn mm), radius r mm
   const d = new THREE.Vector3().subVectors(b, a), len = d.length();
@@ -261,7 +264,7 @@ function updateNeedle(h, zs) { // true when a needle is drawn
   needleTubes.forEach((m, i) => { if (i + 1 < pts.length) placeTube(m, drawPt(pts[i], zs), drawPt(pts[i + 1], zs), rmm); else m.visible = false; });
   const rec = { tipM, axis, backM, angleDeg: Math.acos(Math.min(1, Math.max(-1, -axis[2]))) * 180 / Math.PI, track: null, segments: [] };
   const track = nd && nd.inserted && nd.deepest_m > 0;
-  trackTube.visible = false; segTubes.forEach((m) => { m.visible = false; });
+  trackTube.visible = false; segTubes.forEach((m) => { m.visible = false; }); edgeTubes.forEach((m) => { m.visible = false; });
   if (track) {
     const end = nd.deepest_m, cr = nd.crossing_m;
     placeTube(trackTube, drawPt(nd.entry_m, zs), drawPt(along(nd.entry_m, nd.axis, end), zs), Math.max(0.08, rmm * 0.45));
@@ -269,7 +272,9 @@ function updateNeedle(h, zs) { // true when a needle is drawn
     for (let i = 0; i < Math.min(nd.ruptured_layers, 3, cr.length); i++) {
       const s0 = cr[i], s1 = Math.min(i + 1 < cr.length ? cr[i + 1] : end, end);
       if (!(s1 > s0)) continue;
-      placeTube(segTubes[i], drawPt(along(nd.entry_m, nd.axis, s0), zs), drawPt(along(nd.entry_m, nd.axis, s1), zs), Math.max(0.25, rmm * 1.8));
+      const a = drawPt(along(nd.entry_m, nd.axis, s0), zs), b = drawPt(along(nd.entry_m, nd.axis, s1), zs), r = Math.max(0.25, rmm * 1.8);
+      placeTube(segTubes[i], a, b, r);
+      placeTube(edgeTubes[i], a, b, r + EDGE_MM);
       rec.segments.push({ layer: i, s0M: s0, s1M: s1 });
     }
   }
