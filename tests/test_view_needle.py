@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from skin_sim_node.view import frames
-from skin_sim_node.view.bag import BagData, BagSource, _register_needle_type
+from skin_sim_node.view.bag import BagData, BagSource, register_needle_type
 from skin_sim_node.view.browser import find_browser
 from skin_sim_node.view.needle_fake import FAKE_RUPTURE_DIMPLE_M, NeedleScript, fill_needle
 from skin_sim_node.view.server import ViewServer
@@ -75,7 +75,7 @@ def _rosbags_needle():
     from msgs_schema.topics import TOPICS
     from skin_sim_node.bags.io import new_message, typestore
 
-    assert _register_needle_type(None)
+    assert register_needle_type(None)
     name, ts = TOPICS["needle"].type, typestore()
     kw = {}
     for field, (kind, arg) in ts.fielddefs[name][1]:
@@ -95,7 +95,7 @@ def _write_needle_bag(path, script: NeedleScript, rate_hz: float = 50.0) -> None
     from msgs_schema.topics import TOPICS
     from skin_sim_node.bags.io import BagWriter, new_message, qos_profiles
 
-    assert _register_needle_type(None)
+    assert register_needle_type(None)
     with BagWriter(path) as w:
         for i in range(int(script.period_s * rate_hz)):
             t = i / rate_hz

@@ -29,7 +29,7 @@ NEEDLE_MSG = Path(__file__).resolve().parents[2] / "interfaces" / "skin_sim_msgs
 """The NeedleState definition (the source tree's; a bag's own MCAP schema is used first when it has one)."""
 
 
-def _register_needle_type(msgdef: str | None) -> bool:
+def register_needle_type(msgdef: str | None) -> bool:
     """Teach the bag readers' type store ``skin_sim_msgs/msg/NeedleState`` (it knows the ROS 2 Jazzy types only).
 
     ``msgdef``: the definition stored in the bag, if any; else the source tree's ``.msg``. False if neither is there."""
@@ -69,7 +69,7 @@ class BagData:
                 needle_topic = next((t for t, k in topics.items() if k == "needle"), None)
                 if needle_topic is not None:
                     conn = next(c for c in reader.connections if c.topic == needle_topic)
-                    if not _register_needle_type(getattr(conn, "msgdef", None) and getattr(conn.msgdef, "data", None)):
+                    if not register_needle_type(getattr(conn, "msgdef", None) and getattr(conn.msgdef, "data", None)):
                         topics.pop(needle_topic)  # no definition to read it with: the bag plays without the needle
                 if not topics:
                     raise BagError(f"{path}: none of the skin-sim topics ({', '.join(TOPICS[k].name for k in KEYS)})")

@@ -111,6 +111,7 @@ class LiveSource:
         self.force_max = fz if self.force_max is None else max(self.force_max, fz)
 
     grid_stamp_s = None
+    needle = None  # the newest tissue/needle as the page's record (also for a source built without __init__, in tests)
     force_max = None  # the largest force z since the last frame (a 1 ms spike between two 30 Hz frames is shown)
 
     def _on_grid(self, msg) -> None:
