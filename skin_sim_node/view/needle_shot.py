@@ -31,8 +31,8 @@ def _camera_js(rec: dict) -> str:
     mid = [(a + b) / 2 * 1e3 for a, b in zip(entry, end)]
     h = (ax[0] ** 2 + ax[1] ** 2) ** 0.5
     side = [-ax[1] / h, ax[0] / h] if h > 1e-6 else [0.0, 1.0]  # horizontal, perpendicular to the tilt
-    d = 30.0  # mm from the track: the needle's 30 mm shaft and the dimple both in the frame
-    pos = [mid[0] - side[0] * d, mid[1] - side[1] * d, mid[2] + 0.5 * d]
+    d = 24.0  # mm from the track: the needle's 30 mm shaft and the dimple both in the frame
+    pos = [mid[0] - side[0] * d, mid[1] - side[1] * d, mid[2] + 0.3 * d]
     return f"window.skinViewCamera({json.dumps(pos)}, {json.dumps(mid)})"
 
 
