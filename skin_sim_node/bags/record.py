@@ -3,7 +3,7 @@
 Starts the scene's processes (:class:`skin_sim_node.scenes.Scene`) on an isolated domain,
 records the tool inputs (``tool/pose``, ``tool/twist``) and the node's outputs
 (``tool/wrench``, ``tissue/contact``, ``tissue/height_map``, ``tissue/layer_heights``,
-``diagnostics``; ``tissue/mesh`` with ``--mesh``) with an in-process raw recorder, each
+``diagnostics``; ``tissue/mesh`` with ``--mesh``; ``tissue/needle`` with ``--needle``) with an in-process raw recorder, each
 message stamped with its receive time (``ros2 bag record`` semantics), until the tool
 source finishes. The scene's process logs go to ``OUT_logs``.
 """
@@ -33,6 +33,7 @@ def record_scene(
     images: bool = True,
     params: Path = DEFAULT_PARAMS,
     start_delay_s: float = START_DELAY_S,
+    needle: bool = False,
 ) -> dict[str, int]:
     """Record one scene run to ``out``; returns messages per topic key."""
     out = Path(out)
@@ -41,6 +42,12 @@ def record_scene(
     keys = ["tool_pose", "tool_twist", "tool_wrench", "contact", "diagnostics"]
     keys += ["height_map", "layer_heights"] if images else []
     keys += ["mesh"] if mesh else []
+    if needle:  # tissue/needle (tool.shape 'needle'): the view draws the track from it
+        from ..view.bag import register_needle_type  # the writer's type store must know NeedleState (its msgdef)
+
+        if not register_needle_type(None):
+            raise FileNotFoundError("skin_sim_msgs/msg/NeedleState.msg not found: cannot record tissue/needle")
+        keys.append("needle")
     custom = {"skin_sim.scene": scene_kind, "skin_sim.path": path, "skin_sim.params": Path(params).name}
     with Scene(out.parent / f"{out.name}_logs") as scene:
         from .recorder import Recorder, use_scene_env
@@ -82,6 +89,9 @@ def main(argv=None) -> int:
     ap.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="mcap (Jazzy's default) or sqlite3")
     ap.add_argument("--duration-s", type=float, help="stop after this long (default: when the tool is done)")
     ap.add_argument("--mesh", action="store_true", help="also record tissue/mesh (large)")
+    ap.add_argument(
+        "--needle", action="store_true", help="also record tissue/needle (a node with tissue.tool.shape 'needle'; skin-sim view)"
+    )
     ap.add_argument("--no-images", action="store_true", help="skip tissue/height_map and tissue/layer_heights")
     ap.add_argument("--params", type=Path, default=DEFAULT_PARAMS)
     ap.add_argument("--start-delay-s", type=float, default=START_DELAY_S, help="tool start delay (DDS discovery)")
@@ -97,6 +107,7 @@ def main(argv=None) -> int:
             not args.no_images,
             args.params,
             args.start_delay_s,
+            args.needle,
         )
     except FileExistsError as exc:
         print(f"skin-sim record: error: {exc}", file=sys.stderr)

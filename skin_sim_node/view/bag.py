@@ -21,9 +21,31 @@ from msgs_schema.parameters import SPEC_BY_NAME
 from msgs_schema.topics import TOPICS
 
 from ..bags.io import BagError, deserialize, iter_raw, open_bag, topic_types
+from . import frames as fr
 from .frames import decimate, default_thickness_m, diag_message, encode_frame, tool_depth_m
 
-KEYS = ("tool_pose", "tool_wrench", "contact", "layer_heights", "diagnostics")
+KEYS = ("tool_pose", "tool_wrench", "contact", "layer_heights", "diagnostics", "needle")
+NEEDLE_MSG = Path(__file__).resolve().parents[2] / "interfaces" / "skin_sim_msgs" / "msg" / "NeedleState.msg"
+"""The NeedleState definition (the source tree's; a bag's own MCAP schema is used first when it has one)."""
+
+
+def register_needle_type(msgdef: str | None) -> bool:
+    """Teach the bag readers' type store ``skin_sim_msgs/msg/NeedleState`` (it knows the ROS 2 Jazzy types only).
+
+    ``msgdef``: the definition stored in the bag, if any; else the source tree's ``.msg``. False if neither is there."""
+    from rosbags.typesys import get_types_from_msg
+
+    from ..bags.io import typestore
+
+    name = TOPICS["needle"].type
+    ts = typestore()
+    if name in ts.types:
+        return True
+    text = msgdef if msgdef and msgdef.strip() else (NEEDLE_MSG.read_text() if NEEDLE_MSG.is_file() else None)
+    if text is None:
+        return False
+    ts.register(get_types_from_msg(text.split("\n====", 1)[0], name))  # an MCAP schema may append dependencies
+    return True
 
 
 def find_topic(types: dict[str, str], key: str) -> str | None:
@@ -44,6 +66,11 @@ class BagData:
                 types = topic_types(reader)
                 topics = {find_topic(types, k): k for k in KEYS}
                 topics.pop(None, None)
+                needle_topic = next((t for t, k in topics.items() if k == "needle"), None)
+                if needle_topic is not None:
+                    conn = next(c for c in reader.connections if c.topic == needle_topic)
+                    if not register_needle_type(getattr(conn, "msgdef", None) and getattr(conn.msgdef, "data", None)):
+                        topics.pop(needle_topic)  # no definition to read it with: the bag plays without the needle
                 if not topics:
                     raise BagError(f"{path}: none of the skin-sim topics ({', '.join(TOPICS[k].name for k in KEYS)})")
                 total = sum(c.msgcount for c in reader.connections if c.topic in topics)
@@ -53,7 +80,10 @@ class BagData:
                     key = topics[topic]
                     msg = deserialize(raw, msgtype)
                     if key == "tool_pose":
-                        series[key].append((t_ns, *cv.read_pose(msg)[2]))
+                        q = msg.pose.orientation
+                        series[key].append((t_ns, *cv.read_pose(msg)[2], q.x, q.y, q.z, q.w))
+                    elif key == "needle":
+                        series[key].append((t_ns, fr.read_needle(msg)))
                     elif key == "tool_wrench":
                         series[key].append((t_ns, *cv.read_wrench(msg)[2]))
                     elif key == "contact":
@@ -77,7 +107,8 @@ class BagData:
             a = np.array(rows, dtype=np.float64).reshape(-1, width)
             return ((a[:, 0] - self.t0_ns) * 1e-9) if len(a) else np.zeros(0), a[:, 1:]
 
-        self.pose_t, self.pose = table("tool_pose", 4)
+        self.pose_t, pose = table("tool_pose", 8)
+        self.pose, self.pose_q = pose[:, :3], pose[:, 3:]
         self.wrench_t, self.wrench = table("tool_wrench", 4)
         self.contact_t, self.contact = table("contact", 7)
         grids = sorted(series["layer_heights"], key=lambda r: r[0])
@@ -86,6 +117,10 @@ class BagData:
         diags = sorted(series["diagnostics"], key=lambda r: r[0])
         self.diag_t = np.array([(t - self.t0_ns) * 1e-9 for t, _ in diags])
         self.diags = [d for _, d in diags]
+        needles = sorted(series["needle"], key=lambda r: r[0])
+        self.needle_t = np.array([(t - self.t0_ns) * 1e-9 for t, _ in needles])
+        track = fr.TrackMemory()  # the deepest insertion of each track, in bag order: a seek shows the track so far
+        self.needles = [track.update(n) for _, n in needles]
 
     @property
     def duration_s(self) -> float:
@@ -102,6 +137,10 @@ class BagData:
         if i >= 0:
             h["tool"] = self.pose[i].tolist()
             h["depth_m"] = tool_depth_m(self.pose[i][2])
+            h["tool_q"] = self.pose_q[i].tolist()
+        i = self.index_at(self.needle_t, t_s)
+        if i >= 0:
+            h["needle"] = self.needles[i]
         i = self.index_at(self.wrench_t, t_s)
         if i >= 0:
             h["force"] = self.wrench[i].tolist()
@@ -147,6 +186,8 @@ class BagSource:
         self.server = None
 
     def info(self) -> dict:
+        needle = len(self.data.needles) > 0  # the bag carries tissue/needle: its tool was a needle
+        d = SPEC_BY_NAME["tissue.needle.outer_diameter_m"].default
         return {
             "type": "info",
             "mode": "bag",
@@ -154,8 +195,11 @@ class BagSource:
             "sheet_m": [SPEC_BY_NAME["tissue.sheet.size_x_m"].default, SPEC_BY_NAME["tissue.sheet.size_y_m"].default],
             "tool_radius_m": SPEC_BY_NAME["tissue.tool.radius_m"].default,
             "rate_hz": self.rate_hz,
-            "tool_shape": SPEC_BY_NAME["tissue.tool.shape"].default,
+            "tool_shape": "needle" if needle else SPEC_BY_NAME["tissue.tool.shape"].default,
             "thickness_m": default_thickness_m(),
+            "needle_outer_diameter_m": d,  # a bag has no parameters: the schema's default (the page says so)
+            "needle_gauge": fr.needle_gauge(d),
+            "needle_diameter_source": "the schema's default (a bag has no parameters)",
             "duration_s": self.data.duration_s,
             "n_grids": len(self.data.grids),
         }

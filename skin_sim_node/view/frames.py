@@ -85,3 +85,64 @@ def decimate(t: np.ndarray, *series: np.ndarray, max_points: int = 4000):
     """Every k-th sample so that at most ``max_points`` remain (a plot needs no more than its pixels)."""
     k = max(1, int(np.ceil(len(t) / max_points)))
     return (t[::k], *(s[::k] for s in series))
+
+
+# --- the needle (issue 22: tool.shape 'needle', tissue/needle) -----------------------------------
+NEEDLE_FIELDS_3 = ("tip_m", "axis", "entry_m", "force_n")
+NEEDLE_FIELDS_1 = ("insertion_m", "dimple_m", "dimple_force_n", "cutting_force_n", "friction_force_n")
+
+
+def needle_gauge(outer_diameter_m: float, rel_tol: float = 0.01) -> int | None:
+    """The gauge whose nominal outer diameter (the model's ISO 9626 table, ``model.needle.GAUGE_OUTER_DIAMETER_M``)
+    is within ``rel_tol`` of ``outer_diameter_m``, else None (the page then shows the diameter alone)."""
+    from ..model.needle import GAUGE_OUTER_DIAMETER_M  # the model's table (imported on use: it loads the kernels)
+
+    for g, d in GAUGE_OUTER_DIAMETER_M.items():
+        if abs(outer_diameter_m - d) <= rel_tol * d:
+            return g
+    return None
+
+
+def pose_axis(q) -> list[float]:
+    """The needle axis toward the tip from a pose orientation ``q = (x, y, z, w)``: R(q) applied to (0, 0, -1)
+    (``tool/pose`` in msgs_schema/topics.py). Normalised first, so a slightly off-unit quaternion still gives a unit axis."""
+    x, y, z, w = (float(c) for c in q)
+    n = (x * x + y * y + z * z + w * w) ** 0.5 or 1.0
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return [-2.0 * (x * z + w * y), -2.0 * (y * z - w * x), -(1.0 - 2.0 * (x * x + y * y))]
+
+
+def read_needle(msg) -> dict:
+    """A ``skin_sim_msgs/msg/NeedleState`` (rclpy or rosbags) as the page's ``needle`` record (SI units, tissue frame)."""
+    out: dict = {"inserted": bool(msg.inserted), "ruptured_layers": int(msg.ruptured_layers)}
+    for f in NEEDLE_FIELDS_3:
+        out[f] = [float(v) for v in getattr(msg, f)]
+    for f in NEEDLE_FIELDS_1:
+        out[f] = float(getattr(msg, f))
+    out["crossing_m"] = [float(v) for v in msg.crossing_m]
+    return out
+
+
+class TrackMemory:
+    """The deepest insertion along the current track: the page draws the track from the entry to it.
+
+    A track is the same entry and axis while ``inserted``; it ends when the needle is withdrawn (``inserted``
+    false) or the node reports another entry (a new track after withdrawal). ``update`` adds ``deepest_m``
+    to the record (0 without a track)."""
+
+    SAME_M = 1e-6  # an entry that moved less than this is the same track (the node latches it: it does not move)
+
+    def __init__(self):
+        self.entry: list[float] | None = None
+        self.deepest_m = 0.0
+
+    def update(self, needle: dict) -> dict:
+        if not needle["inserted"]:
+            self.entry, self.deepest_m = None, 0.0
+        else:
+            e = needle["entry_m"]
+            if self.entry is None or max(abs(a - b) for a, b in zip(e, self.entry)) > self.SAME_M:
+                self.entry, self.deepest_m = list(e), 0.0
+            self.deepest_m = max(self.deepest_m, needle["insertion_m"])
+        needle["deepest_m"] = self.deepest_m
+        return needle

@@ -21,13 +21,16 @@ from msgs_schema import convert as cv
 from msgs_schema.parameters import NODE_NAME, SPEC_BY_NAME
 from msgs_schema.tissue import LAYER_NAMES
 
-from .frames import default_thickness_m, diag_message, encode_frame, tool_depth_m
+from .frames import TrackMemory, default_thickness_m, diag_message, encode_frame, needle_gauge, read_needle, tool_depth_m
 
 TUNABLE = re.compile(r"stiffness|damping|friction|tolerance")
 """Parameters the page lists first (issue 14: stiffness, damping, friction, mode tolerance); the rest are
 one click away. Matched against the names the node reports at run time, so new ones appear by themselves."""
 GEOMETRY_EXTRA = ("tissue.tool.shape", *(f"tissue.layers.{n}.thickness_m" for n in LAYER_NAMES))
 """Parameters the page draws besides sheet size and tool radius: the tool's shape and the layer thicknesses."""
+NEEDLE_DIAMETER = "tissue.needle.outer_diameter_m"
+"""The needle's outer diameter: the page draws the needle this thick (read like the tool's shape; a node without it:
+the schema's default)."""
 SERVICE_TIMEOUT_S = 3.0  # a parameter call that takes longer than this is reported as unanswered
 SERVICE_WAIT_S = 10.0
 """How long a call first waits for the node's parameter services to be discovered. A view process that
@@ -84,6 +87,15 @@ class LiveSource:
             subscription(self.node, "contact", lambda m: setattr(self, "contact", m))
         subscription(self.node, "layer_heights", self._on_grid)
         subscription(self.node, "diagnostics", self._on_diag)
+        self.needle = None  # the newest tissue/needle as the page's record (frames.read_needle), None without a needle
+        self.track = TrackMemory()
+        self.needle_topic = False
+        try:  # the contract's tissue/needle, when the message package has it (an older build does not)
+            subscription(self.node, "needle", self._on_needle)
+            self.needle_topic = True
+        except (ImportError, AttributeError, KeyError):
+            pass
+        self.needle_diameter_m = SPEC_BY_NAME[NEEDLE_DIAMETER].default
         self.sheet_m = (SPEC_BY_NAME["tissue.sheet.size_x_m"].default, SPEC_BY_NAME["tissue.sheet.size_y_m"].default)
         self.tool_radius_m = SPEC_BY_NAME["tissue.tool.radius_m"].default
         self.tool_shape = SPEC_BY_NAME["tissue.tool.shape"].default
@@ -99,6 +111,7 @@ class LiveSource:
         self.force_max = fz if self.force_max is None else max(self.force_max, fz)
 
     grid_stamp_s = None
+    needle = None  # the newest tissue/needle as the page's record (also for a source built without __init__, in tests)
     force_max = None  # the largest force z since the last frame (a 1 ms spike between two 30 Hz frames is shown)
 
     def _on_grid(self, msg) -> None:
@@ -106,6 +119,9 @@ class LiveSource:
         self.grid_stamp_s = cv.stamp_ns(msg.header) * 1e-9
         self.grid_new = True
         self.grid_count += 1
+
+    def _on_needle(self, msg) -> None:
+        self.needle = self.track.update(read_needle(msg))
 
     def _on_diag(self, msg) -> None:
         for st in msg.status:
@@ -161,7 +177,10 @@ class LiveSource:
     def refresh_geometry(self, wait_s: float = SERVICE_WAIT_S) -> None:
         """Sheet size and tool radius from the node (its grid and patch), defaults if it does not answer."""
         try:
-            names = ["tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", "tissue.form", *GEOMETRY_EXTRA]
+            names = [
+                "tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", "tissue.form", *GEOMETRY_EXTRA,
+                NEEDLE_DIAMETER,
+            ]  # fmt: skip
             self._set_geometry(self._get(names, wait_s=wait_s, tries=1))
         except TimeoutError:
             return
@@ -181,9 +200,15 @@ class LiveSource:
             str(got.get("tissue.tool.shape", (0, self.tool_shape))[1]),
             [float(got.get(n, (0, t))[1]) for n, t in zip(GEOMETRY_EXTRA[1:], self.thickness_m)],
         )
-        changed = (new, extra) != ((self.sheet_m, self.tool_radius_m), (self.tool_shape, self.thickness_m))
+        diameter = float(got.get(NEEDLE_DIAMETER, (0, self.needle_diameter_m))[1])
+        changed = (new, extra, diameter) != (
+            (self.sheet_m, self.tool_radius_m), (self.tool_shape, self.thickness_m), self.needle_diameter_m
+        )  # fmt: skip
         self.sheet_m, self.tool_radius_m = new
         self.tool_shape, self.thickness_m = extra
+        self.needle_diameter_m = diameter
+        if self.tool_shape != "needle":  # the node's tool is no needle (any more): draw none
+            self.needle = None
         if "tissue.form" in got:
             self.form = str(got["tissue.form"][1])
         return changed
@@ -231,7 +256,8 @@ class LiveSource:
         except TimeoutError as exc:
             return {"ok": False, "name": name, "reason": str(exc)}
         r = res.results[0]
-        if r.successful and name in ("tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", *GEOMETRY_EXTRA):
+        geometry = ("tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", *GEOMETRY_EXTRA, NEEDLE_DIAMETER)
+        if r.successful and name in geometry:
             threading.Thread(target=self._after_geometry_change, daemon=True).start()
         return {
             "ok": bool(r.successful),
@@ -255,6 +281,8 @@ class LiveSource:
             "tool_shape": self.tool_shape,
             "thickness_m": self.thickness_m,
             "rate_hz": self.rate_hz,
+            "needle_outer_diameter_m": self.needle_diameter_m,
+            "needle_gauge": needle_gauge(self.needle_diameter_m),
         }
 
     def resend(self) -> None:
@@ -271,6 +299,8 @@ class LiveSource:
         if self.pose is not None:
             _, _, xyz = cv.read_pose(self.pose)
             h["tool"] = list(xyz)
+            q = self.pose.pose.orientation
+            h["tool_q"] = [q.x, q.y, q.z, q.w]  # the needle's axis (frames.pose_axis); the punch and sphere ignore it
             h["depth_m"] = tool_depth_m(xyz[2])
         if self.wrench is not None:
             stamp, _, f = cv.read_wrench(self.wrench)
@@ -281,6 +311,8 @@ class LiveSource:
             if self.force_max is not None:
                 h["force_max"] = float(self.force_max)
             self.force_max = None
+        if self.needle is not None:
+            h["needle"] = self.needle
         if self.contact is not None:
             _, comp, _, stress = cv.read_contact(self.contact)
             h["compression_m"], h["stress_pa"] = comp.tolist(), stress.tolist()

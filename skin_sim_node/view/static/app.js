@@ -46,6 +46,7 @@ resize();
 renderer.localClippingEnabled = true;
 const cut = new THREE.Plane(new THREE.Vector3(0, 1, 0), 1e4); // cut-away: hides the sheet in front of the tool (y < tool y)
 let toolY = 0; // mm
+let lastHeader = null; // the newest frame's header (a display change redraws the tool from it)
 let meshes = null, nx = 0, ny = 0, rest = null, lastGrid = null;
 function buildMeshes(gx, gy) {
   if (meshes) meshes.forEach((m) => { scene.remove(m); m.geometry.dispose(); });
@@ -154,7 +155,9 @@ for (const [id, i] of [["show-surface", 0], ["show-i1", 1], ["show-i2", 2]])
 for (const id of ["colour", "zscale", "cutaway"])
   $(id).addEventListener("change", () => {
     cut.constant = $("cutaway").checked && tool.visible ? -toolY : 1e4;
-    coloured = ""; if (lastGrid) updateMeshes(lastGrid); dirty = true;
+    coloured = ""; if (lastGrid) updateMeshes(lastGrid);
+    if (lastHeader && state.info) updateTool(lastHeader); // the needle and its track follow the z scale
+    dirty = true;
   });
 
 // tool as configured (tissue.tool.shape): a flat punch is a cylinder whose face is the tip; a sphere sits on its tip.
@@ -207,18 +210,111 @@ function depthReached(depthM) { // the layer whose rest depth range holds the to
   return `${TIP_LAYERS[k]} (its rest depth ${(top * 1e3).toFixed(3)}-${(bottom * 1e3).toFixed(3)} mm)`;
 }
 
+// --- the needle (tool.shape 'needle'; tissue/needle, skin_sim_msgs/msg/NeedleState) ---------------------------------
+// The needle: a cylinder of needle.outer_diameter_m from the tip back NEEDLE_BACK_MM along the axis. The track: from the
+// entry along the axis to the deepest insertion of this track (thin, grey), and over it each punctured layer's segment
+// (crossing_m[i] to crossing_m[i + 1], up to the deepest insertion) in the layer's colour, thicker than the needle so
+// the colour rings it; intact layers ahead are not coloured. Drawn over the tissue (no depth test, like an X-ray), so
+// the track shows in the cut and through the surface. The z scale applies as to everything below the rest surface.
+const NEEDLE_BACK_MM = 30;
+const needleMat = new THREE.MeshStandardMaterial({ color: 0xd8dde3, metalness: 0.5, roughness: 0.35, depthTest: false });
+const trackMat = new THREE.MeshBasicMaterial({ color: 0x8a9099, depthTest: false });
+const segMats = LAYER_RGB.map((rgb) => new THREE.MeshBasicMaterial({ color: new THREE.Color().setRGB(...rgb, THREE.SRGBColorSpace), depthTest: false }));
+const needleGroup = new THREE.Group();
+scene.add(needleGroup);
+function tube(mat, order) {
+  const m = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 1, 16), mat);
+  m.renderOrder = order; m.visible = false; needleGroup.add(m); return m;
+}
+const needleTubes = [tube(needleMat, 12), tube(needleMat, 12)]; // tip to the rest surface, and above it (unscaled z)
+const trackTube = tube(trackMat, 10);
+const segTubes = [0, 1, 2].map((i) => tube(segMats[i], 11));
+const edgeMat = new THREE.MeshBasicMaterial({ color: 0x15181d, depthTest: false }); // a dark rim: told apart from the cut's bands
+const edgeTubes = [0, 1, 2].map(() => tube(edgeMat, 10));
+const EDGE_MM = 0.12;
+const Y_AXIS = new THREE.Vector3(0, 1, 0);
+function placeTube(m, a, b, r) { // the unit cylinder (along its y) from a to b (drawn mm), radius r mm
+  const d = new THREE.Vector3().subVectors(b, a), len = d.length();
+  m.visible = len > 1e-6;
+  if (!m.visible) return;
+  m.position.copy(a).addScaledVector(d, 0.5);
+  m.quaternion.setFromUnitVectors(Y_AXIS, d.divideScalar(len));
+  m.scale.set(r, len, r);
+}
+const drawPt = (p, zs) => new THREE.Vector3(p[0] * 1e3, p[1] * 1e3, zDraw(p[2] * 1e3, zs)); // m (tissue frame) -> drawn mm
+const along = (p, axis, s) => [p[0] + axis[0] * s, p[1] + axis[1] * s, p[2] + axis[2] * s];
+function poseAxis(q) { // R(q) (0, 0, -1): the needle's axis from tool/pose (msgs_schema/topics.py); frames.pose_axis
+  if (!q) return [0, 0, -1];
+  const n = Math.hypot(...q) || 1, [x, y, z, w] = q.map((c) => c / n);
+  return [-2 * (x * z + w * y), -2 * (y * z - w * x), -(1 - 2 * (x * x + y * y))];
+}
+function updateNeedle(h, zs) { // true when a needle is drawn
+  const nd = h.needle, shape = state.info.tool_shape;
+  const on = !!nd || (shape === "needle" && !!h.tool);
+  needleGroup.visible = on;
+  $("needle-info").style.display = on ? "block" : "none";
+  if (!on) { state.needle = null; return false; }
+  const rmm = (state.info.needle_outer_diameter_m || 0.819e-3) * 1e3 / 2;
+  const tipM = nd ? nd.tip_m : h.tool, axis = nd ? nd.axis : poseAxis(h.tool_q);
+  // the shaft, split where it crosses the rest surface (z = 0): the z scale bends it there as it bends the tissue
+  const backM = along(tipM, axis, -NEEDLE_BACK_MM * 1e-3);
+  const pts = [tipM];
+  if ((tipM[2] < 0) !== (backM[2] < 0)) { const t = tipM[2] / (tipM[2] - backM[2]); pts.push(along(tipM, axis, -t * NEEDLE_BACK_MM * 1e-3)); }
+  pts.push(backM);
+  needleTubes.forEach((m, i) => { if (i + 1 < pts.length) placeTube(m, drawPt(pts[i], zs), drawPt(pts[i + 1], zs), rmm); else m.visible = false; });
+  const rec = { tipM, axis, backM, angleDeg: Math.acos(Math.min(1, Math.max(-1, -axis[2]))) * 180 / Math.PI, track: null, segments: [] };
+  const track = nd && nd.inserted && nd.deepest_m > 0;
+  trackTube.visible = false; segTubes.forEach((m) => { m.visible = false; }); edgeTubes.forEach((m) => { m.visible = false; });
+  if (track) {
+    const end = nd.deepest_m, cr = nd.crossing_m;
+    placeTube(trackTube, drawPt(nd.entry_m, zs), drawPt(along(nd.entry_m, nd.axis, end), zs), Math.max(0.08, rmm * 0.45));
+    rec.track = { entryM: nd.entry_m, endM: along(nd.entry_m, nd.axis, end), lengthM: end };
+    for (let i = 0; i < Math.min(nd.ruptured_layers, 3, cr.length); i++) {
+      const s0 = cr[i], s1 = Math.min(i + 1 < cr.length ? cr[i + 1] : end, end);
+      if (!(s1 > s0)) continue;
+      const a = drawPt(along(nd.entry_m, nd.axis, s0), zs), b = drawPt(along(nd.entry_m, nd.axis, s1), zs), r = Math.max(0.25, rmm * 1.8);
+      placeTube(segTubes[i], a, b, r);
+      placeTube(edgeTubes[i], a, b, r + EDGE_MM);
+      rec.segments.push({ layer: i, s0M: s0, s1M: s1 });
+    }
+  }
+  state.needle = rec;
+  // the text overlay: gauge and diameter, insertion, dimple, punctured layers, the axial force's parts
+  const g = state.info.needle_gauge, dmm = (2 * rmm).toFixed(3);
+  const lines = [`needle ${g ? `${g} G, ` : ""}${dmm} mm outer diameter${state.info.needle_diameter_source ? ` (${state.info.needle_diameter_source})` : ""}` +
+    `, ${rec.angleDeg.toFixed(1)}\u00b0 from vertical`];
+  if (nd) {
+    const names = TIP_LAYERS.slice(0, nd.ruptured_layers);
+    lines.push(`insertion ${(nd.insertion_m * 1e3).toFixed(2)} mm (deepest ${(nd.deepest_m * 1e3).toFixed(2)} mm) \u00b7 dimple ${(nd.dimple_m * 1e3).toFixed(2)} mm`);
+    lines.push(`punctured ${nd.ruptured_layers} of 3${names.length ? ` (${names.join(", ")})` : ""}${nd.inserted ? "" : " \u00b7 no track"}`);
+    lines.push(`axial: dimple ${nd.dimple_force_n.toFixed(3)} N \u00b7 cutting ${nd.cutting_force_n.toFixed(3)} N \u00b7 friction ${nd.friction_force_n.toFixed(3)} N \u00b7 |F| ${Math.hypot(...nd.force_n).toFixed(3)} N`);
+  } else lines.push("no tissue/needle from the node: drawn from tool/pose");
+  $("needle-info").textContent = lines.join("\n");
+  state.needleText = $("needle-info").textContent;
+  return true;
+}
+window.skinViewNeedle = () => { // for tests: what is drawn, read back from the scene's meshes (drawn mm)
+  needleGroup.updateMatrixWorld(true);
+  const ends = (m) => m.visible && needleGroup.visible
+    ? [new THREE.Vector3(0, -0.5, 0), new THREE.Vector3(0, 0.5, 0)].map((v) => m.localToWorld(v).toArray()) : null;
+  return { visible: needleGroup.visible, zscale: parseFloat($("zscale").value) || 1, radiusMm: needleTubes[0].scale.x,
+    needle: needleTubes.map(ends), track: ends(trackTube), segments: segTubes.map(ends),
+    segmentColours: segMats.map((m) => m.color.getHexString()), rec: state.needle };
+};
+
 let shownShape = "";
 function updateTool(h) {
-  const zs = parseFloat($("zscale").value) || 1, rmm = state.info.tool_radius_m * 1e3, shape = state.info.tool_shape || "flat";
-  if (shape !== shownShape) { // geometry of the configured tool
+  const zs = parseFloat($("zscale").value) || 1, rmm = state.info.tool_radius_m * 1e3;
+  const needle = updateNeedle(h, zs), shape = needle ? "needle" : state.info.tool_shape || "flat";
+  if (shape !== shownShape) { // geometry of the configured tool (a needle: the needle group instead)
     shownShape = shape;
-    const flat = shape !== "sphere";
-    tip.visible = !flat; punch.visible = flat;
+    const flat = shape === "flat";
+    tip.visible = shape === "sphere"; punch.visible = flat;
     tip.scale.setScalar(rmm); tip.position.set(0, 0, rmm);
     punch.scale.set(rmm, SHAFT_MM, rmm); punch.position.set(0, 0, SHAFT_MM / 2);
-    shaft.visible = !flat;
+    shaft.visible = shape === "sphere";
     shaft.scale.set(rmm * 0.6, SHAFT_MM, rmm * 0.6); shaft.position.set(0, 0, rmm + SHAFT_MM / 2);
-    state.toolShape = flat ? "cylinder" : "sphere";
+    state.toolShape = shape === "sphere" ? "sphere" : flat ? "cylinder" : "needle";
   }
   if (h.tool) {
     const [x, y, z] = h.tool.map((v) => v * 1e3);
@@ -241,7 +337,7 @@ function updateTool(h) {
     state.arrowLenMm = len;
   }
   placeArrowLabel(f);
-  patch.visible = f > 1e-4;
+  patch.visible = f > 1e-4 && shownShape !== "needle"; // a needle's contact is its tip, drawn
   if (patch.visible) { patch.position.set(at[0] * 1e3, at[1] * 1e3, zsurf + 0.05); patch.scale.setScalar(rmm); }
   updateCurtain();
 }
@@ -340,6 +436,9 @@ async function setParam(name) {
   el.textContent = r.ok ? `${name} = ${r.value}: ${r.reason}` : `${name} rejected: ${r.reason}`;
   if (!r.ok) input.value = r.value !== undefined ? r.value : input.value;
 }
+window.skinViewCamera = (pos, target) => { // for screenshots: frame the scene (drawn mm)
+  camera.position.set(...pos); controls.target.set(...target); controls.update(); dirty = true; return true;
+};
 window.skinViewSetParam = async (name, value) => { // for tests: type into the page's field and press set
   document.querySelector(`input[data-name="${name}"]`).value = value;
   await setParam(name);
@@ -390,6 +489,7 @@ function onFrame(buf) {
   $("force").textContent = state.force !== null ? state.force.toFixed(4) : "-";
   $("depth").textContent = h.depth_m !== undefined ? (h.depth_m * 1e3).toFixed(2) : "-";
   $("layers").textContent = h.layers !== undefined ? h.layers : h.stress_pa ? h.stress_pa.filter((s) => s > 0).length : "-";
+  lastHeader = h;
   updateTool(h);
   plots(h);
   dirty = true;
