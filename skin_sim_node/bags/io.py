@@ -61,8 +61,31 @@ class UnknownMessageTypeError(BagError):
 
 @cache
 def typestore():
-    """The ROS 2 Jazzy typestore of ``rosbags`` (geometry, sensor, visualization, diagnostic msgs)."""
+    """The ROS 2 Jazzy typestore of ``rosbags`` (geometry, sensor, visualization, diagnostic msgs); the project's own
+    types are added by :func:`register_project_type`."""
     return get_typestore(Stores.ROS2_JAZZY)
+
+
+PROJECT_MSG_DIR = Path(__file__).resolve().parents[2] / "interfaces" / "skin_sim_msgs" / "msg"
+"""The project's message definitions (the source tree's ``interfaces/skin_sim_msgs/msg``)."""
+
+
+def register_project_type(msgtype: str, msgdef: str | None = None) -> bool:
+    """Teach :func:`typestore` one of the project's types (``skin_sim_msgs/msg/NAME``), which rosbags does not know.
+
+    ``msgdef``: the definition stored in a bag, if any (an MCAP schema may append its dependencies); else the source
+    tree's ``.msg``. Returns False if neither is there (the caller then plays or records without that topic)."""
+    from rosbags.typesys import get_types_from_msg
+
+    ts = typestore()
+    if msgtype in ts.types:
+        return True
+    path = PROJECT_MSG_DIR / f"{msgtype.rsplit('/', 1)[-1]}.msg"
+    text = msgdef if msgdef and msgdef.strip() else (path.read_text() if path.is_file() else None)
+    if text is None:
+        return False
+    ts.register(get_types_from_msg(text.split("\n====", 1)[0], msgtype))
+    return True
 
 
 def qos_profiles(topic_key: str) -> list[Qos]:

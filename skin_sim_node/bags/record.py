@@ -16,8 +16,10 @@ import sys
 import time
 from pathlib import Path
 
+from msgs_schema.topics import TOPICS
+
 from ..scenes import DEFAULT_PARAMS, SCENES, Scene
-from .io import STORAGES, BagWriter
+from .io import STORAGES, BagWriter, register_project_type
 
 START_DELAY_S = 3.0
 """Tool start delay: DDS discovery between three new processes took up to 1.6 s in our probe."""
@@ -43,9 +45,7 @@ def record_scene(
     keys += ["height_map", "layer_heights"] if images else []
     keys += ["mesh"] if mesh else []
     if needle:  # tissue/needle (tool.shape 'needle'): the view draws the track from it
-        from ..view.bag import register_needle_type  # the writer's type store must know NeedleState (its msgdef)
-
-        if not register_needle_type(None):
+        if not register_project_type(TOPICS["needle"].type):  # the writer's type store must know NeedleState
             raise FileNotFoundError("skin_sim_msgs/msg/NeedleState.msg not found: cannot record tissue/needle")
         keys.append("needle")
     custom = {"skin_sim.scene": scene_kind, "skin_sim.path": path, "skin_sim.params": Path(params).name}

@@ -20,32 +20,17 @@ from msgs_schema import convert as cv
 from msgs_schema.parameters import SPEC_BY_NAME
 from msgs_schema.topics import TOPICS
 
-from ..bags.io import BagError, deserialize, iter_raw, open_bag, topic_types
+from ..bags.io import BagError, deserialize, iter_raw, open_bag, register_project_type, topic_types
 from . import frames as fr
 from .frames import decimate, default_thickness_m, diag_message, encode_frame, tool_depth_m
 
 KEYS = ("tool_pose", "tool_wrench", "contact", "layer_heights", "diagnostics", "needle")
-NEEDLE_MSG = Path(__file__).resolve().parents[2] / "interfaces" / "skin_sim_msgs" / "msg" / "NeedleState.msg"
-"""The NeedleState definition (the source tree's; a bag's own MCAP schema is used first when it has one)."""
 
 
 def register_needle_type(msgdef: str | None) -> bool:
-    """Teach the bag readers' type store ``skin_sim_msgs/msg/NeedleState`` (it knows the ROS 2 Jazzy types only).
-
-    ``msgdef``: the definition stored in the bag, if any; else the source tree's ``.msg``. False if neither is there."""
-    from rosbags.typesys import get_types_from_msg
-
-    from ..bags.io import typestore
-
-    name = TOPICS["needle"].type
-    ts = typestore()
-    if name in ts.types:
-        return True
-    text = msgdef if msgdef and msgdef.strip() else (NEEDLE_MSG.read_text() if NEEDLE_MSG.is_file() else None)
-    if text is None:
-        return False
-    ts.register(get_types_from_msg(text.split("\n====", 1)[0], name))  # an MCAP schema may append dependencies
-    return True
+    """Teach the bag readers' type store ``skin_sim_msgs/msg/NeedleState`` from the bag's own ``msgdef`` or the source
+    tree (:func:`skin_sim_node.bags.io.register_project_type`); False if neither is there."""
+    return register_project_type(TOPICS["needle"].type, msgdef)
 
 
 def find_topic(types: dict[str, str], key: str) -> str | None:
