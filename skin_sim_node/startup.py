@@ -71,10 +71,13 @@ def start_line(flat: dict, ros_args, node_fqn: str | None = None) -> str:
     preset = "preset " + ", ".join(named) if files else "no preset file (the schema's defaults; see --params-file)"
     shape = str(flat.get("tissue.tool.shape", "?"))
     tool = {"flat": "flat punch", "sphere": "sphere"}.get(shape, shape)
-    return (
-        f"starting: tissue form '{flat.get('tissue.form', '?')}', {preset}, tool {tool} "
-        f"r = {float(flat.get('tissue.tool.radius_m', float('nan'))) * 1e3:.2f} mm"
-    )
+    if shape == "needle":
+        d = float(flat.get("tissue.needle.outer_diameter_m", float("nan")))
+        lube = "lubricated" if flat.get("tissue.needle.lubricated", True) else "dry"
+        size = f"outer diameter {d * 1e3:.3f} mm ({lube}); its axis from the pose's orientation"
+    else:
+        size = f"r = {float(flat.get('tissue.tool.radius_m', float('nan'))) * 1e3:.2f} mm"
+    return f"starting: tissue form '{flat.get('tissue.form', '?')}', {preset}, tool {tool} {size}"
 
 
 def node_argument_error(rest: list[str]) -> str | None:
