@@ -13,7 +13,7 @@ from skin_sim_node.model import layout as lay
 from skin_sim_node.model import needle as needle_mod
 from skin_sim_node.model import needle_kernels as nk
 from skin_sim_node.model.config import preset
-from skin_sim_node.model.needle import NeedleModel, NeedleParams
+from skin_sim_node.model.needle import NeedleModel, NeedleParams, warm_up
 from skin_sim_node.model.needle_reference import NumpyNeedleModel
 
 KERNELS = ("dimple_force", "needle_law_kernel", "needle_step_kernel", "reset_track", "rupture_insertion", "start_track")
@@ -233,3 +233,7 @@ def test_non_finite_input_is_a_one_line_error(cfg):
     assert not m.inserted
     out = np.zeros(lay.NO_SIZE)
     assert not nk.needle_step_kernel(0.0, 0.0, math.nan, 0.0, 0.0, -1.0, *m._args, out) and not np.any(out)
+
+
+def test_warm_up_runs_every_path(cfg):
+    warm_up(cfg)

@@ -26,6 +26,20 @@ array      shape                holds
 ``sbuf``   (2, M + 1)           sine tables in x and y
 ``out``    (OUT_SIZE,)          results of a tick (``OUT_*``), also the contact state the layered form carries
 =========  ===================  ==================================================================
+
+The needle (issue 22, :mod:`.needle_kernels`) reads ``lp`` and has its own arrays, in the last section below:
+
+==========  ===================  =================================================================
+array       shape                holds
+==========  ===================  =================================================================
+``npar``    (NP_SIZE,)           the needle's scalar parameters (``NP_*``)
+``nlp``     (NL_SIZE, L)         its per-layer parameters: thresholds, thicknesses, moduli (``NL_*``)
+``nstate``  (NS_SIZE,)           the track: entry, axis, ruptured layers, front, law cache (``NS_*``)
+``ntrack``  (NT_SIZE, L + 1)     crossings along the axis and Dahl states (``NT_*``)
+``nbuf``    (NB_SIZE, L + 1)     scratch of the chain and the interfaces (``NB_*``)
+``nout``    (NO_SIZE,)           one tick's force and its parts (``NO_*``)
+``nlaw``    (NW_SIZE,)           the axial law at the tip (``NW_*``)
+==========  ===================  =================================================================
 """
 
 from __future__ import annotations

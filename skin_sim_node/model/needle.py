@@ -396,3 +396,16 @@ class NeedleModel:
             ruptured=k,
             punctured=tuple(range(k0, k)),
         )
+
+
+def warm_up(cfg: TissueConfig) -> None:
+    """Compile (or load from numba's cache) every needle kernel and touch each path once: a track start, the dimple,
+    the ruptures, cutting and friction, the law, a withdrawal. Loading the kernels from the cache at the first tick
+    otherwise stalls it for milliseconds (:func:`~.skin_model.warm_up` does the same for the tissue)."""
+    m = NeedleModel(cfg)
+    for z in np.linspace(1e-4, -6e-3, 40).tolist() + [-5e-3, 1e-4]:
+        tip = (0.0, 0.0, z)
+        m.law(m.step(tip, (0.0, 0.0, -1.0)), tip)
+    m.rupture_insertion_m()
+    m.dimple_force_n(0, 1e-3)
+    m.copy().reset()
