@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -210,6 +211,35 @@ def _vec3(v, what: str) -> tuple[float, float, float]:
     return x, y, z
 
 
+class _Slot:
+    """A scalar of a :class:`NeedleModel`'s ``nstate``, read as ``cast`` (an attribute of the reference)."""
+
+    def __init__(self, slot: int, cast: type, doc: str):
+        self.slot, self.cast, self.__doc__ = slot, cast, doc
+
+    def __get__(self, obj, owner=None) -> Any:
+        return self if obj is None else self.cast(obj.nstate[self.slot])
+
+    def __set__(self, obj, value) -> None:
+        obj.nstate[self.slot] = float(value)
+
+
+class _View:
+    """A vector of a :class:`NeedleModel`'s state arrays: a view (it changes with the state; assigning writes into it).
+    ``track``: the law's cache of the rupture ahead depends on it, and is emptied when it is assigned."""
+
+    def __init__(self, name: str, doc: str, track: bool = False):
+        self.name, self.track, self.__doc__ = name, track, doc
+
+    def __get__(self, obj, owner=None) -> Any:
+        return self if obj is None else getattr(obj, self.name)
+
+    def __set__(self, obj, value) -> None:
+        getattr(obj, self.name)[:] = value
+        if self.track:
+            obj.nstate[NS_LAW_K] = 0.0
+
+
 class NeedleModel:
     """A needle in the layered stack of ``cfg`` (module docstring); :meth:`step` per tick, :meth:`law` after it.
 
@@ -251,81 +281,15 @@ class NeedleModel:
         """Needle out of the tissue: no track."""
         reset_track(self.nstate, self.ntrack)
 
-    # --- the state, as the reference's attributes ------------------------------------------------
-    @property
-    def inserted(self) -> bool:
-        """A track exists (the tip passed the surface)."""
-        return bool(self.nstate[NS_INSERTED])
-
-    @inserted.setter
-    def inserted(self, value: bool) -> None:
-        self.nstate[NS_INSERTED] = 1.0 if value else 0.0
-
-    @property
-    def entry(self) -> np.ndarray:
-        """Entry point of the track (m), a view of the state."""
-        return self._entry
-
-    @entry.setter
-    def entry(self, value) -> None:
-        self._entry[:] = value
-        self.nstate[NS_LAW_K] = 0.0  # the law's cache of the rupture ahead is stale
-
-    @property
-    def axis(self) -> np.ndarray:
-        """Unit axis of the track toward the tip, a view of the state; (0, 0, -1) out of the tissue."""
-        return self._axis
-
-    @axis.setter
-    def axis(self, value) -> None:
-        self._axis[:] = value
-        self.nstate[NS_LAW_K] = 0.0  # the law's cache of the rupture ahead is stale
-
-    @property
-    def crossings(self) -> np.ndarray:
-        """Axis lengths ``t_j`` (m) from the entry to each layer's top, then the bottom (L + 1), a view."""
-        return self._crossings
-
-    @crossings.setter
-    def crossings(self, value) -> None:
-        self._crossings[:] = value
-        self.nstate[NS_LAW_K] = 0.0  # the law's cache of the rupture ahead is stale
-
-    @property
-    def dahl(self) -> np.ndarray:
-        """Dahl state of each layer's shaft friction (L), a view."""
-        return self._dahl
-
-    @dahl.setter
-    def dahl(self, value) -> None:
-        self._dahl[:] = value
-
-    @property
-    def ruptured(self) -> int:
-        """Layers ruptured along the track."""
-        return int(self.nstate[NS_RUPTURED])
-
-    @ruptured.setter
-    def ruptured(self, value: int) -> None:
-        self.nstate[NS_RUPTURED] = value
-
-    @property
-    def front_m(self) -> float:
-        """Crack front: the deepest insertion cut so far (m)."""
-        return float(self.nstate[NS_FRONT])
-
-    @front_m.setter
-    def front_m(self, value: float) -> None:
-        self.nstate[NS_FRONT] = value
-
-    @property
-    def last_m(self) -> float:
-        """Insertion at the last tick (m)."""
-        return float(self.nstate[NS_LAST])
-
-    @last_m.setter
-    def last_m(self, value: float) -> None:
-        self.nstate[NS_LAST] = value
+    # --- the state, as the reference's attributes (read and write the state arrays) ---------------
+    inserted = _Slot(NS_INSERTED, bool, "A track exists (the tip passed the surface).")
+    ruptured = _Slot(NS_RUPTURED, int, "Layers ruptured along the track.")
+    front_m = _Slot(NS_FRONT, float, "Crack front: the deepest insertion cut so far (m).")
+    last_m = _Slot(NS_LAST, float, "Insertion at the last tick (m).")
+    entry = _View("_entry", "Entry point of the track (m).", track=True)
+    axis = _View("_axis", "Unit axis of the track toward the tip; (0, 0, -1) out of the tissue.", track=True)
+    crossings = _View("_crossings", "Axis lengths ``t_j`` (m) from the entry to each layer's top, then the bottom.", track=True)
+    dahl = _View("_dahl", "Dahl state of each layer's shaft friction.")
 
     # --- laws ---------------------------------------------------------------------------------
     def _start_track(self, tip: np.ndarray, axis: np.ndarray) -> bool:
