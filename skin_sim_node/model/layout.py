@@ -26,6 +26,20 @@ array      shape                holds
 ``sbuf``   (2, M + 1)           sine tables in x and y
 ``out``    (OUT_SIZE,)          results of a tick (``OUT_*``), also the contact state the layered form carries
 =========  ===================  ==================================================================
+
+The needle (issue 22, :mod:`.needle_kernels`) reads ``lp`` and has its own arrays, in the last section below:
+
+==========  ===================  =================================================================
+array       shape                holds
+==========  ===================  =================================================================
+``npar``    (NP_SIZE,)           the needle's scalar parameters (``NP_*``)
+``nlp``     (NL_SIZE, L)         its per-layer parameters: thresholds, thicknesses, moduli (``NL_*``)
+``nstate``  (NS_SIZE,)           the track: entry, axis, ruptured layers, front, law cache (``NS_*``)
+``ntrack``  (NT_SIZE, L + 1)     crossings along the axis and Dahl states (``NT_*``)
+``nbuf``    (NB_SIZE, L + 1)     scratch of the chain and the interfaces (``NB_*``)
+``nout``    (NO_SIZE,)           one tick's force and its parts (``NO_*``)
+``nlaw``    (NW_SIZE,)           the axial law at the tip (``NW_*``)
+==========  ===================  =================================================================
 """
 
 from __future__ import annotations
@@ -231,6 +245,178 @@ AUX_DBD     -      d(interface depth)/d(tool depth) through the contact radius (
 AUX_EA      N      the layer's instantaneous ``EA (1 + a_1 g_1 + a_2 g_2)`` of this tick's backward-Euler step
 AUX_OFF     N      the Prony arms' force carried into this tick, ``sum_j a_j (H_j - g_j f_e,old)``
 ==========  =====  ===========================================================================
+"""
+
+
+# --- the needle (issue 22; kernels in needle_kernels.py, packing in needle.py) ----------------------------------------
+# The needle's arrays sit beside the tissue's: its kernels also read ``lp`` (LP_EA, LP_N, LP_IF_*) for the chain and
+# the interfaces, so the layer properties stay in one place.
+
+NP_SCALE = 0
+NP_FRICTION = 1
+NP_CUT_RATIO = 2
+NP_DAHL_M = 3
+NP_CUT_M = 4
+NP_WALL = 5
+NP_LATERAL = 6
+NP_BOTTOM = 7
+NP_MIN_SIN = 8
+NP_SIZE = 9
+"""Slots of ``npar``, shape (NP_SIZE,), float64: the needle's scalar parameters (constant over a run).
+
+=================  ======  ======================================================================================
+slot               unit    holds
+=================  ======  ======================================================================================
+NP_SCALE           -       dimple force scale: the needle's radius over the calibrated punch's (Sneddon)
+NP_FRICTION        N/m     Dahl friction level per inserted length, ``lambda tau pi d``
+NP_CUT_RATIO       -       ``beta``: cutting force over the puncture threshold
+NP_DAHL_M          m       Dahl presliding length ``x_0``
+NP_CUT_M           m       ``x_c``: the cutting force fades over this distance behind the crack front
+NP_WALL            -       the compression law's wall strain (the chain of the dimple)
+NP_LATERAL         -       ``k_l``: Winkler modulus per length over the layer's Young's modulus
+NP_BOTTOM          m       depth of the tissue bottom (the last crossing's surface)
+NP_MIN_SIN         -       sine of the shallowest angle below the surface that starts a track
+=================  ======  ======================================================================================
+"""
+
+NL_FP = 0
+NL_H = 1
+NL_MODULUS = 2
+NL_ZERO = 3
+NL_SIZE = 4
+"""Rows of ``nlp``, shape (NL_SIZE, L), float64: the needle's per-layer parameters.
+
+==========  =====  ===========================================================================================
+row         unit   holds
+==========  =====  ===========================================================================================
+NL_FP       N      puncture threshold ``F_p = lambda Gamma d`` of each layer
+NL_H        m      mean thickness of each layer (the dimple's chain)
+NL_MODULUS  Pa     Young's modulus of each layer (the lateral bed)
+NL_ZERO     -      zeros: the dimple chain's dampers, old compressions and Prony offsets (its equilibrium law)
+==========  =====  ===========================================================================================
+"""
+
+NS_INSERTED = 0
+NS_EX = 1
+NS_EY = 2
+NS_EZ = 3
+NS_UX = 4
+NS_UY = 5
+NS_UZ = 6
+NS_RUPTURED = 7
+NS_FRONT = 8
+NS_LAST = 9
+NS_T = 10
+NS_LAW_K = 11
+NS_LAW_FRONT = 12
+NS_LAW_RUPTURE = 13
+NS_LAW_POST = 14
+NS_LAW_POST_GRADIENT = 15
+NS_SIZE = 16
+"""Slots of ``nstate``, shape (NS_SIZE,), float64: the needle's track, carried between ticks.
+
+======================  ======  ===========================================================================================
+slot                    unit    holds
+======================  ======  ===========================================================================================
+NS_INSERTED             -       1.0: a track exists (the tip passed the surface); 0.0: out of the tissue
+NS_EX .. NS_EZ          m       entry point ``e`` of the track (on the rest surface)
+NS_UX .. NS_UZ          -       unit axis ``u_e`` of the track (toward the tip); (0, 0, -1) out of the tissue
+NS_RUPTURED             -       layers ruptured along the track (an integer, stored as float)
+NS_FRONT                m       crack front: the deepest insertion cut so far
+NS_LAST                 m       insertion at the last tick (the Dahl states' step)
+NS_T                    N       chain force ``T`` of the current dimple (before ``NP_SCALE``): the next tick's Newton start
+NS_LAW_K                -       the law's cache of the rupture ahead: valid for ``k + 1`` ruptured layers ``k`` (0: empty)
+NS_LAW_FRONT            m       ... and this crack front (the line past the rupture depends on track, ``k`` and front)
+NS_LAW_RUPTURE          m       cached insertion of the next rupture (inf: none)
+NS_LAW_POST             N       cached ``R_e`` just past it
+NS_LAW_POST_GRADIENT    N/m     cached slope there
+======================  ======  ===========================================================================================
+"""
+
+NT_CROSS = 0
+NT_DAHL = 1
+NT_SIZE = 2
+"""Rows of ``ntrack``, shape (NT_SIZE, L + 1), float64: the needle's per-layer state.
+
+=========  =====  ============================================================================================
+row        unit   holds
+=========  =====  ============================================================================================
+NT_CROSS   m      axis length from the entry to the top of layer ``j`` (column ``L``: to the bottom)
+NT_DAHL    -      Dahl state ``s_i`` in ``[-1, 1]`` of each ruptured layer's shaft friction (column ``L`` unused)
+=========  =====  ============================================================================================
+"""
+
+NB_C = 0
+NB_G = 1
+NB_BOUNDS = 2
+NB_SIZE = 3
+"""Rows of ``nbuf``, shape (NB_SIZE, L + 1), float64: the needle kernels' scratch (no state).
+
+==========  =====  ===========================================================================================
+row         unit   holds
+==========  =====  ===========================================================================================
+NB_C        m      compressions of the dimple's chain (columns ``k..L-1``)
+NB_G        N/m    their slopes
+NB_BOUNDS   m      depths of the layer tops at a point of the axis, then the bottom (``paper.layer_bounds``)
+==========  =====  ===========================================================================================
+"""
+
+NO_FX = 0
+NO_FY = 1
+NO_FZ = 2
+NO_AXIAL = 3
+NO_DIMPLE = 4
+NO_CUT = 5
+NO_FRICTION = 6
+NO_LX = 7
+NO_LY = 8
+NO_LZ = 9
+NO_DIMPLE_M = 10
+NO_INSERTION_M = 11
+NO_RUPTURED = 12
+NO_FIRST = 13
+NO_SIZE = 14
+"""Slots of ``nout``, shape (NO_SIZE,), float64: what the needle's step kernel writes (``NeedleTick``).
+
+==================  ====  =========================================================================================
+slot                unit  holds
+==================  ====  =========================================================================================
+NO_FX .. NO_FZ      N     force on the needle, ``-R u_e`` plus the lateral force, tissue frame
+NO_AXIAL            N     axial resistance ``R`` (> 0 resists insertion)
+NO_DIMPLE           N     its dimple part
+NO_CUT              N     its cutting part
+NO_FRICTION         N     its shaft friction part (signed)
+NO_LX .. NO_LZ      N     lateral force of the bed along the shaft
+NO_DIMPLE_M         m     axial dimple of the next intact layer
+NO_INSERTION_M      m     insertion ``L`` along the track (0 out of the tissue)
+NO_RUPTURED         -     layers ruptured after the tick
+NO_FIRST            -     layers ruptured before it: layers ``NO_FIRST .. NO_RUPTURED - 1`` ruptured this tick
+==================  ====  =========================================================================================
+"""
+
+NW_FORCE = 0
+NW_GRADIENT = 1
+NW_RUPTURE_M = 2
+NW_POST = 3
+NW_POST_GRADIENT = 4
+NW_CAPACITY = 5
+NW_CAPACITY_GRADIENT = 6
+NW_STATE = 7
+NW_SIZE = 8
+"""Slots of ``nlaw``, shape (NW_SIZE,), float64: the needle's axial law at the tip (``msgs_schema`` ``NeedleLaw``).
+
+=====================  =====  =====================================================================================
+slot                   unit   holds
+=====================  =====  =====================================================================================
+NW_FORCE               N      ``R_e``: dimple plus cutting at the tip
+NW_GRADIENT            N/m    its slope along the axis (0 when a step ahead ruptures)
+NW_RUPTURE_M           m      distance along the axis to the next rupture (0: none ahead)
+NW_POST                N      ``R_e`` just past that rupture
+NW_POST_GRADIENT       N/m    its slope there
+NW_CAPACITY            N      Dahl friction's Coulomb level ``F_c`` over the inserted length
+NW_CAPACITY_GRADIENT   N/m    its growth per inserted length
+NW_STATE               -      Dahl state ``z = F_f / F_c`` in ``[-1, 1]``
+=====================  =====  =====================================================================================
 """
 
 

@@ -1,7 +1,9 @@
 """A needle through the layered skin (issue 22, first cut): dimple, per-layer puncture, cutting, shaft friction.
 
-Pure Python (NumPy), the physics reference for the haptic kernel still to come; it is not wired into the
-node, the bridge or the view yet (docs/needle.md, "Status"). Tissue frame, SI units, z up, rest surface z = 0.
+:class:`NeedleModel` runs the numba kernels of :mod:`.needle_kernels` on the arrays of :mod:`.layout`'s needle
+section (a step and the law together take microseconds: the haptic rate); :class:`.needle_reference.NumpyNeedleModel`
+is the pure-NumPy first cut, kept as the slow reference the kernels are tested against. Tissue frame, SI units, z up,
+rest surface z = 0.
 
 The needle is a rigid shaft of outer diameter ``d`` whose tip is at ``p`` and which points along the unit axis
 ``u`` (tip direction). Once the tip passes the rest surface the *track* is fixed: the entry point ``e`` where the
@@ -44,6 +46,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -51,9 +54,61 @@ from msgs_schema.contact_model import NeedleLaw
 from msgs_schema.tissue import LAYER_DEFAULTS, LAYER_NAMES, TOOL_RADIUS_M
 
 from .config import WALL_STRAIN, TissueConfig
-from .interfaces import interface_depths_m
-from .layered import chain_solve
-from .layout import LP_EA, LP_N, pack_layers
+from .layout import (
+    LP_EA,
+    LP_N,
+    NB_SIZE,
+    NL_FP,
+    NL_H,
+    NL_MODULUS,
+    NL_SIZE,
+    NO_AXIAL,
+    NO_CUT,
+    NO_DIMPLE,
+    NO_DIMPLE_M,
+    NO_FIRST,
+    NO_FRICTION,
+    NO_FX,
+    NO_FZ,
+    NO_INSERTION_M,
+    NO_LX,
+    NO_LZ,
+    NO_RUPTURED,
+    NO_SIZE,
+    NP_BOTTOM,
+    NP_CUT_M,
+    NP_CUT_RATIO,
+    NP_DAHL_M,
+    NP_FRICTION,
+    NP_LATERAL,
+    NP_MIN_SIN,
+    NP_SCALE,
+    NP_SIZE,
+    NP_WALL,
+    NS_EX,
+    NS_FRONT,
+    NS_INSERTED,
+    NS_LAST,
+    NS_LAW_K,
+    NS_RUPTURED,
+    NS_SIZE,
+    NS_UX,
+    NS_UZ,
+    NT_CROSS,
+    NT_DAHL,
+    NT_SIZE,
+    NW_CAPACITY,
+    NW_CAPACITY_GRADIENT,
+    NW_FORCE,
+    NW_GRADIENT,
+    NW_POST,
+    NW_POST_GRADIENT,
+    NW_RUPTURE_M,
+    NW_SIZE,
+    NW_STATE,
+    pack_layers,
+)
+from .needle_kernels import dimple_force, needle_law_kernel, needle_step_kernel, reset_track, rupture_insertion, start_track
 from .physics import equilibrium
 
 GAUGE_OUTER_DIAMETER_M = {18: 1.270e-3, 21: 0.819e-3, 25: 0.514e-3, 27: 0.413e-3, 30: 0.311e-3}
@@ -134,215 +189,196 @@ class NeedleTick:
     punctured: tuple[int, ...] = ()
 
 
+def pack_needle(cfg: TissueConfig, params: NeedleParams) -> tuple[np.ndarray, np.ndarray]:
+    """``npar`` and ``nlp`` (:data:`~.layout.NP_SIZE`, :data:`~.layout.NL_SIZE`) of the needle ``params`` in ``cfg``."""
+    nl = len(cfg.layers)
+    npar = np.zeros(NP_SIZE)
+    # the tent: a punch of radius a + l_f (module docstring), scaled from the calibrated punch as Sneddon's F ~ radius
+    npar[NP_SCALE] = (0.5 * params.outer_diameter_m + cfg.foundation_length_m) / TOOL_RADIUS_M
+    npar[NP_FRICTION] = params.lubrication_factor * params.shaft_shear_pa * math.pi * params.outer_diameter_m
+    npar[NP_CUT_RATIO] = params.cutting_ratio
+    npar[NP_DAHL_M] = params.dahl_length_m
+    npar[NP_CUT_M] = params.cut_presliding_m
+    npar[NP_WALL] = WALL_STRAIN
+    npar[NP_LATERAL] = LATERAL_FACTOR
+    npar[NP_BOTTOM] = cfg.total_thickness_m
+    npar[NP_MIN_SIN] = math.sin(MIN_ANGLE_RAD)
+    nlp = np.zeros((NL_SIZE, nl))
+    nlp[NL_FP] = [params.puncture_force_n(i) for i in range(nl)]
+    nlp[NL_H] = [la.thickness_m for la in cfg.layers]
+    nlp[NL_MODULUS] = [LAYER_DEFAULTS[name][1] for name in LAYER_NAMES]
+    return npar, nlp
+
+
+def _vec3(v, what: str) -> tuple[float, float, float]:
+    x, y, z = (float(c) for c in v)
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise ValueError(f"needle {what} must be finite, got ({x}, {y}, {z})")
+    return x, y, z
+
+
+class _Slot:
+    """A scalar of a :class:`NeedleModel`'s ``nstate``, read as ``cast`` (an attribute of the reference)."""
+
+    def __init__(self, slot: int, cast: type, doc: str):
+        self.slot, self.cast, self.__doc__ = slot, cast, doc
+
+    def __get__(self, obj, owner=None) -> Any:
+        return self if obj is None else self.cast(obj.nstate[self.slot])
+
+    def __set__(self, obj, value) -> None:
+        obj.nstate[self.slot] = float(value)
+
+
+class _View:
+    """A vector of a :class:`NeedleModel`'s state arrays: a view (it changes with the state; assigning writes into it).
+    ``track``: the law's cache of the rupture ahead depends on it, and is emptied when it is assigned."""
+
+    def __init__(self, name: str, doc: str, track: bool = False):
+        self.name, self.track, self.__doc__ = name, track, doc
+
+    def __get__(self, obj, owner=None) -> Any:
+        return self if obj is None else getattr(obj, self.name)
+
+    def __set__(self, obj, value) -> None:
+        getattr(obj, self.name)[:] = value
+        if self.track:
+            obj.nstate[NS_LAW_K] = 0.0
+
+
 class NeedleModel:
-    """A needle in the layered stack of ``cfg`` (module docstring); :meth:`step` per tick."""
+    """A needle in the layered stack of ``cfg`` (module docstring); :meth:`step` per tick, :meth:`law` after it.
+
+    The state lives in the arrays ``nstate`` and ``ntrack`` (:mod:`.layout`); the attributes ``inserted``,
+    ``entry``, ``axis``, ``crossings``, ``ruptured``, ``front_m``, ``last_m`` and ``dahl`` read them (the vectors
+    are views: they change with the state).
+    """
 
     def __init__(self, cfg: TissueConfig, params: NeedleParams | None = None):
         self.cfg = equilibrium(cfg)
         self.params = params or NeedleParams()
-        lp = pack_layers(self.cfg)
-        self._ea = lp[LP_EA].copy()
-        self._n = lp[LP_N].copy()
-        self._h = np.array([la.thickness_m for la in self.cfg.layers])
-        self._moduli = np.array([LAYER_DEFAULTS[name][1] for name in LAYER_NAMES])
-        # the tent: a punch of radius a + l_f (TENT_SPREAD), scaled from the calibrated punch as Sneddon's F ~ radius
-        self._scale = (0.5 * self.params.outer_diameter_m + self.cfg.foundation_length_m) / TOOL_RADIUS_M
+        nl = len(self.cfg.layers)
+        if nl != len(LAYER_NAMES):
+            raise ValueError(f"the needle needs the {len(LAYER_NAMES)} layers {LAYER_NAMES}, got {nl}")
+        self.lp = pack_layers(self.cfg)
+        self.npar, self.nlp = pack_needle(self.cfg, self.params)
+        self.nstate = np.zeros(NS_SIZE)
+        self.ntrack = np.zeros((NT_SIZE, nl + 1))
+        self.nbuf = np.zeros((NB_SIZE, nl + 1))
+        self.nout = np.zeros(NO_SIZE)
+        self.nlaw = np.zeros(NW_SIZE)
+        self._bind()
         self.reset()
+
+    def _bind(self) -> None:
+        nl = self.nlp.shape[1]
+        self._h = self.nlp[NL_H]
+        self._ea = self.lp[LP_EA]
+        self._n = self.lp[LP_N]
+        self._moduli = self.nlp[NL_MODULUS]
+        self._scale = float(self.npar[NP_SCALE])
+        self._args = (self.lp, self.npar, self.nlp, self.nstate, self.ntrack, self.nbuf)
+        self._entry = self.nstate[NS_EX : NS_EX + 3]
+        self._axis = self.nstate[NS_UX : NS_UZ + 1]
+        self._crossings = self.ntrack[NT_CROSS]
+        self._dahl = self.ntrack[NT_DAHL, :nl]
 
     def reset(self) -> None:
         """Needle out of the tissue: no track."""
-        nl = len(self._h)
-        self.inserted = False
-        self.entry = np.zeros(3)
-        self.axis = np.array([0.0, 0.0, -1.0])
-        self.crossings = np.zeros(nl + 1)
-        self.ruptured = 0
-        self.front_m = 0.0
-        self.last_m = 0.0
-        self.dahl = np.zeros(nl)
+        reset_track(self.nstate, self.ntrack)
 
-    # --- geometry -----------------------------------------------------------------------------
-    def _interface_depth(self, j: int, x: float, y: float) -> float:
-        """Depth (m, down) of the top of layer ``j`` at ``(x, y)``: 0 for the surface, the egg-carton below."""
-        if j == 0:
-            return 0.0
-        if j >= len(self._h):
-            return self.cfg.total_thickness_m
-        return float(interface_depths_m(self.cfg, x, y)[j - 1])
-
-    def _crossing(self, j: int) -> float:
-        """Axis length from the entry to the first point where the axis meets layer ``j``'s top (m): the first sign
-        change of ``depth(s) - D_j(x(s), y(s))`` on a 2 um scan, then bisection."""
-        e, u = self.entry, self.axis
-        down = -u[2]
-        if j == 0:
-            return 0.0
-        s_max = (self.cfg.total_thickness_m + 1e-3) / down
-
-        def g(s: float) -> float:
-            q = e + s * u
-            return -q[2] - self._interface_depth(j, q[0], q[1])
-
-        ds = 2e-6 / down
-        s = 0.0
-        while s < s_max and g(s + ds) < 0.0:
-            s += ds
-        lo, hi = s, s + ds
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if g(mid) < 0.0 else (lo, mid)
-        return 0.5 * (lo + hi)
-
-    def _start_track(self, tip: np.ndarray, axis: np.ndarray) -> bool:
-        if axis[2] > -math.sin(MIN_ANGLE_RAD) or tip[2] >= 0.0:
-            return False
-        self.reset()
-        self.inserted = True
-        self.axis = axis.copy()
-        self.entry = tip - (tip[2] / axis[2]) * axis
-        for j in range(len(self._h) + 1):
-            self.crossings[j] = self._crossing(j)
-        return True
+    # --- the state, as the reference's attributes (read and write the state arrays) ---------------
+    inserted = _Slot(NS_INSERTED, bool, "A track exists (the tip passed the surface).")
+    ruptured = _Slot(NS_RUPTURED, int, "Layers ruptured along the track.")
+    front_m = _Slot(NS_FRONT, float, "Crack front: the deepest insertion cut so far (m).")
+    last_m = _Slot(NS_LAST, float, "Insertion at the last tick (m).")
+    entry = _View("_entry", "Entry point of the track (m).", track=True)
+    axis = _View("_axis", "Unit axis of the track toward the tip; (0, 0, -1) out of the tissue.", track=True)
+    crossings = _View("_crossings", "Axis lengths ``t_j`` (m) from the entry to each layer's top, then the bottom.", track=True)
+    dahl = _View("_dahl", "Dahl state of each layer's shaft friction.")
 
     # --- laws ---------------------------------------------------------------------------------
+    def _start_track(self, tip: np.ndarray, axis: np.ndarray) -> bool:
+        """Start a track at ``tip`` along the unit ``axis`` (:func:`~.needle_kernels.start_track`)."""
+        x, y, z = _vec3(tip, "tip")
+        return bool(start_track(x, y, z, *_vec3(axis, "axis"), self.lp, self.npar, self.nstate, self.ntrack, self.nbuf))
+
     def dimple_force_n(self, layer: int, w_m: float) -> float:
         """Axial force (N) of the stack below ``layer``'s top pressed ``w_m`` along the axis by the needle's tip: the
         column along the needle, its layers ``h / |u_z|`` long, strained as the normal compression ``w |u_z|`` strains
         the stack, so the force at puncture does not depend on the angle (Schneider 1978: "relatively insensitive to
         penetration velocity or angle")."""
-        if w_m <= 0.0:
-            return 0.0
-        down = -self.axis[2]
-        sub = slice(layer, len(self._h))
-        n = self._h[sub].size
-        c, g = np.zeros(n), np.zeros(n)
-        t = chain_solve(w_m * down, 0.0, self._ea[sub].copy(), self._n[sub].copy(), np.zeros(n), 1.0,
-                        np.zeros(n), self._h[sub].copy(), WALL_STRAIN, np.zeros(n), c, g)  # fmt: skip
-        return self._scale * max(t, 0.0)
+        return float(dimple_force(layer, float(w_m), 0.0, self.lp, self.npar, self.nlp, self.nstate, self.nbuf)[0])
 
     def rupture_insertion_m(self) -> float:
-        """Insertion ``L`` (m) at which the next intact layer ruptures: its dimple force reaches ``F_p`` (bisection
-        on the monotone dimple law); inf when every layer is ruptured or the dimple never reaches it."""
-        k = self.ruptured
-        if not self.inserted or k >= len(self._h):
-            return math.inf
-        fp = self.params.puncture_force_n(k)
-        hi = 1e-4
-        while self.dimple_force_n(k, hi) < fp:
-            hi *= 2.0
-            if hi > 1.0:
-                return math.inf
-        lo = 0.0
-        for _ in range(48):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if self.dimple_force_n(k, mid) < fp else (lo, mid)
-        return float(self.crossings[k] + hi)
+        """Insertion ``L`` (m) at which the next intact layer ruptures: its dimple force reaches ``F_p`` (the series
+        chain's law inverted at the threshold); inf when every layer is ruptured or the dimple never reaches it."""
+        return float(rupture_insertion(*self._args))
 
     def copy(self) -> NeedleModel:
-        """An independent copy (state arrays included) for look-ahead."""
+        """An independent copy (state arrays included; the parameter arrays are shared, read-only)."""
         c = object.__new__(NeedleModel)
         c.__dict__.update(self.__dict__)
-        for name in ("entry", "axis", "crossings", "dahl"):
+        for name in ("nstate", "ntrack", "nbuf", "nout", "nlaw"):
             setattr(c, name, getattr(self, name).copy())
+        c._bind()
         return c
 
     def law(self, tick: NeedleTick, tip_m) -> NeedleLaw | None:
         """The axial law at the tip ``tip_m`` after ``tick`` (the last :meth:`step`), for the local contact model:
         ``R_e`` and its slope, the rupture ahead and the line past it, and the Dahl friction's level, slope and state
-        (``ContactModel.msg``). None out of the tissue."""
-        if not self.inserted:
+        (``ContactModel.msg``; :func:`~.needle_kernels.needle_law_kernel`). None out of the tissue."""
+        if not self.nstate[NS_INSERTED]:
             return None
-        pr = self.params
-        ins = tick.insertion_m
-        h = 1e-6
+        px, py, pz = _vec3(tip_m, "tip")
         re0 = tick.dimple_n + tick.cutting_n
-        ahead = self.copy()
-        t1 = ahead.step(np.asarray(tip_m) + h * self.axis, self.axis)
-        slope = (t1.dimple_n + t1.cutting_n - re0) / h if t1.ruptured == tick.ruptured else 0.0
-        lr = self.rupture_insertion_m()
-        dist = post = post_slope = 0.0
-        if math.isfinite(lr):
-            dist = max(lr - ins, 0.0) + 1e-9
-            after = self.copy()
-            base = np.asarray(tip_m) + (dist + 1e-7) * self.axis
-            a1 = after.step(base, self.axis)
-            a2 = after.step(base + h * self.axis, self.axis)
-            post = a1.dimple_n + a1.cutting_n
-            post_slope = (a2.dimple_n + a2.cutting_n - post) / h
-        lam = pr.lubrication_factor
-        per_length = lam * pr.shaft_shear_pa * math.pi * pr.outer_diameter_m
-        cap, grows = 0.0, 0.0
-        for i in range(self.ruptured):
-            length = min(max(ins, self.crossings[i]), self.crossings[i + 1]) - self.crossings[i]
-            cap += per_length * length
-            grows += per_length if self.crossings[i] < ins < self.crossings[i + 1] else 0.0
-        if self.ruptured == len(self._h) and ins >= self.crossings[-1]:
-            grows = 0.0
-        z = min(max(tick.friction_n / cap, -1.0), 1.0) if cap > 0.0 else 0.0
+        needle_law_kernel(px, py, pz, tick.insertion_m, re0, tick.friction_n, tick.ruptured, *self._args, self.nlaw)
+        v = self.nlaw.tolist()
+        ux, uy, uz = self._axis.tolist()
         return NeedleLaw(
-            axis=tuple(float(c) for c in self.axis),  # type: ignore[arg-type]
-            axial_force_n=re0,
-            axial_gradient_n_per_m=slope,
-            rupture_distance_m=dist,
-            post_rupture_force_n=post,
-            post_rupture_gradient_n_per_m=post_slope,
-            friction_capacity_n=cap,
-            friction_capacity_gradient_n_per_m=grows,
-            friction_state=z,
-            dahl_length_m=pr.dahl_length_m,
+            axis=(ux, uy, uz),
+            axial_force_n=v[NW_FORCE],
+            axial_gradient_n_per_m=v[NW_GRADIENT],
+            rupture_distance_m=v[NW_RUPTURE_M],
+            post_rupture_force_n=v[NW_POST],
+            post_rupture_gradient_n_per_m=v[NW_POST_GRADIENT],
+            friction_capacity_n=v[NW_CAPACITY],
+            friction_capacity_gradient_n_per_m=v[NW_CAPACITY_GRADIENT],
+            friction_state=v[NW_STATE],
+            dahl_length_m=self.params.dahl_length_m,
         )
 
     def step(self, tip_m, axis) -> NeedleTick:
-        """Advance to the tip position ``tip_m`` (m) with the needle along ``axis`` (unit vector toward the tip)."""
-        p = np.asarray(tip_m, dtype=float)
-        u = np.asarray(axis, dtype=float)
-        u = u / np.linalg.norm(u)
-        pr = self.params
-        if not self.inserted and not self._start_track(p, u):
+        """Advance to the tip position ``tip_m`` (m) with the needle along ``axis`` (vector toward the tip; its
+        direction matters only when a track starts). A non-finite tip or axis is a ``ValueError``."""
+        px, py, pz = _vec3(tip_m, "tip")
+        ux, uy, uz = _vec3(axis, "axis")
+        if not needle_step_kernel(px, py, pz, ux, uy, uz, *self._args, self.nout):
             return NeedleTick(np.zeros(3))
-        ins = float((p - self.entry) @ self.axis)
-        if ins <= 0.0:  # withdrawn: the track is forgotten
-            self.reset()
-            return NeedleTick(np.zeros(3))
-        nl = len(self._h)
-        punctured = []
-        dimple = 0.0
-        while self.ruptured < nl:
-            w = ins - self.crossings[self.ruptured]
-            dimple = self.dimple_force_n(self.ruptured, w)
-            if dimple < pr.puncture_force_n(self.ruptured):
-                break
-            punctured.append(self.ruptured)
-            self.ruptured += 1
-            dimple = 0.0
-        w_dimple = max(ins - self.crossings[self.ruptured], 0.0) if self.ruptured < nl else 0.0
-        lam = pr.lubrication_factor
-        # cutting at the crack front, inside the ruptured part of the track
-        cut = 0.0
-        inside = self.ruptured > 0 and (self.ruptured == nl or ins < self.crossings[self.ruptured])
-        if inside:
-            j = int(np.searchsorted(self.crossings[: self.ruptured + 1], ins, side="right")) - 1
-            j = min(max(j, 0), self.ruptured - 1)
-            ramp = min(max((ins - self.front_m + pr.cut_presliding_m) / pr.cut_presliding_m, 0.0), 1.0)
-            cut = pr.cutting_ratio * pr.puncture_force_n(j) * ramp
-        if inside:
-            self.front_m = max(self.front_m, ins)
-        elif self.ruptured > 0:  # dimpling the next layer: the ruptured ones are cut through
-            self.front_m = max(self.front_m, self.crossings[self.ruptured])
-        # Dahl shaft friction in each ruptured layer
-        step = ins - self.last_m
-        self.last_m = ins
-        fric = 0.0
-        lateral_k = 0.0
-        for i in range(self.ruptured):
-            length = min(max(ins, self.crossings[i]), self.crossings[i + 1]) - self.crossings[i]
-            if step != 0.0:
-                sigma = math.copysign(1.0, step)
-                self.dahl[i] = sigma + (self.dahl[i] - sigma) * math.exp(-abs(step) / pr.dahl_length_m)
-            fric += lam * pr.shaft_shear_pa * math.pi * pr.outer_diameter_m * length * self.dahl[i]
-            lateral_k += LATERAL_FACTOR * self._moduli[i] * length
-        axial = dimple + cut + fric
-        deviation = (p - self.entry) - ins * self.axis
-        lateral = -0.5 * lateral_k * deviation
-        force = -axial * self.axis + lateral
-        return NeedleTick(force, axial, dimple, cut, fric, lateral, w_dimple, ins, self.ruptured, tuple(punctured))
+        o = self.nout.tolist()
+        k, k0 = int(o[NO_RUPTURED]), int(o[NO_FIRST])
+        return NeedleTick(
+            force_n=np.array(o[NO_FX : NO_FZ + 1]),
+            axial_n=o[NO_AXIAL],
+            dimple_n=o[NO_DIMPLE],
+            cutting_n=o[NO_CUT],
+            friction_n=o[NO_FRICTION],
+            lateral_n=np.array(o[NO_LX : NO_LZ + 1]),
+            dimple_m=o[NO_DIMPLE_M],
+            insertion_m=o[NO_INSERTION_M],
+            ruptured=k,
+            punctured=tuple(range(k0, k)),
+        )
+
+
+def warm_up(cfg: TissueConfig) -> None:
+    """Compile (or load from numba's cache) every needle kernel and touch each path once: a track start, the dimple,
+    the ruptures, cutting and friction, the law, a withdrawal. Loading the kernels from the cache at the first tick
+    otherwise stalls it for milliseconds (:func:`~.skin_model.warm_up` does the same for the tissue)."""
+    m = NeedleModel(cfg)
+    for z in np.linspace(1e-4, -6e-3, 40).tolist() + [-5e-3, 1e-4]:
+        tip = (0.0, 0.0, z)
+        m.law(m.step(tip, (0.0, 0.0, -1.0)), tip)
+    m.rupture_insertion_m()
+    m.dimple_force_n(0, 1e-3)
+    m.copy().reset()

@@ -7,6 +7,10 @@ so "1x1" is one mode per axis) through the numba model and the pure-NumPy paper-
 (:class:`~skin_sim_node.model.reference.NumpySkinModel`). Prints median, p99 and max per tick, a
 row as soon as it is measured, with ratios. Usage: ``skin-sim bench-model [--ticks N]``.
 
+Also the needle's force step (issue 22: ``NeedleModel.step`` and ``law`` per tick, 21 G, vertical and at 30 degrees,
+through every layer and back) beside the flat punch's force path in the same run, with the ratio, and the needle's
+pure-NumPy reference.
+
 ``skin-sim bench-model --physics`` prints the issue-11 physics figures (:mod:`skin_sim_node.perf.bench_physics`).
 ``skin-sim bench-model --against /work/main`` times the force path of each form on the same
 tissue in another checkout (its own ``.venv``) and in this one, alternating in one run, and prints
@@ -62,6 +66,73 @@ def time_path(model, path, dt, with_grid: bool) -> np.ndarray:
 def summarize(us: np.ndarray) -> tuple[float, float, float]:
     """Median, 99th percentile and maximum of ``us``."""
     return float(np.median(us)), float(np.percentile(us, 99)), float(us.max())
+
+
+def needle_path(n_ticks: int, angle_deg: float, depth_m: float = 6.5e-3):
+    """A needle's tip positions at 1 kHz: from 0.2 mm above the surface in along the axis ``angle_deg`` below it, to
+    ``depth_m`` below the surface (through every layer: the default stack ruptures by 5.3 mm), and back out.
+
+    Returns the tip positions (m) and the unit axis."""
+    th = math.radians(angle_deg)
+    u = np.array([math.cos(th), 0.0, -math.sin(th)])
+    deep = depth_m / math.sin(th)
+    half = n_ticks // 2
+    s = np.concatenate([np.linspace(-0.2e-3, deep, half), np.linspace(deep, -0.2e-3, n_ticks - half)])
+    return [tuple(float(c) for c in si * u) for si in s], tuple(float(c) for c in u)
+
+
+def time_needle(model, path, axis) -> np.ndarray:
+    """Wall time of the needle's force step per tick (us): ``model.step`` and ``model.law`` (what the session sends)."""
+    times = np.empty(len(path))
+    clock = time.perf_counter_ns
+    for i, p in enumerate(path):
+        t0 = clock()
+        tick = model.step(p, axis)
+        model.law(tick, p)
+        times[i] = clock() - t0
+    return times * 1e-3
+
+
+def needle_rows(ticks: int, numpy_ticks: int, repeats: int = 3):
+    """The needle's force step (21 G, vertical and 30 degrees, in through every layer and out) beside the flat punch's
+    force path (the default preset's ``SkinModel.step`` on :func:`scripted_path`), interleaved ``repeats`` times, the
+    best kept; then the needle's pure-NumPy reference on a path of ``numpy_ticks`` ticks, with the ratio of its median to
+    the kernels' on that path. Yields one row each, the flat punch first."""
+    from ..model.needle import NeedleModel, NeedleParams
+    from ..model.needle_reference import NumpyNeedleModel
+
+    cfg = preset("default")
+    params = NeedleParams.gauge(21)
+    flat_path, dt = scripted_path(ticks)
+    cases = {f"needle {a:.0f} deg": needle_path(ticks, a) for a in (90.0, 30.0)}
+    best: dict[str, np.ndarray] = {}
+
+    def keep(name: str, t: np.ndarray) -> None:
+        if name not in best or np.median(t) < np.median(best[name]):
+            best[name] = t
+
+    for _ in range(repeats):
+        m = SkinModel(cfg)
+        time_path(m, flat_path[:200], dt, False)
+        m.reset()
+        keep("flat punch", time_path(m, flat_path, dt, False))
+        for name, (path, axis) in cases.items():
+            needle = NeedleModel(cfg, params)
+            time_needle(needle, path[: len(path) // 2 : 10], axis)  # compile / load the kernels, then start over
+            needle.reset()
+            keep(name, time_needle(needle, path, axis))
+    speedup = {}
+    for a in (90.0, 30.0):  # the reference on a shorter path (its track start alone takes tens of ms), numba on it too
+        path, axis = needle_path(numpy_ticks, a)
+        slow = time_needle(NumpyNeedleModel(cfg, params), path, axis)
+        needle = NeedleModel(cfg, params)
+        fast = time_needle(needle, path, axis)
+        best[f"needle {a:.0f} deg, NumPy reference"] = slow
+        speedup[f"needle {a:.0f} deg, NumPy reference"] = float(np.median(slow) / np.median(fast))
+    for name, t in best.items():
+        med, p99, mx = summarize(t)
+        row = {"case": name, "ticks": t.size, "median_us": med, "p99_us": p99, "max_us": mx}
+        yield {**row, "numpy_over_numba": speedup.get(name)}
 
 
 FIXED_MODES = {"lod.adaptive_modes": False, "lod.affected_layers": False, "lod.patch_only": False, "lod.idle": False}
@@ -352,7 +423,21 @@ def main(argv=None) -> int:
             f"  {r['form']:>8}: median {r['median_us']:7.2f} us, p99 {r['p99_us']:7.2f} us, max {r['max_us']:8.1f} us", flush=True
         )
     print(f"  layered/paper median ratio {rows['layered']['median_us'] / rows['paper']['median_us']:.2f}", flush=True)
-    print("2. fixed mode counts (every level-of-detail lever off), paper form; ratio = NumPy median / numba median:")
+    print(
+        "2. the needle's force step per tick (step + law, 21 G, in through every layer and out at 1 kHz) beside the flat "
+        "punch's force path (default preset), best of 3 interleaved; ratio = median / the flat punch's median:",
+        flush=True,
+    )
+    flat = None
+    for r in needle_rows(args.ticks, args.numpy_ticks):
+        flat = flat or r["median_us"]
+        print(
+            f"  {r['case']:>30}: median {r['median_us']:8.2f} us, p99 {r['p99_us']:8.2f} us, max {r['max_us']:9.1f} us, "
+            f"ratio {r['median_us'] / flat:6.2f} ({r['ticks']} ticks)"
+            + (f"; NumPy / numba median on this path {r['numpy_over_numba']:.0f}x" if r["numpy_over_numba"] else ""),
+            flush=True,
+        )
+    print("3. fixed mode counts (every level-of-detail lever off), paper form; ratio = NumPy median / numba median:")
     hdr = f"{'modes':>6} {'active':>6} {'path':>10} | {'median':>8} {'p99':>8} {'max':>8} | "
     hdr += f"{'numpy med':>10} {'numpy p99':>10} | ratio"
     print(hdr)
