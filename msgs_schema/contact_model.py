@@ -50,7 +50,8 @@ class NeedleLaw:
     """The needle's axial law at ``x0`` (fields and equations as the needle block of ``ContactModel.msg``).
 
     Along the track's unit axis ``axis`` (toward the tip), ``s = axis . (x - x0)``; the axial resistance (N, > 0
-    resists insertion) is ``R_e(s) + F_c(s) z(s)``: ``R_e`` linear in ``s`` up to ``rupture_distance_m`` and, from
+    resists insertion) is ``R_e(s) + F_c(s) z(s)``: ``R_e`` linear in ``s`` (its own slope behind ``x0``, where the
+    cutting force fades) up to ``rupture_distance_m`` and, from
     the first ``s`` that reaches it, the post-rupture line (latched); ``F_c`` the Dahl friction's Coulomb level,
     growing with the inserted length; ``z`` the Dahl state, integrated over the device's own moves.
     """
@@ -58,6 +59,7 @@ class NeedleLaw:
     axis: tuple[float, float, float]
     axial_force_n: float = 0.0
     axial_gradient_n_per_m: float = 0.0
+    axial_gradient_behind_n_per_m: float = 0.0
     rupture_distance_m: float = 0.0
     post_rupture_force_n: float = 0.0
     post_rupture_gradient_n_per_m: float = 0.0
@@ -69,6 +71,7 @@ class NeedleLaw:
     FIELDS = (
         "axial_force_n",
         "axial_gradient_n_per_m",
+        "axial_gradient_behind_n_per_m",
         "rupture_distance_m",
         "post_rupture_force_n",
         "post_rupture_gradient_n_per_m",

@@ -165,7 +165,8 @@ class NeedleRender:
         F(x) = f0 + (I - u u^T) K (x - x0) + (I - u u^T) D (v - v0) - u (R(s) - R(0)),
         R(s) = max(R_e(s), 0) + F_c(s) z(s),   F_c(s) = max(F_c0 + F_c' s, 0),
 
-    ``R_e`` the line ``axial_force_n + g s`` until the first ``s >= rupture_distance_m``, from then (latched for the
+    ``R_e`` the line ``axial_force_n + g s`` (``g`` ahead of ``x0``, the slope behind it for ``s < 0``: the cutting
+    force fades behind the crack front) until the first ``s >= rupture_distance_m``, from then (latched for the
     rest of this model: a step back does not undo a rupture, so nothing toggles at the threshold) the post-rupture
     line. ``z`` is the Dahl state: it starts from the model's ``friction_state`` at ``x0`` (``s = 0``) and follows the
     device's own axial moves, ``z <- sigma + (z - sigma) exp(-|ds| / x_0)``, exact for any step (rate-independent),
@@ -194,13 +195,14 @@ class NeedleRender:
       falls while the tool advances against it, so the energy the tissue absorbed before it is not returned.
     """
 
-    __slots__ = ("law", "u", "grad", "post_grad", "dahl_length_m", "r0", "z", "s_last", "latched")
+    __slots__ = ("law", "u", "grad", "back_grad", "post_grad", "dahl_length_m", "r0", "z", "s_last", "latched")
 
     def __init__(self, law: NeedleLaw, max_k: float, radius_m: float):
         self.law = law
         u = np.asarray(law.axis, dtype=float)
         self.u = u / float(np.linalg.norm(u))
         self.grad = float(np.clip(law.axial_gradient_n_per_m, -max_k, max_k))
+        self.back_grad = float(np.clip(law.axial_gradient_behind_n_per_m, -max_k, max_k))
         self.post_grad = float(np.clip(law.post_rupture_gradient_n_per_m, -max_k, max_k))
         fc_max = law.friction_capacity_n + abs(law.friction_capacity_gradient_n_per_m) * radius_m
         self.dahl_length_m = max(law.dahl_length_m, 2.0 * fc_max / max_k if max_k > 0 else math.inf)
@@ -223,7 +225,7 @@ class NeedleRender:
         if self.latched:
             re = law.post_rupture_force_n + self.post_grad * (s - law.rupture_distance_m)
         else:
-            re = law.axial_force_n + self.grad * s
+            re = law.axial_force_n + (self.grad if s >= 0.0 else self.back_grad) * s
         fc = max(law.friction_capacity_n + law.friction_capacity_gradient_n_per_m * s, 0.0)
         return max(re, 0.0) + fc * self.z
 

@@ -402,7 +402,8 @@ NW_POST_GRADIENT = 4
 NW_CAPACITY = 5
 NW_CAPACITY_GRADIENT = 6
 NW_STATE = 7
-NW_SIZE = 8
+NW_GRADIENT_BEHIND = 8
+NW_SIZE = 9
 """Slots of ``nlaw``, shape (NW_SIZE,), float64: the needle's axial law at the tip (``msgs_schema`` ``NeedleLaw``).
 
 =====================  =====  =====================================================================================
@@ -416,6 +417,7 @@ NW_POST_GRADIENT       N/m    its slope there
 NW_CAPACITY            N      Dahl friction's Coulomb level ``F_c`` over the inserted length
 NW_CAPACITY_GRADIENT   N/m    its growth per inserted length
 NW_STATE               -      Dahl state ``z = F_f / F_c`` in ``[-1, 1]``
+NW_GRADIENT_BEHIND     N/m    ``R_e``'s slope behind the tip (the cutting force's fade behind the crack front)
 =====================  =====  =====================================================================================
 """
 

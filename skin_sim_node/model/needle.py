@@ -101,6 +101,7 @@ from .layout import (
     NW_CAPACITY_GRADIENT,
     NW_FORCE,
     NW_GRADIENT,
+    NW_GRADIENT_BEHIND,
     NW_POST,
     NW_POST_GRADIENT,
     NW_RUPTURE_M,
@@ -131,9 +132,12 @@ cadaver overall slope 0.035-0.059 N/mm over an 18 G perimeter (8.8-14.8 kPa, an 
 DAHL_LENGTH_M = 1.0e-3
 """Dahl presliding length ``x_0`` (design: stick stiffness at full 18 G depth 130 N/m, under the Touch's 1.02 N/mm;
 Kim & Lee 2016 fit a Dahl law to needle friction in porcine tissue, number not read)."""
-CUT_PRESLIDING_M = 0.1e-3
-"""``x_c``: the cutting force fades over this distance when the tip backs off the crack front (design: a tenth of
-``x_0``; a position law instead of a switch at zero speed)."""
+CUT_PRESLIDING_M = 0.5e-3
+"""``x_c``: the cutting force fades over this distance when the tip backs off the crack front (a position law instead
+of a switch at zero speed). Design: the fade's slope ``beta F_p / x_c`` is a stiffness the device renders; at 0.5 mm it
+is 1.0 N/mm for a dry 18 G needle in fat and less for every thinner or lubricated one, within a Touch's 1.02 N/mm
+(``device.render``'s stiffness cap would otherwise lag the fade: ``skin-sim needle-device`` counted commands above the
+true force after a reversal at 0.1 mm). No measurement of the fade length was found."""
 LATERAL_FACTOR = 2.0
 """``k_l``: Winkler modulus of a shaft in an elastic medium per unit length over the medium's Young's modulus
 (order 2 for a rigid cylinder; stated choice)."""
@@ -339,6 +343,7 @@ class NeedleModel:
             axis=(ux, uy, uz),
             axial_force_n=v[NW_FORCE],
             axial_gradient_n_per_m=v[NW_GRADIENT],
+            axial_gradient_behind_n_per_m=v[NW_GRADIENT_BEHIND],
             rupture_distance_m=v[NW_RUPTURE_M],
             post_rupture_force_n=v[NW_POST],
             post_rupture_gradient_n_per_m=v[NW_POST_GRADIENT],

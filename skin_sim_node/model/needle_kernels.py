@@ -83,6 +83,7 @@ from .layout import (
     NW_CAPACITY_GRADIENT,
     NW_FORCE,
     NW_GRADIENT,
+    NW_GRADIENT_BEHIND,
     NW_POST,
     NW_POST_GRADIENT,
     NW_RUPTURE_M,
@@ -547,6 +548,12 @@ def needle_law_kernel(px, py, pz, ins, re0, fric, k_tick, lp, npar, nlp, nstate,
         k1, d1, c1, _, _ = axial_at(ins1, k, front, t0, lp, npar, nlp, nstate, ntrack, nbuf)
         v1 = d1 + c1
     slope = (v1 - re0) / h if k1 == k_tick else 0.0
+    ins_b = _insertion(px, py, pz, -h, nstate)  # behind: the cutting ramp fades (a pure look-up: the front stays)
+    slope_behind = slope
+    if ins_b > 0.0:
+        kb, db, cb, _, _ = axial_at(ins_b, k, front, t0, lp, npar, nlp, nstate, ntrack, nbuf)
+        if kb == k_tick:
+            slope_behind = (re0 - (db + cb)) / h
     cached = nstate[NS_LAW_K] == k + 1 and nstate[NS_LAW_FRONT] == front
     lr = nstate[NS_LAW_RUPTURE] if cached else rupture_insertion(lp, npar, nlp, nstate, ntrack, nbuf)
     dist = 0.0
@@ -587,3 +594,4 @@ def needle_law_kernel(px, py, pz, ins, re0, fric, k_tick, lp, npar, nlp, nstate,
     nlaw[NW_FORCE], nlaw[NW_GRADIENT] = re0, slope
     nlaw[NW_RUPTURE_M], nlaw[NW_POST], nlaw[NW_POST_GRADIENT] = dist, post, post_slope
     nlaw[NW_CAPACITY], nlaw[NW_CAPACITY_GRADIENT], nlaw[NW_STATE] = cap, grows, z
+    nlaw[NW_GRADIENT_BEHIND] = slope_behind

@@ -146,6 +146,11 @@ class NumpyNeedleModel:
         ahead = self.copy()
         t1 = ahead.step(np.asarray(tip_m) + h * self.axis, self.axis)
         slope = (t1.dimple_n + t1.cutting_n - re0) / h if t1.ruptured == tick.ruptured else 0.0
+        slope_behind = slope
+        if ins - h > 0.0:  # behind: the cutting force fades behind the crack front
+            b = self.copy().step(np.asarray(tip_m) - h * self.axis, self.axis)
+            if b.ruptured == tick.ruptured:
+                slope_behind = (re0 - (b.dimple_n + b.cutting_n)) / h
         lr = self.rupture_insertion_m()
         dist = post = post_slope = 0.0
         if math.isfinite(lr):
@@ -170,6 +175,7 @@ class NumpyNeedleModel:
             axis=tuple(float(c) for c in self.axis),  # type: ignore[arg-type]
             axial_force_n=re0,
             axial_gradient_n_per_m=slope,
+            axial_gradient_behind_n_per_m=slope_behind,
             rupture_distance_m=dist,
             post_rupture_force_n=post,
             post_rupture_gradient_n_per_m=post_slope,
