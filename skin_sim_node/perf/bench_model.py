@@ -93,6 +93,25 @@ def time_needle(model, path, axis) -> np.ndarray:
     return times * 1e-3
 
 
+def time_model_tangent(model, path, dt: float, axis=None) -> np.ndarray:
+    """Wall time per tick (us) over ``path`` (position, velocity pairs) of what the session asks of a
+    :class:`SkinModel`: ``step``, and ``tangent`` in contact
+    (for the needle, :class:`~skin_sim_node.model.needle_skin.NeedleSkin`: the needle, its law and the layered
+    kernel's display drive of the dimple)."""
+    times = np.empty(len(path))
+    clock = time.perf_counter_ns
+    for i, (p, v) in enumerate(path):
+        t0 = clock()
+        if axis is None:
+            model.step(p, v, dt)
+        else:
+            model.step(p, v, dt, False, axis)
+        if model.in_contact:
+            model.tangent()
+        times[i] = clock() - t0
+    return times * 1e-3
+
+
 def needle_rows(ticks: int, numpy_ticks: int, repeats: int = 3):
     """The needle's force step (21 G, vertical and 30 degrees, in through every layer and out) beside the flat punch's
     force path (the default preset's ``SkinModel.step`` on :func:`scripted_path`), interleaved ``repeats`` times, the
@@ -111,11 +130,20 @@ def needle_rows(ticks: int, numpy_ticks: int, repeats: int = 3):
         if name not in best or np.median(t) < np.median(best[name]):
             best[name] = t
 
+    needle_cfg = cfg.replace(**{"tool.shape": "needle", "needle.outer_diameter_m": params.outer_diameter_m})
     for _ in range(repeats):
         m = SkinModel(cfg)
         time_path(m, flat_path[:200], dt, False)
         m.reset()
         keep("flat punch", time_path(m, flat_path, dt, False))
+        m.reset()
+        keep("flat punch, step + tangent", time_model_tangent(m, flat_path, dt))
+        tips, axis = cases["needle 90 deg"]
+        path = [(p, (0.0, 0.0, 0.0)) for p in tips]
+        ns = SkinModel(needle_cfg)
+        time_model_tangent(ns, path[: len(path) // 2 : 10], dt, axis)
+        ns.reset()
+        keep("needle 90 deg, SkinModel step + tangent", time_model_tangent(ns, path, dt, axis))
         for name, (path, axis) in cases.items():
             needle = NeedleModel(cfg, params)
             time_needle(needle, path[: len(path) // 2 : 10], axis)  # compile / load the kernels, then start over
