@@ -65,12 +65,13 @@ def main(argv=None) -> int:
             extra = ["-r", f"__ns:={ns}", "-p", "tissue.tool.shape:=needle"]
             node = scene.node(*extra, **({"params": args.params} if args.params else {}))
             scene.wait_for_log(node, "live:", timeout_s=180)
-            scene.start("mock_tool", "mock-tool", "--trajectory", args.trajectory, "--ros-args", "-r", f"__ns:={ns}")
         view = scene.start("view", "view", "--namespace", ns, "--port", "0")
         scene.wait_for_log(view, "skin-sim view: http", timeout_s=60)
         url = view.log().split("skin-sim view: ", 1)[1].split()[0]
         with Browser(url) as b:
             b.wait_for("window.skinView && window.skinView.gridFrames > 0", args.timeout_s, "a tissue grid")
+            if args.source == "node":  # the insertion starts once the page shows the tissue (not before Chromium is up)
+                scene.start("mock_tool", "mock-tool", "--trajectory", args.trajectory, "--ros-args", "-r", f"__ns:={ns}")
             b.evaluate(f"(() => {{ const z = document.getElementById('zscale'); z.value = '{args.zscale:g}'; "
                        "z.dispatchEvent(new Event('change')); return true; })()")  # fmt: skip
             cond = f"window.skinView.needle && window.skinView.needle.segments.length >= {args.min_punctured}"
