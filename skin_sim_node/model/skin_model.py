@@ -104,8 +104,8 @@ class SkinModel:
     """Subclasses by ``tool_shape`` that ``SkinModel(cfg)`` returns instead (the needle's registers itself in
     :mod:`.needle_skin`, which the package imports): one model class for every caller."""
 
-    def __new__(cls, cfg: TissueConfig):
-        if cls is SkinModel:
+    def __new__(cls, cfg: TissueConfig | None = None, *args, **kwargs):
+        if cls is SkinModel and cfg is not None:  # (copy and pickle call __new__ with no arguments)
             cls = SkinModel.TOOL_MODELS.get(cfg.tool_shape, SkinModel)
         return super().__new__(cls)
 

@@ -18,9 +18,11 @@ gaps between commands over 2 and 5 ms, not counting gaps that contain one of the
 baseline: its own scheduling); the largest command over the true force; the render error p50/p99 against the offline
 ground truth (:class:`skin_sim_node.session.HapticSession` stepped on the same poses, every pose, the full vector;
 :func:`truth_vector`) beside hold-last from the same run (the newest ``tool/wrench`` that had arrived when the
-command did, zero once 50 ms old: what ``skin-sim bridge --force-source wrench`` would have sent); and the kill
-fade. It prints medians and percentiles, each ratio against its same-run baseline, and exits 1 naming every missed
-aim (:data:`AIMS`).
+command did, zero once 50 ms old: what ``skin-sim bridge --force-source wrench`` would have sent); the server's
+own error (the node's ``tool/wrench`` for each answered pose against the same truth, p99: the share of the render
+error that is the node's, a missed pose or a restart after a stale spell, not the bridge's); and the kill fade. It
+prints medians and percentiles, each ratio against its same-run baseline, and exits 1 naming every missed aim
+(:data:`AIMS`).
 
 It is a benchmark, not a CI test: its figures depend on the machine. It assumes nothing about the machine's state and
 prints what it found (cores, load average before and after, whether real-time priority was granted); ``--hog`` adds
@@ -150,7 +152,7 @@ def emulate(phase_s: float, out: Path) -> int:
     # records in preallocated arrays, not a growing list of tuples: nothing the collector would have to scan, and with
     # automatic collection off in the timed loop (below) no collector pass can stall the servo loop
     cmds = np.zeros((2 * n + 1000, 5))
-    wrenches = np.zeros((2 * n + 1000, 4))
+    wrenches = np.zeros((2 * n + 1000, 5))  # arrival (mono ns), force (N), the stamp of the pose it answers
     n_rec = [0, 0]  # commands, wrenches recorded
     held = [(0.0, 0.0, 0.0)]
 
@@ -168,6 +170,7 @@ def emulate(phase_s: float, out: Path) -> int:
         if i < len(wrenches):
             wrenches[i, 0] = time.monotonic_ns()
             wrenches[i, 1:4] = read_wrench(msg)[2]
+            wrenches[i, 4] = stamp_ns(msg.header)
             n_rec[1] = i + 1
 
     from rclpy.qos import QoSProfile
@@ -283,6 +286,14 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
         j = np.searchsorted(wr[:, 0], at, side="right") - 1
         ok = (j >= 0) & (at - wr[np.maximum(j, 0), 0] <= HOLD_LAST_TTL_S * 1e9)
         hold[ok] = wr[j[ok], 1:4]
+    # the server's own answers (tool/wrench of each answered pose's stamp) against the same truth: how much of the
+    # render error is the node's (a missed pose, a restart after a stale spell) rather than the bridge's rendering
+    server = np.full((len(slots), 3), np.nan)
+    if len(wr) and wr.shape[1] > 4:
+        for row in wr:
+            i = idx.get(int(row[4]))
+            if i is not None:
+                server[i] = row[1:4]
     out = {}
     late_slot_t = slots[slots[:, 9] > 0, 0]
     for name, (a, b) in phase_windows(phase_s).items():
@@ -305,6 +316,8 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
         herr = np.linalg.norm(hold - truth, axis=1)[a_pre]
         nerr, hnerr = np.abs(ans_f[a_pre, 2] - truth[a_pre, 2]), np.abs(hold[a_pre, 2] - truth[a_pre, 2])
         big = a_pre & (tmag > TRUE_FORCE_SLACK_N)
+        has_server = sel_pre & ~np.isnan(server[:, 0])
+        serr = np.linalg.norm(server[has_server] - truth[has_server], axis=1)
         ph = {
             "poses": int(sel.sum()),
             "commands_per_s": len(ct) / (b - a),
@@ -324,6 +337,7 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
             "render_p99_pct": 100 * float(np.percentile(err, 99)) / peak if err.size else float("nan"),
             "hold_p50_pct": 100 * float(np.percentile(herr, 50)) / peak if herr.size else float("nan"),
             "hold_p99_pct": 100 * float(np.percentile(herr, 99)) / peak if herr.size else float("nan"),
+            "server_p99_pct": 100 * float(np.percentile(serr, 99)) / peak if serr.size else float("nan"),
             "render_normal_p99_pct": 100 * float(np.percentile(nerr, 99)) / peak if nerr.size else float("nan"),
             "hold_normal_p99_pct": 100 * float(np.percentile(hnerr, 99)) / peak if hnerr.size else float("nan"),
         }
@@ -400,7 +414,7 @@ def print_table(ph: dict) -> None:
     print(
         f"{'phase':<9} {'cmd/s':>6} {'poses/s':>7} {'x':>5} {'answered':>8} {'own late':>8} {'gaps>2':>6} {'gaps>5':>6} "
         f"{'max gap':>8} {'>1.2F':>5} {'>lim':>4} {'max/F':>5} | {'render p50/p99 %':>16} {'hold p50/p99 %':>15} {'x p99':>6} "
-        f"| {'F_z p99 render/hold %':>21}"
+        f"| {'F_z p99 render/hold %':>21} | {'server p99 %':>12}"
     )
     for name, p in ph.items():
         ratio = p["render_p99_pct"] / p["hold_p99_pct"] if p["hold_p99_pct"] > 0.01 else float("nan")
@@ -410,7 +424,7 @@ def print_table(ph: dict) -> None:
             f"{p['emulator_late_slots']:8d} {p['gaps_2ms']:6d} {p['gaps_5ms']:6d} {p['gap_max_ms']:6.1f}ms "
             f"{p['over_true']:5d} {p['over_limit']:4d} {p['max_over_true']:5.2f} | "
             f"{p['render_p50_pct']:7.2f} / {p['render_p99_pct']:6.2f} {p['hold_p50_pct']:6.2f} / {p['hold_p99_pct']:6.2f} "
-            f"{ratio:5.2f}x | {p['render_normal_p99_pct']:9.2f} / {p['hold_normal_p99_pct']:9.2f}"
+            f"{ratio:5.2f}x | {p['render_normal_p99_pct']:9.2f} / {p['hold_normal_p99_pct']:9.2f} | {p['server_p99_pct']:12.2f}"
         )
     k = ph["kill"]
     if "kill_zero_ms" in k:

@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from msgs_schema.contact_model import DEFAULT_TTL_S, DEFAULT_VALIDITY_RADIUS_M, LocalModel
+from msgs_schema.tissue import LAYER_NAMES
 
 from ..device.mapping import TOUCH_PEAK_FORCE_N
 from ..device.render import ContactRenderer, HoldLastRenderer
@@ -229,7 +230,7 @@ def main(argv=None) -> int:
         r = insertion(g, a.server_hz, max_force_n=a.max_force_n, force_scale=a.force_scale)
         print(f"{g} G: peak |F_true| {r['peak_n']:.3f} N, rendered peak {r['rendered_peak_n']:.3f} N (tissue units)")
         for ev in r["events"]:
-            names = "+".join(("epidermis", "dermis", "fat")[j] for j in ev["layers"])
+            names = "+".join(LAYER_NAMES[j] for j in ev["layers"])
             is_drop = ev["drop_n"] >= 0.1 * r["peak_n"]  # a rupture whose force falls by less is a kink, not a drop
             print(
                 f"  rupture {names:<11} truth tick {ev['tick']}, drop {ev['drop_n']:.3f} N"
