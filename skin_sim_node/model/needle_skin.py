@@ -21,6 +21,7 @@ from .config import TissueConfig
 from .contact import ContactTangent
 from .layout import FLAG_CONTACT, FLAG_OFF_SHEET
 from .needle import LATERAL_FACTOR, NeedleModel, NeedleParams, NeedleTick
+from .needle import warm_up as needle_warm_up
 from .skin_model import SkinModel
 
 DOWN = (0.0, 0.0, -1.0)
@@ -165,3 +166,4 @@ class NeedleSkin(SkinModel):
 
 
 SkinModel.TOOL_MODELS["needle"] = NeedleSkin
+SkinModel.TOOL_WARM_UPS["needle"] = needle_warm_up

@@ -14,6 +14,7 @@ affected layers only, patch-only grid work, and idle (no kernel call at rest).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -103,6 +104,9 @@ class SkinModel:
     TOOL_MODELS: dict[str, type] = {}
     """Subclasses by ``tool_shape`` that ``SkinModel(cfg)`` returns instead (the needle's registers itself in
     :mod:`.needle_skin`, which the package imports): one model class for every caller."""
+
+    TOOL_WARM_UPS: dict[str, Callable[[TissueConfig], None]] = {}
+    """Warm-ups of those subclasses' own kernels by ``tool_shape``, called by :func:`warm_up`."""
 
     def __new__(cls, cfg: TissueConfig | None = None, *args, **kwargs):
         if cls is SkinModel and cfg is not None:  # (copy and pickle call __new__ with no arguments)
@@ -486,3 +490,6 @@ def warm_up(cfg: TissueConfig) -> None:
     model.surface_displacement_at(0.0, 0.0)
     model.energy()
     model.build_grid()
+    tool_warm_up = SkinModel.TOOL_WARM_UPS.get(cfg.tool_shape)
+    if tool_warm_up is not None:  # a tool model's own kernels, every path (the steps above touch most of them)
+        tool_warm_up(cfg)
