@@ -135,3 +135,90 @@ def test_needle_check_passes_its_data_checks(capsys):
     assert needle_check.main([]) == 0
     out = capsys.readouterr().out
     assert "needle_check PASS: 6 checks" in out
+
+
+def _drive(s: HapticSession, tips, quat=(0.0, 0.0, 0.0, 1.0), t0: int = 0):
+    """Poses at 1 kHz through the session; returns the published forces (n, 3) and the tips (n, 3)."""
+    out = []
+    for k, p in enumerate(tips):
+        st = t0 + (k + 1) * MS
+        s.on_pose(st, "tissue", tuple(float(c) for c in p), quat=quat)
+        out.append(s.tick(st, MS).force_n)
+    return np.array(out), np.asarray(tips, dtype=float)
+
+
+def _line(a, b, n):
+    return [np.asarray(a) + (np.asarray(b) - np.asarray(a)) * i / n for i in range(1, n + 1)]
+
+
+def _work_j(forces, tips) -> float:
+    """Work the tissue does on the needle, each force booked over the next move."""
+    return float(np.einsum("ij,ij->i", forces[:-1], np.diff(tips, axis=0)).sum())
+
+
+@pytest.mark.parametrize("reverse", [False, True])
+def test_a_closed_sideways_loop_of_an_inserted_needle_does_no_net_work(reverse):
+    """The lateral bed is the gradient of a potential (its axial part included): around a closed loop in and
+    sideways the tissue takes energy (Dahl friction), it never gives the hand any, either way round."""
+    s = _session()
+    _drive(s, _line((0, 0, 1e-3), (0, 0, -4.5e-3), 5500))
+    a, b, c, d = (0, 0, -1e-3), (3e-3, 0, -1e-3), (3e-3, 0, -4.5e-3), (0, 0, -4.5e-3)
+    corners = [d, c, b, a, d] if reverse else [d, a, b, c, d]
+    tips = [p for u, v in zip(corners[:-1], corners[1:]) for p in _line(u, v, 1000)]
+    works = []
+    for cycle in range(3):
+        f, x = _drive(s, tips, t0=(6000 + cycle * 4000) * MS)
+        works.append(_work_j(f, x))
+    assert max(works) <= 0.0, works
+
+
+@pytest.mark.parametrize("layer", [1, 2])
+def test_dithering_across_an_interface_toggles_no_force(layer):
+    """Backing out of a dimple into the cut layer above it meets no cutting force (that layer is cut through): a tip
+    dithering +-2 um across the crossing gets no force step at it."""
+    s = _session()
+    peak_depth = 2.2e-3 if layer == 1 else 3.4e-3  # layer 1: the epidermis cut, the dermis dimpled
+    _drive(s, _line((0, 0, 1e-3), (0, 0, -peak_depth), 3200))
+    c = float(s.model.needle.crossings[min(layer, s.model.needle.ruptured)])
+    back = _line((0, 0, -peak_depth), (0, 0, -(c + 2e-6)), 2000)
+    dither = [np.array((0, 0, -(c + 2e-6 * (-1) ** k))) for k in range(20)]
+    f, _ = _drive(s, back + dither, t0=5000 * MS)
+    mag = np.linalg.norm(f[-20:], axis=1)
+    assert mag.max() - mag.min() < 0.02, mag
+
+
+def test_a_needle_too_flat_for_a_track_presses_the_surface_and_steepening_it_in_place_starts_none():
+    s = _session()
+    q9 = needle_orientation(math.radians(9.0))
+    u9 = np.array(quaternion_axis(*q9))
+    f, _ = _drive(s, [p * u9 for p in np.linspace(-1e-3, 2e-3 / math.sin(math.radians(9.0)), 2000)], quat=q9)
+    assert not s.model.needle.inserted and np.linalg.norm(f[-1]) > 0.05 and f[-1][2] > 0.0  # pushed back out
+    tip = 2e-3 / math.sin(math.radians(9.0)) * u9
+    _drive(s, [tip] * 50, quat=(0.0, 0.0, 0.0, 1.0), t0=3000 * MS)  # rotated to vertical where it is
+    assert not s.model.needle.inserted
+
+
+def test_no_track_off_the_sheet():
+    s = _session()
+    hx = 0.5 * s.model.cfg.sheet_size_m[0]
+    f, _ = _drive(s, _line((hx + 2e-3, 0, 1e-3), (hx + 2e-3, 0, -4e-3), 2000))
+    assert not s.model.needle.inserted and not np.abs(f).any()
+    assert s.regime_counts.get("tool_off_sheet", 0) > 0
+
+
+def test_pushed_sideways_the_needle_tears_its_way_and_a_new_entry_punctures_again():
+    """Withdrawn to 20 um and dragged 3 mm sideways, the needle cuts a slot (the bed's force stays under the slot-cutting
+    force) and pushing in at the new place punctures the skin again."""
+    s = _session()
+    peak = s.model.needle.params.puncture_force_n(1)
+    _drive(s, _line((0, 0, 1e-3), (0, 0, -4.5e-3), 5500))
+    _drive(s, _line((0, 0, -4.5e-3), (0, 0, -20e-6), 4500), t0=6000 * MS)
+    f_drag, _ = _drive(s, _line((0, 0, -20e-6), (3e-3, 0, -20e-6), 3000), t0=11000 * MS)
+    assert np.abs(f_drag[:, 0]).max() < 0.1 and s.model.tears > 0
+    f_in, _ = _drive(s, _line((3e-3, 0, -20e-6), (3e-3, 0, -4.5e-3), 4500), t0=15000 * MS)
+    assert np.linalg.norm(f_in, axis=1).max() == pytest.approx(peak, rel=0.01)
+
+
+def test_a_quaternion_with_huge_finite_components_is_a_bad_orientation():
+    s = _session()
+    assert s.on_pose(MS, "tissue", (0.0, 0.0, 0.001), quat=(1e308, 1e308, 0.0, 0.0)) == BAD_ORIENTATION

@@ -375,7 +375,8 @@ NO_DIMPLE_M = 10
 NO_INSERTION_M = 11
 NO_RUPTURED = 12
 NO_FIRST = 13
-NO_SIZE = 14
+NO_BED = 14
+NO_SIZE = 15
 """Slots of ``nout``, shape (NO_SIZE,), float64: what the needle's step kernel writes (``NeedleTick``).
 
 ==================  ====  =========================================================================================
@@ -391,6 +392,7 @@ NO_DIMPLE_M         m     axial dimple of the next intact layer
 NO_INSERTION_M      m     insertion ``L`` along the track (0 out of the tissue)
 NO_RUPTURED         -     layers ruptured after the tick
 NO_FIRST            -     layers ruptured before it: layers ``NO_FIRST .. NO_RUPTURED - 1`` ruptured this tick
+NO_BED              N     the bed's axial part ``k'(L) |delta|^2 / 4`` (the lateral bed is the gradient of a potential)
 ==================  ====  =========================================================================================
 """
 

@@ -63,6 +63,7 @@ from .layout import (
     NL_MODULUS,
     NL_SIZE,
     NO_AXIAL,
+    NO_BED,
     NO_CUT,
     NO_DIMPLE,
     NO_DIMPLE_M,
@@ -191,6 +192,7 @@ class NeedleTick:
     insertion_m: float = 0.0
     ruptured: int = 0
     punctured: tuple[int, ...] = ()
+    bed_n: float = 0.0
 
 
 def pack_needle(cfg: TissueConfig, params: NeedleParams) -> tuple[np.ndarray, np.ndarray]:
@@ -335,13 +337,13 @@ class NeedleModel:
         if not self.nstate[NS_INSERTED]:
             return None
         px, py, pz = _vec3(tip_m, "tip")
-        re0 = tick.dimple_n + tick.cutting_n
+        re0 = tick.dimple_n + tick.cutting_n  # the slopes are of dimple and cutting; the bed's axial part added at x0
         needle_law_kernel(px, py, pz, tick.insertion_m, re0, tick.friction_n, tick.ruptured, *self._args, self.nlaw)
         v = self.nlaw.tolist()
         ux, uy, uz = self._axis.tolist()
         return NeedleLaw(
             axis=(ux, uy, uz),
-            axial_force_n=v[NW_FORCE],
+            axial_force_n=v[NW_FORCE] + tick.bed_n,
             axial_gradient_n_per_m=v[NW_GRADIENT],
             axial_gradient_behind_n_per_m=v[NW_GRADIENT_BEHIND],
             rupture_distance_m=v[NW_RUPTURE_M],
@@ -373,6 +375,7 @@ class NeedleModel:
             insertion_m=o[NO_INSERTION_M],
             ruptured=k,
             punctured=tuple(range(k0, k)),
+            bed_n=o[NO_BED],
         )
 
 

@@ -39,6 +39,7 @@ from .layout import (
     NL_MODULUS,
     NL_ZERO,
     NO_AXIAL,
+    NO_BED,
     NO_CUT,
     NO_DIMPLE,
     NO_DIMPLE_M,
@@ -301,7 +302,9 @@ def axial_at(ins, k, front, t0, lp, npar, nlp, nstate, ntrack, nbuf):
 
     Layer ``k`` ruptures when its dimple force reaches ``F_p,k``; the rupture releases the dimple and the next layer is
     tested at the same insertion (a cascade). Cutting ``beta F_p,j`` in the ruptured layer ``j`` the tip is in, on a
-    ramp over ``x_c`` behind the front.
+    ramp over ``x_c`` behind the front, while ``j`` is not yet cut through to the next layer's top (a front at or past
+    it leaves nothing to cut in ``j``: backing out of a dimple into the cut layer above meets no cutting force, so
+    nothing switches on at the crossing).
 
     Parameters
     ----------
@@ -348,9 +351,10 @@ def axial_at(ins, k, front, t0, lp, npar, nlp, nstate, ntrack, nbuf):
             if cross[i] <= ins:
                 j = i
         j = min(max(j, 0), k - 1)
-        xc = npar[NP_CUT_M]
-        ramp = min(max((ins - front + xc) / xc, 0.0), 1.0)
-        cut = npar[NP_CUT_RATIO] * nlp[NL_FP, j] * ramp
+        if j == nl - 1 or front < cross[j + 1]:  # a layer cut through to the next one's top has nothing left to cut
+            xc = npar[NP_CUT_M]
+            ramp = min(max((ins - front + xc) / xc, 0.0), 1.0)
+            cut = npar[NP_CUT_RATIO] * nlp[NL_FP, j] * ramp
     return k, dimple, cut, w_dimple, t
 
 
@@ -393,7 +397,9 @@ def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nb
     Starts a track when there is none (:func:`start_track`); forgets it when the insertion ``L = (p - e) . u_e``
     is ``<= 0``. Then the dimple, ruptures and cutting (:func:`axial_at`), the front (:func:`advance_front`),
     Dahl friction ``lambda tau pi d l_i s_i`` per ruptured layer with
-    ``s_i <- sigma + (s_i - sigma) exp(-|dL| / x_0)``, and the lateral bed ``-0.5 sum_i k_l E_i l_i delta``.
+    ``s_i <- sigma + (s_i - sigma) exp(-|dL| / x_0)``, and the lateral bed, the gradient of
+    ``U = k(L) |delta|^2 / 4``, ``k = sum_i k_l E_i l_i``: ``-0.5 k delta`` sideways and ``k'(L) |delta|^2 / 4`` added
+    to the axial resistance.
 
     Parameters
     ----------
@@ -446,20 +452,26 @@ def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nb
     sigma = math.copysign(1.0, step)
     fric = 0.0
     lateral_k = 0.0
+    lateral_dk = 0.0  # d(lateral_k)/dL: the bed grows where the tip is in a cut layer
     for i in range(k):
         length = min(max(ins, cross[i]), cross[i + 1]) - cross[i]
         if step != 0.0:
             dahl[i] = sigma + (dahl[i] - sigma) * decay
         fric += npar[NP_FRICTION] * length * dahl[i]
         lateral_k += npar[NP_LATERAL] * nlp[NL_MODULUS, i] * length
-    axial = dimple + cut + fric
+        if cross[i] < ins < cross[i + 1]:
+            lateral_dk += npar[NP_LATERAL] * nlp[NL_MODULUS, i]
     half = -0.5 * lateral_k
     lx, ly, lz = half * (dx - ins * vx), half * (dy - ins * vy), half * (dz - ins * vz)
+    # the bed is the gradient of U = lateral_k(L) |delta|^2 / 4: its axial part, so a closed path does no net work
+    bed = 0.25 * lateral_dk * ((dx - ins * vx) ** 2 + (dy - ins * vy) ** 2 + (dz - ins * vz) ** 2)
+    axial = dimple + cut + fric + bed
     nout[NO_FX], nout[NO_FY], nout[NO_FZ] = -axial * vx + lx, -axial * vy + ly, -axial * vz + lz
     nout[NO_AXIAL], nout[NO_DIMPLE], nout[NO_CUT], nout[NO_FRICTION] = axial, dimple, cut, fric
     nout[NO_LX], nout[NO_LY], nout[NO_LZ] = lx, ly, lz
     nout[NO_DIMPLE_M], nout[NO_INSERTION_M] = w_dimple, ins
     nout[NO_RUPTURED], nout[NO_FIRST] = k, k0
+    nout[NO_BED] = bed
     return True
 
 

@@ -142,7 +142,7 @@ class NumpyNeedleModel:
         pr = self.params
         ins = tick.insertion_m
         h = 1e-6
-        re0 = tick.dimple_n + tick.cutting_n
+        re0 = tick.dimple_n + tick.cutting_n  # the slopes are of dimple and cutting; the bed's part is added at x0
         ahead = self.copy()
         t1 = ahead.step(np.asarray(tip_m) + h * self.axis, self.axis)
         slope = (t1.dimple_n + t1.cutting_n - re0) / h if t1.ruptured == tick.ruptured else 0.0
@@ -173,7 +173,7 @@ class NumpyNeedleModel:
         z = min(max(tick.friction_n / cap, -1.0), 1.0) if cap > 0.0 else 0.0
         return NeedleLaw(
             axis=tuple(float(c) for c in self.axis),  # type: ignore[arg-type]
-            axial_force_n=re0,
+            axial_force_n=re0 + tick.bed_n,
             axial_gradient_n_per_m=slope,
             axial_gradient_behind_n_per_m=slope_behind,
             rupture_distance_m=dist,
@@ -216,8 +216,9 @@ class NumpyNeedleModel:
         if inside:
             j = int(np.searchsorted(self.crossings[: self.ruptured + 1], ins, side="right")) - 1
             j = min(max(j, 0), self.ruptured - 1)
-            ramp = min(max((ins - self.front_m + pr.cut_presliding_m) / pr.cut_presliding_m, 0.0), 1.0)
-            cut = pr.cutting_ratio * pr.puncture_force_n(j) * ramp
+            if j == nl - 1 or self.front_m < self.crossings[j + 1]:  # a layer cut through has nothing left to cut
+                ramp = min(max((ins - self.front_m + pr.cut_presliding_m) / pr.cut_presliding_m, 0.0), 1.0)
+                cut = pr.cutting_ratio * pr.puncture_force_n(j) * ramp
         if inside:
             self.front_m = max(self.front_m, ins)
         elif self.ruptured > 0:  # dimpling the next layer: the ruptured ones are cut through
@@ -227,15 +228,19 @@ class NumpyNeedleModel:
         self.last_m = ins
         fric = 0.0
         lateral_k = 0.0
+        lateral_dk = 0.0
         for i in range(self.ruptured):
             length = min(max(ins, self.crossings[i]), self.crossings[i + 1]) - self.crossings[i]
+            if self.crossings[i] < ins < self.crossings[i + 1]:
+                lateral_dk += LATERAL_FACTOR * self._moduli[i]
             if step != 0.0:
                 sigma = math.copysign(1.0, step)
                 self.dahl[i] = sigma + (self.dahl[i] - sigma) * math.exp(-abs(step) / pr.dahl_length_m)
             fric += lam * pr.shaft_shear_pa * math.pi * pr.outer_diameter_m * length * self.dahl[i]
             lateral_k += LATERAL_FACTOR * self._moduli[i] * length
-        axial = dimple + cut + fric
         deviation = (p - self.entry) - ins * self.axis
+        bed = 0.25 * lateral_dk * float(deviation @ deviation)  # the bed's axial part: gradient of k(L) |delta|^2 / 4
+        axial = dimple + cut + fric + bed
         lateral = -0.5 * lateral_k * deviation
         force = -axial * self.axis + lateral
-        return NeedleTick(force, axial, dimple, cut, fric, lateral, w_dimple, ins, self.ruptured, tuple(punctured))
+        return NeedleTick(force, axial, dimple, cut, fric, lateral, w_dimple, ins, self.ruptured, tuple(punctured), bed)

@@ -1,8 +1,14 @@
 """``NeedleSkin``: the skin model under a needle (``tool.shape`` 'needle', issue 22).
 
 The force is the needle's (:class:`~.needle.NeedleModel`: dimple, puncture, cutting, shaft friction, lateral bed
-along the track). The layered kernel of :class:`~.skin_model.SkinModel` still runs, for the deformation only: it is
-driven at the tip with the dimple's normal depth while a layer ahead is intact, so the grid shows the dimple before
+along the track). A track starts where the tip enters through the surface on the sheet at more than 10 degrees (or at
+a contact restart); a tip below the surface without one (too flat a needle, or one steepened after it got there;
+off the sheet) is a surface contact: the layered form's indentation and friction of a punch of the needle's radius.
+A needle pushed sideways harder than cutting a slot through the inserted layers takes (``sum_i lambda Gamma_i l_i``)
+tears: its track starts again where it is.
+
+With a track, the layered kernel of :class:`~.skin_model.SkinModel` still runs, for the deformation only: it is driven
+at the tip with the dimple's normal depth while a layer ahead is intact, so the grid shows the dimple before
 the puncture, and it is lifted off once every layer is cut, so the grid shows the release (the layers recover along
 their own law, the paper's return to rest). Its own force is not published. The kernel's tool radius is the needle's.
 
@@ -48,6 +54,9 @@ class NeedleSkin(SkinModel):
         )
         self._radius = radius
         self._tip = np.zeros(3)
+        self._prev_z: float | None = None  # the tip's height at the last step (None: no step since a reset)
+        self._surface = False  # the tip is below the surface without a track: the layered contact of a thin punch
+        self.tears = 0  # tracks torn sideways (the lateral bed's force above the slot-cutting force)
         self.last_needle = NeedleTick(np.zeros(3))
 
     def reset(self) -> None:
@@ -56,6 +65,7 @@ class NeedleSkin(SkinModel):
         if hasattr(self, "needle"):
             self.needle.reset()
             self.last_needle = NeedleTick(np.zeros(3))
+            self._prev_z, self._surface = None, False
 
     def release(self) -> None:
         """End contact now (a teleport or a stale input): the tissue relaxes and the track is forgotten."""
@@ -70,8 +80,27 @@ class NeedleSkin(SkinModel):
         """
         tip = np.asarray(tool_xyz, dtype=float)
         self._tip = tip
-        t = self.last_needle = self.needle.step(tip, axis)
-        u = self.needle.axis
+        nd = self.needle
+        prev_z, self._prev_z = self._prev_z, float(tip[2])
+        # a track starts where the tip enters through the surface on the sheet (or at a contact restart, the tip
+        # having been where it is for an unknown time); a tip that got below the surface otherwise (a needle too flat
+        # to start one, then steepened; off the sheet) stays a surface contact until it is lifted out
+        on_sheet = abs(tip[0]) <= self._half[0] and abs(tip[1]) <= self._half[1]
+        if nd.inserted or (on_sheet and (prev_z is None or prev_z >= 0.0 or restart)):
+            t = nd.step(tip, axis)
+        else:
+            t = NeedleTick(np.zeros(3))
+        if nd.inserted and t.ruptured > 0 and float(t.lateral_n @ t.lateral_n) > self._tear_force_n(t) ** 2:
+            # pushed sideways harder than cutting a slot through the inserted layers takes: the needle cuts its way,
+            # and its track starts again where it is (the cut layers above the tip stay cut, those below are intact)
+            self.tears += 1
+            nd.reset()
+            t = nd.step(tip, axis)
+        self.last_needle = t
+        self._surface = not nd.inserted and tip[2] < 0.0
+        if self._surface:  # the layered form's contact of a punch of the needle's radius: indentation and friction
+            return super().step(tip, tool_velocity, dt, restart)
+        u = nd.axis
         ahead = self.needle.inserted and t.ruptured < len(self.cfg.layers) and t.dimple_m > 0.0
         depth = t.dimple_m * abs(u[2]) if ahead else -LIFT_M
         v = tool_velocity if ahead else (0.0, 0.0, 0.0)
@@ -79,43 +108,65 @@ class NeedleSkin(SkinModel):
         self.flags = FLAG_CONTACT if self.needle.inserted else (self.flags & FLAG_OFF_SHEET)
         return self.force_n
 
-    # --- the needle's force and its tangent -------------------------------------------------
+    def _tear_force_n(self, t: NeedleTick) -> float:
+        """Sideways force (N) that cuts a slot through the inserted layers: ``sum_i lambda Gamma_i l_i`` (cutting a slot
+        of height ``l_i`` sideways by ``dx`` takes ``Gamma_i l_i dx``)."""
+        nd = self.needle
+        c, d = nd.crossings, nd.params.outer_diameter_m
+        f = 0.0
+        for i in range(nd.ruptured):
+            f += nd.params.puncture_force_n(i) / d * (min(max(t.insertion_m, c[i]), c[i + 1]) - c[i])
+        return f
+
+    # --- the needle's force and its tangent (the layered contact's in surface mode) ----------------
     @property
     def force_n(self) -> float:
         """Magnitude of the force on the needle (N) of the last step."""
+        if self._surface:
+            return super().force_n
         f = self.last_needle.force_n
         return float(math.sqrt(float(f @ f)))
 
     @property
     def force_vector_n(self) -> np.ndarray:
         """Force on the needle (N, tissue frame) of the last step: ``-R u`` along the track plus the lateral bed."""
+        if self._surface:
+            return super().force_vector_n
         return np.asarray(self.last_needle.force_n, dtype=float).copy()
 
     @property
     def contact_normal(self) -> np.ndarray:
         """``-u``: the direction the axial resistance pushes the needle (``+z`` out of the tissue)."""
+        if self._surface:
+            return super().contact_normal
         return -self.needle.axis.copy() if self.needle.inserted else np.array([0.0, 0.0, 1.0])
 
     @property
     def contact_radius_m(self) -> float:
         """The needle's radius while it is in the tissue (m), else 0."""
+        if self._surface:
+            return super().contact_radius_m
         return self._radius if self.needle.inserted else 0.0
 
     @property
     def depth_m(self) -> float:
         """Depth of the tip below the rest surface (m), 0 out of the tissue."""
+        if self._surface:
+            return super().depth_m
         return max(-float(self._tip[2]), 0.0) if self.needle.inserted else 0.0
 
     @property
     def n_affected(self) -> int:
         """Layers the needle has cut, plus the one it dimples."""
+        if self._surface:
+            return super().n_affected
         t = self.last_needle
         return min(t.ruptured + (1 if t.dimple_m > 0.0 else 0), len(self.cfg.layers)) if self.needle.inserted else 0
 
     @property
     def in_contact(self) -> bool:
-        """True while the needle is in the tissue (a track)."""
-        return self.needle.inserted
+        """True while the needle is in the tissue (a track) or presses its surface (no track)."""
+        return self.needle.inserted or (self._surface and bool(self.flags & FLAG_CONTACT))
 
     def lateral_stiffness_n_per_m(self) -> float:
         """Stiffness of the bed that holds the shaft in its track, at the tip (N/m): ``0.5 sum_i k_l E_i l_i``."""
@@ -134,6 +185,8 @@ class NeedleSkin(SkinModel):
         ``k_a`` is the slope of the axial resistance: the dimple's or cutting ramp's plus Dahl's presliding slope
         ``F_c (1 - |z|) / x_0`` and the capacity's growth ``z dF_c/ds``.
         """
+        if self._surface:
+            return super().tangent()
         t = self.last_needle
         law = self.needle.law(t, self._tip)
         f = np.asarray(t.force_n, dtype=float).copy()

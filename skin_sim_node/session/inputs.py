@@ -197,8 +197,8 @@ class InputPolicy:
         axis = DOWN
         if quat is not None:
             qx, qy, qz, qw = (float(c) for c in quat)
-            norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-            if not math.isfinite(norm):
+            norm = math.hypot(qx, qy, qz, qw)  # no overflow for large finite components (those are then not unit)
+            if not all(math.isfinite(c) for c in (qx, qy, qz, qw)):
                 return self._event(ev.NON_FINITE, f"rejected tool pose with non-finite orientation ({qx}, {qy}, {qz}, {qw})")
             if self.orientation_required:
                 if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
