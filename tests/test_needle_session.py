@@ -74,7 +74,7 @@ def test_published_force_is_the_models_vector_and_its_law_gives_f0(path):
         assert u @ r.tangent.stiffness_n_per_m @ u <= 1e-9
         assert law.finite
     assert seen_law > 100
-    assert most == 3  # every layer cut by 4.5 mm deep
+    assert most == 3  # every layer cut by 5.2 mm deep
 
 
 def test_puncture_drop_is_published_within_one_tick_and_not_rate_limited():
@@ -134,7 +134,7 @@ def test_needle_check_passes_its_data_checks(capsys):
 
     assert needle_check.main([]) == 0
     out = capsys.readouterr().out
-    assert "needle_check PASS: 6 checks" in out
+    assert "needle_check PASS: 9 checks" in out
 
 
 def _drive(s: HapticSession, tips, quat=(0.0, 0.0, 0.0, 1.0), t0: int = 0):

@@ -95,9 +95,10 @@ def _press(name: str, x_m: float, depth_m: float, press_s: float, hold_s: float,
     return Trajectory(name, up, ((press_s, down), (hold_s, down), (release_s, up), (lifted_s, up)), desc)
 
 
-NEEDLE_DEPTH_M = 4.5e-3
-"""Deepest tip of the needle paths below the rest surface (m): past the skin's puncture for 18-30 G (1.8-3.9 mm of
-tip travel, docs/needle.md) and inside the 5.275 mm stack (the model has no tissue below it)."""
+NEEDLE_DEPTH_M = 5.2e-3
+"""Deepest tip of the needle paths below the rest surface (m): past the skin's puncture for 18-30 G, lubricated (1.8-3.9
+mm of tip travel) and dry (up to 5.15 mm for 18 G; docs/needle.md), and inside the 5.275 mm stack (the model has no
+tissue below it)."""
 NEEDLE_START_M = 0.5e-3
 """Tip height above the surface where the needle paths start and end their insertion (m)."""
 
@@ -223,7 +224,7 @@ def _build() -> dict[str, Trajectory]:
             90.0,
             5e-3,
             (NEEDLE_DEPTH_M,),
-            "needle (tool.shape 'needle'), vertical at the origin (an egg-carton peak): insert at 5 mm/s mean to 4.5 mm "
+            "needle (tool.shape 'needle'), vertical at the origin (an egg-carton peak): insert at 5 mm/s mean to 5.2 mm "
             "deep, hold 0.3 s, withdraw, lift",
         ),
         _needle(
@@ -232,21 +233,21 @@ def _build() -> dict[str, Trajectory]:
             5e-3,
             (NEEDLE_DEPTH_M,),
             "needle at 30 deg to the skin surface, pointing along +x, entering at the origin: insert at 5 mm/s mean along "
-            "its axis to 4.5 mm below the surface (9 mm of track), hold, withdraw, lift",
+            "its axis to 5.2 mm below the surface (10.4 mm of track), hold, withdraw, lift",
         ),
         _needle(
             "needle_oblique_60",
             60.0,
             5e-3,
             (NEEDLE_DEPTH_M,),
-            "needle at 60 deg to the skin surface, along +x, entering at the origin: to 4.5 mm deep at 5 mm/s mean",
+            "needle at 60 deg to the skin surface, along +x, entering at the origin: to 5.2 mm deep at 5 mm/s mean",
         ),
         _needle(
             "needle_reinsert",
             90.0,
             5e-3,
             (NEEDLE_DEPTH_M, 1.5e-3, NEEDLE_DEPTH_M, -NEEDLE_START_M, NEEDLE_DEPTH_M),
-            "needle, vertical: insert to 4.5 mm, retract to 1.5 mm (still in the track), re-insert to 4.5 mm (no second "
+            "needle, vertical: insert to 5.2 mm, retract to 1.5 mm (still in the track), re-insert to 5.2 mm (no second "
             "puncture: the track is latched), withdraw out of the skin, insert again (a new track: the peak returns)",
         ),
         _needle(
@@ -254,7 +255,7 @@ def _build() -> dict[str, Trajectory]:
             90.0,
             1e-3,
             (NEEDLE_DEPTH_M,),
-            "needle, vertical: insert at 1 mm/s mean to 4.5 mm, hold, withdraw (with needle_fast: the skin peak's speed "
+            "needle, vertical: insert at 1 mm/s mean to 5.2 mm, hold, withdraw (with needle_fast: the skin peak's speed "
             "dependence)",
         ),
         _needle(
@@ -262,7 +263,7 @@ def _build() -> dict[str, Trajectory]:
             90.0,
             20e-3,
             (NEEDLE_DEPTH_M,),
-            "needle, vertical: insert at 20 mm/s mean to 4.5 mm, hold, withdraw",
+            "needle, vertical: insert at 20 mm/s mean to 5.2 mm, hold, withdraw",
         ),
     ]
     return {t.name: t for t in trajs}

@@ -37,6 +37,8 @@ GAUGES = (18, 21, 25)
 CADAVER_BAND_N = (2.75, 2.80)
 """J Endourol 2016 (doi 10.1089/end.2016.0342): average maximum skin puncture force, human cadaver, percutaneous
 access needle (the model's calibration point, at an assumed 18 G)."""
+LIVING_SKIN_BAND_N = (0.1, 3.0)
+"""Davis et al. 2004 (doi 10.1016/j.jbiomech.2003.12.010): insertion force into living skin, 0.1-3 N."""
 SUTURE_BAND_N = (0.48, 1.00)
 """Maloney et al.: mean skin puncture force of taper suture needles 5-0 to 3-0 (body diameters not given)."""
 FAT_SHARE_MAX = 0.20
@@ -50,14 +52,17 @@ def _cfg(gauge: int, **extra):
     return preset("needle").replace(**{"needle.outer_diameter_m": GAUGE_OUTER_DIAMETER_M[gauge], **extra})
 
 
-def insertion(gauge: int, speed_m_s: float, depth_m: float = 4.5e-3, elevation_deg: float = 90.0, entry=(0.0, 0.0)):
+def insertion(
+    gauge: int, speed_m_s: float, depth_m: float = 4.5e-3, elevation_deg: float = 90.0, entry=(0.0, 0.0), dry: bool = False
+):
     """Insert from 0.5 mm above the surface to ``depth_m`` below it at constant ``speed_m_s`` along the axis, then
     withdraw at the same speed, through the session; returns tips (n, 3), published forces (n, 3) and the needle's
     per-tick parts (insertion, dimple, cutting, friction, ruptured)."""
     e = math.radians(elevation_deg)
     u = np.array([math.cos(e), 0.0, -math.sin(e)])
     q = needle_orientation(e)
-    s = HapticSession(SkinModel(_cfg(gauge)), SessionParams(max_stamp_age_s=0.0))
+    cfg = _cfg(gauge, **({"needle.lubricated": False} if dry else {}))
+    s = HapticSession(SkinModel(cfg), SessionParams(max_stamp_age_s=0.0))
     step = speed_m_s * DT_NS * 1e-9
     travel = np.arange(-0.5e-3 / math.sin(e), depth_m / math.sin(e), step)
     path = np.concatenate([travel, travel[::-1]])
@@ -73,9 +78,9 @@ def insertion(gauge: int, speed_m_s: float, depth_m: float = 4.5e-3, elevation_d
     return np.array(tips), np.array(forces), np.array(parts)
 
 
-def gauge_row(gauge: int, speed_m_s: float = 5e-3) -> dict:
+def gauge_row(gauge: int, speed_m_s: float = 5e-3, dry: bool = False) -> dict:
     """The skin peak (N), the tip travel at it (m), the epidermis's event and the fat's peak share for ``gauge``."""
-    tips, f, parts = insertion(gauge, speed_m_s)
+    tips, f, parts = insertion(gauge, speed_m_s, depth_m=5.25e-3 if dry else 4.5e-3, dry=dry)
     n = len(tips) // 2
     mag = np.linalg.norm(f[:n], axis=1)
     rup = parts[:n, 4]
@@ -125,7 +130,10 @@ def sites(gauge: int = 21) -> list[dict]:
             nm = NeedleModel(cfg, NeedleParams(outer_diameter_m=cfg.needle_outer_diameter_m))
             entry = np.array([x, 0.0, 0.0])
             travel_at = {}
+            tent = {}
             for a in np.arange(-0.5e-3, 12e-3, 1e-6):
+                if nm.inserted and nm.ruptured < len(cfg.layers) and nm.ruptured not in tent:
+                    tent[nm.ruptured] = _tent_m(nm, nm.ruptured)
                 t = nm.step(entry + a * u, u)
                 for k in t.punctured:
                     travel_at[k] = a
@@ -133,6 +141,9 @@ def sites(gauge: int = 21) -> list[dict]:
                     break
             for layer in (1, 2):
                 ref = crossing_reference(cfg, entry, u, layer)
+                # the skin's (dermis's) rupture is not a cascade: the tip is at the crossing plus the tent's dimple at
+                # the threshold; the fat ruptures in the same tick (its own tent would end earlier)
+                predicted = ref + tent.get(layer, math.nan)
                 rows.append(
                     {
                         "site": site,
@@ -141,9 +152,23 @@ def sites(gauge: int = 21) -> list[dict]:
                         "reference_m": ref,
                         "model_m": float(nm.crossings[layer]),
                         "tip_travel_at_rupture_m": travel_at.get(layer, math.nan),
+                        "predicted_travel_m": predicted,
                     }
                 )
     return rows
+
+
+def _tent_m(nm: NeedleModel, layer: int) -> float:
+    """The dimple (m, along the axis) at which ``layer``'s dimple force reaches its threshold: bisection of
+    :meth:`NeedleModel.dimple_force_n` (the tent the tip travels past the crossing before that layer ruptures)."""
+    fp = nm.params.puncture_force_n(layer)
+    lo, hi = 0.0, 1e-4
+    while nm.dimple_force_n(layer, hi) < fp and hi < 0.1:
+        hi *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if nm.dimple_force_n(layer, mid) < fp else (lo, mid)
+    return hi
 
 
 def cycle_work_j(gauge: int = 21, speed_m_s: float = 5e-3) -> tuple[float, np.ndarray]:
@@ -173,6 +198,22 @@ def main(argv=None) -> int:
             fails.append(f"{r['gauge']} G: fat peak {r['fat_share']:.1%} of the skin's (>= 20 %)")
     if not CADAVER_BAND_N[0] <= rows[0]["skin_peak_n"] <= CADAVER_BAND_N[1]:
         fails.append(f"18 G skin peak {rows[0]['skin_peak_n']:.3f} N outside the cadaver band")
+    for r in rows:
+        if not LIVING_SKIN_BAND_N[0] <= r["skin_peak_n"] <= LIVING_SKIN_BAND_N[1]:
+            fails.append(f"{r['gauge']} G skin peak {r['skin_peak_n']:.3f} N outside the living-skin band")
+    print(
+        f"   living skin (Davis 2004): {LIVING_SKIN_BAND_N[0]}-{LIVING_SKIN_BAND_N[1]} N, checked for every gauge; "
+        "Maloney's suture-needle band is shown, not checked: their body diameters were not read (at 0.3-0.6 mm, "
+        "unverified, the model would give 0.66-1.32 N, about 1.3 x theirs)"
+    )
+    for g in (18, 21):
+        dry = gauge_row(g, dry=True)
+        print(
+            f"   dry {g} G: skin peak {dry['skin_peak_n']:.3f} N at {dry['skin_travel_m'] * 1e3:.2f} mm of tip travel "
+            f"(the stack is {_cfg(g).total_thickness_m * 1e3:.3f} mm: a dry needle tents it nearly to its bottom)"
+        )
+        if not dry["skin_travel_m"] < _cfg(g).total_thickness_m:
+            fails.append(f"dry {g} G does not puncture the skin inside the stack")
     per_d = [r["skin_peak_n"] / r["diameter_m"] for r in rows]
     print(f"   peak / diameter: {', '.join(f'{v / 1e3:.3f}' for v in per_d)} kN/m (linear in d: Maloney, Roemgens trend)")
     if max(per_d) > 1.01 * min(per_d):
@@ -182,19 +223,32 @@ def main(argv=None) -> int:
     print(f"\n2. speed, 21 G: skin peak {p1:.3f} N at 1 mm/s, {p10:.3f} N at 10 mm/s: ratio {ratio:.3f} (band 0.8-1.2)")
     if not SPEED_BAND[0] <= ratio <= SPEED_BAND[1]:
         fails.append(f"speed ratio {ratio:.3f} outside {SPEED_BAND}")
-    print("\n3. puncture sites, 21 G: axis length to each interface, model vs dense-sampling reference (aim 0.1 mm)")
-    print("   site    angle  interface        reference (mm)  model (mm)  |diff| (um)  tip travel at rupture (mm)")
-    worst = 0.0
+    print(
+        "\n3. puncture sites, 21 G, entries at a peak, a valley and a saddle of the dermis/fat egg carton: where the track"
+        "\n   meets each interface (the layer's rupture site in the tissue), the kernel's against a dense sampling of the"
+        "\n   egg carton (aim 0.1 mm), and the tip's travel when the layer below ruptures: past the crossing by the"
+        "\n   tent, so the issue's 'puncture depth = crossing within 0.1 mm' holds for the site in the tissue, NOT for"
+        "\n   the tip; the skin's rupture lands at the crossing plus the tent's dimple at the threshold (bisection of"
+        "\n   the dimple law) within 5 um"
+    )
+    print("   site    angle  interface        crossing ref (mm)  model (mm)  |diff| (um)  tip at rupture (mm)  predicted (mm)")
+    worst = worst_tip = 0.0
     for r in sites():
         d = abs(r["model_m"] - r["reference_m"])
         worst = max(worst, d)
         name = ("epidermis/dermis", "dermis/fat")[r["interface"] - 1]
+        cascade = "" if r["interface"] == 1 else " (cascade with the dermis)"
+        if r["interface"] == 1:
+            worst_tip = max(worst_tip, abs(r["tip_travel_at_rupture_m"] - r["predicted_travel_m"]))
         print(
-            f"   {r['site']:7s} {r['elevation_deg']:5.0f}  {name:16s} {r['reference_m'] * 1e3:14.4f}  "
-            f"{r['model_m'] * 1e3:10.4f}  {d * 1e6:11.2f}  {r['tip_travel_at_rupture_m'] * 1e3:10.3f}"
+            f"   {r['site']:7s} {r['elevation_deg']:5.0f}  {name:16s} {r['reference_m'] * 1e3:17.4f}  "
+            f"{r['model_m'] * 1e3:10.4f}  {d * 1e6:11.2f}  {r['tip_travel_at_rupture_m'] * 1e3:19.3f}  "
+            f"{r['predicted_travel_m'] * 1e3:14.3f}{cascade}"
         )
     if worst > SITE_TOLERANCE_M:
         fails.append(f"puncture site off by {worst * 1e3:.3f} mm")
+    if not worst_tip <= 5e-6:
+        fails.append(f"the skin's rupture {worst_tip * 1e6:.1f} um off the crossing plus the tent")
     work, fric = cycle_work_j()
     n = len(fric) // 2
     f_in, f_out = fric[:n, 1], fric[n:, 1]
@@ -210,7 +264,7 @@ def main(argv=None) -> int:
         _figures(a.figures, rows, fric)
     for f in fails:
         print(f"FAIL {f}")
-    print(f"needle_check FAIL: {len(fails)} of 6 checks failed" if fails else "needle_check PASS: 6 checks")
+    print(f"needle_check FAIL: {len(fails)} of 9 checks failed" if fails else "needle_check PASS: 9 checks")
     return 1 if fails else 0
 
 
