@@ -217,7 +217,7 @@ def pack_needle(cfg: TissueConfig, params: NeedleParams) -> tuple[np.ndarray, np
 
 
 def _vec3(v, what: str) -> tuple[float, float, float]:
-    x, y, z = (float(c) for c in v)
+    x, y, z = float(v[0]), float(v[1]), float(v[2])
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         raise ValueError(f"needle {what} must be finite, got ({x}, {y}, {z})")
     return x, y, z

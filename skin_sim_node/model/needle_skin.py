@@ -30,6 +30,7 @@ from .needle import LATERAL_FACTOR, NeedleModel, NeedleParams, NeedleTick
 from .needle import warm_up as needle_warm_up
 from .skin_model import SkinModel
 
+_EYE3 = np.eye(3)
 DOWN = (0.0, 0.0, -1.0)
 """The needle axis of an identity orientation: straight down into the tissue (msgs_schema/topics.py, tool_pose)."""
 LIFT_M = 1e-3
@@ -90,7 +91,8 @@ class NeedleSkin(SkinModel):
             t = nd.step(tip, axis)
         else:
             t = NeedleTick(np.zeros(3))
-        if nd.inserted and t.ruptured > 0 and float(t.lateral_n @ t.lateral_n) > self._tear_force_n(t) ** 2:
+        lat2 = float(t.lateral_n @ t.lateral_n) if nd.inserted and t.ruptured > 0 else 0.0
+        if lat2 > 0.0 and lat2 > self._tear_force_n(t) ** 2:
             # pushed sideways harder than cutting a slot through the inserted layers takes: the needle cuts its way,
             # and its track starts again where it is (the cut layers above the tip stay cut, those below are intact)
             self.tears += 1
@@ -171,11 +173,11 @@ class NeedleSkin(SkinModel):
     def lateral_stiffness_n_per_m(self) -> float:
         """Stiffness of the bed that holds the shaft in its track, at the tip (N/m): ``0.5 sum_i k_l E_i l_i``."""
         nd, t = self.needle, self.last_needle
-        c = nd.crossings
+        c, ins = nd.crossings.tolist(), t.insertion_m
         k = 0.0
-        for i in range(nd.ruptured):
-            k += LATERAL_FACTOR * nd._moduli[i] * (min(max(t.insertion_m, c[i]), c[i + 1]) - c[i])
-        return 0.5 * k
+        for i, e in enumerate(nd._moduli.tolist()[: nd.ruptured]):
+            k += e * (min(max(ins, c[i]), c[i + 1]) - c[i])
+        return 0.5 * LATERAL_FACTOR * k
 
     def tangent(self) -> ContactTangent:
         """The needle's force and its local derivatives: ``K = -k_a u u^T - k_l (I - u u^T)``, ``D = 0`` (position
@@ -193,10 +195,11 @@ class NeedleSkin(SkinModel):
         if law is None:
             return ContactTangent(f, np.zeros((3, 3)), np.zeros((3, 3)), np.array([0.0, 0.0, 1.0]), 0.0)
         u = np.asarray(law.axis)
-        uu = np.outer(u, u)
+        uu = u[:, None] * u[None, :]
         cap, z = law.friction_capacity_n, law.friction_state
         k_a = law.axial_gradient_n_per_m + cap * (1.0 - abs(z)) / law.dahl_length_m + z * law.friction_capacity_gradient_n_per_m
-        k = -max(k_a, 0.0) * uu - self.lateral_stiffness_n_per_m() * (np.eye(3) - uu)
+        k_l = self.lateral_stiffness_n_per_m()
+        k = (k_l - max(k_a, 0.0)) * uu - k_l * _EYE3
         return ContactTangent(f, k, np.zeros((3, 3)), -u, self._radius, needle=law)
 
     def needle_state(self) -> dict:
