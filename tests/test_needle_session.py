@@ -222,3 +222,17 @@ def test_pushed_sideways_the_needle_tears_its_way_and_a_new_entry_punctures_agai
 def test_a_quaternion_with_huge_finite_components_is_a_bad_orientation():
     s = _session()
     assert s.on_pose(MS, "tissue", (0.0, 0.0, 0.001), quat=(1e308, 1e308, 0.0, 0.0)) == BAD_ORIENTATION
+
+
+def test_before_the_first_rupture_the_tent_slides_with_the_tip():
+    """Pressed 1.5 mm (nothing cut yet), moved 3 mm sideways and pushed in: the skin ruptures under the tip's new place,
+    at the same peak, not along the first contact's track."""
+    s = _session()
+    peak = s.model.needle.params.puncture_force_n(1)
+    _drive(s, _line((0, 0, 1e-3), (0, 0, -1.5e-3), 2500))
+    assert s.model.needle.ruptured == 0
+    f_slide, _ = _drive(s, _line((0, 0, -1.5e-3), (3e-3, 0, -1.5e-3), 3000), t0=3000 * MS)
+    assert np.abs(f_slide[:, 0]).max() < 1e-9  # no sideways force: the tent slides (frictionless tip)
+    f_in, _ = _drive(s, _line((3e-3, 0, -1.5e-3), (3e-3, 0, -4.5e-3), 3000), t0=7000 * MS)
+    assert np.linalg.norm(f_in, axis=1).max() == pytest.approx(peak, rel=0.01)
+    assert s.model.needle.entry[0] == pytest.approx(3e-3, abs=1e-6)

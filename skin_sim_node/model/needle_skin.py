@@ -5,7 +5,8 @@ along the track). A track starts where the tip enters through the surface on the
 a contact restart); a tip below the surface without one (too flat a needle, or one steepened after it got there;
 off the sheet) is a surface contact: the layered form's indentation and friction of a punch of the needle's radius.
 A needle pushed sideways harder than cutting a slot through the inserted layers takes (``sum_i lambda Gamma_i l_i``)
-tears: its track starts again where it is.
+tears: its track starts again where it is. Before the first rupture the tent slides with the tip (frictionless): the
+track follows the needle's position and angle.
 
 With a track, the layered kernel of :class:`~.skin_model.SkinModel` still runs, for the deformation only: it is driven
 at the tip with the dimple's normal depth while a layer ahead is intact, so the grid shows the dimple before
@@ -33,6 +34,11 @@ from .skin_model import SkinModel
 _EYE3 = np.eye(3)
 DOWN = (0.0, 0.0, -1.0)
 """The needle axis of an identity orientation: straight down into the tissue (msgs_schema/topics.py, tool_pose)."""
+SLIDE_TOLERANCE_M = 1e-6
+"""Before the first rupture the track follows the tip: it is started again once the tip is this far off its axis (m;
+a tenth of a 10 um display cell, far below what a hand feels)."""
+SLIDE_TOLERANCE_RAD = 1e-3
+"""... or once the needle has turned this far from the track's axis (rad)."""
 LIFT_M = 1e-3
 """Height (m) the deformation kernel's tool is lifted to once no layer ahead is dimpled: off the tissue."""
 
@@ -98,6 +104,11 @@ class NeedleSkin(SkinModel):
             self.tears += 1
             nd.reset()
             t = nd.step(tip, axis)
+        if nd.inserted and t.ruptured == 0 and self._off_track(tip, axis, t.insertion_m):
+            # nothing is cut yet: the tent slides with the tip (a frictionless tip on the skin), so the track is
+            # where the needle is now, not where it first touched
+            nd.reset()
+            t = nd.step(tip, axis)
         self.last_needle = t
         self._surface = not nd.inserted and tip[2] < 0.0
         if self._surface:  # the layered form's contact of a punch of the needle's radius: indentation and friction
@@ -109,6 +120,15 @@ class NeedleSkin(SkinModel):
         super().step((tip[0], tip[1], -depth), v, dt, restart)
         self.flags = FLAG_CONTACT if self.needle.inserted else (self.flags & FLAG_OFF_SHEET)
         return self.force_n
+
+    def _off_track(self, tip: np.ndarray, axis, insertion_m: float) -> bool:
+        """The tip is more than :data:`SLIDE_TOLERANCE_M` off the track's axis, or the needle turned from it."""
+        nd = self.needle
+        dev = (tip - nd.entry) - insertion_m * nd.axis
+        a = np.asarray(axis, dtype=float)
+        na = math.sqrt(float(a @ a))
+        turned = na > 0.0 and float(a @ nd.axis) / na < math.cos(SLIDE_TOLERANCE_RAD)
+        return float(dev @ dev) > SLIDE_TOLERANCE_M**2 or turned
 
     def _tear_force_n(self, t: NeedleTick) -> float:
         """Sideways force (N) that cuts a slot through the inserted layers: ``sum_i lambda Gamma_i l_i`` (cutting a slot
