@@ -122,13 +122,18 @@ class NeedleSkin(SkinModel):
         return self.force_n
 
     def _off_track(self, tip: np.ndarray, axis, insertion_m: float) -> bool:
-        """The tip is more than :data:`SLIDE_TOLERANCE_M` off the track's axis, or the needle turned from it."""
+        """The tip is more than :data:`SLIDE_TOLERANCE_M` off the track's axis, or the needle turned from it (plain
+        floats: a few small NumPy operations per tick cost more than the needle's kernels)."""
         nd = self.needle
-        dev = (tip - nd.entry) - insertion_m * nd.axis
-        a = np.asarray(axis, dtype=float)
-        na = math.sqrt(float(a @ a))
-        turned = na > 0.0 and float(a @ nd.axis) / na < math.cos(SLIDE_TOLERANCE_RAD)
-        return float(dev @ dev) > SLIDE_TOLERANCE_M**2 or turned
+        ex, ey, ez = nd.entry.tolist()
+        ux, uy, uz = nd.axis.tolist()
+        px, py, pz = tip.tolist()
+        dx, dy, dz = px - ex - insertion_m * ux, py - ey - insertion_m * uy, pz - ez - insertion_m * uz
+        if dx * dx + dy * dy + dz * dz > SLIDE_TOLERANCE_M**2:
+            return True
+        ax, ay, az = (float(c) for c in axis)
+        na = math.sqrt(ax * ax + ay * ay + az * az)
+        return na > 0.0 and (ax * ux + ay * uy + az * uz) / na < math.cos(SLIDE_TOLERANCE_RAD)
 
     def _tear_force_n(self, t: NeedleTick) -> float:
         """Sideways force (N) that cuts a slot through the inserted layers: ``sum_i lambda Gamma_i l_i`` (cutting a slot
