@@ -353,3 +353,21 @@ def test_report_surface_map_and_cross_section_agree_at_peak(scene_name):
     assert surface_map == pytest.approx(at_cell, rel=0.02)
     assert surface_map == pytest.approx(section, rel=0.05)  # up to half a 1 mm cell from the tool's centre
     assert g.heights_m[0].min() == pytest.approx(surface_map, rel=0.02)  # the deepest point of the map is there
+
+
+def test_replay_takes_the_preset_the_bag_was_recorded_with(tmp_path, capsys):
+    """A needle bag (skin-sim record writes skin_sim.params) replays with the needle's preset, not the flat punch's."""
+    import shutil
+
+    import yaml
+
+    bag = tmp_path / "needle_input"
+    shutil.copytree(DATA / "needle_oblique_30" / "input", bag)
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())
+    meta["rosbag2_bagfile_information"].setdefault("custom_data", {})["skin_sim.params"] = "needle.yaml"
+    (bag / "metadata.yaml").write_text(yaml.safe_dump(meta))
+    assert replay.main([str(bag), "--out", str(tmp_path / "r"), "--grid-rate-hz", "0", "--no-report"]) == 0
+    printed = capsys.readouterr().out
+    assert "needle.yaml (recorded with the bag)" in printed
+    peak = float(printed.split("peak force ", 1)[1].split(" N", 1)[0])
+    assert peak == pytest.approx(1.80, abs=0.01)  # the 21 G needle's skin peak, not a flat punch's

@@ -232,6 +232,21 @@ def _truncated(path: Path, exc: BaseException) -> TruncatedBagError:
     return TruncatedBagError(f"bag file {name} is truncated or corrupt ({type(exc).__name__}: {detail})")
 
 
+def custom_data(path) -> dict[str, str]:
+    """A rosbag2 folder's ``metadata.yaml`` ``custom_data`` (what :class:`BagWriter` wrote); empty when there is none or
+    ``path`` is a single storage file."""
+    import yaml
+
+    meta = Path(path) / "metadata.yaml"
+    if not meta.is_file():
+        return {}
+    try:
+        info = yaml.safe_load(meta.read_text()).get("rosbag2_bagfile_information", {})
+    except (yaml.YAMLError, AttributeError):
+        return {}
+    return {str(k): str(v) for k, v in (info.get("custom_data") or {}).items()}
+
+
 @contextmanager
 def open_bag(path) -> Iterator[Reader]:
     """Open a rosbag2 folder (or a single .mcap/.db3 file) for reading, with clear errors.

@@ -22,7 +22,7 @@ from ..session import UNKNOWN_FRAME
 from ..verdicts import verdict_line
 from .compare import LIVE
 from .inputs import add_input_arguments, input_options, read_inputs
-from .io import STORAGES, BagError
+from .io import STORAGES, BagError, custom_data
 from .offline import replay, replay_to_bag
 from .published import PublishedCheck, answered_only, check_published, format_check
 from .report import format_summary, write_report
@@ -32,7 +32,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="skin-sim replay", description=__doc__.splitlines()[0])
     ap.add_argument("bag", type=Path, help="rosbag2 folder (MCAP or sqlite3) or a single .mcap/.db3 file")
     ap.add_argument("--out", type=Path, help="output folder (default out/replay/<bag name>)")
-    ap.add_argument("--params", type=Path, default=DEFAULT_PARAMS, help="node parameter file (default config/default.yaml)")
+    ap.add_argument(
+        "--params",
+        type=Path,
+        default=None,
+        help="node parameter file (default: the shipped preset the bag was recorded with, skin-sim record's "
+        "skin_sim.params, else config/default.yaml)",
+    )
     ap.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="output bag storage (default mcap)")
     ap.add_argument("--grid-rate-hz", type=float, default=60.0, help="display grids per second of stamp time (0: none)")
     ap.add_argument("--no-report", action="store_true", help="skip report.png")
@@ -62,6 +68,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     out = args.out or Path("out/replay") / args.bag.resolve().name
+    if args.params is None:  # a needle bag replayed with the flat punch's preset would disagree with its own forces
+        recorded = custom_data(args.bag).get("skin_sim.params")
+        shipped = DEFAULT_PARAMS.parent / recorded if recorded else None
+        args.params = shipped if shipped is not None and shipped.is_file() else DEFAULT_PARAMS
+        print(f"params: {args.params}" + (" (recorded with the bag)" if args.params == shipped else ""))
     if not args.params.is_file():  # before any output is written
         print(f"skin-sim replay: error: --params {args.params}: no such file", file=sys.stderr)
         return 2
