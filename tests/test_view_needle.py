@@ -11,6 +11,7 @@ import math
 import subprocess
 import sys
 import threading
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -186,38 +187,44 @@ def frames_layer_rgb():
     return [rgba[:3] for rgba in LAYER_RGBA]
 
 
+@contextmanager
+def _served(paths):
+    """A view server playing the bags ``paths`` (its player thread running); stopped and closed on exit."""
+    src = BagSource(paths)
+    srv = ViewServer(src, port=0).start()
+    t = threading.Thread(target=src.run, args=(srv, 120.0), daemon=True)
+    t.start()
+    try:
+        yield srv
+    finally:
+        src.stop()
+        t.join(timeout=5)
+        srv.close()
+
+
 @needs_browser
 def test_bag_page_draws_the_needle_track_and_punctured_layers(needle_bag):
     from skin_sim_node.view.browser import Browser
 
     path, script = needle_bag
-    src = BagSource([path])
-    srv = ViewServer(src, port=0).start()
-    t = threading.Thread(target=src.run, args=(srv, 120.0), daemon=True)
-    t.start()
-    try:
-        with Browser(srv.url) as b:
-            b.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "the first grid")
-            ramp_s = (script.depth_m - script.start_m) / script.speed_m_s
-            for t_s, k in ((ramp_s * 0.62, None), (ramp_s + script.hold_s / 2, 3)):
-                b.evaluate(f"fetch('/api/seek', {{method: 'POST', body: JSON.stringify({{t_s: {t_s}}})}}).then(r => r.json())")
-                b.wait_for(f"Math.abs(window.skinView.t_s - {t_s}) < 1e-6", 20, f"the frame at {t_s:.3f} s")
-                rec = _check_scene(b.evaluate("window.skinViewNeedle()"), script)
-                if k is not None:
-                    assert len(rec["segments"]) == k
-            text = b.evaluate("document.getElementById('needle-info').textContent")
-            assert "21 G" in text and "punctured 3 of 3" in text and "insertion" in text and "cutting" in text, text
-            assert b.evaluate("window.skinView.toolShape") == "needle"
-            # the z scale bends the drawing below the surface: the track follows it
-            b.evaluate("(() => { const z = document.getElementById('zscale'); z.value = '1'; "
-                       "z.dispatchEvent(new Event('change')); return true; })()")  # fmt: skip
-            got = b.evaluate("window.skinViewNeedle()")
-            assert got["zscale"] == 1
-            _check_scene(got, script)
-    finally:
-        src.stop()
-        t.join(timeout=5)
-        srv.close()
+    with _served([path]) as srv, Browser(srv.url) as b:
+        b.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "the first grid")
+        ramp_s = (script.depth_m - script.start_m) / script.speed_m_s
+        for t_s, k in ((ramp_s * 0.62, None), (ramp_s + script.hold_s / 2, 3)):
+            b.evaluate(f"fetch('/api/seek', {{method: 'POST', body: JSON.stringify({{t_s: {t_s}}})}}).then(r => r.json())")
+            b.wait_for(f"Math.abs(window.skinView.t_s - {t_s}) < 1e-6", 20, f"the frame at {t_s:.3f} s")
+            rec = _check_scene(b.evaluate("window.skinViewNeedle()"), script)
+            if k is not None:
+                assert len(rec["segments"]) == k
+        text = b.evaluate("document.getElementById('needle-info').textContent")
+        assert "21 G" in text and "punctured 3 of 3" in text and "insertion" in text and "cutting" in text, text
+        assert b.evaluate("window.skinView.toolShape") == "needle"
+        # the z scale bends the drawing below the surface: the track follows it
+        b.evaluate("(() => { const z = document.getElementById('zscale'); z.value = '1'; "
+                   "z.dispatchEvent(new Event('change')); return true; })()")  # fmt: skip
+        got = b.evaluate("window.skinViewNeedle()")
+        assert got["zscale"] == 1
+        _check_scene(got, script)
 
 
 @needs_browser
@@ -225,23 +232,14 @@ def test_bag_without_a_needle_draws_none():
     from skin_sim_node.view.browser import Browser
 
     data = Path(__file__).resolve().parent / "data" / "press_all_layers"  # the flat punch's golden bag (test_view.py)
-    src = BagSource([data / "input", data / "expected"])
-    srv = ViewServer(src, port=0).start()
-    t = threading.Thread(target=src.run, args=(srv, 120.0), daemon=True)
-    t.start()
-    try:
-        with Browser(srv.url) as b:
-            b.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "the first grid")
-            n = b.evaluate("window.skinView.frames")
-            b.wait_for(f"window.skinView.renderedFrames >= {n}", 20, "a render")
-            got = b.evaluate("window.skinViewNeedle()")
-            assert got["visible"] is False and got["rec"] is None
-            assert b.evaluate("window.skinView.toolShape") == "cylinder"
-            assert b.evaluate("getComputedStyle(document.getElementById('needle-info')).display") == "none"
-    finally:
-        src.stop()
-        t.join(timeout=5)
-        srv.close()
+    with _served([data / "input", data / "expected"]) as srv, Browser(srv.url) as b:
+        b.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "the first grid")
+        n = b.evaluate("window.skinView.frames")
+        b.wait_for(f"window.skinView.renderedFrames >= {n}", 20, "a render")
+        got = b.evaluate("window.skinViewNeedle()")
+        assert got["visible"] is False and got["rec"] is None
+        assert b.evaluate("window.skinView.toolShape") == "cylinder"
+        assert b.evaluate("getComputedStyle(document.getElementById('needle-info')).display") == "none"
 
 
 @pytest.mark.ros

@@ -376,7 +376,8 @@ NO_INSERTION_M = 11
 NO_RUPTURED = 12
 NO_FIRST = 13
 NO_BED = 14
-NO_SIZE = 15
+NO_LATERAL_K = 15
+NO_SIZE = 16
 """Slots of ``nout``, shape (NO_SIZE,), float64: what the needle's step kernel writes (``NeedleTick``).
 
 ==================  ====  =========================================================================================
@@ -393,6 +394,7 @@ NO_INSERTION_M      m     insertion ``L`` along the track (0 out of the tissue)
 NO_RUPTURED         -     layers ruptured after the tick
 NO_FIRST            -     layers ruptured before it: layers ``NO_FIRST .. NO_RUPTURED - 1`` ruptured this tick
 NO_BED              N     the bed's axial part ``k'(L) |delta|^2 / 4`` (the lateral bed is the gradient of a potential)
+NO_LATERAL_K        N/m   the bed's ``k = sum_i k_l E_i l_i`` (its sideways stiffness at the tip is ``k / 2``)
 ==================  ====  =========================================================================================
 """
 

@@ -72,6 +72,7 @@ from .layout import (
     NO_FX,
     NO_FZ,
     NO_INSERTION_M,
+    NO_LATERAL_K,
     NO_LX,
     NO_LZ,
     NO_RUPTURED,
@@ -193,6 +194,7 @@ class NeedleTick:
     ruptured: int = 0
     punctured: tuple[int, ...] = ()
     bed_n: float = 0.0
+    lateral_k_n_per_m: float = 0.0  # the bed's k = sum_i k_l E_i l_i (sideways stiffness at the tip: k / 2)
 
 
 def pack_needle(cfg: TissueConfig, params: NeedleParams) -> tuple[np.ndarray, np.ndarray]:
@@ -376,6 +378,7 @@ class NeedleModel:
             ruptured=k,
             punctured=tuple(range(k0, k)),
             bed_n=o[NO_BED],
+            lateral_k_n_per_m=o[NO_LATERAL_K],
         )
 
 

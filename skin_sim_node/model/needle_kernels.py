@@ -49,6 +49,7 @@ from .layout import (
     NO_FY,
     NO_FZ,
     NO_INSERTION_M,
+    NO_LATERAL_K,
     NO_LX,
     NO_LY,
     NO_LZ,
@@ -472,6 +473,7 @@ def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nb
     nout[NO_DIMPLE_M], nout[NO_INSERTION_M] = w_dimple, ins
     nout[NO_RUPTURED], nout[NO_FIRST] = k, k0
     nout[NO_BED] = bed
+    nout[NO_LATERAL_K] = lateral_k
     return True
 
 

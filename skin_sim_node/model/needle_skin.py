@@ -27,7 +27,7 @@ import numpy as np
 from .config import TissueConfig
 from .contact import ContactTangent
 from .layout import FLAG_CONTACT, FLAG_OFF_SHEET
-from .needle import LATERAL_FACTOR, NeedleModel, NeedleParams, NeedleTick
+from .needle import NeedleModel, NeedleParams, NeedleTick
 from .needle import warm_up as needle_warm_up
 from .skin_model import SkinModel
 
@@ -196,13 +196,9 @@ class NeedleSkin(SkinModel):
         return self.needle.inserted or (self._surface and bool(self.flags & FLAG_CONTACT))
 
     def lateral_stiffness_n_per_m(self) -> float:
-        """Stiffness of the bed that holds the shaft in its track, at the tip (N/m): ``0.5 sum_i k_l E_i l_i``."""
-        nd, t = self.needle, self.last_needle
-        c, ins = nd.crossings.tolist(), t.insertion_m
-        k = 0.0
-        for i, e in enumerate(nd._moduli.tolist()[: nd.ruptured]):
-            k += e * (min(max(ins, c[i]), c[i + 1]) - c[i])
-        return 0.5 * LATERAL_FACTOR * k
+        """Stiffness of the bed that holds the shaft in its track, at the tip (N/m): ``0.5 sum_i k_l E_i l_i`` (the
+        step kernel's ``k``)."""
+        return 0.5 * self.last_needle.lateral_k_n_per_m
 
     def tangent(self) -> ContactTangent:
         """The needle's force and its local derivatives: ``K = -k_a u u^T - k_l (I - u u^T)``, ``D = 0`` (position
