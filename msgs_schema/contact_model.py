@@ -23,6 +23,7 @@ on ``rosbags`` dataclasses alike. This module imports no ROS code.
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -130,6 +131,7 @@ class LocalModel:
     friction_coefficient: float = 0.0
     slip_speed_m_s: float = 0.0
     needle: NeedleLaw | None = None
+    answer_period_s: float = 0.0
 
     def __post_init__(self):
         for name, shape in (
@@ -180,6 +182,7 @@ def fill_contact_model(msg, m: LocalModel):
     msg.friction_coefficient = float(m.friction_coefficient)
     msg.slip_speed_m_s = float(m.slip_speed_m_s)
     fill_needle_law(msg, m.needle)
+    msg.answer_period_s = float(m.answer_period_s)
     return msg
 
 
@@ -217,11 +220,18 @@ def read_contact_model(msg) -> LocalModel:
         friction_coefficient=float(msg.friction_coefficient),
         slip_speed_m_s=float(msg.slip_speed_m_s),
         needle=read_needle_law(msg),
+        answer_period_s=float(msg.answer_period_s),
     )
 
 
 def fill_contact_model_from_tick(
-    msg, result, t_ns: int, frame: str, ttl_s: float = DEFAULT_TTL_S, radius_m: float = DEFAULT_VALIDITY_RADIUS_M
+    msg,
+    result,
+    t_ns: int,
+    frame: str,
+    ttl_s: float = DEFAULT_TTL_S,
+    radius_m: float = DEFAULT_VALIDITY_RADIUS_M,
+    answer_period_s: float = 0.0,
 ):
     """``tool/contact_model`` from a haptic tick's result (``skin_sim_node.session.TickResult``, read by attribute).
 
@@ -260,4 +270,98 @@ def fill_contact_model_from_tick(
     msg.normal[:] = tg.normal
     msg.validity_radius_m = float(STALE_RADIUS_M if result.stale else radius_m)
     msg.time_to_live_s = float(ttl_s)
+    msg.answer_period_s = float(answer_period_s)
     return msg
+
+
+_CDR_CODES = {"uint64": "Q", "int64": "q", "double": "d"}
+
+
+class ContactModelCdr:
+    """Serialized ``ContactModel`` -> :class:`LocalModel` without an rclpy message object (the bridge's raw reader).
+
+    The message is a ``std_msgs/Header`` followed by 8-byte fields only (``uint64`` and ``float64`` scalars and
+    fixed arrays), so after the header's frame id, aligned to 8 bytes, the body is one ``struct`` record: its
+    format is built once from the message's own field list (:meth:`from_message_class`), so a field added to
+    ``ContactModel.msg`` is read without touching this code. Checked against rclpy's own serialization in
+    ``tests/test_convert_cdr.py``.
+
+    Parameters
+    ----------
+    fields_and_types : mapping of str to str
+        The message's ``get_fields_and_field_types()``: ``header`` first, then 8-byte fields.
+
+    Raises
+    ------
+    ValueError
+        For a field that is not ``uint64``, ``int64``, ``float64`` or a fixed ``float64`` array.
+    """
+
+    def __init__(self, fields_and_types):
+        items = list(fields_and_types.items())
+        if not items or items[0] != ("header", "std_msgs/Header"):
+            raise ValueError("ContactModel must start with its std_msgs/Header")
+        self._layout: list[tuple[str, int, int]] = []  # name, first index, count (0: scalar)
+        fmt, i = "", 0
+        for name, typ in items[1:]:
+            base, _, count = typ.partition("[")
+            code = _CDR_CODES.get(base)
+            if code is None or (count and base != "double"):
+                raise ValueError(f"ContactModel field {name}: {typ} has no raw reader (8-byte fields only)")
+            n = int(count.rstrip("]")) if count else 0
+            fmt += f"{n}{code}" if n else code
+            self._layout.append((name, i, n))
+            i += max(n, 1)
+        self._fmt = fmt
+        self.size = struct.calcsize("<" + fmt)
+
+    @classmethod
+    def from_message_class(cls, msg_class) -> ContactModelCdr:
+        """The reader of a generated message class (``skin_sim_msgs.msg.ContactModel``)."""
+        return cls(msg_class.get_fields_and_field_types())
+
+    def fields(self, data: bytes) -> dict:
+        """The message's fields by name (arrays as tuples) plus ``stamp_ns`` and ``frame_id``.
+
+        Raises
+        ------
+        ValueError
+            One line, for a buffer that is not such a message.
+        """
+        if len(data) < 16 or data[0] != 0 or data[1] not in (0, 1):
+            raise ValueError(f"not a CDR-encapsulated message ({len(data)} bytes)")
+        e = "<" if data[1] == 1 else ">"
+        sec, nsec, n = struct.unpack_from(e + "iII", data, 4)
+        off = 4 + ((12 + n + 7) & ~7)
+        if n == 0 or off + self.size > len(data):
+            raise ValueError(f"truncated ContactModel ({len(data)} bytes, {off + self.size} expected)")
+        vals = struct.unpack_from(e + self._fmt, data, off)
+        out: dict = {"stamp_ns": sec * 1_000_000_000 + nsec, "frame_id": data[16 : 15 + n].decode("utf-8", "replace")}
+        for name, i, cnt in self._layout:
+            out[name] = vals[i : i + cnt] if cnt else vals[i]
+        return out
+
+    def read(self, data: bytes) -> LocalModel:
+        """The :class:`LocalModel` of a serialized ``ContactModel`` (as :func:`read_contact_model` of the message)."""
+        f = self.fields(data)
+        axis = tuple(float(c) for c in f["needle_axis"])
+        needle = NeedleLaw(axis, **{k: float(f[k]) for k in NeedleLaw.FIELDS}) if any(axis) else None  # type: ignore[arg-type]
+        return LocalModel(
+            sequence=int(f["sequence"]),
+            stamp_ns=f["stamp_ns"],
+            frame_id=f["frame_id"],
+            x0_m=f["x0_m"],
+            v0_m_s=f["v0_m_s"],
+            f0_n=f["f0_n"],
+            stiffness_n_per_m=f["stiffness_n_per_m"],
+            damping_n_s_per_m=f["damping_n_s_per_m"],
+            normal=f["normal"],
+            validity_radius_m=float(f["validity_radius_m"]),
+            time_to_live_s=float(f["time_to_live_s"]),
+            normal_force_n=float(f["normal_force_n"]),
+            normal_force_gradient_n_per_m=f["normal_force_gradient_n_per_m"],
+            friction_coefficient=float(f["friction_coefficient"]),
+            slip_speed_m_s=float(f["slip_speed_m_s"]),
+            needle=needle,
+            answer_period_s=float(f.get("answer_period_s", 0.0)),
+        )

@@ -109,6 +109,24 @@ class WrenchCdr:
         return self.fill(t_ns, result.force_n)
 
 
+class PoseCdr:
+    """Serialized ``geometry_msgs/PoseStamped`` for one frame, rewritten in place (the bridge's forwarded tool pose)."""
+
+    def __init__(self, frame: str):
+        name = frame.encode() + b"\0"
+        self._vec = 4 + _align8(12 + len(name))
+        self._buf = bytearray(self._vec + 56)
+        struct.pack_into("<4BI", self._buf, 0, 0, 1, 0, 0, 0)
+        struct.pack_into(f"<I{len(name)}s", self._buf, 12, len(name), name)
+
+    def fill(self, t_ns: int, xyz, quat=(0.0, 0.0, 0.0, 1.0)) -> bytes:
+        """The serialized pose for stamp ``t_ns`` (ns), position ``xyz`` (m) and orientation ``quat`` ``(x, y, z, w)``."""
+        sec, nsec = divmod(int(t_ns), NS)
+        struct.pack_into("<iI", self._buf, 4, sec, nsec)
+        struct.pack_into("<7d", self._buf, self._vec, *xyz, *quat)
+        return bytes(self._buf)
+
+
 def read_wrench(msg):
     """WrenchStamped -> (stamp_ns, frame_id, (fx, fy, fz))."""
     f = msg.wrench.force

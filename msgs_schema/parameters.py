@@ -75,6 +75,20 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         min_exclusive=False,
     ),
     ParamSpec(
+        "rate_policy", str, "follow", "-",
+        "follow: input mode answers at rate_hz while the machine holds it, steps down by halves to min_rate_hz while it "
+        "does not (missed or late answers; diagnostics and the log say why), and back up once the lower rate has held; "
+        "the bridge forwards poses at the rate announced in each contact model and renders it in between (a node with "
+        "input_queue_depth above 1 answers every sample: fixed). fixed: rate_hz always",
+        choices=("follow", "fixed"),
+    ),
+    ParamSpec(
+        "min_rate_hz", float, 125.0, "Hz",
+        "the lowest rate the follow policy steps down to: at 125 Hz (8 ms) a 0.25 m/s stroke stays inside the contact "
+        "model's 2 mm validity radius between answers, and its 50 ms time to live spans six of them",
+        min=1.0, max=20000.0,
+    ),
+    ParamSpec(
         "fallback_rate_hz", float, 100.0, "Hz",
         "input mode: clock that ticks when no pose came for 1.5 of its periods (watchdog, relaxation); the "
         "modal integrator is exact for any dt, and a 1 kHz wake-up only contends for the GIL with pose callbacks",
@@ -118,10 +132,11 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     # haptic timing levers (read at start; measured in docs/performance_rate.md)
     ParamSpec(
-        "rt_priority", int, 0, "1",
-        "SCHED_FIFO priority of the haptic threads, 1-99 (0: normal scheduling). Opt-in: needs root or "
-        "CAP_SYS_NICE; when refused the node logs a warning and runs at normal priority. 80 sits above "
-        "the kernel's threaded IRQs (50 on PREEMPT_RT) as servo loops usually do",
+        "rt_priority", int, 50, "1",
+        "SCHED_FIFO priority of the haptic threads, 1-99 (0: normal scheduling). 50 is ros2_control's controller "
+        "manager default (a busy process at normal priority cannot hold the haptic path off the CPU); it needs root, "
+        "CAP_SYS_NICE or an rtprio limit, and when refused the node says so in one line and runs at normal priority. "
+        "Every haptic thread blocks on I/O or a deadline: none spins",
         min=0, max=99, min_exclusive=False, read_only=True,
     ),
     ParamSpec(

@@ -38,14 +38,18 @@ from collections.abc import Callable
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from geometry_msgs.msg import TwistStamped, WrenchStamped
+from rclpy.guard_condition import GuardCondition
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from skin_sim_msgs.msg import ContactModel
 
-from msgs_schema.contact_model import LocalModel, read_contact_model
-from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_pose, read_twist, read_wrench, set_stamp, stamp_ns
+from msgs_schema.contact_model import ContactModelCdr, LocalModel
+from msgs_schema.convert import PoseCdr, WrenchCdr, fill_twist, read_pose_cdr, read_stamped_vec3_cdr, set_stamp
 from msgs_schema.qos import PROFILES, publisher, subscription
 from msgs_schema.topics import FRAMES, TOPICS
 
-from ..ros_util import localhost_udp_env, make_executor, ros_now_ns, set_pid_realtime, set_realtime, spin_context
+from ..rate import AnswerThrottle
+from ..ros_util import localhost_udp_env, ros_now_ns, set_pid_realtime, set_realtime
 from .base import DeviceNode, Param, publish_while_ok
 from .mapping import (
     CONVENTIONS,
@@ -68,6 +72,9 @@ FRICTION_RENDERS = ("law", "linear")
 TWIST_MAX_SKEW_NS = 5_000_000  # a device twist this close to the pose's stamp is the pose's velocity (as the node's 5 ms)
 HOLD_RADIUS_M = 1.0  # wrench source: a held force does not depend on the pose (any pose on a Touch's workspace)
 AGE_RING = 4096  # model ages kept for the diagnostics window (4 s at 1 kHz)
+STAMP_MEMORY = 16
+"""Device twists and measured forces kept by stamp (16 ticks): a burst of queued device messages is taken topic by
+topic, so each pose finds the twist and the applied force of its own tick."""
 DEVICE_QUEUE_DEPTH = 10
 """History depth of the device pose, twist and measured-force subscriptions: device poses that arrive while the
 servo thread is busy (a burst after a scheduling hiccup) are each answered, in order, with their own stamp, instead
@@ -90,72 +97,88 @@ LINK_JOIN_S = 2.0
 
 
 class ServerLink:
-    """The bridge's side towards the node, on its own DDS participant (an rclpy context) and threads.
+    """The bridge's side towards the node, on its own DDS participant (an rclpy context) and one thread.
 
     Measured (tests/test_force_path_ros.py): a node killed with SIGKILL while writing into a participant's
     shared-memory port stalls that port for 1000 ms (Fast DDS's health-check timeout). With one participant the
     device's poses then stopped reaching the bridge: no tick to render on, the force held, then a watchdog step.
     Here the node writes only into this participant's port, the device only into the bridge's own, and the tool
     pose goes out from this link's thread (a latest-value hand-off), so a dead node cannot stall the servo path.
+
+    The thread blocks in one wait set (``rcl_wait``, the GIL released) on the node's contact model (serialized: read
+    by :class:`msgs_schema.contact_model.ContactModelCdr`, no message object), a guard condition the servo thread
+    triggers when a pose is due, and the diagnostics' period: no executor, nothing that polls (issue 27).
     """
 
     def __init__(
         self,
         bridge: BridgeNode,
         ros_args: list[str],
-        on_model,
-        twist: bool,
+        on_model: Callable[[bytes], None],
         node_ns: str = "",
         rt_priority: int = 0,
         periodic: tuple[float, Callable[[], None]] | None = None,
+        forward_twist: bool = False,
     ):
         self._periodic = periodic
         self._periodic_failed = False
         self.ctx = rclpy.Context()
         rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
-        self.node = rclpy.create_node(f"{bridge.get_name()}_server", context=self.ctx, namespace=node_ns or None)
+        self.node = rclpy.create_node(
+            f"{bridge.get_name()}_server", context=self.ctx, namespace=node_ns or None, start_parameter_services=False
+        )
         self.rt_priority = rt_priority
-        self.frame = bridge.tissue_frame
         self._pose_pub = publisher(self.node, "tool_pose")
-        self._twist_pub = publisher(self.node, "tool_twist") if twist else None
-        self._pose, self._twist = PoseStamped(), TwistStamped()
+        self._twist_pub = publisher(self.node, "tool_twist") if forward_twist else None
+        self._pose_cdr = PoseCdr(bridge.tissue_frame)
+        self._twist = TwistStamped()
+        self._on_model = on_model
         key = "contact_model" if bridge.model_source else "tool_wrench"
-        subscription(self.node, key, on_model)
-        self._latest: dict[str, tuple] = {}
+        # taken by this link's wait set only (the node is in no executor)
+        self._sub = subscription(self.node, key, _never_called, raw=True)
+        self._latest: tuple | None = None
         self._lock = threading.Lock()
-        self._wake = threading.Event()
+        self._wake = GuardCondition(None, None, context=self.ctx)
         self._stop = threading.Event()
-        self._executor = make_executor("events", self.ctx)
-        self._executor.add_node(self.node)
-        self._threads = [
-            threading.Thread(target=self._spin, name="server-spin", daemon=True),
-            threading.Thread(target=self._publish_loop, name="server-publish", daemon=True),
-        ]
-        for t in self._threads:
-            t.start()
+        self.forwarded = 0
+        self._thread = threading.Thread(target=self._run, name="server-link", daemon=True)
+        self._thread.start()
 
-    def send(self, kind: str, values: tuple) -> None:
-        """Hand the newest ``pose`` (stamp, xyz, quat) or ``twist`` (stamp, linear) to the publishing thread."""
+    def send(self, pose: tuple, twist: tuple | None = None) -> None:
+        """Hand the newest due pose ``(stamp, xyz, quat)`` (and the device's twist ``(stamp, linear)``) to the thread."""
         with self._lock:
-            self._latest[kind] = values
-        self._wake.set()
+            self._latest = (pose, twist)
+        self._wake.trigger()
 
-    def _realtime(self) -> None:
-        """This link thread one priority below the device path: a link thread holding the GIL is not preempted by
-        the node or other processes while the servo thread waits for it (no priority inversion through the GIL)."""
-        if self.rt_priority > 1:
+    def _run(self) -> None:
+        """Wait for a model, a pose to forward or the diagnostics' time; handle each; until :meth:`close`."""
+        if self.rt_priority > 1:  # one below the servo thread: no priority inversion through the GIL
             set_realtime(self.rt_priority - 1)
-
-    def _spin(self) -> None:
-        self._realtime()
-        spin_context(self._executor, self.ctx, self._stop)
-
-    def _publish_loop(self) -> None:
-        """Publish the newest pose and twist; between them, the ``periodic`` call (the bridge's diagnostics) when due."""
-        self._realtime()
         period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
         next_ns = time.monotonic_ns() + period_ns  # the first after one period: the bridge finishes its start first
-        while not self._stop.is_set():
+        ws = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self.ctx.handle)
+        sub = self._sub
+        while not self._stop.is_set() and self.ctx.ok():
+            timeout = max(next_ns - time.monotonic_ns(), 0) if period_ns else 50_000_000
+            try:
+                ws.clear_entities()
+                ws.add_subscription(sub.handle)
+                ws.add_guard_condition(self._wake.handle)
+                ws.wait(timeout)
+                while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
+                    self._on_model(taken[0])
+            except Exception:
+                if self._stop.is_set() or not self.ctx.ok():
+                    return
+                raise
+            with self._lock:
+                latest, self._latest = self._latest, None
+            if latest is not None:
+                (stamp, x, q), tw = latest
+                if tw is not None and self._twist_pub is not None:  # twist first, as the device publishes them
+                    publish_while_ok(self.node, self._twist_pub, fill_twist(self._twist, tw[0], FRAMES["tissue"], tw[1]))
+                publish_while_ok(self.node, self._pose_pub, self._pose_cdr.fill(stamp, x, q))
+                self.forwarded += 1
             if self._periodic is not None and time.monotonic_ns() >= next_ns:
                 next_ns = time.monotonic_ns() + period_ns
                 try:
@@ -164,37 +187,31 @@ class ServerLink:
                     if not self._periodic_failed:
                         self._periodic_failed = True
                         print(f"skin-sim bridge: diagnostics failed: {exc!r} (reported once)", flush=True)
-            if not self._wake.wait(0.05):
-                continue
-            self._wake.clear()
-            with self._lock:
-                latest, self._latest = self._latest, {}
-            tw = latest.get("twist")
-            if tw is not None and self._twist_pub is not None:  # twist first, as the device publishes them
-                publish_while_ok(self.node, self._twist_pub, fill_twist(self._twist, tw[0], self.frame, tw[1]))
-            ps = latest.get("pose")
-            if ps is not None:
-                publish_while_ok(self.node, self._pose_pub, fill_pose(self._pose, ps[0], self.frame, ps[1], ps[2]))
 
     def close(self) -> None:
-        """Stop the link's threads, then destroy its node and context, never under a thread still inside them.
+        """Stop the link's thread, then destroy its node and context, never under a thread still inside them.
 
         A thread still running after :data:`LINK_JOIN_S` (starved on a loaded machine) keeps the node and the
-        context alive until the process exits: destroying them under its ``spin_once`` corrupted the heap at exit
+        context alive until the process exits: destroying them under its wait corrupted the heap at exit
         (``malloc_consolidate(): unaligned fastbin chunk``, exit -6, once in 15 shutdowns beside four busy processes).
         """
         self._stop.set()
-        self._wake.set()
-        for t in self._threads:
-            t.join(timeout=LINK_JOIN_S)
-        if any(t.is_alive() for t in self._threads):
+        try:
+            self._wake.trigger()
+        except Exception:
+            pass
+        self._thread.join(timeout=LINK_JOIN_S)
+        if self._thread.is_alive():
             return
         try:
-            self._executor.shutdown(timeout_sec=LINK_JOIN_S)
             self.node.destroy_node()
         except Exception:
             pass
         rclpy.try_shutdown(context=self.ctx)
+
+
+def _never_called(_msg) -> None:  # pragma: no cover - the wait-set readers' subscriptions are in no executor
+    """The callback of a subscription that only a wait set takes from."""
 
 
 class BridgeNode(DeviceNode):
@@ -302,6 +319,14 @@ class BridgeNode(DeviceNode):
         Param("watchdog_rate_hz", DEFAULTS["watchdog_rate_hz"], "watchdog check rate (Hz)", 1.0, 1e4),
         Param("device_frame", DEFAULTS["device_frame"], "frame_id of force commands; empty: the device pose's frame_id"),
         Param("restamp", DEFAULTS["restamp"], "stamp tool poses with the bridge clock instead of the driver's", cli=""),
+        Param(
+            "forward_twist",
+            False,
+            "also forward the device's measured velocity as tool/twist (one more message per forwarded pose for the "
+            "bridge and the node); off: the node differentiates the poses it answers, so its force depends on the poses "
+            "alone and offline replay reproduces it",
+            cli="",
+        ),
         Param("diagnostics_period_s", 1.0, "period of the bridge's diagnostics (s)", 0.05, 60.0),
     )
 
@@ -316,6 +341,13 @@ class BridgeNode(DeviceNode):
             action="store_true",
             default=None,
             help="stamp tool poses with the bridge clock instead of the driver's",
+        )
+        ap.add_argument(
+            "--forward-twist",
+            dest="forward_twist",
+            action="store_true",
+            default=None,
+            help="also forward the device's measured velocity as tool/twist (default: poses only)",
         )
         ap.add_argument(
             "--localhost-shm",
@@ -371,21 +403,33 @@ class BridgeNode(DeviceNode):
         def dev(key):
             return f"{ns}/{TOPICS[key].name}" if ns else TOPICS[key].name
 
-        self._force_out = WrenchStamped()
+        self._force_cdr: dict[str, WrenchCdr] = {}  # serialized force command per frame id (one in practice)
+        self._last_force = (0.0, 0.0, 0.0)
         self._render_lock = threading.Lock()  # the renderer: models from the server link's thread, ticks from this one
         self._force_pub = self.create_publisher(WrenchStamped, dev(force_key), PROFILES["driver"])
         self._diag_pub = publisher(self, "diagnostics")
         self._diag = DiagnosticArray()
         depth = DEVICE_QUEUE_DEPTH
-        subscription(self, pose_key, self._on_device_pose, name=dev(pose_key), depth=depth)
-        if twist_key:
-            subscription(self, twist_key, self._on_device_twist, name=dev(twist_key), depth=depth)
+        # The device path's readers sit on a node of their own that no executor spins: the servo thread takes from
+        # them in a wait set (serialized CDR, no message objects). Velocity and applied force before the poses they
+        # belong to (a burst is taken topic by topic; STAMP_MEMORY pairs them by stamp).
+        self._servo_node = rclpy.create_node(
+            f"{self.get_name()}_servo", namespace=self.get_namespace(), context=self.context, start_parameter_services=False
+        )
+        self._servo_subs: list[tuple] = []
         cf_key = MEASURED_FORCE[p.convention]
-        if cf_key:
-            subscription(self, cf_key, self._on_device_force, name=dev(cf_key), depth=depth)
+        readers = ((twist_key, self._on_device_twist), (cf_key, self._on_device_force), (pose_key, self._on_device_pose))
+        for key, handler in readers:
+            if key:
+                sub = subscription(self._servo_node, key, _never_called, name=dev(key), depth=depth, raw=True)
+                self._servo_subs.append((sub, handler))
+        self._twists: dict[int, tuple] = {}
+        self._forces: dict[int, np.ndarray] = {}
+        self._forward = AnswerThrottle(math.inf)  # the node's announced answer period (every pose until it says)
+        self._model_cdr = ContactModelCdr.from_message_class(ContactModel)
+        self._servo_stop = threading.Event()
+        self._servo_wake = GuardCondition(None, None, context=self.context)
         self.rt_message = self._device_path_realtime(p.rt_priority)
-        self._cf_tissue: np.ndarray | None = None
-        self._cf_stamp_ns = -1
         self.node_ns = normalize_namespace(p.node_ns)
         self._ages_ms = np.zeros(AGE_RING)
         self._n_age = 0
@@ -396,10 +440,10 @@ class BridgeNode(DeviceNode):
             self,
             self.ROS_ARGS,
             self._on_model if self.model_source else self._on_wrench,
-            bool(twist_key),
             self.node_ns,
             p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0,
             periodic=(p.diagnostics_period_s, self._publish_diagnostics),
+            forward_twist=bool(p.forward_twist and twist_key),
         )
         self._v_tissue: np.ndarray | None = None
         self._v_stamp_ns = 0
@@ -413,6 +457,7 @@ class BridgeNode(DeviceNode):
             "models_rejected": 0,
             "wrenches": 0,
             "forwarded": 0,
+            "poses_forwarded": 0,
             "zeros": 0,
             "non_finite_pose": 0,
             "rendered": 0,
@@ -427,7 +472,8 @@ class BridgeNode(DeviceNode):
         self._no_node_hinted = False
         self.max_model_age_ms = 0.0
         self._rejected_logged: set[str] = set()
-        self.create_timer(1.0 / p.watchdog_rate_hz, self._watchdog)
+        self._watchdog_period_ns = int(1e9 / p.watchdog_rate_hz)
+        self._servo = threading.Thread(target=self._servo_loop, name="servo", daemon=True)
         src = self.server.node.resolve_topic_name(TOPICS["contact_model" if self.model_source else "tool_wrench"].name)
         src = f"{src} rendered per device tick" if self.model_source else src
         tool_pose = self.server.node.resolve_topic_name(TOPICS["tool_pose"].name)
@@ -443,42 +489,100 @@ class BridgeNode(DeviceNode):
         (self.get_logger().info if self.rt_message.startswith("device path") else self.get_logger().warning)(self.rt_message)
         if self.TRANSPORT_NOTE:
             self.get_logger().info(f"transports: {self.TRANSPORT_NOTE}")
+        self._servo.start()
 
     def _device_path_realtime(self, priority: int) -> str:
-        """SCHED_FIFO for every thread that exists now: the executor thread (it renders each device pose) and the
-        device-side participant's DDS threads. With SCHED_RESET_ON_FORK, the node link's threads, started after this,
-        do not inherit it (they set one priority less themselves). Returns the message to log."""
+        """SCHED_FIFO for every thread that exists now: the device-side participant's DDS threads and the main thread
+        (its executor only serves the parameter services; it blocks, and at this priority a busy process cannot hold it
+        off the GIL). With SCHED_RESET_ON_FORK, threads started after this do not inherit it: the servo thread sets
+        ``priority`` itself, the node link one less. Every one of them blocks on I/O: nothing spins at SCHED_FIFO.
+        Returns the message to log."""
         if priority <= 0:
             return "device path at normal priority (rt_priority 0)"
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         why = set_pid_realtime(os.getpid(), priority)
         if why is None:
-            return f"device path at SCHED_FIFO {priority} (servo executor, device-side DDS threads; node link {priority - 1})"
+            return (
+                f"device path at SCHED_FIFO {priority} (servo thread blocking in rcl_wait, device-side DDS threads; "
+                f"node link {priority - 1})"
+            )
         return (
             f"SCHED_FIFO refused for the device path ({why}): it shares the CPU with the node, the display and joining "
             "readers at normal priority; run as root, or grant CAP_SYS_NICE or an rtprio limit, or pass --rt-priority 0"
         )
 
-    # --- device side --------------------------------------------------------------------
-    def _stamp(self, msg) -> int:
-        s = stamp_ns(msg.header)
-        return ros_now_ns(self) if self.p.restamp or s == 0 else s
+    # --- device side: the servo thread ------------------------------------------------------
+    def _servo_loop(self) -> None:
+        """The device path: block in ``rcl_wait`` on the device's topics (and the watchdog's period); take every
+        queued message, velocity and applied force first, then each pose, rendered and answered at once."""
+        prio = self.p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0
+        if prio > 0:
+            set_realtime(prio)
+        subs = self._servo_subs
+        ws = _rclpy.WaitSet(len(subs), 1, 0, 0, 0, 0, self.context.handle)
+        next_check = time.monotonic_ns() + self._watchdog_period_ns
+        failed: set[str] = set()
+        while not self._servo_stop.is_set() and self.context.ok():
+            try:
+                ws.clear_entities()
+                for sub, _ in subs:
+                    ws.add_subscription(sub.handle)
+                ws.add_guard_condition(self._servo_wake.handle)
+                ws.wait(max(next_check - time.monotonic_ns(), 0))
+                for sub, handler in subs:
+                    while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
+                        handler(taken[0])
+                if time.monotonic_ns() >= next_check:
+                    next_check = time.monotonic_ns() + self._watchdog_period_ns
+                    self._watchdog()
+            except Exception as exc:
+                if self._servo_stop.is_set() or not self.context.ok():
+                    return
+                if type(exc).__name__ not in failed:  # keep serving the device; say each kind of failure once
+                    failed.add(type(exc).__name__)
+                    self.get_logger().error(f"servo tick failed: {exc!r} (logged once per kind; the loop goes on)")
 
-    def _on_device_twist(self, msg) -> None:
-        t_ns, _, v = read_twist(msg)
+    def _stamp(self, t_ns: int) -> int:
+        return ros_now_ns(self) if self.p.restamp or t_ns == 0 else t_ns
+
+    def _decode(self, kind: str, read, data: bytes):
+        try:
+            return read(data)
+        except ValueError as exc:
+            if kind not in self._rejected_logged:
+                self._rejected_logged.add(kind)
+                self.get_logger().warning(f"undecodable device {kind} dropped: {exc} (logged once)")
+            return None
+
+    def _on_device_twist(self, data: bytes) -> None:
+        if (tw := self._decode("twist", read_stamped_vec3_cdr, data)) is None:
+            return
+        t_ns, _, v = tw
         if not all(math.isfinite(c) for c in v):
             return
-        vt = self.mapping.velocity_to_tissue(v)
-        self._v_tissue, self._v_stamp_ns = np.array(vt), t_ns
-        self.server.send("twist", (self._stamp(msg), vt))
+        _remember(self._twists, t_ns, (np.array(self.mapping.velocity_to_tissue(v)), self._stamp(t_ns)))
         self.counts["twists"] += 1
 
-    def _on_device_force(self, msg) -> None:
-        t_ns, _, f = read_wrench(msg)
-        self._cf_tissue, self._cf_stamp_ns = np.array(force_to_tissue(self.mapping, f)), t_ns
+    def _on_device_force(self, data: bytes) -> None:
+        if (cf := self._decode("measured force", read_stamped_vec3_cdr, data)) is None:
+            return
+        t_ns, _, f = cf
+        _remember(self._forces, t_ns, np.array(force_to_tissue(self.mapping, f)))
 
-    def _on_device_pose(self, msg) -> None:
-        t_ns, frame, pos = read_pose(msg)
+    def _twist_at(self, t_ns: int) -> tuple | None:
+        """The device twist of the pose stamped ``t_ns``: its own stamp's, else the newest within the skew."""
+        if (tw := self._twists.get(t_ns)) is not None:
+            return tw
+        if self._twists:
+            last = next(reversed(self._twists))
+            if abs(last - t_ns) <= TWIST_MAX_SKEW_NS:
+                return self._twists[last]
+        return None
+
+    def _on_device_pose(self, data: bytes) -> None:
+        if (pose := self._decode("pose", read_pose_cdr, data)) is None:
+            return
+        t_ns, frame, pos, quat = pose
         if not all(math.isfinite(c) for c in pos):
             self.counts["non_finite_pose"] += 1
             return
@@ -490,17 +594,18 @@ class BridgeNode(DeviceNode):
         self.last_pose_rx_ns = now
         if not self.device_frame and frame:
             self.device_frame = frame
-        o = msg.pose.orientation
-        q = self.mapping.orientation_to_tissue((o.x, o.y, o.z, o.w))
+        q = self.mapping.orientation_to_tissue(quat)
         x = self.mapping.to_tissue(pos)
-        stamp = self._stamp(msg)
+        stamp = self._stamp(t_ns)
         self.counts["poses"] += 1
         # the servo tick: render at this pose and command at once (wrench source: the last force, held)
-        v = self._v_tissue if self._v_tissue is not None and abs(self._v_stamp_ns - t_ns) <= TWIST_MAX_SKEW_NS else None
-        cf = self._cf_tissue if self._cf_stamp_ns == t_ns else None  # applied over the tick that ended here
+        tw = self._twist_at(t_ns)
+        v = tw[0] if tw is not None else None
+        cf = self._forces.get(t_ns)  # applied over the tick that ended here
         n_radius = self.renderer.counts["fades_radius"]
         with self._render_lock:  # on the device's clock: the pose's stamp
             f = self.renderer.render(stamp * 1e-9, x, v, cf)
+            due = self._forward.due(stamp)  # the node answers this pose: forward it (else the model renders it)
         if self.renderer.counts["fades_radius"] > n_radius and "radius" not in self._rejected_logged:
             self._rejected_logged.add("radius")
             m = self.renderer.model
@@ -512,7 +617,9 @@ class BridgeNode(DeviceNode):
             )
         self._publish_force(stamp, self.mapping.force_to_device(tuple(f)))
         self._count_render(now)
-        self.server.send("pose", (stamp, x, q))
+        if due:
+            self.counts["poses_forwarded"] += 1
+            self.server.send((stamp, x, q), None if tw is None else (tw[1], tuple(tw[0])))
 
     def _count_render(self, now_ns: int) -> None:
         c = self.counts
@@ -530,21 +637,30 @@ class BridgeNode(DeviceNode):
             c["rendered_stale_model" if r.outside_reason == "ttl" else "rendered_outside_radius"] += 1
 
     # --- node side ----------------------------------------------------------------------
-    def _on_model(self, msg) -> None:
-        m = read_contact_model(msg)
-        why: str | None
-        if m.frame_id != self.tissue_frame:
+    def _on_model(self, data: bytes) -> None:
+        why: str | None = None
+        m: LocalModel | None = None
+        try:
+            m = self._model_cdr.read(data)
+        except ValueError as exc:
+            why = f"undecodable ({exc})"
+        if m is None:
+            pass
+        elif m.frame_id != self.tissue_frame:
             why = f"frame '{m.frame_id}', expected '{self.tissue_frame}'"
         else:
             with self._render_lock:
                 why = self.renderer.set_model(m)  # at the latest device tick: the renderer's clock is the device's
-        if why is None:
+                if why is None and m.answer_period_s * 1e9 != self._forward.period_ns:
+                    self._forward.set_period_s(m.answer_period_s)  # the node's rate now: forward poses this often
+        if why is None and m is not None:
             self._check_needle_peak(m)
             self.counts["models"] += 1
             self._win["models"] += 1
             self._first_model = True
             return
         self.counts["models_rejected"] += 1
+        why = why or "unknown"
         kind = why.split(" ")[0]
         if kind not in self._rejected_logged:
             self._rejected_logged.add(kind)
@@ -566,10 +682,12 @@ class BridgeNode(DeviceNode):
                 "or less renders its shape (logged once)"
             )
 
-    def _on_wrench(self, msg) -> None:
+    def _on_wrench(self, data: bytes) -> None:
         """Wrench source: the node's force as a model with no stiffness (held until the next, faded after watchdog_s)."""
         self.counts["wrenches"] += 1
-        t_ns, _, f = read_wrench(msg)
+        if (w := self._decode("wrench", read_stamped_vec3_cdr, data)) is None:
+            return
+        t_ns, _, f = w
         self._wrench_seq += 1
         m = LocalModel(
             self._wrench_seq,
@@ -591,15 +709,18 @@ class BridgeNode(DeviceNode):
             self._first_model = True
 
     def _publish_force(self, t_ns: int, f) -> None:
-        publish_while_ok(self, self._force_pub, fill_wrench(self._force_out, t_ns, self.device_frame or "device_base", f))
+        frame = self.device_frame or "device_base"
+        if (cdr := self._force_cdr.get(frame)) is None:
+            cdr = self._force_cdr[frame] = WrenchCdr(frame)
+        self._last_force = tuple(f)
+        publish_while_ok(self, self._force_pub, cdr.fill(t_ns, f))
 
     def _watchdog(self) -> None:
         now = time.monotonic_ns()
         # a stale node is the renderer's business (it fades); a silent device has no tick to render on
         stale = self.last_pose_rx_ns is None or now - self.last_pose_rx_ns > self.watchdog_ns
         if stale and not self.stale:
-            f = self._force_out.wrench.force
-            held = math.sqrt(f.x * f.x + f.y * f.y + f.z * f.z)
+            held = math.sqrt(sum(c * c for c in self._last_force))
             self._publish_force(ros_now_ns(self), (0.0, 0.0, 0.0))
             self.counts["zeros"] += 1
             if self.counts["poses"]:  # a device that stopped while pushing is a warning; one that ended lifted is not
@@ -657,7 +778,13 @@ class BridgeNode(DeviceNode):
         publish_while_ok(self, self._diag_pub, self._diag)
 
     def stop(self) -> None:
-        """Close the server link and log the bridge's counts."""
+        """Stop the servo thread, close the server link and log the bridge's counts."""
+        self._servo_stop.set()
+        try:
+            self._servo_wake.trigger()
+        except Exception:
+            pass
+        self._servo.join(timeout=LINK_JOIN_S)
         self.server.close()
         c = self.counts
         self.say(
@@ -669,6 +796,13 @@ class BridgeNode(DeviceNode):
             f"{c['zeros']} watchdog zero commands, {c['non_finite_pose']} non-finite poses; force scale {self.p.force_scale:g}, "
             f"{self.renderer.counts_clamped} ticks clamped at {self.p.max_force_n:g} N"
         )
+
+
+def _remember(memory: dict, stamp_ns: int, value) -> None:
+    """Keep ``value`` under its stamp, the newest :data:`STAMP_MEMORY` only (a dict keeps insertion order)."""
+    memory[stamp_ns] = value
+    if len(memory) > STAMP_MEMORY:
+        del memory[next(iter(memory))]
 
 
 def main(argv=None) -> int:

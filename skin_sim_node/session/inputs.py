@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 from msgs_schema.parameters import SessionParams
 
+from ..rate import ANSWER_ALL_HZ, AnswerThrottle  # noqa: F401  (re-exported: the session's throttle)
 from . import events as ev
 
 LIFTED = (0.0, 0.0, 1.0)
@@ -329,47 +330,3 @@ class InputPolicy:
         return TickInput(
             answered, stale, pos, v, dt, release, hold=False, rate_dt_ns=max(rate_dt_ns, 0), restart=restart, axis=self.axis
         )
-
-
-ANSWER_ALL_HZ = 1000.0
-"""At ``rate_hz`` of at least this (a Touch's 1 kHz servo rate, the default), input mode answers every pose: the
-one-wrench-per-pose contract of live replay. Below it, :class:`AnswerThrottle` spaces the answers."""
-
-
-class AnswerThrottle:
-    """Input mode's server-rate lever: at most ``rate_hz`` answered poses per second of pose stamps.
-
-    A pose is answered when its stamp reaches the next due time (less an eighth of a period for stamp jitter); the
-    due time then advances one period, or restarts half a period after a pose that came long after it. A pose
-    not answered is kept (the next answered one steps the model over both stamps), and the bridge renders the
-    contact model in between: ``rate_hz:=250`` with a 1 kHz device answers every fourth pose.
-
-    Parameters
-    ----------
-    rate_hz : float
-        The node's ``rate_hz``; :data:`ANSWER_ALL_HZ` or more answers every pose.
-    """
-
-    def __init__(self, rate_hz: float):
-        self._next_ns: int | None = None
-        self.period_ns = 0
-        self.set_rate(rate_hz)
-
-    def set_rate(self, rate_hz: float) -> None:
-        """Apply a new ``rate_hz`` (a live parameter change); the next pose is answered."""
-        self.period_ns = 0 if rate_hz >= ANSWER_ALL_HZ else int(round(1e9 / rate_hz))
-        self._next_ns = None
-
-    def due(self, stamp_ns: int) -> bool:
-        """Whether the pose stamped ``stamp_ns`` is answered now."""
-        period = self.period_ns
-        if period == 0:
-            return True
-        nxt = self._next_ns
-        if nxt is not None and nxt - period // 8 <= stamp_ns <= nxt + 2 * period:
-            self._next_ns = max(nxt + period, stamp_ns - period // 2)
-            return True
-        if nxt is not None and stamp_ns < nxt - period // 8 and stamp_ns > nxt - 2 * period:
-            return False
-        self._next_ns = stamp_ns + period  # the first pose, a long gap or a new time line: answer and restart
-        return True

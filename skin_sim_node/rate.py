@@ -1,0 +1,239 @@
+"""The server rate (issue 27): which poses are answered, and the rate the node settles at on this machine.
+
+Pure (no rclpy, no model), shared by the node (:mod:`skin_sim_node.server.node`), the session's offline replay and
+the bridge (:mod:`skin_sim_node.device.bridge`), which forwards a tool pose only when the node will answer it:
+
+- :class:`AnswerThrottle` spaces the answers to at most ``rate_hz`` per second of pose stamps;
+- :class:`RateGovernor` picks that rate from :data:`RATE_LADDER_HZ`: the node's ``rate_hz`` while the machine holds
+  it, a lower rung while it does not, back up once the lower one has held for a while. The bridge renders the local
+  contact model every device tick in between, so a slower server costs render accuracy (measured in
+  ``docs/devices.md``), never a device tick: "model no more than a scene needs", applied to time.
+
+The governor's decision is a function of counts the node takes from its own pose stamps (:class:`RateWindow`), so it
+is unit-tested on recorded timings (``tests/test_rate.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+ANSWER_ALL_HZ = 1000.0
+"""At ``rate_hz`` of at least this (a Touch's 1 kHz servo rate, the default), input mode answers every pose: the
+one-wrench-per-pose contract of live replay. Below it, :class:`AnswerThrottle` spaces the answers."""
+
+RATE_LADDER_HZ = (1000.0, 500.0, 250.0, 125.0, 62.5)
+"""The rates the governor steps through, each half the one above: a rung answers every 1st, 2nd, 4th, 8th or 16th
+pose of a 1 kHz device, so the bridge's forwarding stays in phase with the device's ticks."""
+
+HELD_ANSWERED_MIN = 0.95
+"""A window holds its rate when at least this share of its due answers was made (the rest are missed slots: pose
+stamps that arrived more than 1.5 periods apart, or answers the node could not make): 5 % missed is where the
+benchmark's gaps start to show (stated choice)."""
+
+HELD_LATE_MAX = 0.05
+"""...and at most this share of its answers came late (pose age at the answer above :data:`LATE_AGE_MIN_S` and two
+periods): a queue that grows is a rate the machine does not hold even when every pose is still answered."""
+
+LATE_AGE_MIN_S = 0.005
+"""Least pose age (stamp to answer) that counts as late: 5 ms, the benchmark's gap aim; two periods above it."""
+
+DOWN_AFTER_WINDOWS = 2
+"""Consecutive windows that miss before the rate steps down (2 x 0.5 s: one window's hiccup, e.g. a reader joining,
+is not a trend)."""
+
+UP_AFTER_WINDOWS = 10
+"""Consecutive held windows before the governor tries the rung above (5 s at 0.5 s windows); doubled after each try
+that failed, up to :data:`UP_AFTER_MAX_WINDOWS`, so a machine that cannot hold a rate is not asked every 5 s."""
+
+UP_AFTER_MAX_WINDOWS = 120
+"""Longest wait before trying the rung above again (60 s)."""
+
+MIN_WINDOW_ANSWERS = 20
+"""A window with fewer due answers than this says nothing about the rate (no device, or a slow publisher)."""
+
+
+class AnswerThrottle:
+    """Input mode's server-rate lever: at most ``rate_hz`` answered poses per second of pose stamps.
+
+    A pose is answered when its stamp reaches the next due time (less an eighth of a period for stamp jitter); the
+    due time then advances one period, or restarts half a period after a pose that came long after it. A pose
+    not answered is kept (the next answered one steps the model over both stamps), and the bridge renders the
+    contact model in between: ``rate_hz:=250`` with a 1 kHz device answers every fourth pose.
+
+    Parameters
+    ----------
+    rate_hz : float
+        The node's ``rate_hz``; :data:`ANSWER_ALL_HZ` or more answers every pose.
+    """
+
+    def __init__(self, rate_hz: float):
+        self._next_ns: int | None = None
+        self.period_ns = 0
+        self.set_rate(rate_hz)
+
+    def set_rate(self, rate_hz: float) -> None:
+        """Apply a new ``rate_hz`` (a live parameter change); the next pose is answered."""
+        self.period_ns = 0 if rate_hz >= ANSWER_ALL_HZ else int(round(1e9 / rate_hz))
+        self._next_ns = None
+
+    def set_period_s(self, period_s: float) -> None:
+        """Apply an answer period (s) as announced in a contact model (0: every pose); the next pose is due."""
+        self.period_ns = int(round(period_s * 1e9)) if period_s > 0 else 0
+        self._next_ns = None
+
+    def due(self, stamp_ns: int) -> bool:
+        """Whether the pose stamped ``stamp_ns`` is answered now."""
+        period = self.period_ns
+        if period == 0:
+            return True
+        nxt = self._next_ns
+        if nxt is not None and nxt - period // 8 <= stamp_ns <= nxt + 2 * period:
+            self._next_ns = max(nxt + period, stamp_ns - period // 2)
+            return True
+        if nxt is not None and stamp_ns < nxt - period // 8 and stamp_ns > nxt - 2 * period:
+            return False
+        self._next_ns = stamp_ns + period  # the first pose, a long gap or a new time line: answer and restart
+        return True
+
+
+@dataclass(frozen=True)
+class RateWindow:
+    """What the node counted over one governor window (from its pose stamps and its own clock).
+
+    Attributes
+    ----------
+    rate_hz : float
+        The rate the window ran at.
+    answered : int
+        Poses answered.
+    missed : int
+        Answer slots at that rate that no answered pose filled: for consecutive answered stamps ``dt`` apart,
+        ``max(round(dt / period) - 1, 0)`` (a pose the reader's queue overwrote, or one forwarded late). Gaps longer
+        than the watchdog are the hand stopping, not the machine, and are not counted.
+    late : int
+        Answers whose pose was older than ``max(LATE_AGE_MIN_S, 2 / rate_hz)`` when answered.
+    """
+
+    rate_hz: float
+    answered: int
+    missed: int
+    late: int = 0
+
+    @property
+    def held(self) -> bool | None:
+        """True if the window held its rate, False if not, None if it had too few answers to tell."""
+        due = self.answered + self.missed
+        if due < MIN_WINDOW_ANSWERS:
+            return None
+        return self.answered >= HELD_ANSWERED_MIN * due and self.late <= HELD_LATE_MAX * max(self.answered, 1)
+
+
+def missed_slots(stamps_ns, rate_hz: float, gap_limit_s: float) -> int:
+    """Missed answer slots in a run of answered pose stamps (:attr:`RateWindow.missed`).
+
+    Parameters
+    ----------
+    stamps_ns : sequence of int
+        Consecutive answered pose stamps (ns).
+    rate_hz : float
+        The rate they were answered at.
+    gap_limit_s : float
+        Gaps at least this long are a pause of the input, not missed slots (the node's ``watchdog_s``).
+
+    Returns
+    -------
+    int
+    """
+    period = 1e9 / rate_hz
+    n = 0
+    for a, b in zip(stamps_ns, stamps_ns[1:]):
+        dt = b - a
+        if 0 < dt < gap_limit_s * 1e9:
+            n += max(int(round(dt / period)) - 1, 0)
+    return n
+
+
+class RateGovernor:
+    """Steps the node's answer rate down :data:`RATE_LADDER_HZ` while the machine does not hold it, and back up.
+
+    Parameters
+    ----------
+    max_rate_hz : float
+        The node's ``rate_hz``: the rate it starts at and never exceeds.
+    min_rate_hz : float
+        The lowest rate it steps down to.
+
+    Attributes
+    ----------
+    rate_hz : float
+        The rate now.
+    reason : str
+        Why the rate is what it is (the last change, or "target").
+    changes : int
+        How many times the rate changed.
+    """
+
+    def __init__(self, max_rate_hz: float, min_rate_hz: float):
+        self.max_rate_hz = float(max_rate_hz)
+        rungs = [r for r in RATE_LADDER_HZ if min_rate_hz <= r < self.max_rate_hz]
+        self.rungs = (self.max_rate_hz, *rungs)
+        self.level = 0
+        self.reason = "target"
+        self.changes = 0
+        self._bad = 0
+        self._good = 0
+        self._up_after = UP_AFTER_WINDOWS
+        self._probing = False
+
+    @property
+    def rate_hz(self) -> float:
+        """The rate the node answers at now."""
+        return self.rungs[self.level]
+
+    def update(self, w: RateWindow) -> str | None:
+        """Take one window's counts; returns a one-line message when the rate changes, else None.
+
+        Parameters
+        ----------
+        w : RateWindow
+
+        Returns
+        -------
+        str or None
+        """
+        held = w.held
+        if held is None or w.rate_hz != self.rate_hz:
+            return None
+        if held:
+            self._bad = 0
+            if self._probing:  # the rung tried from below has held: it is the rate now
+                self._probing = False
+                self._up_after = UP_AFTER_WINDOWS
+            self._good += 1
+            if self.level > 0 and self._good >= self._up_after:
+                return self._step(-1, f"{self.rungs[self.level]:g} Hz held for {self._good} windows: trying the rung above")
+            return None
+        self._good = 0
+        self._bad += 1
+        if self._probing or (self._bad >= DOWN_AFTER_WINDOWS and self.level < len(self.rungs) - 1):
+            if self._probing:
+                self._up_after = min(2 * self._up_after, UP_AFTER_MAX_WINDOWS)
+                self._probing = False
+            if self.level == len(self.rungs) - 1:
+                return None
+            due = w.answered + w.missed
+            why = (
+                f"{self.rate_hz:g} Hz not held: {w.answered} of {due} due answers made, {w.late} late "
+                "(the machine's CPU; see diagnostics cpu_pct)"
+            )
+            return self._step(+1, why)
+        return None
+
+    def _step(self, direction: int, why: str) -> str:
+        old = self.rate_hz
+        self.level += direction
+        self._bad = self._good = 0
+        self._probing = direction < 0
+        self.changes += 1
+        self.reason = why
+        return f"server rate {old:g} -> {self.rate_hz:g} Hz: {why}"
