@@ -237,3 +237,44 @@ class RateGovernor:
         self.changes += 1
         self.reason = why
         return f"server rate {old:g} -> {self.rate_hz:g} Hz: {why}"
+
+
+def device_tick_messages(
+    node_rate_hz: float,
+    device_rate_hz: float = 1000.0,
+    device_twist: bool = True,
+    measured_force: bool = True,
+    forward_twist: bool = False,
+    forward_every_pose: bool = False,
+    contact_readers: bool = False,
+) -> dict[str, float]:
+    """rclpy messages per device tick, per process: the device path's message budget (issue 27).
+
+    Each message in or out of an rclpy process costs about 0.1-0.3 ms of CPU here (serialized: the lower end), far
+    more than the model's 6-9 us step, so this count sets the CPU floor.
+
+    Parameters
+    ----------
+    node_rate_hz : float
+        The rate the node answers at (its server rate).
+    device_rate_hz : float
+        The device's servo rate (a Touch: 1 kHz).
+    device_twist, measured_force : bool
+        The driver publishes ``measured_cv`` / ``measured_cf`` and the bridge reads them (CRTK).
+    forward_twist : bool
+        The bridge forwards the device's velocity as ``tool/twist`` too.
+    forward_every_pose : bool
+        The bridge forwards every device pose (before issue 27), not only those the node answers.
+    contact_readers : bool
+        Someone reads ``tissue/contact`` (published only then).
+
+    Returns
+    -------
+    dict
+        ``bridge``, ``node`` and ``total`` messages per device tick.
+    """
+    answered = min(node_rate_hz, device_rate_hz) / device_rate_hz
+    forwarded = 1.0 if forward_every_pose else answered
+    bridge = 1 + device_twist + measured_force + 1 + forwarded * (1 + forward_twist) + answered
+    node = forwarded * (1 + forward_twist) + answered * (2 + contact_readers)
+    return {"bridge": bridge, "node": node, "total": bridge + node}

@@ -87,6 +87,8 @@ KILL_STEP_FRACTION = 0.10
 TRUE_FORCE_FACTOR, TRUE_FORCE_SLACK_N = 1.2, 0.05
 """Issue 19: no command above 1.2 x the true force magnitude + 0.05 N."""
 ANSWERED_MIN = 0.995
+CPU_BUDGET_PCT = 100.0
+"""Node plus bridge at most one core at a 1 kHz device (issue 27): the other core is the driver's and a renderer's."""
 RENDER_P99_MAX_PCT = 5.0
 PHASES = ("steady", "join", "throttle", "kill")
 AIMS = {
@@ -98,6 +100,8 @@ AIMS = {
     "render_vs_hold": "render p99 below hold-last's in throttle",
     "kill_zero": f"below {KILL_ZERO_N} N within TTL + fade + {KILL_MARGIN_S * 1e3:.0f} ms of the kill",
     "kill_step": f"no step above {KILL_STEP_FRACTION:.0%} of the pre-kill force during the fade",
+    "watchdog": "0 node watchdog releases in steady, join and throttle",
+    "cpu_budget": f"node + bridge at most {CPU_BUDGET_PCT:.0f} % of a core in steady (issue 27's budget)",
 }
 
 
@@ -134,9 +138,9 @@ def phase_windows(phase_s: float) -> dict[str, tuple[float, float]]:
 def emulate(phase_s: float, out: Path) -> int:
     """The CRTK driver emulator (see the module docstring). Writes its records to ``out`` (.npz)."""
     import rclpy
-    from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+    from geometry_msgs.msg import WrenchStamped
 
-    from msgs_schema.convert import fill_pose, fill_twist, fill_wrench, read_wrench, stamp_ns
+    from msgs_schema.convert import PoseCdr, WrenchCdr, read_stamped_vec3_cdr
     from msgs_schema.qos import PROFILES, publisher, subscription
 
     from ..ros_util import make_executor, set_process_realtime, set_realtime, sleep_until_ns, spin_context
@@ -156,28 +160,30 @@ def emulate(phase_s: float, out: Path) -> int:
     n_rec = [0, 0]  # commands, wrenches recorded
     held = [(0.0, 0.0, 0.0)]
 
-    def on_cmd(msg):
-        f = read_wrench(msg)[2]
+    # serialized in and out (no rclpy message objects), as a C++ driver's cost is closer to that than to Python's
+    def on_cmd(data):
+        t_ns, _, f = read_stamped_vec3_cdr(data)
         held[0] = f
         i = n_rec[0]
         if i < len(cmds):
-            cmds[i, 0], cmds[i, 1] = time.monotonic_ns(), stamp_ns(msg.header)
+            cmds[i, 0], cmds[i, 1] = time.monotonic_ns(), t_ns
             cmds[i, 2:5] = f
             n_rec[0] = i + 1
 
-    def on_wrench(msg):
+    def on_wrench(data):
         i = n_rec[1]
         if i < len(wrenches):
             wrenches[i, 0] = time.monotonic_ns()
-            wrenches[i, 1:4] = read_wrench(msg)[2]
-            wrenches[i, 4] = stamp_ns(msg.header)
+            t_ns, _, f = read_stamped_vec3_cdr(data)
+            wrenches[i, 1:4] = f
+            wrenches[i, 4] = t_ns
             n_rec[1] = i + 1
 
     from rclpy.qos import QoSProfile
 
     deep = QoSProfile(reliability=PROFILES["driver"].reliability, history=PROFILES["driver"].history, depth=100)
-    node.create_subscription(WrenchStamped, "device/servo_cf", on_cmd, deep)
-    subscription(node, "tool_wrench", on_wrench, depth=100)
+    node.create_subscription(WrenchStamped, "device/servo_cf", on_cmd, deep, raw=True)
+    subscription(node, "tool_wrench", on_wrench, depth=100, raw=True)
     ex = make_executor("events")
     ex.add_node(node)
     stop = threading.Event()
@@ -193,7 +199,7 @@ def emulate(phase_s: float, out: Path) -> int:
         set_realtime(EMULATOR_RT_PRIORITY)
     time.sleep(1.0)  # discovery of the bridge (already running)
     slots = np.zeros((n, 10))  # deadline, published (mono ns), stamp (ns), x, y, z, vx, vy, vz, late flag
-    pose, twist, cf = PoseStamped(), TwistStamped(), WrenchStamped()
+    pose, vec = PoseCdr("device_base"), WrenchCdr("device_base")  # a TwistStamped is laid out as a WrenchStamped
     offset = np.array(DEFAULT_OFFSET_M)
     t0 = time.monotonic_ns() + 200_000_000
     print(f"EMULATOR t0_ns={t0} rt={'granted' if rt is None else rt}", flush=True)
@@ -215,12 +221,9 @@ def emulate(phase_s: float, out: Path) -> int:
         x, v = hand((deadline - t0) * 1e-9, phase_s)
         stamp = time.time_ns()
         dev = tuple(np.asarray(x) - offset)
-        fill_twist(twist, stamp, "device_base", v)
-        fill_wrench(cf, stamp, "device_base", held[0])
-        fill_pose(pose, stamp, "device_base", dev)
-        pub_cv.publish(twist)
-        pub_cf.publish(cf)
-        pub_cp.publish(pose)
+        pub_cv.publish(vec.fill(stamp, v))
+        pub_cf.publish(vec.fill(stamp, held[0]))
+        pub_cp.publish(pose.fill(stamp, dev))
         pub_t = time.monotonic_ns()
         slots[k] = (deadline, pub_t, stamp, *x, *v, float(skipped or pub_t - deadline > LATE_SLOT_NS))
         k += 1
@@ -381,6 +384,56 @@ def kill_fade(cmds: np.ndarray, kill_ns: int) -> dict:
     return {"pre_kill_n": pre_n, "kill_zero_ms": zero_ms, "kill_step_pct": 100 * step / pre_n if pre_n > 0 else float("nan")}
 
 
+def budget_figures(ph: dict, res: dict) -> None:
+    """Add each phase's CPU (% of a core per process), the node's answers per second, its server rate and watchdog
+    releases (from its diagnostics), and the rclpy messages per device tick at the measured rates, to ``ph``."""
+    from ..rate import device_tick_messages
+
+    rec, t0 = res["rec"], int(res["rec"]["t0"])
+    wr = rec["wrenches"]
+    for name, (a, b) in phase_windows(res["phase_s"]).items():
+        p = ph[name]
+        lo, hi = t0 + a * 1e9, t0 + b * 1e9
+        n_wr = int(np.sum((wr[:, 0] >= lo) & (wr[:, 0] < hi))) if len(wr) else 0
+        p["node_answers_per_s"] = n_wr / (b - a)
+        p["cpu_pct"] = res["cpu"].get(name, {})
+        start, end = res["diag"].get(f"{name}_start", {}), res["diag"].get(f"{name}_end", {})
+        ns, ne = start.get("node", {}), end.get("node", {})
+        key = "count_watchdog_stale_input"
+        p["watchdog_releases"] = int(ne.get(key, 0)) - int(ns.get(key, 0)) if ne else -1
+        p["server_rate_hz"] = float(ne.get("server_rate_hz", "nan")) if ne else float("nan")
+        p["node_cpu_diag_pct"] = float(ne.get("cpu_pct", "nan")) if ne else float("nan")
+        changes = int(ne.get("rate_changes_total", 0)) - int(ns.get("rate_changes_total", 0)) if ne else 0
+        p["rate_changes"] = changes if changes >= 0 else int(ne.get("rate_changes_total", 0))  # a live set restarts it
+        rate = min(p["node_answers_per_s"], 1000.0)
+        p["messages_per_tick"] = device_tick_messages(rate) if rate > 0 else device_tick_messages(0.0)
+    ph["steady"]["echo_pct"] = res["echo_pct"]
+
+
+def print_budget(ph: dict, echo_pct: float) -> None:
+    """One row per phase: each process's CPU against the bare echo, the node's rate, messages per device tick."""
+    print(
+        f"{'phase':<9} {'node %':>7} {'bridge %':>8} {'n+b %':>6} {'x echo':>6} {'emul %':>7} | {'answers/s':>9} "
+        f"{'server Hz':>9} {'changes':>7} {'watchdog':>8} | {'msgs/tick bridge/node/total':>27}"
+    )
+    for name, p in ph.items():
+        c = p.get("cpu_pct", {})
+        nb = c.get("node", float("nan")) + c.get("bridge", float("nan"))
+        m = p["messages_per_tick"]
+        print(
+            f"{name:<9} {c.get('node', float('nan')):7.1f} {c.get('bridge', float('nan')):8.1f} {nb:6.1f} "
+            f"{nb / echo_pct if echo_pct > 0 else float('nan'):6.2f} {c.get('emulator', float('nan')):7.1f} | "
+            f"{p['node_answers_per_s']:9.0f} {p['server_rate_hz']:9.0f} {p['rate_changes']:7d} {p['watchdog_releases']:8d} | "
+            f"{m['bridge']:9.2f} / {m['node']:5.2f} / {m['total']:5.2f}"
+        )
+    print(
+        f"CPU: % of one core per process over the phase (children included: the node's display worker); x echo = "
+        f"(node + bridge) / the bare rclpy echo's {echo_pct:.1f} % in this run; msgs/tick: rclpy messages per device "
+        "tick at the measured answer rate (skin_sim_node.rate.device_tick_messages); watchdog: the node's releases "
+        "(diagnostics; -1: no diagnostics seen)"
+    )
+
+
 def missed_aims(ph: dict) -> list[str]:
     """The :data:`AIMS` this run missed, each named with its figure."""
     missed = []
@@ -401,6 +454,12 @@ def missed_aims(ph: dict) -> list[str]:
         missed.append(
             f"render_vs_hold: throttle {ph['throttle']['render_p99_pct']:.2f} vs {ph['throttle']['hold_p99_pct']:.2f} %"
         )
+    for name in ("steady", "join", "throttle"):
+        if ph[name].get("watchdog_releases", 0) > 0:
+            missed.append(f"watchdog: {name} {ph[name]['watchdog_releases']} releases")
+    c = ph["steady"].get("cpu_pct", {})
+    if c and not c.get("node", math.inf) + c.get("bridge", math.inf) <= CPU_BUDGET_PCT:
+        missed.append(f"cpu_budget: steady node {c.get('node', float('nan')):.1f} + bridge {c.get('bridge', float('nan')):.1f} %")
     k = ph["kill"]
     if not k.get("kill_zero_ms", math.inf) <= (DEFAULT_TTL_S + FADE_S + KILL_MARGIN_S) * 1e3:
         missed.append(f"kill_zero: {k.get('kill_zero_ms', float('nan')):.1f} ms")
@@ -442,7 +501,7 @@ def _machine() -> str:
 
 def run(
     phase_s: float,
-    hog: bool,
+    hog: int,
     log_dir: Path,
     bridge_shm: bool = False,
     driver_shm: bool = False,
@@ -452,6 +511,7 @@ def run(
     """Start node, bridge and emulator, drive the phases, return the records and the kill time."""
     import psutil
 
+    from .cpu_budget import DiagListener, ProcCpu, echo_baseline
     from .soak import _JoiningReader
 
     phase_s = max(DRAG_PERIOD_S, DRAG_PERIOD_S * round(phase_s / DRAG_PERIOD_S))
@@ -476,8 +536,12 @@ def run(
         print(f"  emulator transports: {why}", flush=True)
         if hog:
             code = "while True: pass"
-            hogs = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(os.cpu_count() or 1)]
+            hogs = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(hog)]
             print(f"  CPU hog: {len(hogs)} busy processes at normal priority", flush=True)
+        echo_pct = echo_baseline(scene)
+        print(f"  bare rclpy echo (SingleThreadedExecutor, 1 kHz poses in, wrenches out): {echo_pct:.1f} % of a core", flush=True)
+        diag = DiagListener()
+        cpus = {"node": ProcCpu(node.popen.pid), "bridge": ProcCpu(bridge.popen.pid)}
         rec_path = log_dir / "emulator.npz"
         emu_log = open(log_dir / "emulator.log", "w")
         emu = subprocess.Popen(
@@ -496,7 +560,14 @@ def run(
                     print(f"  emulator: 1 kHz, SCHED_FIFO {EMULATOR_RT_PRIORITY}: {ln.split('rt=')[1]}", flush=True)
             if emu.poll() is not None:
                 raise RuntimeError(f"emulator exited: {(log_dir / 'emulator.log').read_text()[-2000:]}")
+        cpus["emulator"] = ProcCpu(emu.pid)
         win = phase_windows(phase_s)
+        snaps: dict[str, dict] = {}
+
+        def snapshot(tag: str) -> None:
+            for c in cpus.values():
+                c.mark()
+            snaps[tag] = {"node": diag.find("haptic loop"), "bridge": diag.find("device render")}
 
         def wait_until(t_s):
             while time.monotonic_ns() < t0 + t_s * 1e9:
@@ -507,6 +578,7 @@ def run(
         for name in PHASES:
             a, b = win[name]
             wait_until(a)
+            snapshot(f"{name}_start")
             print(f"  phase {name} ({b - a:.1f} s) ...", flush=True)
             if name == "join":
                 for i in range(N_READERS):
@@ -526,15 +598,20 @@ def run(
                 for c in kids:
                     c.kill()
                 print("    node killed (SIGKILL)", flush=True)
+            wait_until(b - (0.0 if name == "kill" else 1.1))  # the node's last diagnostics (1 s) inside the phase
+            snapshot(f"{name}_end")
             wait_until(b)
         emu.wait(timeout=30)
         emu_log.close()
+        diag.close()
         for h in hogs:
             h.kill()
             h.wait()
     (log_dir / "kill_ns.txt").write_text(f"{kill_ns}\n")  # with emulator.npz: enough to analyse the run again
     rec = dict(np.load(rec_path))
-    return {"rec": rec, "kill_ns": kill_ns, "phase_s": phase_s}
+    n_marks = len(cpus["node"].marks)
+    cpu = {ph: {k: c.pct(2 * i, 2 * i + 1) for k, c in cpus.items()} for i, ph in enumerate(PHASES) if n_marks > 2 * i + 1}
+    return {"rec": rec, "kill_ns": kill_ns, "phase_s": phase_s, "cpu": cpu, "echo_pct": echo_pct, "diag": snaps}
 
 
 def _throttle() -> bool:
@@ -564,7 +641,14 @@ def main(argv=None) -> int:
     """``skin-sim bench-device``: the device path benchmark, phases of node + bridge + emulated device; prints the table."""
     ap = argparse.ArgumentParser(prog="skin-sim bench-device", description=__doc__.splitlines()[0])
     ap.add_argument("--phase-s", type=float, default=30.0, help="length of each phase (s), rounded to whole drag periods (2 s)")
-    ap.add_argument("--hog", action="store_true", help="a busy process per core, at normal priority, for the whole run")
+    ap.add_argument(
+        "--hog",
+        type=int,
+        nargs="?",
+        const=os.cpu_count() or 1,
+        default=0,
+        help="N busy processes (python -c 'while True: pass') at normal priority for the whole run; --hog alone: one per core",
+    )
     ap.add_argument("--log-dir", type=Path, default=None, help="logs and the emulator's records (default: a temporary dir)")
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
     ap.add_argument("--bridge-shm", action="store_true", help="bridge with --localhost-shm (rmw's shared memory under LOCALHOST)")
@@ -579,13 +663,15 @@ def main(argv=None) -> int:
     log_dir.mkdir(parents=True, exist_ok=True)
     print(f"skin-sim bench-device: CRTK emulator at 1 kHz vs node + bridge; {args.phase_s:g} s per phase; logs {log_dir}")
     node_note = f"node {args.node_param}{' on shared memory' if args.node_shm else ''}"
-    print(f"  machine (assumed nothing, found): {_machine()}; hog {'on' if args.hog else 'off'}; {node_note}", flush=True)
+    print(f"  machine (assumed nothing, found): {_machine()}; busy processes {args.hog}; {node_note}", flush=True)
     node_args = tuple(a for p in args.node_param for a in ("-p", p))
     res = run(args.phase_s, args.hog, log_dir, args.bridge_shm, args.driver_shm, node_args, args.node_shm)
     print(f"  analysing (offline ground truth on {int((res['rec']['slots'][:, 2] > 0).sum())} poses) ...", flush=True)
     ph = analyse(res["rec"], res["phase_s"], res["kill_ns"])
+    budget_figures(ph, res)
     print(f"  machine after: {_machine()}")
     print_table(ph)
+    print_budget(ph, res["echo_pct"])
     print(
         "columns: x = commands per device pose; own late = the emulator's late slots (the scheduling baseline; gaps>5 "
         "excludes gaps that contain one); max/F = largest |command| / |F_true| where |F_true| > 0.05 N; x p99 = render "
