@@ -56,3 +56,47 @@ def test_a_frame_id_without_its_nul_is_refused():
     good[15 + 7] = ord("x")  # the NUL after "tissue"
     with pytest.raises(ValueError, match="NUL"):
         cv.read_stamped_vec3_cdr(bytes(good))
+
+
+@pytest.mark.parametrize("frame", FRAMES)
+def test_pose_cdr_deserializes_to_the_filled_message(frame):
+    p = cv.PoseCdr(frame)
+    for t, xyz, q in (
+        (0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)),
+        (1_700_000_000_123_456_789, (0.01, -0.02, 0.3), (0.1, 0.2, 0.3, 0.9)),
+    ):
+        m = deserialize_message(p.fill(t, xyz, q), PoseStamped)
+        assert m == cv.fill_pose(PoseStamped(), t, frame, xyz, quat=q)
+
+
+@pytest.mark.parametrize("frame", ["", "tissue", "abcdefgh"])
+def test_contact_model_cdr_reads_what_rclpy_serializes(frame):
+    """The bridge's raw reader of tool/contact_model gives the LocalModel read_contact_model gives the message."""
+    import numpy as np
+    from skin_sim_msgs.msg import ContactModel
+
+    from msgs_schema.contact_model import ContactModelCdr, read_contact_model
+
+    rng = np.random.default_rng(len(frame))
+    codec = ContactModelCdr.from_message_class(ContactModel)
+    for needle in (False, True):
+        msg = ContactModel()
+        msg.header.frame_id = frame
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 1_700_000_000, 123_456_789
+        msg.sequence = 2**40 + 7
+        for name, typ in ContactModel.get_fields_and_field_types().items():
+            if typ.startswith("double["):
+                getattr(msg, name)[:] = rng.normal(size=len(getattr(msg, name)))
+            elif typ == "double":
+                setattr(msg, name, float(rng.uniform(0.1, 1.0)))
+        msg.friction_state = 0.5
+        msg.needle_axis[:] = (0.0, 0.6, -0.8) if needle else (0.0, 0.0, 0.0)
+        got, want = codec.read(serialize_message(msg)), read_contact_model(msg)
+        for f in ("sequence", "stamp_ns", "frame_id", "validity_radius_m", "time_to_live_s", "answer_period_s", "needle"):
+            assert getattr(got, f) == getattr(want, f), f
+        for f in ("x0_m", "v0_m_s", "f0_n", "stiffness_n_per_m", "damping_n_s_per_m", "normal", "normal_force_gradient_n_per_m"):
+            assert np.array_equal(getattr(got, f), getattr(want, f)), f
+    with pytest.raises(ValueError, match="truncated ContactModel"):
+        codec.read(serialize_message(msg)[:60])
+    with pytest.raises(ValueError, match="no raw reader"):
+        ContactModelCdr({"header": "std_msgs/Header", "flag": "boolean"})

@@ -1,0 +1,113 @@
+"""The server rate (issue 27): the governor's decisions on recorded timings, the forwarding throttle, the message
+budget per device tick, and the serialized codecs the device path uses (no ROS processes: deterministic).
+
+The recordings in ``tests/timings/`` are real: the ``tool/wrench`` stamps (each the stamp of the pose the node
+answered) that ``skin-sim bench-device --phase-s 4 --node-param rate_policy:=fixed --node-param rate_hz:=R`` recorded
+in its steady and join phases on this 2-core machine while other work loaded it (load average about 4): at a fixed
+1000 Hz the node answered 611 poses a second, at 250 Hz all of them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from skin_sim_node.rate import (
+    DOWN_AFTER_WINDOWS,
+    RATE_LADDER_HZ,
+    UP_AFTER_WINDOWS,
+    AnswerThrottle,
+    RateGovernor,
+    RateWindow,
+    device_tick_messages,
+    missed_slots,
+)
+
+TIMINGS = Path(__file__).parent / "timings"
+MS = 1_000_000
+
+
+def windows(stamps_ns: np.ndarray, rate_hz: float, window_s: float = 0.5) -> list[RateWindow]:
+    """The node's governor windows over a run of answered stamps (as server/node.py counts them)."""
+    out, start = [], 0
+    edges = np.searchsorted(stamps_ns, stamps_ns[0] + np.arange(1, 100) * window_s * 1e9)
+    for end in edges:
+        if end >= len(stamps_ns) or end <= start:
+            break
+        seg = stamps_ns[start : end + 1]
+        out.append(RateWindow(rate_hz, int(end - start), missed_slots(list(seg), rate_hz, 0.05)))
+        start = end
+    return out
+
+
+def load(name: str) -> np.ndarray:
+    d = np.load(TIMINGS / f"{name}.npz")
+    return np.sort(d["stamps_ns"])
+
+
+def test_recorded_loaded_1khz_run_steps_down_and_250hz_run_holds():
+    fast = load("node_answers_fixed_1000hz_loaded")
+    ws = windows(fast, 1000.0)
+    assert len(ws) >= 10 and all(w.held is False for w in ws)  # ~611 of 1000 answers a second: not held
+    gov = RateGovernor(1000.0, 125.0)
+    msgs = [m for w in ws[:DOWN_AFTER_WINDOWS] if (m := gov.update(RateWindow(gov.rate_hz, w.answered, w.missed)))]
+    assert gov.rate_hz == 500.0 and len(msgs) == 1 and "1000 Hz not held" in msgs[0]
+    slow = load("node_answers_fixed_250hz_loaded")
+    ws = windows(slow, 250.0)
+    assert len(ws) >= 10 and all(w.held for w in ws)  # every due answer made at 250 Hz on the same machine
+
+
+def test_governor_probes_up_after_holding_and_backs_off_after_a_failed_probe():
+    gov = RateGovernor(1000.0, 125.0)
+    bad, good = RateWindow(1000.0, 300, 200), RateWindow(500.0, 250, 0)
+    assert gov.update(bad) is None and gov.update(bad) is not None and gov.rate_hz == 500.0
+    for _ in range(UP_AFTER_WINDOWS - 1):
+        assert gov.update(good) is None
+    assert "trying the rung above" in gov.update(good) and gov.rate_hz == 1000.0
+    assert "not held" in gov.update(bad) and gov.rate_hz == 500.0  # a failed probe falls back at once
+    for _ in range(2 * UP_AFTER_WINDOWS - 1):  # and waits twice as long before the next
+        assert gov.update(good) is None
+    assert gov.update(good) is not None and gov.rate_hz == 1000.0
+
+
+def test_governor_floor_silence_and_stale_windows():
+    gov = RateGovernor(1000.0, 250.0)
+    assert gov.rungs == (1000.0, 500.0, 250.0)
+    for _ in range(10):
+        gov.update(RateWindow(gov.rate_hz, 10, 500))
+    assert gov.rate_hz == 250.0  # never below min_rate_hz
+    assert gov.update(RateWindow(250.0, 5, 0)) is None  # too few answers to tell (no device)
+    assert gov.update(RateWindow(1000.0, 1000, 0)) is None  # a window counted at another rate is ignored
+    late = RateWindow(250.0, 125, 0, late=20)
+    assert late.held is False  # every answer made, but a growing queue: not held
+
+
+def test_missed_slots_count_only_gaps_shorter_than_the_watchdog():
+    stamps = [0, 1 * MS, 2 * MS, 5 * MS, 6 * MS, 200 * MS, 201 * MS]
+    assert missed_slots(stamps, 1000.0, 0.05) == 2  # 2 -> 5 ms: two slots; the 194 ms pause is the hand's
+    assert missed_slots(stamps, 250.0, 0.05) == 0
+
+
+def test_forwarding_throttle_follows_the_announced_period():
+    th = AnswerThrottle(np.inf)
+    stamps = np.arange(2000) * MS
+    assert all(th.due(int(s)) for s in stamps[:10])  # before any model: every pose
+    for period_s, share in ((0.004, 0.25), (0.002, 0.5), (0.0, 1.0)):
+        th.set_period_s(period_s)
+        assert np.mean([th.due(int(s)) for s in stamps + 10_000 * MS]) == pytest.approx(share, abs=0.002)
+    node, bridge = AnswerThrottle(250.0), AnswerThrottle(np.inf)
+    bridge.set_period_s(0.004)
+    forwarded = [int(s) for s in stamps if bridge.due(int(s))]
+    assert all(node.due(s) for s in forwarded)  # the node answers every pose the bridge forwards
+
+
+def test_message_budget_per_device_tick():
+    before = device_tick_messages(1000.0, forward_twist=True, forward_every_pose=True, contact_readers=True)
+    assert before == {"bridge": 7.0, "node": 5.0, "total": 12.0}  # issue 27's count on main at de9410d
+    now = device_tick_messages(1000.0)
+    assert now == {"bridge": 6.0, "node": 3.0, "total": 9.0}
+    assert device_tick_messages(250.0) == {"bridge": 4.5, "node": 0.75, "total": 5.25}
+    assert device_tick_messages(125.0, device_twist=False, measured_force=False)["total"] == pytest.approx(2.0 + 5 * 0.125)
+    assert RATE_LADDER_HZ[0] == 1000.0 and all(a == 2 * b for a, b in zip(RATE_LADDER_HZ, RATE_LADDER_HZ[1:]))
