@@ -133,7 +133,7 @@ def run_nodes(factories: list[Callable[[], object]], args=None, executor: str = 
             code = 1
         # else: a callback raced the SIGINT/SIGTERM shutdown ("context is invalid"): a clean exit
     finally:
-        for n in nodes:
+        for n in reversed(nodes):  # the last built first: a node built on an earlier one stops before it
             stop = getattr(n, "stop", None)
             if stop:
                 stop()

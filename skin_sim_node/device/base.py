@@ -152,7 +152,12 @@ class DeviceNode(Node):
             return early
         overrides = cls.overrides_from(opts)
         cls.ROS_ARGS = ros
-        return run_nodes([lambda: cls(overrides)], args=ros, executor=EXECUTOR)
+        return run_nodes(cls.factories(overrides), args=ros, executor=EXECUTOR)
+
+    @classmethod
+    def factories(cls, overrides: dict) -> list:
+        """The nodes this command runs in its process, in build order (default: this node alone)."""
+        return [lambda: cls(overrides)]
 
     @classmethod
     def before_start(cls, opts: argparse.Namespace) -> int | None:

@@ -43,7 +43,7 @@ from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from skin_sim_msgs.msg import ContactModel
 
-from msgs_schema.contact_model import ContactModelCdr, LocalModel
+from msgs_schema.contact_model import ContactModelCdr, LocalModel, read_contact_model
 from msgs_schema.convert import PoseCdr, WrenchCdr, fill_twist, read_pose_cdr, read_stamped_vec3_cdr, set_stamp
 from msgs_schema.qos import PROFILES, publisher, subscription
 from msgs_schema.topics import FRAMES, TOPICS
@@ -210,6 +210,63 @@ class ServerLink:
         rclpy.try_shutdown(context=self.ctx)
 
 
+class LocalLink:
+    """The node in this process (``skin-sim bridge --with-node``, issue 27 item 5): no DDS hop between them.
+
+    A due pose goes to the node's :meth:`~skin_sim_node.server.node.SkinSimNode.answer_pose` on this link's thread
+    (a latest-value hand-off, as :class:`ServerLink`), and the node's tick hands each contact model back through its
+    ``local_model_sink``: per answer, four rclpy messages fewer (pose out and in, model out and in). The node still
+    publishes ``tool/wrench`` (and the contact model, for other readers) over DDS.
+    """
+
+    def __init__(self, bridge: BridgeNode, node, rt_priority: int = 0, periodic: tuple[float, Callable[[], None]] | None = None):
+        self.node = node
+        self._frame = bridge.tissue_frame
+        self._periodic = periodic
+        self.rt_priority = rt_priority
+        node.local_model_sink = bridge._on_local_model
+        self._latest: tuple | None = None
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self.forwarded = 0
+        self._thread = threading.Thread(target=self._run, name="local-link", daemon=True)
+        self._thread.start()
+
+    def send(self, pose: tuple, twist: tuple | None = None) -> None:
+        """Hand the newest due pose ``(stamp, xyz, quat)`` (and twist ``(stamp, linear)``) to the link's thread."""
+        with self._lock:
+            self._latest = (pose, twist)
+        self._wake.set()
+
+    def _run(self) -> None:
+        if self.rt_priority > 1:
+            set_realtime(self.rt_priority - 1)
+        period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
+        next_ns = time.monotonic_ns() + period_ns
+        while not self._stop.is_set():
+            self._wake.wait(max(next_ns - time.monotonic_ns(), 0) * 1e-9 if period_ns else 0.05)
+            self._wake.clear()
+            with self._lock:
+                latest, self._latest = self._latest, None
+            if latest is not None and not self._stop.is_set():
+                (stamp, x, q), tw = latest
+                if tw is not None:
+                    self.node.answer_twist(tw[0], self._frame, tw[1])
+                self.node.answer_pose(stamp, self._frame, x, q)
+                self.forwarded += 1
+            if self._periodic is not None and time.monotonic_ns() >= next_ns:
+                next_ns = time.monotonic_ns() + period_ns
+                self._periodic[1]()
+
+    def close(self) -> None:
+        """Stop the link's thread (the node stops after it: it was built first)."""
+        self._stop.set()
+        self._wake.set()
+        self._thread.join(timeout=LINK_JOIN_S)
+        self.node.local_model_sink = None
+
+
 def _never_called(_msg) -> None:  # pragma: no cover - the wait-set readers' subscriptions are in no executor
     """The callback of a subscription that only a wait set takes from."""
 
@@ -331,6 +388,22 @@ class BridgeNode(DeviceNode):
     )
 
     TRANSPORT_NOTE = ""  # what localhost_udp_env decided before rclpy started (logged at start)
+    WITH_NODE = False  # --with-node: skin_sim_node in this process, linked in memory (LocalLink)
+
+    @classmethod
+    def factories(cls, overrides: dict) -> list:
+        """The bridge alone, or with ``--with-node`` the node first and the bridge linked to it in memory."""
+        if not cls.WITH_NODE:
+            return super().factories(overrides)
+        from ..server.node import SkinSimNode  # the node's model and numba only when asked for
+
+        built: list = []
+
+        def node():
+            built.append(SkinSimNode(ros_args=cls.ROS_ARGS))
+            return built[0]
+
+        return [node, lambda: cls(overrides, local_node=built[0])]
 
     @classmethod
     def add_arguments(cls, ap) -> None:
@@ -341,6 +414,12 @@ class BridgeNode(DeviceNode):
             action="store_true",
             default=None,
             help="stamp tool poses with the bridge clock instead of the driver's",
+        )
+        ap.add_argument(
+            "--with-node",
+            action="store_true",
+            help="run skin_sim_node in this process too (its parameters from --ros-args --params-file, keyed "
+            "skin_sim_node): poses and contact models handed over in memory, no DDS hop between them",
         )
         ap.add_argument(
             "--forward-twist",
@@ -367,11 +446,12 @@ class BridgeNode(DeviceNode):
         except ValueError as exc:
             print(f"skin-sim bridge: {exc}")
             return 2
+        cls.WITH_NODE = bool(opts.with_node)
         updates, cls.TRANSPORT_NOTE = localhost_udp_env(os.environ, keep_shm=opts.localhost_shm)
         os.environ.update(updates)  # before rclpy creates a participant: both of the bridge's participants
         return None
 
-    def __init__(self, overrides: dict | None = None, **kwargs):
+    def __init__(self, overrides: dict | None = None, local_node=None, **kwargs):
         super().__init__(overrides, **kwargs)
         p = self.p
         self.mapping = DeviceMapping(tuple(p.offset_m), p.scale, p.axes, p.force_scale, p.max_force_n)
@@ -436,15 +516,21 @@ class BridgeNode(DeviceNode):
         self._win = {"rendered": 0, "models": 0, "t_ns": time.monotonic_ns(), "age_from": 0, "period_max_ns": 0}
         # the diagnostics (percentiles, ~20 key-values, a publish: about a millisecond once a second) run on the node
         # link's publishing thread, not on the servo executor: no device pose waits for them (issue 19, gaps)
-        self.server = ServerLink(
-            self,
-            self.ROS_ARGS,
-            self._on_model if self.model_source else self._on_wrench,
-            self.node_ns,
-            p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0,
-            periodic=(p.diagnostics_period_s, self._publish_diagnostics),
-            forward_twist=bool(p.forward_twist and twist_key),
-        )
+        link_prio = p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0
+        self.server: ServerLink | LocalLink
+        if local_node is not None:
+            self.model_source = True  # in memory: the node's contact model itself
+            self.server = LocalLink(self, local_node, link_prio, periodic=(p.diagnostics_period_s, self._publish_diagnostics))
+        else:
+            self.server = ServerLink(
+                self,
+                self.ROS_ARGS,
+                self._on_model if self.model_source else self._on_wrench,
+                self.node_ns,
+                link_prio,
+                periodic=(p.diagnostics_period_s, self._publish_diagnostics),
+                forward_twist=bool(p.forward_twist and twist_key),
+            )
         self._v_tissue: np.ndarray | None = None
         self._v_stamp_ns = 0
         self._wrench_seq = 0
@@ -477,6 +563,8 @@ class BridgeNode(DeviceNode):
         src = self.server.node.resolve_topic_name(TOPICS["contact_model" if self.model_source else "tool_wrench"].name)
         src = f"{src} rendered per device tick" if self.model_source else src
         tool_pose = self.server.node.resolve_topic_name(TOPICS["tool_pose"].name)
+        if local_node is not None:
+            tool_pose, src = "skin_sim_node in this process", "its contact model, in memory, rendered per device tick"
         self.get_logger().info(
             f"bridge {p.convention}: {self.resolve_topic_name(dev(pose_key))} -> {tool_pose}; {src} -> "
             f"{self.resolve_topic_name(dev(force_key))}; "
@@ -644,12 +732,19 @@ class BridgeNode(DeviceNode):
 
     # --- node side ----------------------------------------------------------------------
     def _on_model(self, data: bytes) -> None:
-        why: str | None = None
         m: LocalModel | None = None
         try:
             m = self._model_cdr.read(data)
         except ValueError as exc:
-            why = f"undecodable ({exc})"
+            self._take_model(None, f"undecodable ({exc})")
+            return
+        self._take_model(m, None)
+
+    def _on_local_model(self, msg) -> None:
+        """The contact model of the node in this process (``--with-node``), from its tick."""
+        self._take_model(read_contact_model(msg), None)
+
+    def _take_model(self, m: LocalModel | None, why: str | None) -> None:
         if m is None:
             pass
         elif m.frame_id != self.tissue_frame:

@@ -418,7 +418,7 @@ def print_budget(ph: dict, echo_pct: float) -> None:
     )
     for name, p in ph.items():
         c = p.get("cpu_pct", {})
-        nb = c.get("node", float("nan")) + c.get("bridge", float("nan"))
+        nb = c.get("node", float("nan")) + c.get("bridge", 0.0)  # --with-node: one process, all under "node"
         m = p["messages_per_tick"]
         print(
             f"{name:<9} {c.get('node', float('nan')):7.1f} {c.get('bridge', float('nan')):8.1f} {nb:6.1f} "
@@ -434,7 +434,7 @@ def print_budget(ph: dict, echo_pct: float) -> None:
     )
 
 
-def missed_aims(ph: dict) -> list[str]:
+def missed_aims(ph: dict, one_process: bool = False) -> list[str]:
     """The :data:`AIMS` this run missed, each named with its figure."""
     missed = []
     for name, p in ph.items():
@@ -458,9 +458,11 @@ def missed_aims(ph: dict) -> list[str]:
         if ph[name].get("watchdog_releases", 0) > 0:
             missed.append(f"watchdog: {name} {ph[name]['watchdog_releases']} releases")
     c = ph["steady"].get("cpu_pct", {})
-    if c and not c.get("node", math.inf) + c.get("bridge", math.inf) <= CPU_BUDGET_PCT:
+    if c and not c.get("node", math.inf) + c.get("bridge", 0.0) <= CPU_BUDGET_PCT:
         missed.append(f"cpu_budget: steady node {c.get('node', float('nan')):.1f} + bridge {c.get('bridge', float('nan')):.1f} %")
     k = ph["kill"]
+    if one_process:
+        return missed  # --with-node: no kill phase
     if not k.get("kill_zero_ms", math.inf) <= (DEFAULT_TTL_S + FADE_S + KILL_MARGIN_S) * 1e3:
         missed.append(f"kill_zero: {k.get('kill_zero_ms', float('nan')):.1f} ms")
     if not k.get("kill_step_pct", math.inf) <= 100 * KILL_STEP_FRACTION:
@@ -507,6 +509,7 @@ def run(
     driver_shm: bool = False,
     node_args: tuple = (),
     node_shm: bool = False,
+    with_node: bool = False,
 ) -> dict:
     """Start node, bridge and emulator, drive the phases, return the records and the kill time."""
     import psutil
@@ -519,13 +522,18 @@ def run(
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
-        if node_shm:  # the node on rmw's LOCALHOST transports (shared memory), as before it used the UDP profile
+        shm_flag = ["--localhost-shm"] if bridge_shm else []
+        if with_node:  # one process: the bridge with the node linked in memory (skin-sim bridge --with-node)
+            params = ("--ros-args", "--params-file", str(DEFAULT_PARAMS), *node_args)
+            bridge = node = scene.start("bridge", "bridge", "--with-node", *shm_flag, *params)
+        elif node_shm:  # the node on rmw's LOCALHOST transports (shared memory), as before it used the UDP profile
             shm = ("--localhost-shm", "--ros-args", "--params-file", str(DEFAULT_PARAMS))
             node = scene.start("skin_sim_node", "node", *shm, *node_args)
         else:
             node = scene.node(*node_args)
         scene.wait_for_log(node, "live:")
-        bridge = scene.start("bridge", "bridge", *(["--localhost-shm"] if bridge_shm else []))
+        if not with_node:
+            bridge = scene.start("bridge", "bridge", *shm_flag)
         scene.wait_for_log(bridge, "bridge crtk")
         rt_line = next((ln for ln in bridge.log().splitlines() if "device path" in ln or "SCHED_FIFO refused" in ln), "")
         tr_line = next((ln for ln in bridge.log().splitlines() if "transports:" in ln), "")
@@ -541,7 +549,9 @@ def run(
         echo_pct = echo_baseline(scene)
         print(f"  bare rclpy echo (SingleThreadedExecutor, 1 kHz poses in, wrenches out): {echo_pct:.1f} % of a core", flush=True)
         diag = DiagListener()
-        cpus = {"node": ProcCpu(node.popen.pid), "bridge": ProcCpu(bridge.popen.pid)}
+        cpus = {"node": ProcCpu(node.popen.pid)}
+        if not with_node:
+            cpus["bridge"] = ProcCpu(bridge.popen.pid)
         rec_path = log_dir / "emulator.npz"
         emu_log = open(log_dir / "emulator.log", "w")
         emu = subprocess.Popen(
@@ -590,6 +600,8 @@ def run(
                     r.close()
                 readers = []
                 print(f"    node throttled: {'applied' if _throttle() else 'NOT applied'}", flush=True)
+            elif name == "kill" and with_node:
+                print("    (one process: no kill phase; the node is the bridge's process)", flush=True)
             elif name == "kill":
                 wait_until(a + KILL_AFTER_S)
                 kids = psutil.Process(node.popen.pid).children(recursive=True)
@@ -655,6 +667,11 @@ def main(argv=None) -> int:
     ap.add_argument("--driver-shm", action="store_true", help="the emulated driver on rmw's LOCALHOST transports (shared memory)")
     ap.add_argument("--node-shm", action="store_true", help="the node with --localhost-shm (rmw's shared memory under LOCALHOST)")
     ap.add_argument("--node-param", action="append", default=[], help="node parameter NAME:=VALUE (repeatable)")
+    ap.add_argument(
+        "--with-node",
+        action="store_true",
+        help="node and bridge in one process (skin-sim bridge --with-node: the local model handed over in memory)",
+    )
     ap.add_argument("--emulate", type=Path, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.emulate is not None:
@@ -665,7 +682,7 @@ def main(argv=None) -> int:
     node_note = f"node {args.node_param}{' on shared memory' if args.node_shm else ''}"
     print(f"  machine (assumed nothing, found): {_machine()}; busy processes {args.hog}; {node_note}", flush=True)
     node_args = tuple(a for p in args.node_param for a in ("-p", p))
-    res = run(args.phase_s, args.hog, log_dir, args.bridge_shm, args.driver_shm, node_args, args.node_shm)
+    res = run(args.phase_s, args.hog, log_dir, args.bridge_shm, args.driver_shm, node_args, args.node_shm, args.with_node)
     print(f"  analysing (offline ground truth on {int((res['rec']['slots'][:, 2] > 0).sum())} poses) ...", flush=True)
     ph = analyse(res["rec"], res["phase_s"], res["kill_ns"])
     budget_figures(ph, res)
@@ -686,7 +703,7 @@ def main(argv=None) -> int:
             )
     if args.json:
         args.json.write_text(json.dumps(ph, indent=2))
-    missed = missed_aims(ph)
+    missed = missed_aims(ph, one_process=args.with_node)
     for m in missed:
         print(f"AIM MISSED: {m} ({AIMS[m.split(':')[0]]})")
     print("aims met" if not missed else f"{len(missed)} aims missed")

@@ -20,6 +20,7 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -173,6 +174,8 @@ class SkinSimNode(Node):
         self._needle_msg = self._pub_needle.msg_type()
         self._readers_checked_ns = -READERS_CHECK_NS
         self._contact_read = self._model_read = True
+        self.local_model_sink: Callable[[ContactModel], None] | None = None
+        """A composed bridge's hand-off: called with each contact model in the tick (no DDS hop, no copy kept)."""
         self._accepted: tuple[dict, dict, NodeParams, TissueConfig] | None = None  # on_set's validated set, for post_set
         self.add_on_set_parameters_callback(self._on_set_parameters)  # validate (ros2/demos: on_set checks)
         self.add_post_set_parameters_callback(self._post_set_parameters)  # apply the accepted set
@@ -271,7 +274,14 @@ class SkinSimNode(Node):
     def _on_pose(self, data: bytes) -> None:
         if (pose := self._decode("tool_pose", data)) is None:
             return
-        stamp, frame, xyz, quat = pose
+        self.answer_pose(*pose)
+
+    def answer_pose(self, stamp: int, frame: str, xyz, quat) -> None:
+        """Take one tool pose and, in input mode when it is due, answer it at once (a tick, its publishes).
+
+        The pose callback's work; also the in-process entry of a composed bridge (``skin-sim bridge --with-node``),
+        whose local model then arrives through :attr:`local_model_sink`.
+        """
         with self._lock:
             rx = time.perf_counter_ns()
             rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx, quat=quat)
@@ -281,7 +291,10 @@ class SkinSimNode(Node):
     def _on_twist(self, data: bytes) -> None:
         if (twist := self._decode("tool_twist", data)) is None:
             return
-        stamp, frame, lin = twist
+        self.answer_twist(*twist)
+
+    def answer_twist(self, stamp: int, frame: str, lin) -> None:
+        """Take one tool twist (the twist callback's work; a composed bridge's in-process entry)."""
         with self._lock:
             self.session.on_twist(stamp, frame, lin)
 
@@ -321,12 +334,15 @@ class SkinSimNode(Node):
                 self._readers_checked_ns = now_ns
                 self._contact_read = self._pub_contact.get_subscription_count() > 0
                 self._model_read = self._pub_model.get_subscription_count() > 0
-            if self._model_read:  # the bridge renders it
-                self._pub_model.publish(
-                    cv.fill_contact_model_from_tick(
-                        self._model_msg, r, stamp, self._frame, answer_period_s=self._answer_period_s()
-                    )
+            sink = self.local_model_sink
+            if self._model_read or sink is not None:  # the bridge renders it
+                msg = cv.fill_contact_model_from_tick(
+                    self._model_msg, r, stamp, self._frame, answer_period_s=self._answer_period_s()
                 )
+                if self._model_read:
+                    self._pub_model.publish(msg)
+                if sink is not None:
+                    sink(msg)
             if self._contact_read:
                 self._pub_contact.publish(cv.fill_contact_from_tick(self._contact, r, stamp, self._frame))
         if now_ns >= self._next_display_ns and self.params.display_rate_hz > 0:
