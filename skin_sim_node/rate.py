@@ -247,6 +247,7 @@ def device_tick_messages(
     forward_twist: bool = False,
     forward_every_pose: bool = False,
     contact_readers: bool = False,
+    in_process: bool = False,
 ) -> dict[str, float]:
     """rclpy messages per device tick, per process: the device path's message budget (issue 27).
 
@@ -267,6 +268,9 @@ def device_tick_messages(
         The bridge forwards every device pose (before issue 27), not only those the node answers.
     contact_readers : bool
         Someone reads ``tissue/contact`` (published only then).
+    in_process : bool
+        Node and bridge in one process (``skin-sim bridge --with-node``): pose and contact model handed over in
+        memory; the node publishes only ``tool/wrench`` (counted under ``node``).
 
     Returns
     -------
@@ -274,6 +278,10 @@ def device_tick_messages(
         ``bridge``, ``node`` and ``total`` messages per device tick.
     """
     answered = min(node_rate_hz, device_rate_hz) / device_rate_hz
+    if in_process:
+        bridge = 1 + device_twist + measured_force + 1
+        node = answered * (1 + contact_readers)
+        return {"bridge": bridge, "node": node, "total": bridge + node}
     forwarded = 1.0 if forward_every_pose else answered
     bridge = 1 + device_twist + measured_force + 1 + forwarded * (1 + forward_twist) + answered
     node = forwarded * (1 + forward_twist) + answered * (2 + contact_readers)

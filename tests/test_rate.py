@@ -111,3 +111,9 @@ def test_message_budget_per_device_tick():
     assert device_tick_messages(250.0) == {"bridge": 4.5, "node": 0.75, "total": 5.25}
     assert device_tick_messages(125.0, device_twist=False, measured_force=False)["total"] == pytest.approx(2.0 + 5 * 0.125)
     assert RATE_LADDER_HZ[0] == 1000.0 and all(a == 2 * b for a, b in zip(RATE_LADDER_HZ, RATE_LADDER_HZ[1:]))
+
+
+def test_message_budget_of_node_and_bridge_in_one_process():
+    one = device_tick_messages(1000.0, in_process=True)
+    assert one == {"bridge": 4.0, "node": 1.0, "total": 5.0}  # the pose and model hop (4 per answer) are gone
+    assert device_tick_messages(1000.0)["total"] - one["total"] == 4.0

@@ -406,7 +406,7 @@ def budget_figures(ph: dict, res: dict) -> None:
         changes = int(ne.get("rate_changes_total", 0)) - int(ns.get("rate_changes_total", 0)) if ne else 0
         p["rate_changes"] = changes if changes >= 0 else int(ne.get("rate_changes_total", 0))  # a live set restarts it
         rate = min(p["node_answers_per_s"], 1000.0)
-        p["messages_per_tick"] = device_tick_messages(rate) if rate > 0 else device_tick_messages(0.0)
+        p["messages_per_tick"] = device_tick_messages(max(rate, 0.0), in_process=res.get("with_node", False))
     ph["steady"]["echo_pct"] = res["echo_pct"]
 
 
@@ -623,7 +623,15 @@ def run(
     rec = dict(np.load(rec_path))
     n_marks = len(cpus["node"].marks)
     cpu = {ph: {k: c.pct(2 * i, 2 * i + 1) for k, c in cpus.items()} for i, ph in enumerate(PHASES) if n_marks > 2 * i + 1}
-    return {"rec": rec, "kill_ns": kill_ns, "phase_s": phase_s, "cpu": cpu, "echo_pct": echo_pct, "diag": snaps}
+    return {
+        "rec": rec,
+        "kill_ns": kill_ns,
+        "phase_s": phase_s,
+        "cpu": cpu,
+        "echo_pct": echo_pct,
+        "diag": snaps,
+        "with_node": with_node,
+    }
 
 
 def _throttle() -> bool:
