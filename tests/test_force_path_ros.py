@@ -175,3 +175,13 @@ def test_bridge_with_a_device_but_no_node_says_so(scene):
     log = bridge.log()
     assert log.count("no contact model from skin_sim_node") == 1
     assert not [ln for ln in log.splitlines() if "no device pose for" in ln and "WARN" in ln], log[-1500:]
+
+
+def test_bridge_alone_says_it_sees_no_device_and_no_node(scene):
+    """A bridge with neither a driver nor a node names the missing device once, within a few seconds."""
+    bridge = scene.start("bridge", "bridge")
+    scene.wait_for_log(bridge, "bridge crtk:", timeout_s=60)
+    scene.wait_for_log(bridge, "no device pose on /device/measured_cp in 3 s (no node either)", timeout_s=60)
+    bridge.popen.send_signal(signal.SIGINT)
+    assert bridge.popen.wait(timeout=30) == 0
+    assert bridge.log().count("no device pose on") == 1

@@ -556,6 +556,8 @@ class BridgeNode(DeviceNode):
         self._first_model = False
         self._no_node_since: int | None = None  # monotonic ns of the first device pose while no model came
         self._no_node_hinted = False
+        self._no_device_hinted = False
+        self._started_ns = time.monotonic_ns()
         self.max_model_age_ms = 0.0
         self._rejected_logged: set[str] = set()
         self._watchdog_period_ns = int(1e9 / p.watchdog_rate_hz)
@@ -831,6 +833,15 @@ class BridgeNode(DeviceNode):
                 else:
                     self.get_logger().info(text)
         self.stale = stale
+        if not self._no_device_hinted and not self.counts["poses"] and now - self._started_ns > NO_NODE_HINT_NS:
+            self._no_device_hinted = True
+            pose_topic = self._servo_subs[-1][0].topic_name
+            node = "skin_sim_node answers" if self._first_model else "no node either"
+            self.get_logger().warning(
+                f"no device pose on {pose_topic} in {NO_NODE_HINT_NS * 1e-9:.0f} s ({node}): is the driver "
+                "(sawSensablePhantom, a Touch driver, or `skin-sim device`) running with the same ROS_DOMAIN_ID, and "
+                "are --convention and --device-ns its? The bridge commands nothing until a pose arrives"
+            )
         if self._no_node_since is None and self.counts["poses"] and not self._first_model:
             self._no_node_since = now
         if self._first_model:
