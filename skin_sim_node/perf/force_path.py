@@ -60,10 +60,9 @@ SCENES = (
 
 
 def tangent_model(model: SkinModel, seq: int, stamp_ns: int, x, v) -> LocalModel:
-    """The server's answer to a pose, as the node publishes it (the layered form's friction law included)."""
+    """The server's answer to a pose, as the node publishes it (the layered form's presliding friction included)."""
     t = model.tangent()
-    cfg = model.cfg
-    mu, vs = (cfg.friction_coefficient, cfg.slip_speed_m_s) if cfg.form == "layered" else (0.0, 0.0)
+    law = t.tangential_stiffness_n_per_m > 0.0 and t.friction_anchor_m is not None
     return LocalModel(
         seq,
         stamp_ns,
@@ -78,8 +77,10 @@ def tangent_model(model: SkinModel, seq: int, stamp_ns: int, x, v) -> LocalModel
         DEFAULT_TTL_S,
         normal_force_n=t.normal_force_n,
         normal_force_gradient_n_per_m=t.normal_force_gradient_n_per_m,
-        friction_coefficient=mu,
-        slip_speed_m_s=vs if mu > 0 else 0.0,
+        friction_coefficient=t.friction_coefficient if law else 0.0,
+        tangential_stiffness_n_per_m=t.tangential_stiffness_n_per_m if law else 0.0,
+        friction_anchor_m=t.friction_anchor_m if law else np.zeros(3),
+        slip_force_n=t.friction_coefficient * t.normal_force_n if law else 0.0,
     )
 
 
@@ -112,6 +113,9 @@ def _plain_contact_model_msg():
         normal_force_gradient_n_per_m=np.zeros(3),
         friction_coefficient=0.0,
         slip_speed_m_s=0.0,
+        tangential_stiffness_n_per_m=0.0,
+        friction_anchor_m=np.zeros(3),
+        slip_force_n=0.0,
     )
 
 
