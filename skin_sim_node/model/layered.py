@@ -777,7 +777,12 @@ def layered_step_kernel(
     else:
         out[OUT_T] = 0.0
         out[OUT_SLIP_M] = 0.0
-        if out[OUT_HOLD] == 0.0:  # lifted off: the skin lets go of the tool (a release keeps the anchor: OUT_HOLD)
+        # lifted off: the skin lets go of the tool; a release this tick (OUT_HOLD 2: a stall's lifted tick, a teleport)
+        # keeps the anchor for the next contact, a tick out of contact without one (a true lift-off) clears it
+        if out[OUT_HOLD] >= 2.0:
+            out[OUT_HOLD] = 1.0
+        else:
+            out[OUT_HOLD] = 0.0
             out[OUT_ANCHORED] = 0.0
         a = 0.0
         recover_layers(dt, restart, lp, sp, bmodes, bvec, blev, mstate, lstate, istate, ea_eff, off)

@@ -106,8 +106,9 @@ OUT_T               N       layered form: chain force per unit load scale, the N
 OUT_ZX .. OUT_ZZ    m       layered form: the friction's anchor (adhesion point, :mod:`.friction`), tissue frame
 OUT_ANCHORED        -       1.0: the anchor holds (in contact, or kept through a release); 0.0: none
 OUT_SLIP_M          m       how far the anchor slipped at the last tick (0 while the skin sticks)
-OUT_HOLD            -       1.0 after :meth:`SkinModel.release` (a stall or a teleport): the next contact keeps the
-                            anchor if it lands within the contact radius of it; a contact or a true lift-off clears it
+OUT_HOLD            -       2.0 after :meth:`SkinModel.release` (a stall's tick or a teleport), 1.0 after a tick out
+                            of contact that followed one: the next contact keeps the anchor if it lands within the
+                            contact radius of it; a tick out of contact without a release (a true lift-off) clears it
 ==================  ======  ===================================================================
 
 The anchor slots are tissue state, not a tick's result: the idle path of ``SkinModel.step`` leaves them.

@@ -231,7 +231,7 @@ class SkinModel:
             self._released |= self.driven.astype(bool)
         self.driven[:] = 0
         self._out[OUT_T] = 0.0
-        self._out[OUT_HOLD] = 1.0  # the tool did not leave: the friction's anchor waits for it (layered form)
+        self._out[OUT_HOLD] = 2.0  # the tool did not leave: the friction's anchor waits for it (layered form)
 
     def step(self, tool_xyz, tool_velocity, dt: float, restart: bool = False, axis=None) -> float:
         """Advance one tick with the tool at ``tool_xyz`` (m) moving at ``tool_velocity`` (m/s).
