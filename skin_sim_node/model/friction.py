@@ -91,8 +91,9 @@ def presliding_tangent(normal, stretch, k_t, mu, force_n, grad, out_k):
     """``K = dF/dx`` of ``F = F_n n + F_t`` (N/m) at a stretch ``s``, written to ``out_k`` (3 x 3).
 
     Sticking (``k_t |s| < mu F_n``): ``F_t = -k_t s``, ``dF_t/dx = -k_t P``. Slipping (at the slip level, the tool
-    moving on): ``F_t = -mu F_n s / |s|``, ``dF_t/dx = -mu (s / |s|) grad(F_n)^T - k_t (P - s s^T / |s|^2)`` (no
-    stiffness along the slip; ``mu F_n / |s| = k_t`` there). The law has no ``D``: no velocity enters.
+    moving on): ``F_t = -mu F_n s / |s|``, ``dF_t/dx = -mu (s / |s|) grad(F_n)^T - (mu F_n / |s|) (P - s s^T / |s|^2)``
+    (no stiffness along the slip; ``mu F_n / |s| = k_t`` at the slip distance). The law has no ``D``: no velocity
+    enters.
 
     Parameters
     ----------
@@ -117,7 +118,7 @@ def presliding_tangent(normal, stretch, k_t, mu, force_n, grad, out_k):
                 if slipping:
                     u_i = stretch[i] / s
                     u_j = stretch[j] / s
-                    kij += -mu * u_i * grad[j] - k_t * (p_ij - u_i * u_j)
+                    kij += -mu * u_i * grad[j] - (mu * force_n / s) * (p_ij - u_i * u_j)
                 else:
                     kij -= k_t * p_ij
             out_k[i, j] = kij
