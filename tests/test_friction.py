@@ -299,3 +299,24 @@ def test_zero_tangential_stiffness_means_no_friction(default_cfg):
         m.step(_press_path(k), (0, 0, 0), 1e-3)
     f = m.force_vector_n
     assert abs(f[0]) < 1e-15  # k_t 0: no friction
+
+
+def test_live_view_header_carries_the_friction_anchor(default_cfg):
+    """The view draws the anchor (issue 30) from tool/contact_model: the live source's header carries it in contact
+    with the presliding law, and not without one."""
+    from skin_sim_node.view.live import LiveSource
+
+    s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0))
+    msg = _plain_contact_model_msg()
+    src = LiveSource.__new__(LiveSource)  # no rclpy: only the header
+    src.pose = src.wrench = src.contact = None
+    src.form, src.frames = "layered", 0
+    assert "anchor" not in src.header()
+    for k in range(700):
+        stamp = T0 + k * MS
+        s.on_pose(stamp, "tissue", _press_path(k))
+        r = s.tick(stamp, MS)
+    src.contact_model = fill_contact_model_from_tick(msg, r, stamp, "tissue")
+    np.testing.assert_array_equal(src.header()["anchor"], r.tangent.friction_anchor_m)
+    src.contact_model = fill_contact_model_from_tick(msg, s.tick(stamp + 200 * MS, MS), stamp, "tissue")  # stale
+    assert "anchor" not in src.header()
