@@ -320,3 +320,14 @@ def test_live_view_header_carries_the_friction_anchor(default_cfg):
     np.testing.assert_array_equal(src.header()["anchor"], r.tangent.friction_anchor_m)
     src.contact_model = fill_contact_model_from_tick(msg, s.tick(stamp + 200 * MS, MS), stamp, "tissue")  # stale
     assert "anchor" not in src.header()
+
+
+def test_closed_loop_press_kicked_sideways_settles_with_presliding():
+    """The demo's press with the stylus in the loop, kicked sideways at 5 mm/s during the hold: the presliding law
+    rings elastically (k_t times the stylus' excursion) and settles; issue 19's velocity law swings +-mu F_n."""
+    from skin_sim_node.perf.force_path import print_closed_loop_press
+
+    out = print_closed_loop_press()
+    fmin, fmax, fx_max, fx_late, _, guard = out["presliding law"]
+    assert fx_max < 0.02 and fx_late < 1e-3 and guard == 0 and fmax - fmin < 0.05
+    assert out["velocity law"][2] > 0.1 and out["velocity law"][2] > 10 * fx_max

@@ -239,12 +239,16 @@ def device_drag(
     return out
 
 
-def closed_loop_drag(renderer_kw: dict | None = None, every: int = 4, legacy: bool = False) -> tuple[np.ndarray, ContactRenderer]:
+def closed_loop_drag(
+    renderer_kw: dict | None = None, every: int = 4, legacy: bool = False, path: str = "drag", kick_m_s: float = 0.0
+) -> tuple[np.ndarray, ContactRenderer]:
     """The force path with a stylus in the loop, offline: :class:`SimulatedDevice` on the ``drag`` path (a 45 g stylus
     on a 300 N/m hand), a :class:`HapticSession` answering every ``every``-th tick through the contact model message,
     the bridge's renderer (Touch caps, passivity controller), the command applied the tick after. ``legacy``: each
-    model carries issue 19's velocity law instead (:func:`legacy_model`). Returns the commanded forces (n, 3) and the
-    renderer (its passivity observer's energy, its chatter guard's count)."""
+    model carries issue 19's velocity law instead (:func:`legacy_model`); ``path``: another hand path (the demo's
+    ``press_hold_release``); ``kick_m_s``: a sideways velocity (device x) given to the stylus at 1.0 s, the lateral
+    disturbance of a live run (a hand is never exactly still). Returns the commanded forces (n, 3) and the renderer
+    (its passivity observer's energy, its chatter guard's count)."""
     from msgs_schema.contact_model import fill_contact_model_from_tick, read_contact_model
 
     from ..bags.offline import load_params
@@ -252,7 +256,7 @@ def closed_loop_drag(renderer_kw: dict | None = None, every: int = 4, legacy: bo
     from ..session import HapticSession
 
     sp, cfg = load_params()
-    dev = SimulatedDevice("drag")
+    dev = SimulatedDevice(path)
     s = HapticSession(SkinModel(cfg), sp)
     r = ContactRenderer(**{**bridge_renderer_kw(dev.params.mass_kg), **(renderer_kw or {})})
     msg = _plain_contact_model_msg()
@@ -271,6 +275,8 @@ def closed_loop_drag(renderer_kw: dict | None = None, every: int = 4, legacy: bo
             m = read_contact_model(fill_contact_model_from_tick(msg, res, stamp, sp.tissue_frame))
             r.set_model(legacy_model(m) if legacy else m, stamp * 1e-9)
         f[k] = r.render(stamp * 1e-9, p, v)
+        if kick_m_s and k == int(DEVICE_HZ):
+            dev.vel = (dev.vel[0] + kick_m_s, dev.vel[1], dev.vel[2])
         dev.step(dev.mapping.force_to_device(tuple(f[k])), 1.0 / DEVICE_HZ)
     return f, r
 
@@ -320,6 +326,35 @@ def print_closed_loop() -> None:
             f"guard engaged {r.counts_chatter} times",
             flush=True,
         )
+
+
+PRESS_KICK_M_S = 5e-3
+"""The sideways kick of :func:`print_closed_loop_press` (m/s, device x, at 1.0 s of the demo's press)."""
+
+
+def print_closed_loop_press() -> dict:
+    """The demo's press (``press_hold_release``: 2.5 mm, held 0.5-1.5 s) closed loop, the stylus kicked sideways at
+    :data:`PRESS_KICK_M_S` at 1.0 s: the force over the hold 1.0-1.45 s with the presliding law against issue 19's
+    velocity law in the same run. Returns ``{law: (|F| min, |F| max, |F_x| max, |F_x| max after 0.2 s, flips,
+    guard engagements)}``."""
+    print(
+        f"  closed loop, the demo's press (2.5 mm, held; 45 g stylus on a 300 N/m hand; server 250 Hz), kicked "
+        f"sideways at {PRESS_KICK_M_S * 1e3:g} mm/s at 1.0 s: the hold 1.0-1.45 s"
+    )
+    out = {}
+    for label, legacy in (("presliding law", False), ("velocity law", True)):
+        f, r = closed_loop_drag(legacy=legacy, path="press_hold_release", kick_m_s=PRESS_KICK_M_S)
+        hold, late = f[1000:1450], f[1200:1450, 0]
+        mag = np.linalg.norm(hold, axis=1)
+        flips = int(np.sum(np.sign(hold[1:, 0]) * np.sign(hold[:-1, 0]) < 0))
+        out[label] = (mag.min(), mag.max(), np.abs(hold[:, 0]).max(), np.abs(late).max(), flips, r.counts_chatter)
+        print(
+            f"  {label:15s} |F| {mag.min():.3f}-{mag.max():.3f} N, |F_x| max {np.abs(hold[:, 0]).max() * 1e3:6.1f} mN, "
+            f"after 0.2 s {np.abs(late).max() * 1e3:5.2f} mN, F_x sign flips {flips:3d}, chatter guard engaged "
+            f"{r.counts_chatter} times",
+            flush=True,
+        )
+    return out
 
 
 def print_device_drag(rates=DRAG_RATES_HZ, latency_ticks: int = 1) -> dict:
@@ -492,6 +527,7 @@ def main(argv=None) -> int:
         print("skin-sim force-path --device-drag: the bridge's render error on the bench-device drag, offline ...", flush=True)
         print_device_drag(latency_ticks=max(int(round(args.latency_ms)), 0))
         print_closed_loop()
+        print_closed_loop_press()
         return 0
     if args.docs and args.chart is not None:
         ap.error("--docs writes the tracked chart; give --docs or --chart, not both")
