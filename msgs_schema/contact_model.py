@@ -2,13 +2,16 @@
 
 The node publishes ``skin_sim_msgs/msg/ContactModel`` on ``tool/contact_model`` (QoS class
 ``haptic``: best-effort, keep-last 1; a lost model is covered by the previous one until its
-time-to-live runs out). The bridge renders it from the device's own pose and velocity every servo tick
-(:mod:`skin_sim_node.device.render`): with a friction law (``friction_coefficient > 0``, issue 19)::
+time-to-live runs out). The bridge renders it from the device's own pose every servo tick
+(:mod:`skin_sim_node.device.render`): with the presliding friction (``tangential_stiffness_n_per_m > 0``, issue 30)::
 
-    F(x, v) = F_n(x) (n - mu v_t / sqrt(|v_t|^2 + v_s^2)) + (f0 - F_law(x0, v0)),
-    F_n(x) = F_n0 + grad(F_n) . (x - x0),   v_t = (I - n n^T) v,
+    F(x) = F_n(x) n - k_t s(x) + (f0 - F(x0)),   F_n(x) = F_n0 + grad(F_n) . (x - x0),
+    s = (I - n n^T) (x - z),  z <- z + (|s| - r) s / |s|  when |s| > r = mu F_n(x) / k_t,
 
-else ``F(x, v) = f0 + K (x - x0) + D (v - v0)``. With a needle law (:class:`NeedleLaw`, issue 22) the axial part
+the anchor ``z`` starting from ``friction_anchor_m`` and following the device's own positions (no velocity); with
+the legacy velocity law (``slip_speed_m_s > 0``, issue 19; skin_sim_node no longer sends it, the figures' baseline
+does) ``F(x, v) = F_n(x) (n - mu v_t / sqrt(|v_t|^2 + v_s^2)) + (f0 - F_law(x0, v0))``; else
+``F(x, v) = f0 + K (x - x0) + D (v - v0)``. With a needle law (:class:`NeedleLaw`, issue 22) the axial part
 follows the needle's piecewise law with its rupture ahead and its Dahl friction (``ContactModel.msg`` spells it out)
 and the rest ``f0 + (I - u u^T) K (x - x0)``. ``K`` and ``D`` are always the law's linearisation at ``x0``,
 ``v0``, for consumers that render only them. The message
@@ -111,8 +114,10 @@ class LocalModel:
 
     ``stiffness_n_per_m`` and ``damping_n_s_per_m`` are (3, 3) with the force on the tool as
     output: ``normal . K . normal <= 0`` for a tissue that pushes back harder the deeper it is pressed.
-    ``normal_force_n``, ``normal_force_gradient_n_per_m`` (3,), ``friction_coefficient`` and ``slip_speed_m_s``
-    carry the friction law (module docstring); all zero (the defaults): no law, the linear form.
+    ``normal_force_n``, ``normal_force_gradient_n_per_m`` (3,), ``friction_coefficient``,
+    ``tangential_stiffness_n_per_m``, ``friction_anchor_m`` (3,) and ``slip_force_n`` carry the presliding friction
+    (module docstring; ``slip_force_n = mu F_n0``, the slip level at ``x0``); ``slip_speed_m_s`` the legacy velocity
+    law; all zero (the defaults): no law, the linear form.
     """
 
     sequence: int
@@ -131,10 +136,14 @@ class LocalModel:
     friction_coefficient: float = 0.0
     slip_speed_m_s: float = 0.0
     needle: NeedleLaw | None = None
+    tangential_stiffness_n_per_m: float = 0.0
+    friction_anchor_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    slip_force_n: float = 0.0
     answer_period_s: float = 0.0
 
     def __post_init__(self):
         for name, shape in (
+            ("friction_anchor_m", (3,)),
             ("normal_force_gradient_n_per_m", (3,)),
             ("x0_m", (3,)),
             ("v0_m_s", (3,)),
@@ -149,10 +158,13 @@ class LocalModel:
     def finite(self) -> bool:
         """True if every number is finite and the radius and time-to-live are >= 0."""
         arrays = (self.x0_m, self.v0_m_s, self.f0_n, self.stiffness_n_per_m, self.damping_n_s_per_m, self.normal)
-        law = (self.normal_force_n, self.friction_coefficient, self.slip_speed_m_s)
+        law = (self.normal_force_n, self.friction_coefficient, self.slip_speed_m_s, self.tangential_stiffness_n_per_m)
         return (
             all(bool(np.isfinite(a).all()) for a in arrays)
             and bool(np.isfinite(self.normal_force_gradient_n_per_m).all())
+            and bool(np.isfinite(self.friction_anchor_m).all())
+            and math.isfinite(self.slip_force_n)
+            and self.tangential_stiffness_n_per_m >= 0
             and all(math.isfinite(c) for c in law)
             and self.friction_coefficient >= 0
             and self.slip_speed_m_s >= 0
@@ -181,6 +193,9 @@ def fill_contact_model(msg, m: LocalModel):
     msg.normal_force_gradient_n_per_m[:] = m.normal_force_gradient_n_per_m
     msg.friction_coefficient = float(m.friction_coefficient)
     msg.slip_speed_m_s = float(m.slip_speed_m_s)
+    msg.tangential_stiffness_n_per_m = float(m.tangential_stiffness_n_per_m)
+    msg.friction_anchor_m[:] = m.friction_anchor_m
+    msg.slip_force_n = float(m.slip_force_n)
     fill_needle_law(msg, m.needle)
     msg.answer_period_s = float(m.answer_period_s)
     return msg
@@ -220,6 +235,9 @@ def read_contact_model(msg) -> LocalModel:
         friction_coefficient=float(msg.friction_coefficient),
         slip_speed_m_s=float(msg.slip_speed_m_s),
         needle=read_needle_law(msg),
+        tangential_stiffness_n_per_m=float(msg.tangential_stiffness_n_per_m),
+        friction_anchor_m=np.array(msg.friction_anchor_m, dtype=float),
+        slip_force_n=float(msg.slip_force_n),
         answer_period_s=float(msg.answer_period_s),
     )
 
@@ -237,8 +255,9 @@ def fill_contact_model_from_tick(
 
     ``f0`` is the published force (after the session's clamp, rate bound and watchdog); ``K``, ``D`` and the
     normal are the model's tangent (:class:`skin_sim_node.model.contact.ContactTangent`), scaled as the force was;
-    the friction law's ``F_n0 = n . f0`` and ``grad F_n = K^T n`` come from the same published tangent, so the law
-    gives ``f0`` at ``x0``, ``v0`` and its linearisation there is ``K``, ``D``. A stale tick (no
+    the friction's ``F_n0 = n . f0`` and ``grad F_n = K^T n`` come from the same published tangent, with its anchor,
+    stiffness (scaled) and slip level ``mu F_n0``, so the law gives ``f0`` at ``x0`` and its linearisation there is
+    ``K``. A stale tick (no
     valid tool input; the session reports the tool lifted 1 m away) sends a zero model valid anywhere
     (:data:`STALE_RADIUS_M`): the node says "no force" and the bridge renders that, fresh, rather than fading.
     """
@@ -256,6 +275,9 @@ def fill_contact_model_from_tick(
         msg.normal_force_gradient_n_per_m[:] = 0.0
         msg.friction_coefficient = 0.0
         msg.slip_speed_m_s = 0.0
+        msg.tangential_stiffness_n_per_m = 0.0
+        msg.friction_anchor_m[:] = 0.0
+        msg.slip_force_n = 0.0
     else:
         k = np.asarray(tg.stiffness_n_per_m)
         n = np.asarray(tg.normal, dtype=float)
@@ -264,8 +286,14 @@ def fill_contact_model_from_tick(
         msg.normal_force_n = float(n @ np.asarray(result.force_n, dtype=float))
         msg.normal_force_gradient_n_per_m[:] = k.T @ n
         mu = float(getattr(tg, "friction_coefficient", 0.0))
-        msg.friction_coefficient = mu
-        msg.slip_speed_m_s = float(getattr(tg, "slip_speed_m_s", 0.0)) if mu > 0.0 else 0.0
+        k_t = float(getattr(tg, "tangential_stiffness_n_per_m", 0.0))
+        anchor = getattr(tg, "friction_anchor_m", None)
+        law = mu > 0.0 and k_t > 0.0 and anchor is not None
+        msg.friction_coefficient = mu if law else 0.0
+        msg.slip_speed_m_s = 0.0  # the velocity law is gone from the node (issue 30)
+        msg.tangential_stiffness_n_per_m = k_t if law else 0.0
+        msg.friction_anchor_m[:] = anchor if law else 0.0
+        msg.slip_force_n = mu * msg.normal_force_n if law else 0.0
     fill_needle_law(msg, None if result.stale else getattr(tg, "needle", None))
     msg.normal[:] = tg.normal
     msg.validity_radius_m = float(STALE_RADIUS_M if result.stale else radius_m)
@@ -363,5 +391,8 @@ class ContactModelCdr:
             friction_coefficient=float(f["friction_coefficient"]),
             slip_speed_m_s=float(f["slip_speed_m_s"]),
             needle=needle,
+            tangential_stiffness_n_per_m=float(f["tangential_stiffness_n_per_m"]),
+            friction_anchor_m=f["friction_anchor_m"],
+            slip_force_n=float(f["slip_force_n"]),
             answer_period_s=float(f.get("answer_period_s", 0.0)),
         )

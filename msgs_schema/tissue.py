@@ -136,11 +136,22 @@ steep, finite, C1 wall, never a clamp (stated choice)."""
 FRICTION_COEFFICIENT = 0.5
 """Dry skin: friction coefficients above 0.2 and typically around 0.5, pressure-independent (Derler and Gerhardt
 2012, Tribol Lett 45:1, review of the published measurements); moist skin is higher (> 1)."""
-SLIP_SPEED_M_S = 1e-3
-"""Viscous regularisation speed of the friction: below 1 mm/s the friction is viscous (smooth through zero
-velocity, no chatter); haptic strokes (10-100 mm/s) see full Coulomb friction. Stated choice."""
-
-
+PUNCH_SMALL_STRAIN_STIFFNESS_N_PER_M = 326.3
+"""Small-strain normal stiffness of the default 2.5 mm flat punch on the default skin (N/m): the compressible
+neo-Hookean reference the layered law is fitted to (:data:`STIFFENING_EXPONENT`; docs/validation.md)."""
+TANGENTIAL_STIFFNESS_N_PER_M = round(
+    2.0 * (1.0 - POISSON_RATIO) / (2.0 - POISSON_RATIO) * PUNCH_SMALL_STRAIN_STIFFNESS_N_PER_M, 1
+)
+"""Tangential (presliding) stiffness of the skin under the tool (N/m), 223.3: contact mechanics on the model's own
+calibrated half-space. A rigid circular contact of radius ``a`` that sticks moves ``Q (2 - nu) / (8 G a)`` under a
+tangential force ``Q`` (Mindlin 1949, J Appl Mech 16:259; Johnson 1985, Contact Mechanics, sec. 7.1), and
+``P (1 - nu^2) / (2 E a)`` under a normal one (Sneddon 1965), so ``k_t / k_n = 2 (1 - nu) / (2 - nu)`` (0.684 at
+``nu = 0.48``) times the punch's normal stiffness :data:`PUNCH_SMALL_STRAIN_STIFFNESS_N_PER_M`. A constant (the
+sphere takes it too, a stated choice): a stiffness that changed with depth while the skin is stretched would store
+energy without work (docs/model.md, "Friction"). The presliding distance it gives, ``mu F_n / k_t`` (1.8 mm at the
+1.5 mm press), lies in the contact-mechanics band ``[1, 1.5] mu F_n / k_t`` (rigid stick to Cattaneo-Mindlin partial
+slip, Johnson 1985 sec. 7.2); in vivo the stick-to-slip transition of skin is gradual, slip spreading from the edge of
+the contact inward (Delhaye et al. 2014, J R Soc Interface 11:20140698): a stated engineering choice, not a fit."""
 PRONY_DEFAULTS = {"g1": 0.75, "tau1_s": 0.007, "g2": 0.75, "tau2_s": 0.28}
 """The layered form's default reduced relaxation ``G(t) = 1 + g1 exp(-t/tau1) + g2 exp(-t/tau2)`` (relative to the
 equilibrium law), the same for every layer (surface data cannot separate the layers). ``G(0)/G(inf) = 2.5``: the
@@ -344,10 +355,14 @@ def _general_specs() -> list[ParamSpec]:
             min_exclusive=False,
         ),
         _f(
-            "contact.slip_speed_m_s",
-            SLIP_SPEED_M_S,
-            "m/s",
-            "viscous regularisation speed of the friction: tangential force mu F v/sqrt(v^2 + v_s^2)",
+            "contact.tangential_stiffness_n_per_m",
+            TANGENTIAL_STIFFNESS_N_PER_M,
+            "N/m",
+            "presliding friction: the skin under the tool stretches with it at this stiffness until the force reaches "
+            "mu F_n, then slips (Hayward-Armstrong adhesion point; layered form, flat and sphere). Default 2(1-nu)/(2-nu) "
+            "x the punch's 326.3 N/m normal stiffness (Mindlin, Johnson 1985 sec. 7.1); 0: no friction",
+            max=1e5,
+            min_exclusive=False,
         ),
     ]
 

@@ -30,6 +30,10 @@ COMMANDS = {
         "skin_sim_node.perf.force_path",
         "offline: device force error vs server rate, model vs hold-last (~10 s on 2 cores)",
     ),
+    "friction": (
+        "skin_sim_node.perf.friction_path",
+        "offline: presliding friction figures: tremor vs today's law, drag at 1/10/30 mm/s, reversal loop (~20 s)",
+    ),
     "needle-device": (
         "skin_sim_node.perf.needle_device",
         "offline: needle insertion rendered at 1 kHz from a 250 Hz server vs truth and hold-last (~10 s)",

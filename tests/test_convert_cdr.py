@@ -92,9 +92,11 @@ def test_contact_model_cdr_reads_what_rclpy_serializes(frame):
         msg.friction_state = 0.5
         msg.needle_axis[:] = (0.0, 0.6, -0.8) if needle else (0.0, 0.0, 0.0)
         got, want = codec.read(serialize_message(msg)), read_contact_model(msg)
-        for f in ("sequence", "stamp_ns", "frame_id", "validity_radius_m", "time_to_live_s", "answer_period_s", "needle"):
+        scalars = ("sequence", "stamp_ns", "frame_id", "validity_radius_m", "time_to_live_s", "answer_period_s", "needle")
+        for f in (*scalars, "tangential_stiffness_n_per_m", "slip_force_n"):
             assert getattr(got, f) == getattr(want, f), f
-        for f in ("x0_m", "v0_m_s", "f0_n", "stiffness_n_per_m", "damping_n_s_per_m", "normal", "normal_force_gradient_n_per_m"):
+        arrays = ("x0_m", "v0_m_s", "f0_n", "stiffness_n_per_m", "damping_n_s_per_m", "normal", "normal_force_gradient_n_per_m")
+        for f in (*arrays, "friction_anchor_m"):
             assert np.array_equal(getattr(got, f), getattr(want, f)), f
     with pytest.raises(ValueError, match="truncated ContactModel"):
         codec.read(serialize_message(msg)[:60])

@@ -1,5 +1,7 @@
-"""The friction law in the local contact model (issue 19): the node sends the layered form's law
-``F = F_n(x) (n - mu v_t / sqrt(|v_t|^2 + v_s^2))`` and the bridge's renderer evaluates it at the device's velocity.
+"""The legacy velocity law in the local contact model (issue 19): ``F = F_n(x) (n - mu v_t / sqrt(|v_t|^2 + v_s^2))``,
+which the bridge's renderer evaluates at the device's velocity. Since issue 30 the node sends the presliding law
+(tests/test_friction.py); the velocity law stays as the figures' baseline, built from the node's models by
+:func:`skin_sim_node.perf.force_path.legacy_model`.
 
 Pure and deterministic (no ROS graph, no wall clock): the message fields agree with the published force and its
 linearisation, the renderer's safety limits act on the law, the friction is passive (the bridge's energy observer),
@@ -19,7 +21,15 @@ from skin_sim_node.device.mapping import TOUCH_MAX_STIFFNESS_N_PER_M, TOUCH_PEAK
 from skin_sim_node.device.render import ContactRenderer, friction_law_force, stable_damping_n_s_per_m
 from skin_sim_node.device.stylus import DeviceParams
 from skin_sim_node.model import SkinModel
-from skin_sim_node.perf.force_path import CLOSED_LOOP_DRAG_S, _plain_contact_model_msg, closed_loop_drag, device_drag, stick_flips
+from skin_sim_node.perf.force_path import (
+    CLOSED_LOOP_DRAG_S,
+    LEGACY_SLIP_SPEED_M_S,
+    _plain_contact_model_msg,
+    closed_loop_drag,
+    device_drag,
+    legacy_model,
+    stick_flips,
+)
 from skin_sim_node.session import HapticSession, SessionParams
 
 MS = 1_000_000
@@ -27,7 +37,8 @@ T0 = 1_700_000_000 * 1_000_000_000
 
 
 def drag_results(cfg, speed=0.02, depth=1.5e-3, n=900):
-    """A session pressed to ``depth`` then dragged along +x at ``speed``; yields (TickResult, model message)."""
+    """A session pressed to ``depth`` then dragged along +x at ``speed``; yields (TickResult, the model message with the
+    velocity law in place of the presliding one: :func:`legacy_model`)."""
     s = HapticSession(SkinModel(cfg), SessionParams(max_stamp_age_s=0.0))
     msg = _plain_contact_model_msg()
     for i in range(n):
@@ -40,7 +51,7 @@ def drag_results(cfg, speed=0.02, depth=1.5e-3, n=900):
         s.on_twist(stamp, "tissue", v)
         s.on_pose(stamp, "tissue", pos)
         r = s.tick(stamp, MS)
-        yield r, read_contact_model(fill_contact_model_from_tick(msg, r, stamp, "tissue"))
+        yield r, legacy_model(read_contact_model(fill_contact_model_from_tick(msg, r, stamp, "tissue")))
 
 
 def test_message_carries_the_law_that_gives_f0_and_linearises_to_k_and_d(default_cfg):
@@ -49,7 +60,7 @@ def test_message_carries_the_law_that_gives_f0_and_linearises_to_k_and_d(default
         if not r.tangent.in_contact or m.normal_force_n <= 0:
             continue
         assert m.friction_coefficient == default_cfg.friction_coefficient
-        assert m.slip_speed_m_s == default_cfg.slip_speed_m_s
+        assert m.slip_speed_m_s == LEGACY_SLIP_SPEED_M_S
         n = m.normal
         np.testing.assert_allclose(m.normal_force_n, n @ m.f0_n, rtol=1e-12)
 
@@ -57,7 +68,7 @@ def test_message_carries_the_law_that_gives_f0_and_linearises_to_k_and_d(default
             fn = m.normal_force_n + m.normal_force_gradient_n_per_m @ (x - m.x0_m)
             return friction_law_force(n, fn, m.friction_coefficient, m.slip_speed_m_s, v)
 
-        # the law at x0, v0 is the published force (the wrench), to rounding
+        # the law at x0, v0 is the model's f0, to rounding
         np.testing.assert_allclose(law(m.x0_m, m.v0_m_s), m.f0_n, atol=1e-12 * (1 + np.linalg.norm(m.f0_n)))
         # its central-difference Jacobians are the message's K and D (one consistent linearisation)
         hx, hv = 1e-9, 1e-7
@@ -158,10 +169,12 @@ def test_safety_limits_act_on_the_law():
     assert abs(fa[0] - fb[0]) / (2 * dv) <= 10.0 * (1 + 1e-6)
 
 
-def test_friction_is_passive_back_and_forth_by_the_energy_observer(default_cfg):
+@pytest.mark.parametrize("legacy", [False, True], ids=["presliding", "velocity-law"])
+def test_friction_is_passive_back_and_forth_by_the_energy_observer(default_cfg, legacy):
     """Back-and-forth drag, device stepped by the test (1 kHz, server every 4th pose, model one tick late): the
-    friction opposes the device's velocity at every tick, and the bridge's passivity observer, booking each command
-    over the displacement it acted on, never sees the environment give energy (its controller never acts)."""
+    bridge's passivity observer, booking each command over the displacement it acted on, never sees the environment
+    give energy (its controller never acts); the velocity law opposes the device's velocity at every tick (the
+    presliding law returns the stretch's energy on a reversal, never more than it stored)."""
     s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0))
     r = ContactRenderer(passivity_mass_kg=DeviceParams.mass_kg)
     msg = _plain_contact_model_msg()
@@ -178,11 +191,12 @@ def test_friction_is_passive_back_and_forth_by_the_energy_observer(default_cfg):
             s.on_twist(stamp, "tissue", tuple(v))
             s.on_pose(stamp, "tissue", tuple(x))
             res = s.tick(stamp, 4 * MS if k else 0)
-            pending.append((k + 1, read_contact_model(fill_contact_model_from_tick(msg, res, stamp, "tissue"))))
+            m = read_contact_model(fill_contact_model_from_tick(msg, res, stamp, "tissue"))
+            pending.append((k + 1, legacy_model(m) if legacy else m))
         while pending and pending[0][0] <= k:
             r.set_model(pending.pop(0)[1], t)
         f = r.render(t, x, v)
-        if t > 0.35:
+        if t > 0.35 and legacy:
             assert f[0] * v[0] <= 0.0
         assert r.passivity.energy_j >= -1e-12
     assert r.passivity.active_ticks == 0
@@ -190,24 +204,25 @@ def test_friction_is_passive_back_and_forth_by_the_energy_observer(default_cfg):
 
 
 def test_closed_loop_stick_chatter_is_dissipative_and_the_chatter_guard_stops_it():
-    """The model's law is steep (mu F_n / v_s, hundreds of N s/m at v_t = 0); with a light stylus in the loop the
+    """Issue 19's velocity law (the baseline, :func:`legacy_model`) is steep
+    (mu F_n / v_s, hundreds of N s/m at v_t = 0); with a light stylus in the loop the
     friction flips every few ticks in stick (a limit cycle bounded by mu F_n), as the linear form's did. It stays
     passive (the observer's energy > 0, its controller idle). The bridge's chatter guard (the law's slope capped at
     the stylus' stable damping while the velocity keeps reversing) stops most flips and keeps most of the friction;
     the cap held throughout stops all of them."""
     a, b = (int(t * 1e3) for t in CLOSED_LOOP_DRAG_S)
-    unguarded, r = closed_loop_drag({"stick_slope_n_s_per_m": math.inf})
+    unguarded, r = closed_loop_drag({"stick_slope_n_s_per_m": math.inf}, legacy=True)
     assert r.passivity.energy_j > 0 and r.passivity.active_ticks == 0
-    linear, r = closed_loop_drag({"friction_law": False})
+    linear, r = closed_loop_drag({"friction_law": False}, legacy=True)
     assert r.passivity.energy_j > 0 and r.passivity.active_ticks == 0
-    guarded, r = closed_loop_drag()  # the bridge's renderer
+    guarded, r = closed_loop_drag(legacy=True)  # the bridge's renderer
     assert r.passivity.energy_j > 0 and r.counts_chatter > 0
     assert stick_flips(guarded[:, 0]) * 4 <= min(stick_flips(unguarded[:, 0]), stick_flips(linear[:, 0]))
     assert np.abs(guarded[a:b, 0]).mean() > 0.9 * np.abs(unguarded[a:b, 0]).mean()
     # engaging and letting go (gradually) leave smaller tick-to-tick changes than the chatter it stops
     assert np.abs(np.diff(guarded[a:b, 0])).max() < 0.5 * np.abs(np.diff(unguarded[a:b, 0])).max()
     cap = stable_damping_n_s_per_m(DeviceParams.mass_kg, 1e-3)
-    capped, _ = closed_loop_drag({"max_friction_slope_n_s_per_m": cap, "stick_slope_n_s_per_m": math.inf})
+    capped, _ = closed_loop_drag({"max_friction_slope_n_s_per_m": cap, "stick_slope_n_s_per_m": math.inf}, legacy=True)
     assert stick_flips(capped[:, 0]) == 0
     assert np.abs(capped[a:b, 0]).mean() > 0.8 * np.abs(unguarded[a:b, 0]).mean()
 
@@ -231,7 +246,8 @@ def test_chatter_guard_leaves_a_stroke_reversal_alone():
 
 @pytest.mark.parametrize(("rate_hz", "jitter_ticks", "drop"), [(1000.0, 0, 0.0), (250.0, 0, 0.0), (250.0, 8, 0.1)])
 def test_offline_bench_drag_renders_the_whole_vector_better_than_hold_last(rate_hz, jitter_ticks, drop):
-    """Issue 19's render aim, without a scheduler: bench-device's drag (press 1.5 mm, 10 mm back and forth), server
+    """Issue 19's render aim, now with the presliding law, without a scheduler:
+    bench-device's drag (press 1.5 mm, 10 mm back and forth), server
     every 1000/rate-th pose, the model one tick late, the device's own velocity: render p99 <= 5 % of peak and below
     hold-last's from the same run (the linear form: above hold-last at 250 Hz on the friction reversals)."""
     res = device_drag(rate_hz, periods=1, jitter_ticks=jitter_ticks, drop=drop)  # DDS-like: late, reordered, lost

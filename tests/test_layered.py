@@ -11,6 +11,7 @@ from scipy.special import j0, j1
 
 from msgs_schema.tissue import BONE_STIFFNESS, BONE_STRAIN
 from skin_sim_node.model import SkinModel, physics, preset
+from skin_sim_node.model import friction as fr
 from skin_sim_node.model import layered as lk
 from skin_sim_node.model import layout as lo
 from skin_sim_node.model import reference as ref
@@ -273,16 +274,19 @@ def test_series_dampers_are_softer_than_the_common_velocity(cfg):
     assert 0 < inc["layered"] < inc["paper"]
 
 
-def test_friction_opposes_sliding(cfg):
-    mu = cfg.friction_coefficient
-    for speed, frac in [(0.05, 0.99), (1e-4, 0.1)]:
+def test_friction_sticks_then_slides_against_the_motion(cfg):
+    """Presliding (issue 30): a sideways move within the slip distance stretches the skin (``-k_t dx``); beyond it the
+    friction is ``mu F_n`` against the motion, whatever velocity the step is told."""
+    mu, k_t = cfg.friction_coefficient, cfg.tangential_stiffness_n_per_m
+    for dx, vx in [(1e-5, 0.0), (1e-5, -5.0), (5e-3, 0.05)]:
         m = _contact_model(cfg, 0.0, 0.0, 1e-3, (0.0, 0.0, 0.0))
-        m.step((0.0, 0.0, -1e-3), (speed, 0.0, 0.0), 1e-3)
+        m.step((dx, 0.0, -1e-3), (vx, 0.0, 0.0), 1e-3)
         fv = m.force_vector_n
         assert fv[0] < 0 and abs(fv[1]) < 1e-15
-        assert abs(fv[0]) <= mu * m.force_n and abs(fv[0]) >= (frac * mu * m.force_n if frac > 0.5 else 0.0)
-        if frac < 0.5:  # viscous regime below the slip speed
-            assert abs(fv[0]) == pytest.approx(mu * m.force_n * speed / math.hypot(speed, cfg.slip_speed_m_s), rel=1e-9)
+        if dx * k_t < mu * m.force_n:  # stick: elastic
+            assert fv[0] == pytest.approx(-k_t * dx, rel=1e-9)
+        else:  # slip: the slip level
+            assert abs(fv[0]) == pytest.approx(mu * m.force_n, rel=1e-9)
 
 
 def test_force_follows_the_tilted_deformed_surface(cfg):
@@ -329,16 +333,16 @@ def test_paper_preset_still_reproduces_eq9():
     assert physics.eq9_error(preset("paper")) < 1e-9
 
 
-def test_contact_jacobians_kernel_matches_numpy_reference(compiled, rng):
-    """K and D of the friction cone, compiled and as py_func, against the NumPy expression."""
-    fn = kernel(lk.contact_jacobians, compiled)
-    for _ in range(20):
+def test_presliding_tangent_kernel_matches_numpy_reference(compiled, rng):
+    """K of the presliding friction (stick and slip), compiled and as py_func, against the NumPy expression."""
+    fn = kernel(fr.presliding_tangent, compiled)
+    for _ in range(40):
         normal = rng.normal(size=3)
         normal /= np.linalg.norm(normal)
-        grad, velocity = rng.normal(size=3) * 100.0, rng.normal(size=3) * 0.01
-        mu, slip, force = rng.uniform(0, 1), rng.uniform(1e-4, 1e-2), rng.uniform(0, 3)
-        k, d = np.empty((3, 3)), np.empty((3, 3))
-        fn(normal, grad, velocity, mu, slip, force, k, d)
-        k_ref, d_ref = ref.contact_jacobians_ref(normal, grad, velocity, mu, slip, force)
-        np.testing.assert_allclose(k, k_ref, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(d, d_ref, rtol=1e-12, atol=1e-12)
+        grad = rng.normal(size=3) * 100.0
+        stretch = rng.normal(size=3) * 1e-3
+        stretch -= (stretch @ normal) * normal
+        k_t, mu, force = rng.uniform(10, 1000), rng.uniform(0, 1), rng.uniform(0, 3)
+        k = np.empty((3, 3))
+        fn(normal, stretch, k_t, mu, force, grad, k)
+        np.testing.assert_allclose(k, ref.presliding_tangent_ref(normal, stretch, k_t, mu, force, grad), rtol=1e-12, atol=1e-9)

@@ -30,7 +30,8 @@ where the device's velocity crosses zero, whatever the server's rate.
   friction integrated over the device's own moves) and the rest ``f0 + (I - u u^T) K (x - x0)``; the safety chain
   applies as :class:`NeedleRender` states;
 - optionally the chatter guard (:data:`CHATTER_WINDOW_S`): while the device's tangential velocity keeps reversing
-  (stick on a light stylus, or velocity noise), the friction law's slope is capped at the stylus' stable damping.
+  (stick on a light stylus, or velocity noise), the velocity law's slope is capped at the stylus' stable damping; it
+  acts on the legacy velocity law only (the presliding law has no slope in velocity).
 
 Units: SI, tissue frame (the bridge maps the device pose in and the force out, see
 :class:`skin_sim_node.device.bridge.DeviceMapping`). Times are seconds on the device's clock (its pose stamps;
@@ -157,6 +158,98 @@ def friction_law_force(normal, fn: float, mu: float, slip_speed_m_s: float, v) -
     return f - (fn * mu / r) * vt if r > 0.0 else f
 
 
+def presliding_update(x, n, z, k_t: float, limit_n: float) -> tuple[float, float, float, float, float, float, float]:
+    """The presliding law's step at the device (plain Python, the same operations in the same order as the model's
+    kernel :func:`skin_sim_node.model.friction.presliding_step`, so the same inputs give the same bits).
+
+    Parameters
+    ----------
+    x, n, z : sequence of 3 float
+        Device position (m), unit contact normal, anchor before the step (m).
+    k_t, limit_n : float
+        Presliding stiffness (N/m) and slip level ``mu F_n`` (N); either ``<= 0``: no friction.
+
+    Returns
+    -------
+    tuple of 7 float
+        The new anchor (m), the friction force ``-k_t s`` (N) and how far the anchor slipped (m).
+    """
+    zx, zy, zz = float(z[0]), float(z[1]), float(z[2])
+    nx, ny, nz = float(n[0]), float(n[1]), float(n[2])
+    dx = float(x[0]) - zx
+    dy = float(x[1]) - zy
+    dz = float(x[2]) - zz
+    dn = dx * nx + dy * ny + dz * nz
+    sx = dx - dn * nx
+    sy = dy - dn * ny
+    sz = dz - dn * nz
+    s = math.sqrt(sx * sx + sy * sy + sz * sz)
+    if k_t <= 0.0 or limit_n <= 0.0:
+        return zx + sx, zy + sy, zz + sz, 0.0, 0.0, 0.0, s
+    r = limit_n / k_t
+    slip = 0.0
+    if s > r:
+        slip = s - r
+        w = slip / s
+        zx += w * sx
+        zy += w * sy
+        zz += w * sz
+        w = r / s
+        sx *= w
+        sy *= w
+        sz *= w
+    return zx, zy, zz, -k_t * sx, -k_t * sy, -k_t * sz, slip
+
+
+class PreslidingRender:
+    """A model's presliding friction as the renderer evaluates it, with its own anchor (issue 30; ``ContactModel.msg``).
+
+    ``F(x) = F_n(x) n - k_t s(x) + residual``, the anchor starting at the model's ``friction_anchor_m`` and moved by
+    :func:`presliding_update` at every evaluation (the same ``x`` twice moves it no further: a blend's second
+    evaluation changes nothing). Caps: ``grad(F_n)`` and ``k_t`` each at the device's stiffness cap (the law's ``K``,
+    ``n grad^T - k_t P`` when sticking, then has norm at most the cap); a capped ``k_t`` starts from the stretch that
+    gives the model's tangential force at ``x0``, so ``F(x0) = f0`` still. A new model starts a new anchor (its own).
+    """
+
+    __slots__ = ("grad", "k_t", "z", "residual", "slip_m", "slipping")
+
+    def __init__(self, m: LocalModel, max_k: float):
+        g = m.normal_force_gradient_n_per_m
+        gain = float(np.linalg.norm(g))
+        self.grad = g * (max_k / gain) if gain > max_k else g.copy()
+        k_model = float(m.tangential_stiffness_n_per_m)
+        self.k_t = min(k_model, max_k)
+        n = m.normal
+        z = np.asarray(m.friction_anchor_m, dtype=float)
+        if self.k_t < k_model:  # the same tangential force at x0 from the softer spring: a longer stretch
+            d = m.x0_m - z
+            s0 = d - float(n @ d) * n
+            z = m.x0_m - s0 * (k_model / self.k_t)
+        self.z = z.copy()
+        self.slip_m = 0.0  # the anchor's slip summed over this model's evaluations (m)
+        self.slipping = False  # the last evaluation slipped
+        self.residual = np.zeros(3)
+        self.residual = m.f0_n - self._law(m, m.x0_m, move=False)
+
+    def _law(self, m: LocalModel, x: np.ndarray, move: bool = True) -> np.ndarray:
+        n = m.normal
+        fn = m.normal_force_n + float(self.grad @ (x - m.x0_m))
+        zx, zy, zz, fx, fy, fz, slip = presliding_update(x, n, self.z, self.k_t, m.friction_coefficient * max(fn, 0.0))
+        if move:
+            self.z[0], self.z[1], self.z[2] = zx, zy, zz
+            self.slip_m += slip
+            self.slipping = slip > 0.0
+        return fn * n + np.array((fx, fy, fz))
+
+    def force(self, m: LocalModel, x: np.ndarray) -> np.ndarray:
+        """The law at ``x`` (N, before the renderer's one-sided rule and cone), moving the anchor to ``x``."""
+        f = self._law(m, x)
+        if m.normal_force_n > 0.0:  # f0's part beyond the law, shrinking with the normal force as friction does
+            fn = m.normal_force_n + float(self.grad @ (x - m.x0_m))
+            f = f + self.residual * min(max(fn, 0.0) / m.normal_force_n, 1.0)
+        return f
+
+
 class NeedleRender:
     """A model's needle law as the renderer evaluates it, with its own state (issue 22; ``ContactModel.msg``).
 
@@ -261,6 +354,7 @@ class _Slot:
     residual: np.ndarray | None = None
     slip: float = 0.0
     needle: NeedleRender | None = None
+    presliding: PreslidingRender | None = None
 
     def force(
         self, x: np.ndarray, v: np.ndarray | None, v_law: np.ndarray | None = None, stick_slope: float = math.inf
@@ -276,6 +370,16 @@ class _Slot:
         n = m.normal
         if self.needle is not None:
             return self.needle.force(m, self.K, self.D, x, v)
+        if self.presliding is not None:  # a law of positions: neither v nor the chatter guard's cap enters
+            f = self.presliding.force(m, x)
+            fn = float(n @ f)
+            if fn <= 0.0:
+                return np.zeros(3)
+            t = f - fn * n
+            t_n = float(np.linalg.norm(t))
+            if t_n > self.cone * fn:
+                t = t * (self.cone * fn / t_n)
+            return fn * n + t
         if v_law is None:
             v_law = v
         if self.law and v_law is not None:
@@ -351,8 +455,9 @@ class ContactRenderer:
     max_tick_s : float
         :data:`MAX_TICK_S`.
     friction_law : bool
-        Evaluate a model's friction law (``friction_coefficient > 0``) at the device's velocity; False: render every
-        model's linear form ``f0 + K dx + D dv`` (``D`` capped).
+        Evaluate a model's friction law (``friction_coefficient > 0``): the presliding law at the device's positions,
+        the legacy velocity law at its velocity; False: render every model's linear form ``f0 + K dx + D dv``
+        (``D`` capped).
     slip_speed_floor_m_s : float
         Least regularisation speed of the rendered friction law (m/s): raise it above the model's ``v_s`` for a
         device whose measured velocity is noisier than that near rest (the law's sign would follow the noise). 0: the
@@ -481,6 +586,11 @@ class ContactRenderer:
         return 0.0 if slot.rx_s is None or now is None else now - slot.rx_s
 
     @property
+    def presliding(self) -> PreslidingRender | None:
+        """The current model's presliding friction and its anchor, or None."""
+        return self._model.presliding if self._model else None
+
+    @property
     def needle(self) -> NeedleRender | None:
         """The current model's needle law and its state (latch, Dahl ``z``), or None."""
         return self._model.needle if self._model else None
@@ -521,6 +631,9 @@ class ContactRenderer:
         K, D = self.bounded(m)
         if m.needle is not None:  # the needle law: its own state per model (Dahl from friction_state, no latch)
             slot = _Slot(m, rx, K, D, fn0, 0.0, needle=NeedleRender(m.needle, self.max_k, m.validity_radius_m))
+        elif self.friction_law and m.friction_coefficient > 0.0 and m.tangential_stiffness_n_per_m > 0.0:
+            # the presliding law (issue 30): its own anchor per model, from the model's; |F_t| <= mu F_n by the law
+            slot = _Slot(m, rx, K, D, fn0, max(ratio0, m.friction_coefficient), presliding=PreslidingRender(m, self.max_k))
         elif self.friction_law and m.friction_coefficient > 0.0:
             mu = m.friction_coefficient
             # the law's K at any velocity is (n - mu g) grad^T, of spectral norm <= sqrt(1 + mu^2) |grad|: capped so

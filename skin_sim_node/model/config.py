@@ -116,7 +116,7 @@ class TissueConfig:
     form: str = "layered"  # "layered" or "paper"
     tool_shape: str = "flat"  # "flat", "sphere" or "needle"
     friction_coefficient: float = 0.0
-    slip_speed_m_s: float = 1e-3
+    tangential_stiffness_n_per_m: float = 0.0  # presliding stiffness of the friction (friction.py); 0: none
     foundation_length_m: float = 0.0  # membranes' foundation decay length (modal.py); 0: bare membrane
     viscoelastic: ViscoelasticConfig = ViscoelasticConfig()  # layered form's Prony arms; default: none
     anisotropy_ratio: float = 1.0  # membrane coefficient along / across the tension lines (modal.py); 1: isotropic
@@ -241,7 +241,7 @@ def build_config(flat: dict[str, Any]) -> TissueConfig:
         form=flat["form"],
         tool_shape=flat["tool.shape"],
         friction_coefficient=flat["contact.friction_coefficient"],
-        slip_speed_m_s=flat["contact.slip_speed_m_s"],
+        tangential_stiffness_n_per_m=flat["contact.tangential_stiffness_n_per_m"],
         foundation_length_m=flat["patch.foundation_length_m"],
         viscoelastic=ViscoelasticConfig(
             g1=flat["viscoelastic.g1"],

@@ -36,12 +36,13 @@ class ContactTangent:
     contact_radius_m : float
         Radius of the contact patch (m); 0 out of contact.
     friction_coefficient : float
-        ``mu`` of the friction law ``F = F_n (n - mu v_t / sqrt(|v_t|^2 + v_s^2))`` the force follows (1); 0: the
-        force has no friction term (the paper form; a tangent built without the law). The forms leave it 0; the
-        session fills it from the tissue configuration for the layered form, whose force is that law
-        (:func:`skin_sim_node.model.layered.contact_jacobians`).
-    slip_speed_m_s : float
-        The law's regularisation speed ``v_s`` (m/s); 0 with ``friction_coefficient`` 0.
+        ``mu`` of the presliding friction the force follows (issue 30, :mod:`.friction`); 0: the force has no
+        friction term (the paper form, the needle, a tangent built without the law).
+    tangential_stiffness_n_per_m : float
+        The friction's presliding stiffness ``k_t`` (N/m): the skin stretches with the tool at it until
+        ``k_t |s| = mu F_n``; 0 with no friction.
+    friction_anchor_m : ndarray, shape (3,) or None
+        The friction's anchor ``z`` (adhesion point) after the tick (m, tissue frame); None with no friction.
     needle : NeedleLaw or None
         The needle's axial law (``tool.shape`` 'needle', issue 22): rupture ahead, post-rupture line, Dahl friction;
         None for the other tools.
@@ -53,7 +54,8 @@ class ContactTangent:
     normal: np.ndarray
     contact_radius_m: float
     friction_coefficient: float = 0.0
-    slip_speed_m_s: float = 0.0
+    tangential_stiffness_n_per_m: float = 0.0
+    friction_anchor_m: np.ndarray | None = None
     needle: NeedleLaw | None = None
 
     @property
@@ -63,15 +65,15 @@ class ContactTangent:
 
     @property
     def normal_force_n(self) -> float:
-        """``F_n = n . f0`` (N): the normal part of the force (the friction term is tangential, ``n . v_t = 0``)."""
+        """``F_n = n . f0`` (N): the normal part of the force (the friction term is tangential)."""
         return float(self.normal @ self.force_n)
 
     @property
     def normal_force_gradient_n_per_m(self) -> np.ndarray:
         """``grad F_n = K^T n`` (N/m), the normal force's gradient in the tool position.
 
-        Exact for both forms: the layered form's ``K = (n - mu g) grad(F_n)^T`` with ``n . g = 0``, the paper
-        form's ``K = -k z z^T`` with ``n = z``.
+        Exact for both forms: the layered form's ``K = n grad(F_n)^T + dF_t/dx`` whose friction part has no component
+        along ``n`` (:func:`~.friction.presliding_tangent`), the paper form's ``K = -k z z^T`` with ``n = z``.
         """
         return self.stiffness_n_per_m.T @ self.normal
 

@@ -13,8 +13,9 @@ membrane per layer (eqs 1-3) - with four changes (docs/model.md, "The layered fo
 3. A true series Kelvin-Voigt chain: each layer has its own rate, ``F / s = f_i(c_i) + b_i cdot_i``
    for every layer and ``sum c_i = d``, integrated by backward Euler (:func:`chain_solve`), which
    is passive for any ``dt``.
-4. Coulomb friction with a viscous regularisation along the tangent plane of the deformed surface,
-   and a flat or spherical tip (Hertz contact radius ``a = sqrt(R d)``, load ``C (2/3) sqrt(d/R)`` of the punch's).
+4. Presliding friction of tool positions along the tangent plane of the deformed surface (issue 30,
+   :mod:`.friction`: the skin sticks to the tool, stretches with it up to ``mu F_n``, then slips), and a flat or
+   spherical tip (Hertz contact radius ``a = sqrt(R d)``, load ``C (2/3) sqrt(d/R)`` of the punch's).
 
 The kernels are ``@njit(cache=True, nogil=True)``, allocate nothing and are tested compiled and
 as ``.py_func`` against the NumPy/SciPy reference in :mod:`skin_sim_node.model.reference`;
@@ -32,6 +33,7 @@ from msgs_schema.tissue import BONE_STIFFNESS, BONE_STRAIN
 
 from .config import TissueConfig
 from .contact import ContactTangent, normal_tangent
+from .friction import presliding_step, presliding_tangent
 from .layout import (
     AUX_BOUNDS,
     AUX_C,
@@ -68,25 +70,31 @@ from .layout import (
     LS_H1,
     LS_H2,
     LS_THICK,
+    OUT_ANCHORED,
     OUT_DFN_DX,
     OUT_DFN_DY,
     OUT_DFN_DZ,
     OUT_FORCE_N,
     OUT_FX,
     OUT_FZ,
+    OUT_HOLD,
     OUT_NX,
     OUT_NY,
     OUT_NZ,
     OUT_RADIUS_M,
+    OUT_SLIP_M,
     OUT_T,
+    OUT_ZX,
+    OUT_ZY,
+    OUT_ZZ,
     SP_BOTTOM,
     SP_HALF_X,
     SP_HALF_Y,
+    SP_K_T,
     SP_MODE_TOL,
     SP_MU,
     SP_SPHERE,
     SP_TOOL_R,
-    SP_V_SLIP,
     SP_WALL,
     Form,
     KernelArrays,
@@ -516,52 +524,6 @@ def contact_geometry(depth, radius, sphere):
 
 
 @njit(cache=True, nogil=True)
-def contact_jacobians(normal, grad, velocity, mu, slip_speed_m_s, force_n, out_k, out_d):
-    """``K = dF/dx`` and ``D = dF/dv`` of ``F = F_n (n - mu g)`` into ``out_k``, ``out_d`` (3 x 3 each).
-
-    ``g = v_t / r``, ``r = sqrt(|v_t|^2 + v_s^2)``, ``v_t = P v``, ``P = I - n n^T``:
-    ``K = (n - mu g) grad(F_n)^T`` and ``D = -mu F_n (I / r - v_t v_t^T / r^3) P``
-    (see :meth:`skin_sim_node.model.skin_model.SkinModel.tangent`).
-
-    Parameters
-    ----------
-    normal : ndarray, shape (3,)
-        Unit contact normal ``n``.
-    grad : ndarray, shape (3,)
-        Gradient of the normal force magnitude w.r.t. the tool position (N/m).
-    velocity : ndarray, shape (3,)
-        Tool velocity (m/s).
-    mu : float
-        Friction coefficient.
-    slip_speed_m_s : float
-        Regularisation speed ``v_s`` (m/s).
-    force_n : float
-        Normal force magnitude ``F_n`` (N).
-    out_k, out_d : ndarray, shape (3, 3)
-        Written: ``K`` (N/m) and ``D`` (N s/m).
-    """
-    vn = normal[0] * velocity[0] + normal[1] * velocity[1] + normal[2] * velocity[2]
-    vt0 = velocity[0] - vn * normal[0]
-    vt1 = velocity[1] - vn * normal[1]
-    vt2 = velocity[2] - vn * normal[2]
-    r = math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2 + slip_speed_m_s * slip_speed_m_s)
-    vt = (vt0, vt1, vt2)
-    r3 = r * r * r
-    for i in range(3):
-        a = normal[i] - mu * vt[i] / r
-        for j in range(3):
-            out_k[i, j] = a * grad[j]
-    for i in range(3):
-        for j in range(3):
-            s = 0.0
-            for k in range(3):
-                m_ik = (1.0 / r if i == k else 0.0) - vt[i] * vt[k] / r3
-                p_kj = (1.0 if k == j else 0.0) - normal[k] * normal[j]
-                s += m_ik * p_kj
-            out_d[i, j] = -mu * force_n * s
-
-
-@njit(cache=True, nogil=True)
 def recover_layers(dt, restart, lp, sp, bmodes, bvec, blev, mstate, lstate, istate, ea_eff, off):
     """Out of contact: each layer recovers along its chain law at zero force (viscoelastic arms included), its
     membrane driven at the last contact's centre; once every compression is below a tenth of ``lod.tolerance_m``
@@ -632,7 +594,8 @@ def layered_step_kernel(
 ):
     """One haptic tick of the layered form: series chain force, friction, tangent and modal state.
 
-    Arguments as :func:`~.paper.paper_step_kernel` plus the tool's lateral velocity. Contact is unilateral
+    Arguments as :func:`~.paper.paper_step_kernel` plus the tool's velocity, which no part of the force reads (the
+    chain's rates come from the positions and ``dt``, the friction is a law of positions: :mod:`.friction`). Contact is unilateral
     and tested against the current deformed surface (:func:`~.modal_kernels.begin_tick_reach`); at the sheet's edge the
     force is scaled by the contact disk's fraction on the sheet (:func:`~.modal_kernels.footprint`), and the layers are
     driven at that part's centroid. At first contact the
@@ -644,13 +607,16 @@ def layered_step_kernel(
     (:func:`prony_prepare`), driving its membrane at the last contact's centre, until every compression is below
     a tenth of ``lod.tolerance_m``; then they relax freely. A new contact on the recovering spot (within the
     contact radius of its centre) continues from the recovering compressions and arms; elsewhere the material
-    under the tool starts with no viscoelastic memory. Writes ``out`` (``OUT_*``: force vector, normal, contact
-    radius, gradient of the normal force, and ``OUT_T``/normal carried to the next tick).
+    under the tool starts with no viscoelastic memory. Friction (:func:`~.friction.presliding_step`): a contact
+    starts its anchor at the tool, except after :meth:`SkinModel.release` (``OUT_HOLD``: a stall or a teleport) when
+    the tool lands within the contact radius of the old anchor, which it keeps; a true lift-off clears it.
+    Writes ``out`` (``OUT_*``: force vector, normal, contact radius, anchor,
+    gradient of the normal force, and ``OUT_T``/normal carried to the next tick).
 
     Parameters
     ----------
     tool_vx, tool_vy, tool_vz : float
-        Tool velocity (m/s): the friction's slip velocity and the cap of the membranes' rates.
+        Tool velocity (m/s): unused (kept in the signature of the forms' tick kernels).
     restart : bool
         Contact restarts (the first pose, after a stale spell or a teleport): the Prony arms are relaxed.
     tool_x, tool_y, tool_z, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, aux, sbuf, out
@@ -773,19 +739,35 @@ def layered_step_kernel(
         nx = out[OUT_NX]
         ny = out[OUT_NY]
         nz = out[OUT_NZ]
-        vn = tool_vx * nx + tool_vy * ny + tool_vz * nz
-        vtx = tool_vx - vn * nx
-        vty = tool_vy - vn * ny
-        vtz = tool_vz - vn * nz
-        vs = sp[SP_V_SLIP]
-        r = math.sqrt(vtx * vtx + vty * vty + vtz * vtz + vs * vs)
-        mu = sp[SP_MU]
-        fx = force_n * (nx - mu * vtx / r)
-        fy = force_n * (ny - mu * vty / r)
-        fz = force_n * (nz - mu * vtz / r)
+        if not was_contact:  # a new contact: the skin under the tool is at rest (its anchor at the tool), unless it
+            # was released without the tool leaving it (a stall, a teleport) and the tool is back on the same spot
+            ex = tool_x - out[OUT_ZX]
+            ey = tool_y - out[OUT_ZY]
+            ez = tool_z - out[OUT_ZZ]
+            en = ex * nx + ey * ny + ez * nz
+            ex -= en * nx
+            ey -= en * ny
+            ez -= en * nz
+            keep = out[OUT_HOLD] > 0.0 and out[OUT_ANCHORED] > 0.0 and ex * ex + ey * ey + ez * ez <= a * a
+            if not keep:
+                out[OUT_ZX] = tool_x
+                out[OUT_ZY] = tool_y
+                out[OUT_ZZ] = tool_z
+        out[OUT_HOLD] = 0.0
+        out[OUT_ANCHORED] = 1.0
+        zx, zy, zz, ftx, fty, ftz, slip = presliding_step(
+            tool_x, tool_y, tool_z, nx, ny, nz, out[OUT_ZX], out[OUT_ZY], out[OUT_ZZ], sp[SP_K_T], sp[SP_MU] * force_n
+        )
+        out[OUT_ZX] = zx
+        out[OUT_ZY] = zy
+        out[OUT_ZZ] = zz
+        out[OUT_SLIP_M] = slip
+        fx = force_n * nx + ftx
+        fy = force_n * ny + fty
+        fz = force_n * nz + ftz
         out[OUT_T] = t
         dt_eff = max(dt, DT_FLOOR_S)
-        cap = max(RATE_CAP_M_S, math.sqrt(tool_vx * tool_vx + tool_vy * tool_vy + tool_vz * tool_vz))
+        cap = RATE_CAP_M_S  # a law of positions: the tool's velocity does not cap it either (issue 30)
         for li in range(nl):
             prony_commit(lp, lstate, li, c_new[li], thick[li], wall, dt, restart)
             if has_memory:  # the layers recover along their law after contact (recover_layers)
@@ -794,6 +776,14 @@ def layered_step_kernel(
             drive_layer(li, c_new[li], rate, foot_x, foot_y, sp, bmodes, bvec, blev, mstate, lstate, istate)
     else:
         out[OUT_T] = 0.0
+        out[OUT_SLIP_M] = 0.0
+        # lifted off: the skin lets go of the tool; a release this tick (OUT_HOLD 2: a stall's lifted tick, a teleport)
+        # keeps the anchor for the next contact, a tick out of contact without one (a true lift-off) clears it
+        if out[OUT_HOLD] >= 2.0:
+            out[OUT_HOLD] = 1.0
+        else:
+            out[OUT_HOLD] = 0.0
+            out[OUT_ANCHORED] = 0.0
         a = 0.0
         recover_layers(dt, restart, lp, sp, bmodes, bvec, blev, mstate, lstate, istate, ea_eff, off)
     stress = force_n / (frac * math.pi * a * a) if a > 0.0 and frac > 0.0 else 0.0  # over the disk's part on the sheet
@@ -813,41 +803,35 @@ class LayeredForm(Form):
 
     def __init__(self, arrays: KernelArrays, cfg: TissueConfig):
         super().__init__(arrays, cfg)
-        self._last_velocity = np.zeros(3)  # the tick's tool velocity, for the friction's Jacobian
         self._mu = cfg.friction_coefficient
-        self._slip = cfg.slip_speed_m_s
+        self._k_t = cfg.tangential_stiffness_n_per_m if cfg.friction_coefficient > 0.0 else 0.0
 
     def tick(self, x, y, z, vx, vy, vz, dt, restart=False) -> int:
-        """:func:`layered_step_kernel`; the velocity is kept for :meth:`tangent` (the friction's Jacobian)."""
-        vx, vy, vz = float(vx), float(vy), float(vz)
-        v = self._last_velocity  # by item: a slice assignment from a tuple costs several times more
-        v[0] = vx
-        v[1] = vy
-        v[2] = vz
-        return layered_step_kernel(float(x), float(y), float(z), vx, vy, vz, float(dt), bool(restart), *self._args)
+        """:func:`layered_step_kernel` (the velocity is passed on and unused: no part of the force reads it)."""
+        return layered_step_kernel(
+            float(x), float(y), float(z), float(vx), float(vy), float(vz), float(dt), bool(restart), *self._args
+        )
 
     def tangent(self, flags: int) -> ContactTangent:
-        """Force and derivatives of the last tick (``flags``: its flags): :func:`contact_jacobians` of its force."""
+        """Force and derivatives of the last tick (``flags``: its flags): :func:`~.friction.presliding_tangent` of its
+        force, no ``D`` (no velocity enters the force), and the friction's anchor, stiffness and coefficient."""
         if not flags & FLAG_CONTACT:
             return normal_tangent(0.0, 0.0, 0.0, 0.0)
         o = self._out
         stiffness = np.empty((3, 3))
-        damping = np.empty((3, 3))
         normal = o[OUT_NX : OUT_NZ + 1].copy()
-        contact_jacobians(
-            normal,
-            o[OUT_DFN_DX : OUT_DFN_DZ + 1],
-            self._last_velocity,
-            self._mu,
-            self._slip,
-            float(o[OUT_FORCE_N]),
-            stiffness,
-            damping,
-        )
+        force = o[OUT_FX : OUT_FZ + 1].copy()
+        anchor = o[OUT_ZX : OUT_ZZ + 1].copy()
+        fn = float(o[OUT_FORCE_N])
+        stretch = -(force - fn * normal) / self._k_t if self._k_t > 0.0 else np.zeros(3)
+        presliding_tangent(normal, stretch, self._k_t, self._mu, fn, o[OUT_DFN_DX : OUT_DFN_DZ + 1], stiffness)
         return ContactTangent(
-            force_n=o[OUT_FX : OUT_FZ + 1].copy(),
+            force_n=force,
             stiffness_n_per_m=stiffness,
-            damping_n_s_per_m=damping,
+            damping_n_s_per_m=np.zeros((3, 3)),
             normal=normal,
             contact_radius_m=float(o[OUT_RADIUS_M]),
+            friction_coefficient=self._mu,
+            tangential_stiffness_n_per_m=self._k_t,
+            friction_anchor_m=anchor,
         )

@@ -80,7 +80,13 @@ OUT_DFN_DX = 13
 OUT_DFN_DY = 14
 OUT_DFN_DZ = 15
 OUT_T = 16
-OUT_SIZE = 17
+OUT_ZX = 17
+OUT_ZY = 18
+OUT_ZZ = 19
+OUT_ANCHORED = 20
+OUT_SLIP_M = 21
+OUT_HOLD = 22
+OUT_SIZE = 23
 """Slots of ``out``, shape (OUT_SIZE,), float64: what a tick kernel writes.
 
 ==================  ======  ===================================================================
@@ -97,7 +103,15 @@ OUT_NX .. OUT_NZ    -       unit contact normal (``+z`` out of contact); the lay
 OUT_RADIUS_M        m       contact radius, 0 out of contact
 OUT_DFN_DX .. _DZ   N/m     gradient of the normal force magnitude w.r.t. the tool position (layered form)
 OUT_T               N       layered form: chain force per unit load scale, the Newton warm start of the next tick
+OUT_ZX .. OUT_ZZ    m       layered form: the friction's anchor (adhesion point, :mod:`.friction`), tissue frame
+OUT_ANCHORED        -       1.0: the anchor holds (in contact, or kept through a release); 0.0: none
+OUT_SLIP_M          m       how far the anchor slipped at the last tick (0 while the skin sticks)
+OUT_HOLD            -       2.0 after :meth:`SkinModel.release` (a stall's tick or a teleport), 1.0 after a tick out
+                            of contact that followed one: the next contact keeps the anchor if it lands within the
+                            contact radius of it; a tick out of contact without a release (a true lift-off) clears it
 ==================  ======  ===================================================================
+
+The anchor slots are tissue state, not a tick's result: the idle path of ``SkinModel.step`` leaves them.
 """
 
 LP_K = 0
@@ -143,7 +157,7 @@ SP_SKIP_SETTLED = 7
 SP_TOOL_R = 8
 SP_SPHERE = 9
 SP_MU = 10
-SP_V_SLIP = 11
+SP_K_T = 11
 SP_WALL = 12
 SP_COS = 13
 SP_SIN = 14
@@ -164,7 +178,7 @@ SP_SKIP_SETTLED  -       1.0: settled layers are set to rest and skipped (``lod.
 SP_TOOL_R        m       tool radius: flat punch radius or sphere radius
 SP_SPHERE        -       1.0: spherical tip, 0.0: flat punch
 SP_MU            -       Coulomb friction coefficient
-SP_V_SLIP        m/s     viscous regularisation speed of the friction
+SP_K_T           N/m     tangential (presliding) stiffness of the skin under the tool (:mod:`.friction`)
 SP_WALL          -       strain beyond which the compression law continues along its tangent (the wall)
 SP_COS, SP_SIN   -       cosine and sine of ``anisotropy.angle_rad``: the patch's first side along the tension lines
 ===============  ======  ==================================================================
@@ -464,7 +478,7 @@ def pack_scalars(cfg: TissueConfig) -> np.ndarray:
     sp[SP_TOOL_R] = cfg.tool_radius_m
     sp[SP_SPHERE] = 1.0 if cfg.tool_shape == "sphere" else 0.0
     sp[SP_MU] = cfg.friction_coefficient
-    sp[SP_V_SLIP] = cfg.slip_speed_m_s
+    sp[SP_K_T] = cfg.tangential_stiffness_n_per_m
     sp[SP_WALL] = WALL_STRAIN
     sp[SP_COS] = math.cos(cfg.anisotropy_angle_rad)
     sp[SP_SIN] = math.sin(cfg.anisotropy_angle_rad)

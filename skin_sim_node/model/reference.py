@@ -256,15 +256,21 @@ def averaged_interface_ref(mean, amp, kx, ky, x0, y0, radius, n=400):
     return integral / (np.pi * radius**2)
 
 
-def contact_jacobians_ref(normal, grad, velocity, mu, slip_speed_m_s, force_n):
-    """NumPy reference of :func:`skin_sim_node.model.layered.contact_jacobians`: returns ``(K, D)``."""
-    normal, grad, velocity = (np.asarray(a, dtype=float) for a in (normal, grad, velocity))
+def presliding_tangent_ref(normal, stretch, k_t, mu, force_n, grad):
+    """NumPy reference of :func:`skin_sim_node.model.friction.presliding_tangent`: returns ``K``.
+
+    ``K = n grad^T - k_t P`` sticking; slipping (``k_t |s| >= mu F_n``) ``F_t = -mu F_n u``, ``u = s / |s|``:
+    ``K = n grad^T - mu u grad^T - (mu F_n / |s|) (P - u u^T)``."""
+    normal, stretch, grad = (np.asarray(a, dtype=float) for a in (normal, stretch, grad))
     proj = np.eye(3) - np.outer(normal, normal)
-    vt = proj @ velocity
-    r = np.sqrt(vt @ vt + slip_speed_m_s**2)
-    stiffness = np.outer(normal - mu * vt / r, grad)
-    damping = -mu * force_n * (np.eye(3) / r - np.outer(vt, vt) / r**3) @ proj
-    return stiffness, damping
+    k = np.outer(normal, grad)
+    if k_t <= 0 or mu * force_n <= 0:
+        return k
+    s = float(np.linalg.norm(stretch))
+    if s > 0 and k_t * s >= mu * force_n * (1 - 1e-12):
+        u = stretch / s
+        return k - mu * np.outer(u, grad) - (mu * force_n / s) * (proj - np.outer(u, u))
+    return k - k_t * proj
 
 
 def footprint_ref(x, y, r, half_x, half_y):

@@ -41,6 +41,7 @@ from .layout import (
     OUT_FORCE_N,
     OUT_FX,
     OUT_FZ,
+    OUT_HOLD,
     OUT_N_AFFECTED,
     OUT_NX,
     OUT_NZ,
@@ -224,11 +225,13 @@ class SkinModel:
 
     def release(self) -> None:
         """End contact now: every layer relaxes freely from its current shape and velocity (a degenerate layer
-        from its shape at rest, on the next :meth:`step`)."""
+        from its shape at rest, on the next :meth:`step`). The friction's anchor is kept for the next contact on the
+        same spot (a stall or a teleport is not a lift-off; :mod:`.friction`)."""
         if self._degenerate_layers:
             self._released |= self.driven.astype(bool)
         self.driven[:] = 0
         self._out[OUT_T] = 0.0
+        self._out[OUT_HOLD] = 2.0  # the tool did not leave: the friction's anchor waits for it (layered form)
 
     def step(self, tool_xyz, tool_velocity, dt: float, restart: bool = False, axis=None) -> float:
         """Advance one tick with the tool at ``tool_xyz`` (m) moving at ``tool_velocity`` (m/s).
@@ -248,7 +251,7 @@ class SkinModel:
             self.last_tick_idle = True
             if self.flags & ~FLAG_OFF_SHEET:
                 self._out[:OUT_SETTLED] = 0.0
-                self._out[OUT_FX:] = 0.0
+                self._out[OUT_FX : OUT_T + 1] = 0.0  # the friction's anchor (OUT_ZX..) is tissue state: kept
                 self._out[OUT_NZ] = 1.0
                 self.compression_m[:] = 0.0
             self.flags = 0 if abs(x) <= self._half[0] and abs(y) <= self._half[1] else FLAG_OFF_SHEET

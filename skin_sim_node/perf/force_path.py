@@ -60,10 +60,9 @@ SCENES = (
 
 
 def tangent_model(model: SkinModel, seq: int, stamp_ns: int, x, v) -> LocalModel:
-    """The server's answer to a pose, as the node publishes it (the layered form's friction law included)."""
+    """The server's answer to a pose, as the node publishes it (the layered form's presliding friction included)."""
     t = model.tangent()
-    cfg = model.cfg
-    mu, vs = (cfg.friction_coefficient, cfg.slip_speed_m_s) if cfg.form == "layered" else (0.0, 0.0)
+    law = t.tangential_stiffness_n_per_m > 0.0 and t.friction_anchor_m is not None
     return LocalModel(
         seq,
         stamp_ns,
@@ -78,8 +77,10 @@ def tangent_model(model: SkinModel, seq: int, stamp_ns: int, x, v) -> LocalModel
         DEFAULT_TTL_S,
         normal_force_n=t.normal_force_n,
         normal_force_gradient_n_per_m=t.normal_force_gradient_n_per_m,
-        friction_coefficient=mu,
-        slip_speed_m_s=vs if mu > 0 else 0.0,
+        friction_coefficient=t.friction_coefficient if law else 0.0,
+        tangential_stiffness_n_per_m=t.tangential_stiffness_n_per_m if law else 0.0,
+        friction_anchor_m=t.friction_anchor_m if law else np.zeros(3),
+        slip_force_n=t.friction_coefficient * t.normal_force_n if law else 0.0,
     )
 
 
@@ -112,6 +113,41 @@ def _plain_contact_model_msg():
         normal_force_gradient_n_per_m=np.zeros(3),
         friction_coefficient=0.0,
         slip_speed_m_s=0.0,
+        tangential_stiffness_n_per_m=0.0,
+        friction_anchor_m=np.zeros(3),
+        slip_force_n=0.0,
+    )
+
+
+LEGACY_SLIP_SPEED_M_S = 1e-3
+"""``v_s`` of issue 19's velocity law (its default ``contact.slip_speed_m_s``): the baseline of issue 30's figures."""
+
+
+def legacy_model(m: LocalModel) -> LocalModel:
+    """``m`` with issue 19's velocity law in place of the presliding friction: ``f0 = F_n0 n - mu F_n0 v_t / r`` at the
+    model's ``v0`` (the law's own answer at ``x0``, ``v0``), its ``K``, ``D`` and ``v_s``, no anchor. The baseline
+    ("today's law in the same run") of ``skin-sim friction`` and the closed-loop drag; ``m`` without friction is
+    returned as is."""
+    from dataclasses import replace
+
+    from ..model.friction import regularised_coulomb
+
+    mu = m.friction_coefficient
+    if mu <= 0.0 or m.tangential_stiffness_n_per_m <= 0.0:
+        return m
+    n, fn, g, vs = m.normal, m.normal_force_n, m.normal_force_gradient_n_per_m, LEGACY_SLIP_SPEED_M_S
+    vt = m.v0_m_s - float(n @ m.v0_m_s) * n
+    r = math.sqrt(float(vt @ vt) + vs * vs)
+    proj = np.eye(3) - np.outer(n, n)
+    return replace(
+        m,
+        f0_n=fn * n + regularised_coulomb(n, fn, mu, vs, m.v0_m_s),
+        stiffness_n_per_m=np.outer(n - mu * vt / r, g),
+        damping_n_s_per_m=-mu * fn * (np.eye(3) / r - np.outer(vt, vt) / r**3) @ proj,
+        slip_speed_m_s=vs,
+        tangential_stiffness_n_per_m=0.0,
+        friction_anchor_m=np.zeros(3),
+        slip_force_n=0.0,
     )
 
 
@@ -203,11 +239,16 @@ def device_drag(
     return out
 
 
-def closed_loop_drag(renderer_kw: dict | None = None, every: int = 4) -> tuple[np.ndarray, ContactRenderer]:
+def closed_loop_drag(
+    renderer_kw: dict | None = None, every: int = 4, legacy: bool = False, path: str = "drag", kick_m_s: float = 0.0
+) -> tuple[np.ndarray, ContactRenderer]:
     """The force path with a stylus in the loop, offline: :class:`SimulatedDevice` on the ``drag`` path (a 45 g stylus
     on a 300 N/m hand), a :class:`HapticSession` answering every ``every``-th tick through the contact model message,
-    the bridge's renderer (Touch caps, passivity controller), the command applied the tick after. Returns the
-    commanded forces (n, 3) and the renderer (its passivity observer's energy)."""
+    the bridge's renderer (Touch caps, passivity controller), the command applied the tick after. ``legacy``: each
+    model carries issue 19's velocity law instead (:func:`legacy_model`); ``path``: another hand path (the demo's
+    ``press_hold_release``); ``kick_m_s``: a sideways velocity (device x) given to the stylus at 1.0 s, the lateral
+    disturbance of a live run (a hand is never exactly still). Returns the commanded forces (n, 3) and the renderer
+    (its passivity observer's energy, its chatter guard's count)."""
     from msgs_schema.contact_model import fill_contact_model_from_tick, read_contact_model
 
     from ..bags.offline import load_params
@@ -215,7 +256,7 @@ def closed_loop_drag(renderer_kw: dict | None = None, every: int = 4) -> tuple[n
     from ..session import HapticSession
 
     sp, cfg = load_params()
-    dev = SimulatedDevice("drag")
+    dev = SimulatedDevice(path)
     s = HapticSession(SkinModel(cfg), sp)
     r = ContactRenderer(**{**bridge_renderer_kw(dev.params.mass_kg), **(renderer_kw or {})})
     msg = _plain_contact_model_msg()
@@ -231,8 +272,11 @@ def closed_loop_drag(renderer_kw: dict | None = None, every: int = 4) -> tuple[n
             s.on_pose(stamp, sp.tissue_frame, tuple(p))
             res = s.tick(stamp, 0 if prev is None else stamp - prev)
             prev = stamp
-            r.set_model(read_contact_model(fill_contact_model_from_tick(msg, res, stamp, sp.tissue_frame)), stamp * 1e-9)
+            m = read_contact_model(fill_contact_model_from_tick(msg, res, stamp, sp.tissue_frame))
+            r.set_model(legacy_model(m) if legacy else m, stamp * 1e-9)
         f[k] = r.render(stamp * 1e-9, p, v)
+        if kick_m_s and k == int(DEVICE_HZ):
+            dev.vel = (dev.vel[0] + kick_m_s, dev.vel[1], dev.vel[2])
         dev.step(dev.mapping.force_to_device(tuple(f[k])), 1.0 / DEVICE_HZ)
     return f, r
 
@@ -249,32 +293,68 @@ def stick_flips(fx: np.ndarray) -> int:
 
 
 def print_closed_loop() -> None:
-    """Print the closed-loop drag's friction flips and mean friction: linear form, law with and without the chatter
-    guard, law with slope caps."""
+    """Print the closed-loop drag's friction flips (per second of the slide), mean friction, energy and chatter guard
+    engagements: the presliding law against issue 19's velocity law in the same run (linear form, law with and
+    without the chatter guard, with slope caps)."""
     from ..device.render import SERVO_PERIOD_S, stable_damping_n_s_per_m
     from ..device.stylus import DeviceParams
 
     cap = stable_damping_n_s_per_m(DeviceParams.mass_kg, SERVO_PERIOD_S)
     print(
         "  closed loop (SimulatedDevice drag: 45 g stylus on a 300 N/m hand; server 250 Hz; passivity controller): "
-        "sign flips of F_x over the slide, mean |F_x|, the passivity observer's energy"
+        "sign flips of F_x per second of the slide, mean |F_x|, the passivity observer's energy, chatter guard"
     )
     a, b = (int(round(t * DEVICE_HZ)) for t in CLOSED_LOOP_DRAG_S)
-    for label, kw in (
-        ("linear form", {"friction_law": False}),
-        ("friction law, no chatter guard", {"stick_slope_n_s_per_m": math.inf}),
-        ("friction law + chatter guard (bridge)", {}),
-        (f"law, slope cap {cap:.1f} N s/m always", {"max_friction_slope_n_s_per_m": cap, "stick_slope_n_s_per_m": math.inf}),
-        ("law, slope cap 5 N s/m (the D cap)", {"max_friction_slope_n_s_per_m": 5.0, "stick_slope_n_s_per_m": math.inf}),
+    slide_s = CLOSED_LOOP_DRAG_S[1] - CLOSED_LOOP_DRAG_S[0]
+    for label, kw, legacy in (
+        ("presliding law (bridge, chatter guard on)", {}, False),
+        ("presliding law, linear form", {"friction_law": False}, False),
+        ("velocity law, linear form", {"friction_law": False}, True),
+        ("velocity law, no chatter guard", {"stick_slope_n_s_per_m": math.inf}, True),
+        ("velocity law + chatter guard (bridge)", {}, True),
+        (
+            f"velocity law, slope cap {cap:.1f} N s/m",
+            {"max_friction_slope_n_s_per_m": cap, "stick_slope_n_s_per_m": math.inf},
+            True,
+        ),
     ):
-        f, r = closed_loop_drag(kw)
+        f, r = closed_loop_drag(kw, legacy=legacy)
         assert r.passivity is not None
         print(
-            f"  {label:38s} flips {stick_flips(f[:, 0]):4d}  mean |F_x| {np.abs(f[a:b, 0]).mean():.4f} N  "
+            f"  {label:42s} flips {stick_flips(f[:, 0]) / slide_s:6.1f} /s  mean |F_x| {np.abs(f[a:b, 0]).mean():.4f} N  "
             f"energy {r.passivity.energy_j * 1e3:.2f} mJ, controller active {r.passivity.active_ticks} ticks, "
             f"guard engaged {r.counts_chatter} times",
             flush=True,
         )
+
+
+PRESS_KICK_M_S = 5e-3
+"""The sideways kick of :func:`print_closed_loop_press` (m/s, device x, at 1.0 s of the demo's press)."""
+
+
+def print_closed_loop_press() -> dict:
+    """The demo's press (``press_hold_release``: 2.5 mm, held 0.5-1.5 s) closed loop, the stylus kicked sideways at
+    :data:`PRESS_KICK_M_S` at 1.0 s: the force over the hold 1.0-1.45 s with the presliding law against issue 19's
+    velocity law in the same run. Returns ``{law: (|F| min, |F| max, |F_x| max, |F_x| max after 0.2 s, flips,
+    guard engagements)}``."""
+    print(
+        f"  closed loop, the demo's press (2.5 mm, held; 45 g stylus on a 300 N/m hand; server 250 Hz), kicked "
+        f"sideways at {PRESS_KICK_M_S * 1e3:g} mm/s at 1.0 s: the hold 1.0-1.45 s"
+    )
+    out = {}
+    for label, legacy in (("presliding law", False), ("velocity law", True)):
+        f, r = closed_loop_drag(legacy=legacy, path="press_hold_release", kick_m_s=PRESS_KICK_M_S)
+        hold, late = f[1000:1450], f[1200:1450, 0]
+        mag = np.linalg.norm(hold, axis=1)
+        flips = int(np.sum(np.sign(hold[1:, 0]) * np.sign(hold[:-1, 0]) < 0))
+        out[label] = (mag.min(), mag.max(), np.abs(hold[:, 0]).max(), np.abs(late).max(), flips, r.counts_chatter)
+        print(
+            f"  {label:15s} |F| {mag.min():.3f}-{mag.max():.3f} N, |F_x| max {np.abs(hold[:, 0]).max() * 1e3:6.1f} mN, "
+            f"after 0.2 s {np.abs(late).max() * 1e3:5.2f} mN, F_x sign flips {flips:3d}, chatter guard engaged "
+            f"{r.counts_chatter} times",
+            flush=True,
+        )
+    return out
 
 
 def print_device_drag(rates=DRAG_RATES_HZ, latency_ticks: int = 1) -> dict:
@@ -284,15 +364,13 @@ def print_device_drag(rates=DRAG_RATES_HZ, latency_ticks: int = 1) -> dict:
         f"{latency_ticks} tick(s) after its pose; Touch caps, passivity controller, chatter guard): |F - F_true|, % of peak"
     )
     print(
-        "  velocity: the device's (CRTK measured_cv), or none (the bridge's default then: the linear form), or the "
-        "renderer's pose difference over 2/5/10 ms (exact positions)"
+        "  velocity: the device's (CRTK measured_cv) or none; the presliding law renders from positions alone, so both "
+        "rows are the same forces"
     )
     head = f"{'law p50 / p99':>14s} | {'linear p50 / p99':>16s} | {'hold-last p50 / p99':>19s}"
     print(f"  {'server Hz':>9s} | {'velocity':13s} | {head}")
     res = {}
-    cases = [("device", True, {}), ("none", False, {})] + [
-        (f"estimate {w * 1e3:.0f} ms", False, {"velocity_estimate_window_s": w}) for w in (0.002, 0.005, 0.01)
-    ]
+    cases = [("device", True, {}), ("none", False, {})]  # the presliding law reads no velocity: the same forces
     for r in rates:
         for name, dv, kw in cases:
             law = device_drag(r, latency_ticks, kw, device_velocity=dv)
@@ -449,6 +527,7 @@ def main(argv=None) -> int:
         print("skin-sim force-path --device-drag: the bridge's render error on the bench-device drag, offline ...", flush=True)
         print_device_drag(latency_ticks=max(int(round(args.latency_ms)), 0))
         print_closed_loop()
+        print_closed_loop_press()
         return 0
     if args.docs and args.chart is not None:
         ap.error("--docs writes the tracked chart; give --docs or --chart, not both")

@@ -206,14 +206,8 @@ class HapticSession:
                 f"return (c = {min(la.wave_speed_m_per_s for la in model.cfg.layers):.3g} m/s); released from rest",
             )
         cfg = model.cfg
-        # the friction law the model's force follows, carried in the local contact model so the device can evaluate
-        # it at its own velocity (issue 19): the layered form's F_n (n - mu v_t / sqrt(|v_t|^2 + v_s^2)); the paper
-        # form's force has no friction term
         self._needle = cfg.tool_shape == "needle"
         self.inputs.orientation_required = self._needle
-        self._friction = (
-            (cfg.friction_coefficient, cfg.slip_speed_m_s) if cfg.form == "layered" and not self._needle else (0.0, 0.0)
-        )
         self._patch_free = (0.5 * (cfg.sheet_size_m[0] - cfg.patch_size_m[0]), 0.5 * (cfg.sheet_size_m[1] - cfg.patch_size_m[1]))
 
     # --- inputs (the policy's) --------------------------------------------------------------
@@ -336,8 +330,11 @@ class HapticSession:
                 damping_n_s_per_m=t.damping_n_s_per_m * scale,
                 normal=t.normal,
                 contact_radius_m=t.contact_radius_m,
-                friction_coefficient=self._friction[0],
-                slip_speed_m_s=self._friction[1],
+                # the presliding friction (issue 30): its anchor, and its stiffness scaled as the force was (the slip
+                # distance mu F_n / k_t is the model's)
+                friction_coefficient=t.friction_coefficient,
+                tangential_stiffness_n_per_m=t.tangential_stiffness_n_per_m * scale,
+                friction_anchor_m=t.friction_anchor_m,
                 needle=None if t.needle is None else t.needle.scaled(scale),
             )
         self.last = TickResult(

@@ -30,7 +30,8 @@ PRESS_DEPTH_M = 2e-3
 GRID_CELLS = 480
 """Deformation grid cells per side for the dent (0.25 mm cells on the 120 mm sheet)."""
 STROKE_SPEED_M_S = 0.01
-"""Stroke speed (m/s): a slow palpation stroke, full Coulomb friction (above the 1 mm/s slip speed)."""
+"""Stroke speed (m/s): a slow palpation stroke; past the presliding distance (about 1.1 mm at 1 mm deep) it slides at
+``mu F_n`` (the friction is a law of positions: the speed does not enter it)."""
 STROKE_DEPTH_M = 1e-3
 STROKE_LENGTH_M = 5e-3
 

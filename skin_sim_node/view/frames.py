@@ -87,6 +87,15 @@ def decimate(t: np.ndarray, *series: np.ndarray, max_points: int = 4000):
     return (t[::k], *(s[::k] for s in series))
 
 
+def friction_anchor(msg) -> list[float] | None:
+    """The presliding friction's anchor (m, tissue frame) of a ``skin_sim_msgs/msg/ContactModel`` (rclpy or rosbags),
+    or None: no message, no presliding law in it (out of contact, the paper form, the needle), or an older message
+    without the field (issue 30)."""
+    if msg is None or getattr(msg, "tangential_stiffness_n_per_m", 0.0) <= 0.0 or msg.friction_coefficient <= 0.0:
+        return None
+    return [float(c) for c in msg.friction_anchor_m]
+
+
 # --- the needle (issue 22: tool.shape 'needle', tissue/needle) -----------------------------------
 NEEDLE_FIELDS_3 = ("tip_m", "axis", "entry_m", "force_n")
 NEEDLE_FIELDS_1 = ("insertion_m", "dimple_m", "dimple_force_n", "cutting_force_n", "friction_force_n")

@@ -21,7 +21,16 @@ from msgs_schema import convert as cv
 from msgs_schema.parameters import NODE_NAME, SPEC_BY_NAME
 from msgs_schema.tissue import LAYER_NAMES
 
-from .frames import TrackMemory, default_thickness_m, diag_message, encode_frame, needle_gauge, read_needle, tool_depth_m
+from .frames import (
+    TrackMemory,
+    default_thickness_m,
+    diag_message,
+    encode_frame,
+    friction_anchor,
+    needle_gauge,
+    read_needle,
+    tool_depth_m,
+)
 
 TUNABLE = re.compile(r"stiffness|damping|friction|tolerance")
 """Parameters the page lists first (issue 14: stiffness, damping, friction, mode tolerance); the rest are
@@ -95,6 +104,11 @@ class LiveSource:
             self.needle_topic = True
         except (ImportError, AttributeError, KeyError):
             pass
+        self.contact_model = None  # the newest tool/contact_model: its friction anchor is drawn (issue 30)
+        try:  # the contract's tool/contact_model, when the message package has it
+            subscription(self.node, "contact_model", lambda m: setattr(self, "contact_model", m))
+        except (ImportError, AttributeError, KeyError):
+            pass
         self.needle_diameter_m = SPEC_BY_NAME[NEEDLE_DIAMETER].default
         self.sheet_m = (SPEC_BY_NAME["tissue.sheet.size_x_m"].default, SPEC_BY_NAME["tissue.sheet.size_y_m"].default)
         self.tool_radius_m = SPEC_BY_NAME["tissue.tool.radius_m"].default
@@ -111,6 +125,7 @@ class LiveSource:
         self.force_max = fz if self.force_max is None else max(self.force_max, fz)
 
     grid_stamp_s = None
+    contact_model = None  # the newest tool/contact_model (also for a source built without __init__, in tests)
     needle = None  # the newest tissue/needle as the page's record (also for a source built without __init__, in tests)
     force_max = None  # the largest force z since the last frame (a 1 ms spike between two 30 Hz frames is shown)
 
@@ -313,6 +328,9 @@ class LiveSource:
             self.force_max = None
         if self.needle is not None:
             h["needle"] = self.needle
+        anchor = friction_anchor(self.contact_model)
+        if anchor is not None:
+            h["anchor"] = anchor
         if self.contact is not None:
             _, comp, _, stress = cv.read_contact(self.contact)
             h["compression_m"], h["stress_pa"] = comp.tolist(), stress.tolist()

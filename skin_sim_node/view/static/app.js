@@ -190,6 +190,16 @@ function setArrow(lenMm) { // total length lenMm, pointing +z from the group's o
 const patch = new THREE.Mesh(new THREE.RingGeometry(0.8, 1.0, 48), new THREE.MeshBasicMaterial({ color: 0xff5252, side: THREE.DoubleSide }));
 patch.visible = false;
 scene.add(patch);
+// the friction's anchor (issue 30, tool/contact_model's friction_anchor_m): where the skin under the tool is at rest;
+// the tool's offset from it is the skin's stretch. A small yellow disc on the surface, and a line to the tool's tip.
+const anchorMat = new THREE.MeshBasicMaterial({ color: 0xffd600, side: THREE.DoubleSide });
+const anchorDot = new THREE.Mesh(new THREE.CircleGeometry(0.5, 24), anchorMat);
+anchorDot.visible = false;
+scene.add(anchorDot);
+const anchorLine = new THREE.Line(new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3()]),
+  new THREE.LineBasicMaterial({ color: 0xffd600 }));
+anchorLine.visible = false;
+scene.add(anchorLine);
 $("arrow-scale").textContent = `${MM_PER_N} mm per N (${ARROW_MIN_MM}-${ARROW_MAX_MM} mm)`;
 
 function surfaceAt(x, y) { // surface height (m) under (x, y) m, from the last grid
@@ -339,6 +349,14 @@ function updateTool(h) {
   placeArrowLabel(f);
   patch.visible = f > 1e-4 && shownShape !== "needle"; // a needle's contact is its tip, drawn
   if (patch.visible) { patch.position.set(at[0] * 1e3, at[1] * 1e3, zsurf + 0.05); patch.scale.setScalar(rmm); }
+  anchorDot.visible = anchorLine.visible = !!h.anchor && shownShape !== "needle";
+  state.anchorMm = null;
+  if (anchorDot.visible) {
+    const [ax, ay] = h.anchor.map((v) => v * 1e3);
+    anchorDot.position.set(ax, ay, zsurf + 0.1);
+    anchorLine.geometry.setFromPoints([new THREE.Vector3(ax, ay, zsurf + 0.1), new THREE.Vector3(at[0] * 1e3, at[1] * 1e3, zsurf + 0.1)]);
+    state.anchorMm = [ax, ay];
+  }
   updateCurtain();
 }
 function placeArrowLabel(f) { // "0.740 N" at the arrow's head, in screen coordinates
