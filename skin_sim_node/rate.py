@@ -278,11 +278,14 @@ def device_tick_messages(
         ``bridge``, ``node`` and ``total`` messages per device tick.
     """
     answered = min(node_rate_hz, device_rate_hz) / device_rate_hz
+    device_side = 2.0 + device_twist + measured_force  # the pose and the force command, velocity and applied force
     if in_process:
-        bridge = 1 + device_twist + measured_force + 1
-        node = answered * (1 + contact_readers)
-        return {"bridge": bridge, "node": node, "total": bridge + node}
+        return {
+            "bridge": device_side,
+            "node": answered * (1 + contact_readers),
+            "total": device_side + answered * (1 + contact_readers),
+        }
     forwarded = 1.0 if forward_every_pose else answered
-    bridge = 1 + device_twist + measured_force + 1 + forwarded * (1 + forward_twist) + answered
+    bridge = device_side + forwarded * (1 + forward_twist) + answered
     node = forwarded * (1 + forward_twist) + answered * (2 + contact_readers)
     return {"bridge": bridge, "node": node, "total": bridge + node}
