@@ -25,6 +25,7 @@ TYPED_PATHS=(
   skin_sim_node/model/contact.py skin_sim_node/model/layout.py
   skin_sim_node/model/needle.py skin_sim_node/model/needle_kernels.py
   skin_sim_node/session
+  skin_sim_node/tools
 )
 .venv/bin/mypy "${TYPED_PATHS[@]}"
 .venv/bin/python -m pytest -q -p no:cacheprovider "$@"

@@ -36,6 +36,7 @@ from skin_sim_node.stability.haptic_loop import (
     run_loop,
     wall_point,
 )
+from skin_sim_node.tools import make_tool
 
 MS = 1_000_000
 T0 = 10**18
@@ -57,7 +58,7 @@ class Run:
     def __init__(self, cfg, **params):
         self.logged: list[str] = []
         self.s = HapticSession(
-            SkinModel(cfg),
+            make_tool(cfg),
             SessionParams(max_stamp_age_s=0.0, max_force_n=DEVICE_LIMIT_N, **params),
             log=lambda kind, msg: self.logged.append(kind),
         )

@@ -22,10 +22,12 @@ from msgs_schema.parameters import session_params, validate_parameters
 from msgs_schema.tissue import LAYER_NAMES
 from msgs_schema.topics import TOPICS
 
+from .. import tools
 from ..model import SkinModel
 from ..model.config import build_config, load_yaml
 from ..scenes import DEFAULT_PARAMS
 from ..session import HapticSession
+from ..tools import make_tool
 from .inputs import POSE, Inputs
 from .io import BagWriter, new_message, qos_profiles
 
@@ -82,7 +84,7 @@ class ReplayResult:
     def model_at_peak(self) -> SkinModel:
         """A model holding the deformation at peak force: the whole dynamic state copied at that tick
         (modal amplitudes, patch centres, mode levels and the active layer set)."""
-        m = SkinModel(self.cfg)
+        m = tools.tissue(self.cfg)  # as the replayed tool pressed it
         if self.peak_state is not None:
             m.set_state(self.peak_state)
         return m
@@ -134,7 +136,7 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
         time; 0 writes none.
     """
     sp, cfg = load_params(params)
-    session = HapticSession(SkinModel(cfg), sp)
+    session = HapticSession(make_tool(cfg), sp)
     frame = sp.tissue_frame
     out = _Out()
     grid_ns = int(round(1e9 / grid_rate_hz)) if grid_rate_hz > 0 else 0

@@ -15,6 +15,33 @@ import numpy as np
 from msgs_schema.contact_model import NeedleLaw
 
 Z_UP = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class Indenter:
+    """The rigid tip the tissue's kernel is pressed by: the contact geometry of the layered form's eq 6 and of the modal
+    load (a uniform pressure on the contact disk, :func:`~.modal.disk_load_coefficients`).
+
+    The tool (:mod:`skin_sim_node.tools`) gives it to :class:`~.skin_model.SkinModel`; the tissue does not know which
+    tool pressed it.
+
+    Attributes
+    ----------
+    radius_m : float
+        Radius of the flat tip, or of the sphere (m).
+    sphere : bool
+        A spherical tip (Hertz contact radius ``a = sqrt(R d)``); else a flat punch.
+    """
+
+    radius_m: float
+    sphere: bool = False
+
+    @classmethod
+    def of(cls, cfg) -> Indenter:
+        """The punch of a tissue configuration (``tool.radius_m``; spherical for ``tool.shape`` 'sphere')."""
+        return cls(cfg.tool_radius_m, cfg.tool_shape == "sphere")
+
+
 _ZZ = np.outer(Z_UP, Z_UP)
 
 

@@ -42,12 +42,12 @@ from msgs_schema.qos import publisher, subscription
 from msgs_schema.tissue import TISSUE_PARAMETERS
 from msgs_schema.topics import FRAMES
 
-from ..model import ConfigError, SkinModel, TissueConfig
+from ..model import ConfigError, TissueConfig
 from ..model.config import build_config
-from ..model.skin_model import warm_up
 from ..ros_util import LoopTiming, PeriodicLoop, localhost_udp_env, run_nodes, set_process_realtime, set_realtime
 from ..session import WATCHDOG, AnswerThrottle, HapticSession, TickResult
 from ..startup import start_line
+from ..tools import make_tool, warm_up
 from .display import DisplayProcess
 
 STATS_LEN = 16384
@@ -133,7 +133,7 @@ class SkinSimNode(Node):
         warm_up(cfg)
         self._warmup_s = time.perf_counter() - t0
         self._lock = threading.Lock()
-        self.session = HapticSession(SkinModel(cfg), session_params(self.params), log=self._log_event)
+        self.session = HapticSession(make_tool(cfg), session_params(self.params), log=self._log_event)
         self._frame = FRAMES["tissue"]
         self._sim_time = bool(self.get_parameter("use_sim_time").value)
         # preallocated messages
@@ -161,8 +161,8 @@ class SkinSimNode(Node):
         self._model_msg = ContactModel()
         self._pub_model = publisher(self, "contact_model")
         self._pub_diag = publisher(self, "diagnostics")
-        self._pub_needle = publisher(self, "needle")
-        self._needle_msg = self._pub_needle.msg_type()
+        self._readouts: dict = {}  # a tool's own read-out topic (ToolNeeds.readout): key -> (publisher, message)
+        self._add_readout()
         self._readers_checked_ns = -READERS_CHECK_NS
         self._contact_read = self._model_read = True
         self._accepted: tuple[dict, dict, NodeParams, TissueConfig] | None = None  # on_set's validated set, for post_set
@@ -318,7 +318,7 @@ class SkinSimNode(Node):
         if now_ns >= self._next_display_ns and self.params.display_rate_hz > 0:
             self._next_display_ns = now_ns + self._display_period_ns()
             self._snapshot_display()  # after the publishes: the wrench never waits for it
-            self._publish_needle()
+            self._publish_readout()
 
     # --- display (built and published by the display worker process) -------------------
     def _display_settings(self) -> dict:
@@ -343,11 +343,23 @@ class SkinSimNode(Node):
         self._display_key = key
         self._display.write(self.session.display_state())
 
-    def _publish_needle(self) -> None:
-        """``tissue/needle`` at the display rate, for a needle with readers (a few us; under the lock)."""
-        if (state := self.session.needle_state()) is None or self._pub_needle.get_subscription_count() == 0:
+    def _add_readout(self) -> None:
+        """The publisher of the tool's own read-out topic (:attr:`ToolNeeds.readout`), if it declares one: created for
+        the first tool that needs it, kept across tool changes (ROS publishers are not destroyed under readers)."""
+        ro = self.session.tool.needs.readout
+        if ro is not None and ro.topic not in self._readouts:
+            pub = publisher(self, ro.topic)
+            self._readouts[ro.topic] = (pub, pub.msg_type())
+
+    def _publish_readout(self) -> None:
+        """The tool's read-out topic (``tissue/needle``) at the display rate, while read (a few us; under the lock)."""
+        ro = self.session.tool.needs.readout
+        if ro is None:
             return
-        self._pub_needle.publish(cv.fill_needle_state(self._needle_msg, state, self._ros_now_ns(), self._frame))
+        pub, msg = self._readouts[ro.topic]
+        if pub.get_subscription_count() == 0 or (state := self.session.readout()) is None:
+            return
+        pub.publish(ro.fill(msg, state, self._ros_now_ns(), self._frame))
 
     # --- diagnostics ------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
@@ -462,10 +474,11 @@ class SkinSimNode(Node):
         if accepted is None or accepted[0] != changes:  # rclpy calls post_set right after on_set accepted this set
             accepted = (changes, self._flat | changes, *validate(self._flat | changes, changes))
         _, flat, node_params, cfg = accepted
-        new_model = SkinModel(cfg) if any(p.name.startswith(TISSUE_PREFIX) for p in ours) else None
+        new_tool = make_tool(cfg) if any(p.name.startswith(TISSUE_PREFIX) for p in ours) else None
         with self._lock:
-            if new_model is not None:
-                self.session.set_model(new_model)
+            if new_tool is not None:
+                self.session.set_tool(new_tool)
+                self._add_readout()
                 self._display.set_tissue(cfg)  # under the lock: snapshots carry the new version
             self.session.params = session_params(node_params)
             self.params = node_params
@@ -477,7 +490,7 @@ class SkinSimNode(Node):
         self.get_logger().info(
             "parameters applied: "
             + ", ".join(f"{p.name}={p.value}" for p in ours)
-            + (" (tissue restarts at rest)" if new_model else "")
+            + (" (tissue restarts at rest)" if new_tool else "")
         )
 
 
