@@ -83,6 +83,34 @@ class ContactTangent:
     slip_speed_m_s: float = 0.0
     needle: NeedleLaw | None = None
 
+    def published(self, force_n: np.ndarray, scale: float, friction_coefficient: float, slip_speed_m_s: float) -> ContactTangent:
+        """This tangent as the session publishes it: ``f0 = force_n`` (the published force, this one's scaled by
+        ``scale``), ``K``, ``D`` and the tool's law scaled alike, and the friction law the force follows.
+
+        Parameters
+        ----------
+        force_n : ndarray, shape (3,)
+            The published force (N); copied.
+        scale : float
+            Published over the tool's force magnitude (> 0).
+        friction_coefficient, slip_speed_m_s : float
+            The friction law of the tool's force (0, 0: none).
+
+        Returns
+        -------
+        ContactTangent
+        """
+        return ContactTangent(
+            force_n=force_n.copy(),
+            stiffness_n_per_m=self.stiffness_n_per_m * scale,
+            damping_n_s_per_m=self.damping_n_s_per_m * scale,
+            normal=self.normal,
+            contact_radius_m=self.contact_radius_m,
+            friction_coefficient=friction_coefficient,
+            slip_speed_m_s=slip_speed_m_s,
+            needle=None if self.needle is None else self.needle.scaled(scale),
+        )
+
     @property
     def in_contact(self) -> bool:
         """True if the tool touches the tissue (a contact radius > 0)."""

@@ -338,16 +338,7 @@ class HapticSession:
         if scale == 0.0 and force.any():  # ramping down out of contact: f0 is the published force, no stiffness
             tangent = ContactTangent(force.copy(), np.zeros((3, 3)), np.zeros((3, 3)), NO_CONTACT.normal, 0.0)
         elif t is not None and scale > 0.0:
-            tangent = ContactTangent(
-                force_n=force.copy(),
-                stiffness_n_per_m=t.stiffness_n_per_m * scale,
-                damping_n_s_per_m=t.damping_n_s_per_m * scale,
-                normal=t.normal,
-                contact_radius_m=t.contact_radius_m,
-                friction_coefficient=self._friction[0],
-                slip_speed_m_s=self._friction[1],
-                needle=None if t.needle is None else t.needle.scaled(scale),
-            )
+            tangent = t.published(force, scale, *self._friction)
         self.last = TickResult(
             seq=self._seq,
             stamp_ns=self.inputs.answered_stamp_ns,
