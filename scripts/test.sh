@@ -23,7 +23,7 @@ TYPED_PATHS=(
   skin_sim_node/device
   skin_sim_node/model/__init__.py skin_sim_node/model/skin_model.py skin_sim_node/model/config.py
   skin_sim_node/model/contact.py skin_sim_node/model/layout.py
-  skin_sim_node/model/needle.py skin_sim_node/model/needle_kernels.py
+  skin_sim_node/model/needle.py skin_sim_node/model/needle_kernels.py skin_sim_node/model/calibration.py
   skin_sim_node/session
   skin_sim_node/tools
 )

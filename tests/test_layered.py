@@ -9,12 +9,11 @@ from conftest import kernel
 from scipy.integrate import quad
 from scipy.special import j0, j1
 
-from msgs_schema.tissue import BONE_STIFFNESS, BONE_STRAIN
 from skin_sim_node.model import SkinModel, physics, preset
 from skin_sim_node.model import layered as lk
 from skin_sim_node.model import layout as lo
 from skin_sim_node.model import reference as ref
-from skin_sim_node.model.config import WALL_STRAIN
+from skin_sim_node.model.calibration import BONE_STIFFNESS, BONE_STRAIN, WALL_STRAIN
 
 
 @pytest.fixture(scope="module")

@@ -10,9 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from msgs_schema.tissue import PAPER_MODULI_PA, TOOL_RADIUS_M, flat_punch_stiffness_n_per_m
+from msgs_schema.tissue import TOOL_RADIUS_M
 from skin_sim_node.device.passivity import PassivityController
 from skin_sim_node.model import SkinModel, physics, preset
+from skin_sim_node.model.calibration import PAPER_MODULI_PA, flat_punch_stiffness_n_per_m
 from skin_sim_node.session import (
     CONTACT_SEPARATED,
     DEGENERATE_WAVE_SPEED,

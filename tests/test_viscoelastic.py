@@ -10,7 +10,8 @@ from conftest import kernel
 from skin_sim_node.model import SkinModel, physics
 from skin_sim_node.model import layered as lk
 from skin_sim_node.model import layout as lo
-from skin_sim_node.model.config import WALL_STRAIN, preset
+from skin_sim_node.model.calibration import WALL_STRAIN
+from skin_sim_node.model.config import preset
 from skin_sim_node.validation import viscoelastic as ve
 
 

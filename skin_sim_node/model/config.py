@@ -19,10 +19,9 @@ import yaml
 
 from msgs_schema.parameters import NODE_NAME, check_tissue, tissue_part
 from msgs_schema.spec import ConfigError
-from msgs_schema.tissue import INTERFACE_NAMES, LAYER_NAMES, LOD_TOLERANCE_M, WALL_STRAIN, tissue_defaults
+from msgs_schema.tissue import INTERFACE_NAMES, LAYER_NAMES, LOD_TOLERANCE_M, tissue_defaults
 
 __all__ = [
-    "WALL_STRAIN",
     "ConfigError",
     "InterfaceConfig",
     "LayerConfig",

@@ -28,8 +28,7 @@ import math
 import numpy as np
 from numba import njit
 
-from msgs_schema.tissue import BONE_STIFFNESS, BONE_STRAIN
-
+from .calibration import BONE_STIFFNESS, BONE_STRAIN
 from .config import TissueConfig
 from .contact import ContactTangent, normal_tangent
 from .layout import (

@@ -49,7 +49,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import WALL_STRAIN, TissueConfig
+from .calibration import WALL_STRAIN
+from .config import TissueConfig
 from .contact import Indenter
 from .modal import ModalBasis
 
