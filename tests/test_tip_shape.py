@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from skin_sim_node.model import layered as lk
+from skin_sim_node.model import layered_contact as lkc
 from skin_sim_node.model import preset
 from skin_sim_node.validation import sphere as sph
 from skin_sim_node.validation.tip_check import flat_layers, model_curve
@@ -15,7 +15,7 @@ from skin_sim_node.validation.tip_check import flat_layers, model_curve
 
 @pytest.fixture(params=["compiled", "py_func"])
 def geometry(request):
-    return lk.contact_geometry if request.param == "compiled" else lk.contact_geometry.py_func
+    return lkc.contact_geometry if request.param == "compiled" else lkc.contact_geometry.py_func
 
 
 def _cached(setup):

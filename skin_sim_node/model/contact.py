@@ -66,7 +66,7 @@ class ContactTangent:
         ``mu`` of the friction law ``F = F_n (n - mu v_t / sqrt(|v_t|^2 + v_s^2))`` the force follows (1); 0: the
         force has no friction term (the paper form; a tangent built without the law). The forms leave it 0; the
         session fills it from the tissue configuration for the layered form, whose force is that law
-        (:func:`skin_sim_node.model.layered.contact_jacobians`).
+        (:func:`skin_sim_node.model.layered_contact.contact_jacobians`).
     slip_speed_m_s : float
         The law's regularisation speed ``v_s`` (m/s); 0 with ``friction_coefficient`` 0.
     needle : NeedleLaw or None

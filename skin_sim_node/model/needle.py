@@ -15,7 +15,7 @@ Per tick the axial resistance ``R`` (N, along ``u_e``, positive against insertio
 
 - **dimple** (before the next layer ``k`` ruptures): the tip presses layer ``k``'s top ``w = L - t_k`` ahead of
   it; the stack below, layers ``k..L-1``, answers with the layered form's equilibrium series chain (its fitted
-  law, :func:`~.layered.chain_solve`) at the normal compression ``w |u_z|``, acting along the axis (the column along
+  law, :func:`~.layered_law.chain_solve`) at the normal compression ``w |u_z|``, acting along the axis (the column along
   the needle, strained as the normal compression strains the stack), scaled from the calibrated 2.5 mm
   punch to the *tent's* radius ``a + l_f`` as a half-space is (Sneddon: force proportional to the contact radius),
   and projected on the axis. ``a`` is the needle's radius and ``l_f`` the layers' own spread length

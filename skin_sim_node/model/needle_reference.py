@@ -18,7 +18,7 @@ from msgs_schema.contact_model import NeedleLaw
 from .calibration import CALIBRATED_TOOL_RADIUS_M, WALL_STRAIN, youngs_moduli_pa
 from .config import TissueConfig
 from .interfaces import interface_depths_m
-from .layered import chain_solve
+from .layered_law import chain_solve
 from .layout import LP_EA, LP_N, pack_layers
 from .needle import LATERAL_FACTOR, MIN_ANGLE_RAD, NeedleParams, NeedleTick
 from .physics import equilibrium

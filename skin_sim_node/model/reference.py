@@ -257,7 +257,7 @@ def averaged_interface_ref(mean, amp, kx, ky, x0, y0, radius, n=400):
 
 
 def contact_jacobians_ref(normal, grad, velocity, mu, slip_speed_m_s, force_n):
-    """NumPy reference of :func:`skin_sim_node.model.layered.contact_jacobians`: returns ``(K, D)``."""
+    """NumPy reference of :func:`skin_sim_node.model.layered_contact.contact_jacobians`: returns ``(K, D)``."""
     normal, grad, velocity = (np.asarray(a, dtype=float) for a in (normal, grad, velocity))
     proj = np.eye(3) - np.outer(normal, normal)
     vt = proj @ velocity

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from skin_sim_node.model import SkinModel, TissueConfig, preset
-from skin_sim_node.model.layered import chain_solve
+from skin_sim_node.model.layered_law import chain_solve
 from skin_sim_node.model.layout import AUX_THICK, LP_EA
 
 from ..model import calibration as schema
