@@ -23,7 +23,7 @@ from msgs_schema.tissue import LAYER_NAMES
 from msgs_schema.topics import TOPICS
 
 from .. import tools
-from ..model import SkinModel
+from ..model import SkinModel, TissueConfig
 from ..model.config import build_config, load_yaml
 from ..scenes import DEFAULT_PARAMS
 from ..session import HapticSession
@@ -61,7 +61,7 @@ class ReplayResult:
     n_grids: int
     peak_index: int
     peak_state: dict | None = None  # the model's dynamic state at peak force (SkinModel.state)
-    cfg: object = None
+    cfg: TissueConfig | None = None
     layer_names: tuple[str, ...] = field(default_factory=tuple)
     tissue_frame: str = "tissue"  # the frame_id the replayed poses had to carry
     force_vec_n: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # the published vectors (N), (n, 3)
@@ -84,6 +84,7 @@ class ReplayResult:
     def model_at_peak(self) -> SkinModel:
         """A model holding the deformation at peak force: the whole dynamic state copied at that tick
         (modal amplitudes, patch centres, mode levels and the active layer set)."""
+        assert self.cfg is not None, "a replay result without its configuration"
         m = tools.tissue(self.cfg)  # as the replayed tool pressed it
         if self.peak_state is not None:
             m.set_state(self.peak_state)

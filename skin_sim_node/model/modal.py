@@ -85,7 +85,7 @@ def shape_coefficients(m_max: int, n_max: int, a: float, b: float, r0: float, fo
     return w / np.sum(w * centre)
 
 
-def truncation_bound(w: np.ndarray, m_max: int, n_max: int) -> float:
+def truncation_bound(w: np.ndarray, m_max: int | np.integer, n_max: int | np.integer) -> float:
     """Sup-norm bound on ``|u_MN - u_ref|`` per metre of compression, from the coefficients alone.
 
     ``w`` (P, Q) are the reference coefficients (:func:`disk_load_coefficients`); ``u_ref`` is

@@ -184,7 +184,16 @@ class NumpySkinModel:
         disp = np.stack(
             [
                 layer_field_ref(
-                    self.q[li], *self.centre[li], bm.mode_m, bm.mode_n, a, b, self.xs, self.ys, self.cfg.anisotropy_angle_rad
+                    self.q[li],
+                    self.centre[li, 0],
+                    self.centre[li, 1],
+                    bm.mode_m,
+                    bm.mode_n,
+                    a,
+                    b,
+                    self.xs,
+                    self.ys,
+                    self.cfg.anisotropy_angle_rad,
                 )
                 for li in range(self.q.shape[0])
             ]

@@ -153,7 +153,7 @@ class SkinSimNode(Node):
         self._last_pub_ns = 0  # last wrench publish (idle heartbeat)
         self._last_pub_force = 0.0  # last published force (N): the idle heartbeat holds back only zeros
         self._n_idle_skipped = 0
-        self._display_key = None
+        self._display_key: tuple[int, int] | None = None
         self._last: TickResult | None = None
         # I/O
         self._pub_wrench = publisher(self, "tool_wrench")
