@@ -216,3 +216,20 @@ def report() -> str:
 
 if __name__ == "__main__":
     print(report())
+
+
+def test_typed_parameter_views_match_the_specs():
+    """Issue 28: mypy sees NodeParams and SessionParams through typed views; each has exactly the specs' fields, with
+    their types, so the checker cannot drift from the classes the specs make at run time."""
+    import dataclasses
+    import typing
+
+    from msgs_schema import parameters as p
+
+    for view, made, specs in (
+        (p.NodeParamsFields, p.NodeParams, p.NODE_PARAMETERS),
+        (p.SessionParamsFields, p.SessionParams, p.SESSION_PARAMETERS),
+    ):
+        hints = typing.get_type_hints(view)
+        assert hints == {s.name: s.type for s in specs}
+        assert [f.name for f in dataclasses.fields(made)] == list(hints)
