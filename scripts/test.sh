@@ -26,6 +26,7 @@ TYPED_PATHS=(
   skin_sim_node/session
   skin_sim_node/tools
   skin_sim_node/bags
+  skin_sim_node/configure.py
 )
 .venv/bin/mypy "${TYPED_PATHS[@]}"
 .venv/bin/python -m pytest -q -p no:cacheprovider "$@"

@@ -18,13 +18,14 @@ from pathlib import Path
 import numpy as np
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import session_params, validate_parameters
+from msgs_schema.parameters import session_params
 from msgs_schema.tissue import LAYER_NAMES
 from msgs_schema.topics import TOPICS
 
 from .. import tools
+from ..configure import configure
 from ..model import SkinModel, TissueConfig
-from ..model.config import build_config, load_yaml
+from ..model.config import load_yaml
 from ..scenes import DEFAULT_PARAMS
 from ..session import HapticSession
 from ..tools import make_tool
@@ -41,9 +42,9 @@ def bag_topic(key: str) -> str:
 
 def load_params(path=DEFAULT_PARAMS):
     """(SessionParams with the stamp-age check off, TissueConfig) from a node parameter file."""
-    node_params, tissue = validate_parameters(load_yaml(path))
+    node_params, cfg = configure(load_yaml(path))  # the node's way (skin_sim_node.configure)
     # offline: stamps are not compared with any clock
-    return session_params(node_params, max_stamp_age_s=0.0), build_config(tissue)
+    return session_params(node_params, max_stamp_age_s=0.0), cfg
 
 
 @dataclass

@@ -36,14 +36,13 @@ from msgs_schema.parameters import (
     TISSUE_PREFIX,
     NodeParams,
     session_params,
-    validate_parameters,
 )
 from msgs_schema.qos import publisher, subscription
 from msgs_schema.tissue import TISSUE_PARAMETERS
 from msgs_schema.topics import FRAMES
 
+from ..configure import configure
 from ..model import ConfigError, TissueConfig
-from ..model.config import build_config
 from ..ros_util import LoopTiming, PeriodicLoop, localhost_udp_env, run_nodes, set_process_realtime, set_realtime
 from ..session import WATCHDOG, AnswerThrottle, HapticSession, TickResult
 from ..startup import start_line
@@ -94,8 +93,8 @@ def reason(exc: Exception) -> str:
 def validate(flat: dict, changed=()) -> tuple[NodeParams, TissueConfig]:
     """The node parameters and the built tissue config of a full dotted parameter dict.
 
-    The contract validates (:func:`msgs_schema.parameters.validate_parameters`), the model builds
-    (:func:`skin_sim_node.model.config.build_config`, with its geometry checks).
+    :func:`skin_sim_node.configure.configure`: the contract validates the node parameters, the tissue goes the one way
+    every tissue configuration is built (:func:`skin_sim_node.model.config.config_from_flat`, with its geometry checks).
 
     Parameters
     ----------
@@ -113,8 +112,7 @@ def validate(flat: dict, changed=()) -> tuple[NodeParams, TissueConfig]:
     ConfigError
         With the reason.
     """
-    node_params, tissue = validate_parameters(flat, changed)
-    return node_params, build_config(tissue)
+    return configure(flat, changed)
 
 
 class SkinSimNode(Node):
