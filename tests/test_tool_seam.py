@@ -116,7 +116,8 @@ def test_a_toy_tool_runs_through_the_node(monkeypatch):
     rclpy.init(context=ctx)
     node = None
     try:
-        overrides = [Parameter("max_stamp_age_s", value=0.0), Parameter("watchdog_s", value=5.0)]
+        # the stamp-age check off, the watchdog at its largest: no stall between two fed poses fires it
+        overrides = [Parameter("max_stamp_age_s", value=0.0), Parameter("watchdog_s", value=10.0)]
         node = SkinSimNode(context=ctx, parameter_overrides=overrides)
         node._loop.stop()  # no clock thread: only the poses below tick the session
         assert type(node.session.tool) is RigidPlane and node._readouts == {}
