@@ -10,7 +10,7 @@ frozen :class:`NodeParams` and the checked tissue values (which
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import field, fields, make_dataclass, replace
+from dataclasses import field, make_dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from .spec import ConfigError, ParamSpec
@@ -209,9 +209,65 @@ def params_class(name: str, specs: tuple[ParamSpec, ...], doc: str, namespace: d
 
 SESSION_PARAMETERS: tuple[ParamSpec, ...] = tuple(s for s in NODE_PARAMETERS if s.name in SESSION_KEYS) + SESSION_ONLY_PARAMETERS
 
-if TYPE_CHECKING:  # classes made at run time from the specs have no static fields: their attributes are Any
-    NodeParams = Any
-    SessionParams = Any
+
+class NodeParamsFields:
+    """The static view of :class:`NodeParams` (one annotation per spec; tests/test_architecture.py checks it against
+    the specs): what mypy sees, the class made from the specs at run time is what runs."""
+
+    rate_hz: float
+    display_rate_hz: float
+    watchdog_s: float
+    max_stamp_age_s: float
+    max_force_n: float
+    max_force_rate_n_per_s: float
+    teleport_distance_m: float
+    workspace_radius_m: float
+    max_tool_speed_m_s: float
+    twist_max_skew_s: float
+    rate_policy: str
+    min_rate_hz: float
+    fallback_rate_hz: float
+    input_queue_depth: int
+    tissue_frame: str
+    loop_mode: str
+    publish_mesh: bool
+    mesh_stride: int
+    mesh_rate_hz: float
+    diagnostics_period_s: float
+    idle_heartbeat_hz: float
+    display_on_change: bool
+    rt_priority: int
+    rt_scope: str
+    haptic_cpu: int
+    spin_tail_us: float
+    precise_sleep: bool
+
+    def __init__(self, **values: Any) -> None: ...
+
+
+class SessionParamsFields:
+    """The static view of :class:`SessionParams` (one annotation per spec; tests/test_architecture.py checks it against
+    the specs): what mypy sees, the class made from the specs at run time is what runs."""
+
+    watchdog_s: float
+    max_stamp_age_s: float
+    max_force_n: float
+    max_force_rate_n_per_s: float
+    teleport_distance_m: float
+    workspace_radius_m: float
+    max_tool_speed_m_s: float
+    twist_max_skew_s: float
+    tissue_frame: str
+    max_dt_s: float
+    max_future_s: float
+    resync_after: int
+
+    def __init__(self, **values: Any) -> None: ...
+
+
+if TYPE_CHECKING:  # the classes made at run time from the specs have no static fields: mypy sees their typed views
+    NodeParams = NodeParamsFields
+    SessionParams = SessionParamsFields
 else:
     NodeParams = params_class(
         "NodeParams", NODE_PARAMETERS, "The node's non-tissue parameters, read once (fields: NODE_PARAMETERS)."
@@ -274,7 +330,7 @@ def node_params_from_flat(flat: Mapping[str, Any]) -> NodeParams:
     for name, value in flat.items():
         if not name.startswith(TISSUE_PREFIX):
             values[name] = check_value(name, value)
-    return NodeParams(**{f.name: values[f.name] for f in fields(NodeParams)})
+    return NodeParams(**{s.name: values[s.name] for s in NODE_PARAMETERS})
 
 
 def tissue_part(flat: Mapping[str, Any], prefix: str = TISSUE_PREFIX) -> dict[str, Any]:

@@ -75,73 +75,53 @@ def _lod_specs() -> list[ParamSpec]:
     ]
 
 
-# Default layer values (the `default` preset). Sources: docs/model.md, "Parameter sources".
+# Default layer values (the `default` preset). Sources: docs/model.md, "Parameter sources"; the fitted constants and the
+# formulas that give these literals: skin_sim_node/model/calibration.py (tests/test_model.py checks them bit for bit).
 TOOL_RADIUS_M = 2.5e-3
 """Default tool tip radius (``tool.radius_m``)."""
-_TOOL_AREA_M2 = math.pi * TOOL_RADIUS_M**2
 FOUNDATION_LENGTH_M = 1.63e-3
-"""Decay length of the membranes' foundation (patch.foundation_length_m). Fitted by ``skin-sim calibrate`` to
-the surface fields of the 3D neo-Hookean reference (1.631 mm; peak, valley, edge at their deepest step; docs/validation.md
-section 0b), with the patch at the paper's 60 mm."""
-LAYER_DEFAULTS = {
-    # thickness_m, youngs_modulus_pa (quasi-static compression/indentation modulus), density_kg_per_m3,
-    # shear_wave_speed_m_per_s (elastography: the membrane's dynamics, eq 1)
-    "epidermis": (75e-6, 1.5e6, 1150.0, 2.2),
-    "dermis": (1.2e-3, 20e3, 1116.0, 2.2),
-    "fat": (4.0e-3, 26.1e3, 971.0, 0.9),
-}
-"""Per layer (in :data:`LAYER_NAMES` order): thickness (m), Young's modulus (Pa), density (kg/m^3) and shear wave
-speed (m/s) behind the ``layers.*`` defaults."""
-POISSON_RATIO = 0.48
-"""Poisson ratio of every layer (nearly incompressible soft tissue): the Sneddon punch stiffness and the FEM
-references."""
-_PATCH_M = 0.06
+"""Default decay length of the membranes' foundation (``patch.foundation_length_m``; fitted by ``skin-sim calibrate``,
+docs/validation.md section 0b)."""
 STIFFENING_EXPONENT = 1.297
-"""Default ``n`` of the compression law ``phi = ((1 - eps)^-n - 1) / n`` for every layer: fitted, with
-:data:`LOAD_SPREADING` and :data:`WALL_STRAIN`, to the force *and* its slope ``dF/dd`` of the axisymmetric compressible
-neo-Hookean flat-punch reference (mesh level 3, default moduli, 0.1-3 mm) and its small-strain (linear-law) stiffness
-326.3 N/m: ``python -m skin_sim_node.validation.fit_law --wall`` prints n = 1.2971 (issue 20; docs/validation.md,
-"Stiffness the hand feels"). The fit is of the chain's equilibrium elastic law (dampers relaxed)."""
-LOAD_SPREADING = {"epidermis": 1.0, "dermis": 2.514, "fat": 4.319}
-"""Layered form: each layer's spring is ``s_i E_i A / h_i``, the column stiffness times this factor. The column
-``E A / h`` ignores that the material round the punch confines the column and carries load sideways. Dermis and fat
-factors: fitted with :data:`STIFFENING_EXPONENT` and :data:`WALL_STRAIN` to the flat-punch neo-Hookean reference's
-force and slope (``python -m skin_sim_node.validation.fit_law --wall``: 2.514 and 4.319; small-strain stiffness
-327.6 N/m against the reference's 326.3, force within 2.0 % and ``dF/dd`` within 4.2 % over 0.1-3 mm, no layer
-strained beyond 0.9 at 3 mm). Both lie
-between a free column (1) and a laterally confined one (the constrained modulus ``(1 - nu) / ((1 + nu)(1 - 2 nu)) E =
-8.8 E`` at ``nu = 0.48``), as a partly confined layer must. Force data fix the chain's compliance better than its split
-between the layers. The epidermis is not fitted (0.1 % of the chain's compliance; docs/validation.md). The previous
-fit (2.234, 5.867 with n = 0.119 and wall 0.99, to the force alone of the 3D references) gave a small-strain
-stiffness 13 % high and ``dF/dd`` -18 % to +49 % off (issue 20)."""
-WALL_STRAIN = 0.343
-"""Layer strain beyond which the compression law continues along its tangent (the law's slope saturates at
-``(1 - 0.343)^-2.297 = 2.6`` x the small-strain stiffness). Fitted with :data:`STIFFENING_EXPONENT` (same command):
-the neo-Hookean punch's stiffness rises from 326 N/m to ~800 N/m by 2 mm and then levels off (the compressible
-material flows out from under the punch), which a law that stiffens without bound up to the bottom cannot follow
-(best fit with the wall at 0.99: ``dF/dd`` -19 % to +27 %). Trade-off, stated: the bottom is no longer a steep wall -
-below the 5.275 mm stack the force keeps rising at about 0.9 N/mm, not 63 N/mm; a bottom wall now needs its own term in
-the law (issue 20 notes). The chain's Newton solve stays well conditioned (the law is linear past the wall)."""
-BONE_STRAIN = 0.97
-"""Layer strain at which the bottom (fascia on muscle and bone) starts to stop the tool: the compression law gains
-``K_bone (eps - 0.97)^2 / 2`` (:data:`BONE_STIFFNESS`) up to full compression and continues along its tangent past
-it. 0.97: the default layers reach it only at the stack's bottom (the fitted law has the dermis at strain 0.90 at
-3 mm and 0.94 at 4.5 mm; the wall engages between 5.0 and 5.275 mm), so the fitted force and ``dF/dd`` over
-0.05-3 mm are unchanged."""
-BONE_STIFFNESS = 10000.0
-"""``K_bone`` (dimensionless, in units of the layer's small-strain stiffness): the wall's slope grows as
-``K_bone (eps - 0.97)``, so at full compression a layer is 300 x its small-strain stiffness and the force rises at
-about 95 N/mm below the stack (``bench-model --physics`` prints the curve; the 0.99-wall law gave 63 N/mm). A
-steep, finite, C1 wall, never a clamp (stated choice)."""
+"""Default ``n`` of the layered form's compression law (``layers.*.stiffening``; fitted, docs/validation.md "Stiffness
+the hand feels")."""
+LAYER_PARAMETER_DEFAULTS: dict[str, dict[str, float]] = {
+    "epidermis": {
+        "thickness_m": 75e-6,
+        "stiffness_n_per_m": 392699.0816987242,
+        "damping_n_s_per_m": 0.0252911111254665,
+        "area_m2": 1.9634954084936207e-05,
+        "density_kg_per_m3": 1150.0,
+        "tension_n_per_m": 0.41745000000000004,
+    },
+    "dermis": {
+        "thickness_m": 1.2e-3,
+        "stiffness_n_per_m": 822.7045761588271,
+        "damping_n_s_per_m": 0.3926939828315912,
+        "area_m2": 1.9634954084936207e-05,
+        "density_kg_per_m3": 1116.0,
+        "tension_n_per_m": 6.481728,
+    },
+    "fat": {
+        "thickness_m": 4.0e-3,
+        "stiffness_n_per_m": 553.3419676707776,
+        "damping_n_s_per_m": 0.46591624795879155,
+        "area_m2": 1.9634954084936207e-05,
+        "density_kg_per_m3": 971.0,
+        "tension_n_per_m": 3.14604,
+    },
+}
+"""Per layer (in :data:`LAYER_NAMES` order) the literal defaults of ``layers.<name>.*``: the layered form's spring at the
+tool's area (the column ``E A / h`` times the fitted load spreading), the damper that critically damps the fundamental
+release mode, the tool's area, the density and the membrane tension ``rho h c^2`` (eq 1) of the layer's Young's modulus,
+density and elastography wave speed (:data:`skin_sim_node.model.calibration.LAYER_SOURCES`)."""
 FRICTION_COEFFICIENT = 0.5
 """Dry skin: friction coefficients above 0.2 and typically around 0.5, pressure-independent (Derler and Gerhardt
 2012, Tribol Lett 45:1, review of the published measurements); moist skin is higher (> 1)."""
 PUNCH_SMALL_STRAIN_STIFFNESS_N_PER_M = 326.3
 """Small-strain normal stiffness of the default 2.5 mm flat punch on the default skin (N/m): the compressible
 neo-Hookean reference the layered law is fitted to (:data:`STIFFENING_EXPONENT`; docs/validation.md)."""
-TANGENTIAL_STIFFNESS_N_PER_M = round(
-    2.0 * (1.0 - POISSON_RATIO) / (2.0 - POISSON_RATIO) * PUNCH_SMALL_STRAIN_STIFFNESS_N_PER_M, 1
-)
+TANGENTIAL_STIFFNESS_N_PER_M = 223.3  # the literal of skin_sim_node.model.calibration.tangential_stiffness_n_per_m()
 """Tangential (presliding) stiffness of the skin under the tool (N/m), 223.3: contact mechanics on the model's own
 calibrated half-space. A rigid circular contact of radius ``a`` that sticks moves ``Q (2 - nu) / (8 G a)`` under a
 tangential force ``Q`` (Mindlin 1949, J Appl Mech 16:259; Johnson 1985, Contact Mechanics, sec. 7.1), and
@@ -201,64 +181,34 @@ ANISOTROPY_ANGLE_RAD = 0.0
 the lines; a person's map of lines varies, so the direction is a parameter)."""
 
 
-def critical_damping_n_s_per_m(density_kg_per_m3: float, thickness_m: float, wave_speed_m_per_s: float) -> float:
-    """``b`` that critically damps a layer's fundamental release mode: ``b = 2 m11 lambda_11``.
-
-    ``m11 = rho_A a b / 4`` is the (1,1) modal mass of the default 60 mm patch and
-    ``lambda_11 = c pi sqrt(2) / a`` (eq 3); see ``gamma`` in :mod:`.modal`.
-    """
-    m11 = density_kg_per_m3 * thickness_m * _PATCH_M**2 / 4
-    return 2 * m11 * wave_speed_m_per_s * math.pi * math.sqrt(2) / _PATCH_M
-
-
-def flat_punch_stiffness_n_per_m(youngs_modulus_pa: float, radius_m: float) -> float:
-    """Indentation stiffness ``k = 2 E r / (1 - nu^2)`` of a rigid flat punch on a half-space.
-
-    Sneddon (1965); the ``paper`` preset's per-layer ``k`` (its values before the layered form).
-    """
-    return 2.0 * youngs_modulus_pa * radius_m / (1.0 - POISSON_RATIO**2)
-
-
-def column_stiffness_n_per_m(youngs_modulus_pa: float, thickness_m: float, area_m2: float = _TOOL_AREA_M2) -> float:
-    """Small-strain stiffness ``k = E A / h`` of the free layer column under the tool."""
-    return youngs_modulus_pa * area_m2 / thickness_m
-
-
-def layered_stiffness_n_per_m(name: str, youngs_modulus_pa: float, thickness_m: float, area_m2: float = _TOOL_AREA_M2) -> float:
-    """The layered form's small-strain spring of layer ``name``: the column stiffness times :data:`LOAD_SPREADING`
-    (the law is ``f = k h phi(c / h)``)."""
-    return LOAD_SPREADING[name] * column_stiffness_n_per_m(youngs_modulus_pa, thickness_m, area_m2)
-
-
-PAPER_MODULI_PA = {"epidermis": 1.5e6, "dermis": 20e3, "fat": 2.5e3}
-"""Young's moduli behind the ``paper`` preset's Sneddon ``k`` (unchanged from before the layered form)."""
-
-
 def _layer_specs() -> list[ParamSpec]:
     specs = []
-    for name, (h, e, rho, c) in LAYER_DEFAULTS.items():
-        k = layered_stiffness_n_per_m(name, e, h)
-        damping = critical_damping_n_s_per_m(rho, h, c)
-        tension = rho * h * c**2  # T = rho_areal c^2 (eq 1) with c from elastography
+    for name, d in LAYER_PARAMETER_DEFAULTS.items():
         p = f"layers.{name}."
         specs += [
-            _f(p + "thickness_m", h, "m", f"mean {name} thickness"),
+            _f(p + "thickness_m", d["thickness_m"], "m", f"mean {name} thickness"),
             _f(
                 p + "stiffness_n_per_m",
-                k,
+                d["stiffness_n_per_m"],
                 "N/m",
                 f"{name} Kelvin-Voigt spring k (eq 6); layered form: small-strain stiffness at the mean thickness "
                 "(column E A / h times the load-spreading factor fitted to the neo-Hookean reference)",
             ),
-            _f(p + "damping_n_s_per_m", damping, "N*s/m", f"{name} Kelvin-Voigt damper b (eq 6)", min_exclusive=False),
-            _f(p + "area_m2", _TOOL_AREA_M2, "m^2", f"{name} loaded area A (eq 6; paper form)"),
+            _f(
+                p + "damping_n_s_per_m",
+                d["damping_n_s_per_m"],
+                "N*s/m",
+                f"{name} Kelvin-Voigt damper b (eq 6)",
+                min_exclusive=False,
+            ),
+            _f(p + "area_m2", d["area_m2"], "m^2", f"{name} loaded area A (eq 6; paper form)"),
             _f(
                 p + "density_kg_per_m3",
-                rho,
+                d["density_kg_per_m3"],
                 "kg/m^3",
                 f"{name} volumetric density; areal rho = density*thickness (eq 1)",
             ),
-            _f(p + "tension_n_per_m", tension, "N/m", f"{name} membrane tension T (eq 1)"),
+            _f(p + "tension_n_per_m", d["tension_n_per_m"], "N/m", f"{name} membrane tension T (eq 1)"),
             _f(
                 p + "stiffening",
                 STIFFENING_EXPONENT,

@@ -16,7 +16,8 @@ import math
 from pathlib import Path
 
 from msgs_schema.parameters import ALL_PARAMETERS, NODE_NAME, TISSUE_PREFIX, tissue_part
-from msgs_schema.tissue import LAYER_NAMES, PAPER_MODULI_PA, TOOL_RADIUS_M, flat_punch_stiffness_n_per_m
+from msgs_schema.tissue import LAYER_NAMES, TOOL_RADIUS_M
+from skin_sim_node.model.calibration import PAPER_MODULI_PA, flat_punch_stiffness_n_per_m
 from skin_sim_node.model.config import config_from_flat, dump_yaml
 
 ROOT = Path(__file__).resolve().parents[1]

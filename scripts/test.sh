@@ -21,10 +21,13 @@ LINT_PATHS=(skin_sim_node msgs_schema tests scripts launch_scripts)
 TYPED_PATHS=(
   msgs_schema
   skin_sim_node/device
-  skin_sim_node/model/__init__.py skin_sim_node/model/skin_model.py skin_sim_node/model/config.py
-  skin_sim_node/model/contact.py skin_sim_node/model/layout.py
-  skin_sim_node/model/needle.py skin_sim_node/model/needle_kernels.py
+  skin_sim_node/model
+  skin_sim_node/server
   skin_sim_node/session
+  skin_sim_node/tools
+  skin_sim_node/bags
+  skin_sim_node/configure.py
+  skin_sim_node/rate.py
 )
 .venv/bin/mypy "${TYPED_PATHS[@]}"
 .venv/bin/python -m pytest -q -p no:cacheprovider "$@"

@@ -91,9 +91,10 @@ def model_at(inputs, params, stamp_ns: int):
     from .bags.offline import load_params
     from .model import SkinModel
     from .session import HapticSession
+    from .tools import make_tool
 
     sp, cfg = load_params(params)
-    session = HapticSession(SkinModel(cfg), sp)
+    session = HapticSession(make_tool(cfg), sp)
     prev, last = None, None
     for stamp, rank, frame, xyz, quat in inputs.events:
         if stamp > stamp_ns:

@@ -141,7 +141,13 @@ def test_session_uses_only_the_model_package():
     assert any("skin_sim_node.model" in g[m] for m in session)  # the rule sees the session's real import
 
 
-MODEL_MAY_NOT_IMPORT = ("skin_sim_node.session", "skin_sim_node.server", "skin_sim_node.device", "skin_sim_node.perf")
+MODEL_MAY_NOT_IMPORT = (
+    "skin_sim_node.session",
+    "skin_sim_node.server",
+    "skin_sim_node.device",
+    "skin_sim_node.perf",
+    "skin_sim_node.tools",
+)
 
 
 def test_model_core_imports_no_rclpy_and_nothing_above_it():
@@ -153,6 +159,31 @@ def test_model_core_imports_no_rclpy_and_nothing_above_it():
     assert {m: ns for m, ns in ros.items() if ns} == {}
     up = {m: sorted(t for t in g[m] if any(_within(t, pkg) for pkg in MODEL_MAY_NOT_IMPORT)) for m in model}
     assert {m: ts for m, ts in up.items() if ts} == {}
+
+
+def test_session_knows_no_tool():
+    """Issue 28: the session composes the input policy, a tool and the limits with no tool-specific branch: it imports
+    the tools' package (its seam), none of their modules, names no tool and asks no tool for an optional attribute."""
+    g = import_graph()
+    session = {m: p for m, p in modules().items() if _within(m, "skin_sim_node.session")}
+    bad = {m: sorted(t for t in g[m] if t.startswith("skin_sim_node.tools.")) for m in session}
+    assert {m: ts for m, ts in bad.items() if ts} == {}
+    assert "skin_sim_node.tools" in g["skin_sim_node.session.haptic"]
+    for m, p in session.items():
+        text = p.read_text().lower()
+        assert "needle" not in text and "getattr(self.model" not in text and "tool_shape" not in text, m
+
+
+def test_tools_each_in_one_module():
+    """Issue 28: each tool of ``tools.TOOLS`` is a class of its own module under ``skin_sim_node/tools/``, and the tissue
+    model has no tool registry."""
+    from skin_sim_node import tools
+
+    homes = {shape: cls.__module__ for shape, cls in tools.TOOLS.items()}
+    assert all(m.startswith("skin_sim_node.tools.") for m in homes.values()), homes
+    assert len(set(homes.values())) == len(homes), homes
+    text = (ROOT / "skin_sim_node/model/skin_model.py").read_text()
+    assert "TOOL_MODELS" not in text and "__new__" not in text and "axis=None" not in text
 
 
 def test_graph_reader_sees_real_edges():
@@ -185,3 +216,20 @@ def report() -> str:
 
 if __name__ == "__main__":
     print(report())
+
+
+def test_typed_parameter_views_match_the_specs():
+    """Issue 28: mypy sees NodeParams and SessionParams through typed views; each has exactly the specs' fields, with
+    their types, so the checker cannot drift from the classes the specs make at run time."""
+    import dataclasses
+    import typing
+
+    from msgs_schema import parameters as p
+
+    for view, made, specs in (
+        (p.NodeParamsFields, p.NodeParams, p.NODE_PARAMETERS),
+        (p.SessionParamsFields, p.SessionParams, p.SESSION_PARAMETERS),
+    ):
+        hints = typing.get_type_hints(view)
+        assert hints == {s.name: s.type for s in specs}
+        assert [f.name for f in dataclasses.fields(made)] == list(hints)

@@ -21,6 +21,7 @@ from skin_sim_node.model.layout import OUT_ANCHORED, OUT_ZX, OUT_ZZ
 from skin_sim_node.perf import friction_path as fp
 from skin_sim_node.perf.force_path import _plain_contact_model_msg, closed_loop_drag, device_drag, stick_flips
 from skin_sim_node.session import HapticSession, SessionParams
+from skin_sim_node.tools import make_tool
 
 MS = 1_000_000
 T0 = 1_700_000_000 * 1_000_000_000
@@ -172,7 +173,7 @@ def _press_path(k):
 
 
 def _run(cfg, n, twists: str, sphere=False):
-    s = HapticSession(SkinModel(cfg), SessionParams(max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(cfg), SessionParams(max_stamp_age_s=0.0))
     rng = np.random.default_rng(1)
     out = []
     for k in range(n):
@@ -195,7 +196,7 @@ def test_same_poses_give_the_same_force_bit_for_bit_whatever_the_twists(default_
 
 def test_anchor_persists_through_a_stall_and_resets_on_lift_off(default_cfg):
     p = SessionParams(max_stamp_age_s=0.0)
-    s = HapticSession(SkinModel(default_cfg), p)
+    s = HapticSession(make_tool(default_cfg), p)
     k = 0
     for k in range(700):  # press 1.5 mm and stretch the skin 0.5 mm sideways (stick)
         stamp = T0 + k * MS
@@ -227,7 +228,7 @@ def test_anchor_persists_through_a_stall_and_resets_on_lift_off(default_cfg):
 
 
 def test_contact_model_carries_anchor_stiffness_and_slip_level_and_renders_f0_at_x0(default_cfg):
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(default_cfg), SessionParams(max_stamp_age_s=0.0))
     msg = _plain_contact_model_msg()
     checked = 0
     for k in range(1200):
@@ -274,7 +275,7 @@ def test_closed_loop_presliding_has_no_friction_flips_and_the_chatter_guard_neve
 
 
 def test_renderer_caps_the_tangential_stiffness_and_keeps_f0(default_cfg):
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(default_cfg), SessionParams(max_stamp_age_s=0.0))
     msg = _plain_contact_model_msg()
     for k in range(700):
         stamp = T0 + k * MS
@@ -306,7 +307,7 @@ def test_live_view_header_carries_the_friction_anchor(default_cfg):
     with the presliding law, and not without one."""
     from skin_sim_node.view.live import LiveSource
 
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(default_cfg), SessionParams(max_stamp_age_s=0.0))
     msg = _plain_contact_model_msg()
     src = LiveSource.__new__(LiveSource)  # no rclpy: only the header
     src.pose = src.wrench = src.contact = None

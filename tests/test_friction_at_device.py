@@ -13,8 +13,8 @@ from skin_sim_msgs.msg import ContactModel
 
 from msgs_schema.contact_model import fill_contact_model_from_tick, read_contact_model
 from skin_sim_node.device.render import ContactRenderer
-from skin_sim_node.model import SkinModel
 from skin_sim_node.session import HapticSession, SessionParams
+from skin_sim_node.tools import make_tool
 
 MS = 1_000_000
 T0 = 1_700_000_000 * 1_000_000_000
@@ -23,7 +23,7 @@ T0 = 1_700_000_000 * 1_000_000_000
 @pytest.mark.parametrize("direction", [(1.0, 0.0), (0.0, -1.0), (0.6, 0.8)])
 def test_drag_at_1mm_renders_mu_times_the_normal_force_against_the_motion(default_cfg, direction):
     mu = default_cfg.friction_coefficient
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(default_cfg), SessionParams(max_stamp_age_s=0.0))
     renderer = ContactRenderer()
     msg = ContactModel()
     u = np.array([*direction, 0.0])

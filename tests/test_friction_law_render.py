@@ -20,7 +20,6 @@ from msgs_schema.contact_model import LocalModel, fill_contact_model_from_tick, 
 from skin_sim_node.device.mapping import TOUCH_MAX_STIFFNESS_N_PER_M, TOUCH_PEAK_FORCE_N
 from skin_sim_node.device.render import ContactRenderer, friction_law_force, stable_damping_n_s_per_m
 from skin_sim_node.device.stylus import DeviceParams
-from skin_sim_node.model import SkinModel
 from skin_sim_node.perf.force_path import (
     CLOSED_LOOP_DRAG_S,
     LEGACY_SLIP_SPEED_M_S,
@@ -31,6 +30,7 @@ from skin_sim_node.perf.force_path import (
     stick_flips,
 )
 from skin_sim_node.session import HapticSession, SessionParams
+from skin_sim_node.tools import make_tool
 
 MS = 1_000_000
 T0 = 1_700_000_000 * 1_000_000_000
@@ -39,7 +39,7 @@ T0 = 1_700_000_000 * 1_000_000_000
 def drag_results(cfg, speed=0.02, depth=1.5e-3, n=900):
     """A session pressed to ``depth`` then dragged along +x at ``speed``; yields (TickResult, the model message with the
     velocity law in place of the presliding one: :func:`legacy_model`)."""
-    s = HapticSession(SkinModel(cfg), SessionParams(max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(cfg), SessionParams(max_stamp_age_s=0.0))
     msg = _plain_contact_model_msg()
     for i in range(n):
         t = i * 1e-3
@@ -86,7 +86,7 @@ def test_paper_form_and_stale_ticks_carry_no_law(default_cfg):
     cfg = replace(default_cfg, form="paper")
     for _, m in drag_results(cfg, n=400):
         assert m.friction_coefficient == 0.0 and m.slip_speed_m_s == 0.0
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(default_cfg), SessionParams(max_stamp_age_s=0.0))
     r = s.tick(T0, MS)  # no input: stale
     m = read_contact_model(fill_contact_model_from_tick(_plain_contact_model_msg(), r, T0, "tissue"))
     assert r.stale and m.friction_coefficient == 0.0 and m.normal_force_n == 0.0 and not m.f0_n.any()
@@ -175,7 +175,7 @@ def test_friction_is_passive_back_and_forth_by_the_energy_observer(default_cfg, 
     bridge's passivity observer, booking each command over the displacement it acted on, never sees the environment
     give energy (its controller never acts); the velocity law opposes the device's velocity at every tick (the
     presliding law returns the stretch's energy on a reversal, never more than it stored)."""
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(default_cfg), SessionParams(max_stamp_age_s=0.0))
     r = ContactRenderer(passivity_mass_kg=DeviceParams.mass_kg)
     msg = _plain_contact_model_msg()
     pending = []

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from msgs_schema.tissue import LAYER_DEFAULTS
 from skin_sim_node.model import preset
+from skin_sim_node.model.calibration import LAYER_SOURCES as LAYER_DEFAULTS
 from skin_sim_node.validation import hyperelastic as h
 from skin_sim_node.validation.large_deformation import SMALL_STRAIN_DEPTH_M, SMALL_STRAIN_TOL
 from skin_sim_node.validation.references import AXI_REFERENCE_LEVEL, axisym

@@ -9,13 +9,14 @@ from conftest import kernel
 from scipy.integrate import quad
 from scipy.special import j0, j1
 
-from msgs_schema.tissue import BONE_STIFFNESS, BONE_STRAIN
 from skin_sim_node.model import SkinModel, physics, preset
 from skin_sim_node.model import friction as fr
 from skin_sim_node.model import layered as lk
+from skin_sim_node.model import layered_contact as lkc
+from skin_sim_node.model import layered_law as lkl
 from skin_sim_node.model import layout as lo
 from skin_sim_node.model import reference as ref
-from skin_sim_node.model.config import WALL_STRAIN
+from skin_sim_node.model.calibration import BONE_STIFFNESS, BONE_STRAIN, WALL_STRAIN
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +29,7 @@ def test_default_preset_is_layered_and_paper_preset_is_paper(cfg):
 
 
 def test_jinc_matches_scipy(compiled):
-    fn = kernel(lk.jinc, compiled)
+    fn = kernel(lkc.jinc, compiled)
     for x in np.concatenate([np.linspace(1e-9, 3.0, 301), np.linspace(3.0, 300.0, 2000)]):
         w, dw = fn(float(x))
         assert w == pytest.approx(2 * j1(x) / x, abs=1e-7)
@@ -37,7 +38,7 @@ def test_jinc_matches_scipy(compiled):
 
 @pytest.mark.parametrize("n", [0.0, 0.5, 1.45, 3.0])
 def test_compression_law_matches_reference_and_properties(compiled, n):
-    law = kernel(lk.compression_law, compiled)
+    law = kernel(lkl.compression_law, compiled)
     eps = np.linspace(-2.0, 1.5, 701)
     phi = np.array([law(float(e), n, WALL_STRAIN)[0] for e in eps])
     dphi = np.array([law(float(e), n, WALL_STRAIN)[1] for e in eps])
@@ -74,7 +75,7 @@ def _chain_case(rng):
 
 
 def test_chain_solve_matches_bracketing_reference(compiled, rng):
-    solve = kernel(lk.chain_solve, compiled)
+    solve = kernel(lkl.chain_solve, compiled)
     checked = 0
     for _ in range(60):
         d, ea, n, b, dt, c_old, h, off = _chain_case(rng)
@@ -91,8 +92,8 @@ def test_chain_solve_matches_bracketing_reference(compiled, rng):
         assert c.sum() == pytest.approx(d, rel=1e-12, abs=1e-18)
         # iso-stress: every layer carries the same force, each with its own rate (eq 4 with per-layer rates)
         for i in range(3):
-            phi, _ = lk.compression_law(c[i] / h[i], n[i], WALL_STRAIN)
-            resid = ea[i] * phi + b[i] / max(dt, lk.DT_FLOOR_S) * (c[i] - c_old[i]) + off[i]
+            phi, _ = lkl.compression_law(c[i] / h[i], n[i], WALL_STRAIN)
+            resid = ea[i] * phi + b[i] / max(dt, lkl.DT_FLOOR_S) * (c[i] - c_old[i]) + off[i]
             assert resid == pytest.approx(t, rel=1e-9, abs=1e-12)
     assert checked > 20
 
@@ -101,13 +102,13 @@ def test_chain_warm_start_gives_the_same_root(rng):
     for _ in range(20):
         d, ea, n, b, dt, c_old, h, off = _chain_case(rng)
         c1, c2, g = np.zeros(3), np.zeros(3), np.zeros(3)
-        t1 = lk.chain_solve(d, 0.0, ea, n, b, dt, c_old, h, WALL_STRAIN, off, c1, g)
-        t2 = lk.chain_solve(d, 1e3, ea, n, b, dt, c_old, h, WALL_STRAIN, off, c2, g)
+        t1 = lkl.chain_solve(d, 0.0, ea, n, b, dt, c_old, h, WALL_STRAIN, off, c1, g)
+        t2 = lkl.chain_solve(d, 1e3, ea, n, b, dt, c_old, h, WALL_STRAIN, off, c2, g)
         assert t1 == pytest.approx(t2, rel=1e-10, abs=1e-13)
 
 
 def test_averaged_bounds_match_quadrature_and_derivatives(compiled, cfg):
-    fn = kernel(lk.averaged_bounds, compiled)
+    fn = kernel(lkc.averaged_bounds, compiled)
     m = SkinModel(cfg)
     lp = m._arrays.lp
     bounds, dbx, dby, dbd = np.zeros(4), np.zeros(3), np.zeros(3), np.zeros(3)
@@ -248,7 +249,7 @@ def test_chain_is_passive_for_any_dt(cfg, dt):
         total = 0.0
         for i in range(3):
             n_i = nexp[i]
-            energy = quad(lambda e, n_i=n_i: lk.compression_law(e, n_i, WALL_STRAIN)[0], 0, comp[i] / thick[i])[0]
+            energy = quad(lambda e, n_i=n_i: lkl.compression_law(e, n_i, WALL_STRAIN)[0], 0, comp[i] / thick[i])[0]
             total += ea[i] * thick[i] * energy
         return total
 

@@ -9,10 +9,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.sparse.linalg import spsolve
 
-from msgs_schema.tissue import PAPER_MODULI_PA, TOOL_RADIUS_M, flat_punch_stiffness_n_per_m
-from skin_sim_node.model import DEGENERATE_RETURN_S, SkinModel, classify, config_from_flat, physics
-from skin_sim_node.model.config import WALL_STRAIN, ConfigError, default_flat
-from skin_sim_node.model.layered import DT_FLOOR_S, compression_law
+from msgs_schema.tissue import TOOL_RADIUS_M
+from skin_sim_node.model import DEGENERATE_RETURN_S, SkinModel, classify, config_from_flat, physics, preset
+from skin_sim_node.model.calibration import PAPER_MODULI_PA, WALL_STRAIN, flat_punch_stiffness_n_per_m
+from skin_sim_node.model.config import ConfigError, default_flat
+from skin_sim_node.model.layered_law import DT_FLOOR_S, compression_law
 from skin_sim_node.model.modal import disk_load_coefficients, shape_coefficients
 
 
@@ -416,3 +417,35 @@ def test_config_validation_errors(change, message):
 
 def test_yaml_presets_match_schema(default_cfg):
     assert default_cfg.as_flat() == default_flat()
+
+
+def test_contract_defaults_are_the_calibration_formulas_bit_for_bit():
+    """Issue 28: the contract holds literal defaults; the model's calibration (fitted constants and formulas) gives
+    exactly those literals, and the needle's lateral bed reads the live layers' moduli."""
+    from msgs_schema.tissue import LAYER_PARAMETER_DEFAULTS, STIFFENING_EXPONENT
+    from skin_sim_node.model import calibration as cal
+
+    assert cal.layer_parameter_defaults() == LAYER_PARAMETER_DEFAULTS  # == on floats: bit for bit
+    assert cal.FITTED_STIFFENING_EXPONENT == STIFFENING_EXPONENT
+    cfg = preset("default")
+    assert cal.youngs_moduli_pa(cfg) == [v[1] for v in cal.LAYER_SOURCES.values()]  # exact at the defaults
+    stiffer = cfg.replace(**{"layers.dermis.stiffness_n_per_m": 2 * cfg.layers[1].stiffness_n_per_m})
+    assert cal.youngs_moduli_pa(stiffer)[1] == pytest.approx(2 * cal.LAYER_SOURCES["dermis"][1], rel=1e-15)
+
+
+def test_needle_lateral_bed_follows_a_live_stiffness_change():
+    from skin_sim_node.model.layout import NL_MODULUS
+    from skin_sim_node.model.needle import NeedleModel
+
+    cfg = preset("needle")
+    stiffer = cfg.replace(**{"layers.fat.stiffness_n_per_m": 3 * cfg.layers[2].stiffness_n_per_m})
+    a, b = NeedleModel(cfg).nlp[NL_MODULUS], NeedleModel(stiffer).nlp[NL_MODULUS]
+    assert b[2] == pytest.approx(3 * a[2], rel=1e-15) and b[0] == a[0] and b[1] == a[1]
+
+
+def test_contract_tangential_stiffness_is_the_calibration_formula():
+    """Issue 30's k_t default (a literal in the contract) is the contact-mechanics formula of the calibration."""
+    from msgs_schema.tissue import TANGENTIAL_STIFFNESS_N_PER_M
+    from skin_sim_node.model import calibration as cal
+
+    assert TANGENTIAL_STIFFNESS_N_PER_M == cal.tangential_stiffness_n_per_m()

@@ -11,17 +11,18 @@ from msgs_schema.contact_model import read_contact_model
 from msgs_schema.convert import fill_needle_state
 from msgs_schema.parameters import SessionParams
 from skin_sim_node.device.trajectories import TRAJECTORIES, needle_orientation
-from skin_sim_node.model import NeedleSkin, SkinModel, preset
+from skin_sim_node.model import preset
 from skin_sim_node.session.events import BAD_ORIENTATION
 from skin_sim_node.session.haptic import HapticSession
 from skin_sim_node.session.inputs import quaternion_axis
+from skin_sim_node.tools import TOOLS, FlatPunch, NeedleTool, SpherePunch, make_tool
 
 MS = 1_000_000
 
 
 def _session(shape: str = "needle", **tissue) -> HapticSession:
     cfg = preset("default").replace(**{"tool.shape": shape, **tissue})
-    return HapticSession(SkinModel(cfg), SessionParams())
+    return HapticSession(make_tool(cfg), SessionParams())
 
 
 def _insert(s: HapticSession, path: str, dt_ns: int = MS):
@@ -34,9 +35,11 @@ def _insert(s: HapticSession, path: str, dt_ns: int = MS):
         yield s.tick(k * dt_ns, dt_ns), np.array(p)
 
 
-def test_needle_config_gives_the_needle_model():
-    assert isinstance(SkinModel(preset("needle")), NeedleSkin)
-    assert type(SkinModel(preset("default"))) is SkinModel
+def test_each_tool_shape_gives_its_tool():
+    assert type(make_tool(preset("needle"))) is NeedleTool
+    assert type(make_tool(preset("default"))) is FlatPunch
+    assert type(make_tool(preset("default").replace(**{"tool.shape": "sphere"}))) is SpherePunch
+    assert set(TOOLS) == {"flat", "sphere", "needle"}
 
 
 def test_orientation_is_validated_for_the_needle_only():
@@ -61,7 +64,7 @@ def test_published_force_is_the_models_vector_and_its_law_gives_f0(path):
     s = _session()
     seen_law = most = 0
     for r, _ in _insert(s, path):
-        most = max(most, s.model.needle.ruptured)
+        most = max(most, s.tool.needle.ruptured)
         f = np.array(r.force_n)
         law = r.tangent.needle
         assert np.isfinite(f).all()
@@ -83,14 +86,14 @@ def test_puncture_drop_is_published_within_one_tick_and_not_rate_limited():
     drops = np.diff(forces)
     i = int(np.argmin(drops))
     peak = forces[i]
-    assert peak == pytest.approx(s.model.needle.params.puncture_force_n(1), rel=0.01)  # the skin's (dermis) peak
+    assert peak == pytest.approx(s.tool.needle.params.puncture_force_n(1), rel=0.01)  # the skin's (dermis) peak
     assert forces[i + 1] < 0.3 * peak  # the drop lands in one tick
 
 
 def test_latched_track_on_reinsertion_and_peak_returns_after_withdrawal():
     s = _session()
     forces = np.array([math.hypot(*r.force_n) for r, _ in _insert(s, "needle_reinsert")])
-    peak = s.model.needle.params.puncture_force_n(1)
+    peak = s.tool.needle.params.puncture_force_n(1)
     big = np.flatnonzero(forces > 0.95 * peak)
     runs = np.split(big, np.flatnonzero(np.diff(big) > 50) + 1)
     assert len(runs) == 2  # the first insertion and the one after the withdrawal; none on the latched re-insertion
@@ -102,7 +105,7 @@ def test_needle_state_message_round_trip():
     s = _session()
     for _ in _insert(s, "needle_oblique_30"):
         pass
-    st = s.needle_state()
+    st = s.readout()
     msg = fill_needle_state(NeedleState(), st, 5 * MS, "tissue")
     assert msg.ruptured_layers == st["ruptured_layers"] and len(msg.crossing_m) == len(st["crossing_m"])
     assert list(msg.axis) == pytest.approx(list(st["axis"]))
@@ -179,7 +182,7 @@ def test_dithering_across_an_interface_toggles_no_force(layer):
     s = _session()
     peak_depth = 2.2e-3 if layer == 1 else 3.4e-3  # layer 1: the epidermis cut, the dermis dimpled
     _drive(s, _line((0, 0, 1e-3), (0, 0, -peak_depth), 3200))
-    c = float(s.model.needle.crossings[min(layer, s.model.needle.ruptured)])
+    c = float(s.tool.needle.crossings[min(layer, s.tool.needle.ruptured)])
     back = _line((0, 0, -peak_depth), (0, 0, -(c + 2e-6)), 2000)
     dither = [np.array((0, 0, -(c + 2e-6 * (-1) ** k))) for k in range(20)]
     f, _ = _drive(s, back + dither, t0=5000 * MS)
@@ -192,17 +195,17 @@ def test_a_needle_too_flat_for_a_track_presses_the_surface_and_steepening_it_in_
     q9 = needle_orientation(math.radians(9.0))
     u9 = np.array(quaternion_axis(*q9))
     f, _ = _drive(s, [p * u9 for p in np.linspace(-1e-3, 2e-3 / math.sin(math.radians(9.0)), 2000)], quat=q9)
-    assert not s.model.needle.inserted and np.linalg.norm(f[-1]) > 0.05 and f[-1][2] > 0.0  # pushed back out
+    assert not s.tool.needle.inserted and np.linalg.norm(f[-1]) > 0.05 and f[-1][2] > 0.0  # pushed back out
     tip = 2e-3 / math.sin(math.radians(9.0)) * u9
     _drive(s, [tip] * 50, quat=(0.0, 0.0, 0.0, 1.0), t0=3000 * MS)  # rotated to vertical where it is
-    assert not s.model.needle.inserted
+    assert not s.tool.needle.inserted
 
 
 def test_no_track_off_the_sheet():
     s = _session()
     hx = 0.5 * s.model.cfg.sheet_size_m[0]
     f, _ = _drive(s, _line((hx + 2e-3, 0, 1e-3), (hx + 2e-3, 0, -4e-3), 2000))
-    assert not s.model.needle.inserted and not np.abs(f).any()
+    assert not s.tool.needle.inserted and not np.abs(f).any()
     assert s.regime_counts.get("tool_off_sheet", 0) > 0
 
 
@@ -210,11 +213,11 @@ def test_pushed_sideways_the_needle_tears_its_way_and_a_new_entry_punctures_agai
     """Withdrawn to 20 um and dragged 3 mm sideways, the needle cuts a slot (the bed's force stays under the slot-cutting
     force) and pushing in at the new place punctures the skin again."""
     s = _session()
-    peak = s.model.needle.params.puncture_force_n(1)
+    peak = s.tool.needle.params.puncture_force_n(1)
     _drive(s, _line((0, 0, 1e-3), (0, 0, -4.5e-3), 5500))
     _drive(s, _line((0, 0, -4.5e-3), (0, 0, -20e-6), 4500), t0=6000 * MS)
     f_drag, _ = _drive(s, _line((0, 0, -20e-6), (3e-3, 0, -20e-6), 3000), t0=11000 * MS)
-    assert np.abs(f_drag[:, 0]).max() < 0.1 and s.model.tears > 0
+    assert np.abs(f_drag[:, 0]).max() < 0.1 and s.tool.tears > 0
     f_in, _ = _drive(s, _line((3e-3, 0, -20e-6), (3e-3, 0, -4.5e-3), 4500), t0=15000 * MS)
     assert np.linalg.norm(f_in, axis=1).max() == pytest.approx(peak, rel=0.01)
 
@@ -228,11 +231,11 @@ def test_before_the_first_rupture_the_tent_slides_with_the_tip():
     """Pressed 1.5 mm (nothing cut yet), moved 3 mm sideways and pushed in: the skin ruptures under the tip's new place,
     at the same peak, not along the first contact's track."""
     s = _session()
-    peak = s.model.needle.params.puncture_force_n(1)
+    peak = s.tool.needle.params.puncture_force_n(1)
     _drive(s, _line((0, 0, 1e-3), (0, 0, -1.5e-3), 2500))
-    assert s.model.needle.ruptured == 0
+    assert s.tool.needle.ruptured == 0
     f_slide, _ = _drive(s, _line((0, 0, -1.5e-3), (3e-3, 0, -1.5e-3), 3000), t0=3000 * MS)
     assert np.abs(f_slide[:, 0]).max() < 1e-9  # no sideways force: the tent slides (frictionless tip)
     f_in, _ = _drive(s, _line((3e-3, 0, -1.5e-3), (3e-3, 0, -4.5e-3), 3000), t0=7000 * MS)
     assert np.linalg.norm(f_in, axis=1).max() == pytest.approx(peak, rel=0.01)
-    assert s.model.needle.entry[0] == pytest.approx(3e-3, abs=1e-6)
+    assert s.tool.needle.entry[0] == pytest.approx(3e-3, abs=1e-6)

@@ -15,10 +15,11 @@ from geometry_msgs.msg import PoseStamped, TwistStamped  # noqa: E402
 
 from msgs_schema import convert as cv  # noqa: E402
 from msgs_schema.parameters import SPEC_BY_NAME  # noqa: E402
-from skin_sim_node.model import SkinModel, load_tissue_config  # noqa: E402
+from skin_sim_node.model import load_tissue_config  # noqa: E402
 from skin_sim_node.ros_util import PeriodicLoop  # noqa: E402
 from skin_sim_node.scenes import DEFAULT_PARAMS, Scene  # noqa: E402
 from skin_sim_node.session import HapticSession, SessionParams  # noqa: E402
+from skin_sim_node.tools import make_tool  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
 NS = 1_000_000_000
@@ -118,7 +119,7 @@ def test_press_force_matches_offline_model(scene, monitor):
     time.sleep(0.3)
     live = {s: f for _, s, f in list(monitor.wrench)}
     answered = [(stamp, xyz, v) for stamp, xyz, v in src.sent if stamp in live]
-    session = HapticSession(SkinModel(load_tissue_config(DEFAULT_PARAMS)), SessionParams(max_stamp_age_s=0.0))
+    session = HapticSession(make_tool(load_tissue_config(DEFAULT_PARAMS)), SessionParams(max_stamp_age_s=0.0))
     offline = {}
     prev = None
     for stamp, xyz, v in answered:
@@ -405,7 +406,7 @@ def test_needle_over_dds_answers_as_offline_and_publishes_its_track(scene, monit
     live = {s: f for _, s, f in list(monitor.wrench)}
     answered = [(stamp, xyz, v) for stamp, xyz, v in src.sent if stamp in live]
     cfg = load_tissue_config(DEFAULT_PARAMS).replace(**{"tool.shape": "needle"})
-    session = HapticSession(SkinModel(cfg), SessionParams(max_stamp_age_s=0.0))
+    session = HapticSession(make_tool(cfg), SessionParams(max_stamp_age_s=0.0))
     offline, prev = {}, None
     for stamp, xyz, v in answered:
         session.on_pose(stamp, "tissue", xyz, quat=traj.orientation)

@@ -6,7 +6,6 @@ import math
 import numpy as np
 import pytest
 
-from skin_sim_node.model import SkinModel
 from skin_sim_node.model.contact import ContactTangent
 from skin_sim_node.session import (
     FORCE_CLAMPED,
@@ -24,6 +23,7 @@ from skin_sim_node.session import (
     HapticSession,
     SessionParams,
 )
+from skin_sim_node.tools import make_tool
 
 MS = 1_000_000
 T0 = 1_000_000 * 1_000_000_000  # an arbitrary epoch, ns
@@ -32,7 +32,7 @@ T0 = 1_000_000 * 1_000_000_000  # an arbitrary epoch, ns
 @pytest.fixture
 def session(default_cfg):
     logged = []
-    s = HapticSession(SkinModel(default_cfg), SessionParams(), log=lambda kind, msg: logged.append(kind))
+    s = HapticSession(make_tool(default_cfg), SessionParams(), log=lambda kind, msg: logged.append(kind))
     s.logged = logged
     return s
 
@@ -101,23 +101,23 @@ def test_teleport_restarts_contact(session):
 def test_velocity_from_twist_or_pose_difference(session):
     feed(session, [(T0 + i * MS, -1e-3 - i * 1e-5) for i in range(5)], vz=-0.25)
     assert session.velocity[2] == pytest.approx(-0.25)
-    s2 = HapticSession(SkinModel(session.model.cfg), SessionParams())
+    s2 = HapticSession(make_tool(session.model.cfg), SessionParams())
     feed(s2, [(T0 + i * MS, -1e-3 - i * 1e-5) for i in range(5)])  # no twist: differentiate poses
     assert s2.velocity[2] == pytest.approx(-0.01)
-    s3 = HapticSession(SkinModel(session.model.cfg), SessionParams())
+    s3 = HapticSession(make_tool(session.model.cfg), SessionParams())
     feed(s3, [(T0 + i * MS, -1e-3) for i in range(3)], vz=-50.0)  # capped at max_tool_speed_m_s
     assert math.hypot(*s3.velocity) == pytest.approx(s3.params.max_tool_speed_m_s)
 
 
 def test_force_clamped_to_limit(default_cfg):
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_force_n=0.01))
+    s = HapticSession(make_tool(default_cfg), SessionParams(max_force_n=0.01))
     res = feed(s, [(T0 + i * MS, -3e-3) for i in range(5)])
     assert res[-1][1] == 0.01 and s.counts[FORCE_CLAMPED] >= 1
 
 
 def test_several_poses_per_tick_lose_no_time(default_cfg):
     """Timer mode: 1 kHz poses, 500 Hz ticks; the model must still advance 1 s per second."""
-    s = HapticSession(SkinModel(default_cfg), SessionParams())
+    s = HapticSession(make_tool(default_cfg), SessionParams())
     advanced = []
     orig = s.model.step
     s.model.step = lambda pos, v, dt, restart=False: (advanced.append(dt), orig(pos, v, dt, restart))[1]
@@ -130,7 +130,7 @@ def test_several_poses_per_tick_lose_no_time(default_cfg):
 
 
 def test_non_finite_model_state_recovers(default_cfg):
-    s = HapticSession(SkinModel(default_cfg), SessionParams())
+    s = HapticSession(make_tool(default_cfg), SessionParams())
     feed(s, [(T0 + i * MS, -2e-3) for i in range(3)])
     s.model.q[:] = math.nan
     s.model.driven[:] = 0
@@ -155,7 +155,7 @@ def test_force_rate_bound_holds_on_the_stamp_clock_in_a_burst(default_cfg):
     """Poses stamped 1 ms apart but processed 20 us apart (DDS catching up): the bound is on the stamps, so the
     burst gets the answer the offline replay gives the same poses, and the change is bounded per stamp interval."""
     rate = 100.0
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_force_rate_n_per_s=rate, max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(default_cfg), SessionParams(max_force_rate_n_per_s=rate, max_stamp_age_s=0.0))
     st = _held_press(s, depth_m=2e-3)  # the whole stack compressed: a few tenths of a newton
     f0 = s.force_n
     assert f0 > 0.2
@@ -171,7 +171,7 @@ def test_force_rate_bound_holds_on_the_stamp_clock_in_a_burst(default_cfg):
 
 
 def test_live_lowering_of_max_force_applies_at_once(default_cfg):
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_force_rate_n_per_s=10.0, max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(default_cfg), SessionParams(max_force_rate_n_per_s=10.0, max_stamp_age_s=0.0))
     st = _held_press(s, depth_m=2e-3, n=1000)
     assert s.force_n > 0.2
     s.params = SessionParams(max_force_rate_n_per_s=10.0, max_stamp_age_s=0.0, max_force_n=0.05)
@@ -247,14 +247,14 @@ def test_params_are_views_of_the_one_schema():
 
 def test_mode_counts_are_described_as_the_model_runs_them(default_cfg):
     """The node logs what the model runs: adaptive levels (not the unused modes.m x n) or the fixed count."""
-    s = HapticSession(SkinModel(default_cfg), SessionParams())
+    s = HapticSession(make_tool(default_cfg), SessionParams())
     assert s.modes_per_axis == (1, 1, 1)  # at rest every layer sits at its lowest level
     text = s.describe_modes()
     m, n = default_cfg.modes
     assert text.startswith("adaptive modes on") and f"{m}x{n} applies only with it off" in text
     feed(s, [(T0 + i * MS, -3e-3 * i / 200) for i in range(1, 201)])
     assert max(s.modes_per_axis) > 1  # a deep press raises the levels
-    fixed = HapticSession(SkinModel(default_cfg.replace(**{"lod.adaptive_modes": False})), SessionParams())
+    fixed = HapticSession(make_tool(default_cfg.replace(**{"lod.adaptive_modes": False})), SessionParams())
     assert fixed.describe_modes().startswith(f"fixed modes: {m}x{n} per axis") and fixed.modes_per_axis == (max(m, n),) * 3
 
 
@@ -277,7 +277,7 @@ def test_warm_up_compiles_every_kernel_a_press_through_the_session_uses(form):
         return {id(o): (o.__name__, len(o.signatures)) for o in gc.get_objects() if isinstance(o, CPUDispatcher)}
 
     before = signatures()
-    s = HapticSession(SkinModel(cfg), SessionParams())
+    s = HapticSession(make_tool(cfg), SessionParams())
     now = 1_700_000_000_000_000_000
     for i in range(600):
         d = 3e-3 * min(i, 200) / 200 if i < 400 else -1e-3

@@ -10,9 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from msgs_schema.tissue import PAPER_MODULI_PA, TOOL_RADIUS_M, flat_punch_stiffness_n_per_m
+from msgs_schema.tissue import TOOL_RADIUS_M
 from skin_sim_node.device.passivity import PassivityController
 from skin_sim_node.model import SkinModel, physics, preset
+from skin_sim_node.model.calibration import PAPER_MODULI_PA, flat_punch_stiffness_n_per_m
 from skin_sim_node.session import (
     CONTACT_SEPARATED,
     DEGENERATE_WAVE_SPEED,
@@ -36,6 +37,7 @@ from skin_sim_node.stability.haptic_loop import (
     run_loop,
     wall_point,
 )
+from skin_sim_node.tools import make_tool
 
 MS = 1_000_000
 T0 = 10**18
@@ -57,7 +59,7 @@ class Run:
     def __init__(self, cfg, **params):
         self.logged: list[str] = []
         self.s = HapticSession(
-            SkinModel(cfg),
+            make_tool(cfg),
             SessionParams(max_stamp_age_s=0.0, max_force_n=DEVICE_LIMIT_N, **params),
             log=lambda kind, msg: self.logged.append(kind),
         )

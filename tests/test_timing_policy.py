@@ -16,6 +16,7 @@ import pytest
 
 from skin_sim_node.model import SkinModel
 from skin_sim_node.session import HapticSession, SessionParams
+from skin_sim_node.tools import make_tool
 
 MS = 1_000_000
 T0 = 1_700_000_000 * 1_000_000_000
@@ -31,7 +32,7 @@ def press(n: int, depth_m: float = 2e-3, speed_m_s: float = 0.02):
 
 
 def session(cfg, **kw) -> HapticSession:
-    return HapticSession(SkinModel(cfg), SessionParams(max_stamp_age_s=0.0, **kw))
+    return HapticSession(make_tool(cfg), SessionParams(max_stamp_age_s=0.0, **kw))
 
 
 def offline(cfg, poses):
@@ -132,7 +133,7 @@ def test_a_volley_of_absurd_poses_is_rejected_and_the_next_press_answers_at_once
     from skin_sim_node.session import OUTSIDE_WORKSPACE
 
     logged = []
-    s = HapticSession(SkinModel(default_cfg), SessionParams(max_stamp_age_s=0.0), log=lambda k, m: logged.append(k))
+    s = HapticSession(make_tool(default_cfg), SessionParams(max_stamp_age_s=0.0), log=lambda k, m: logged.append(k))
     ref = session(default_cfg)
     stamp = T0
     for st, z, vz in press(60, depth_m=1e-3, speed_m_s=0.02)[:40]:  # lifted, then onto the surface

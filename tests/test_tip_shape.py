@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from skin_sim_node.model import layered as lk
+from skin_sim_node.model import layered_contact as lkc
 from skin_sim_node.model import preset
 from skin_sim_node.validation import sphere as sph
 from skin_sim_node.validation.tip_check import flat_layers, model_curve
@@ -15,7 +15,7 @@ from skin_sim_node.validation.tip_check import flat_layers, model_curve
 
 @pytest.fixture(params=["compiled", "py_func"])
 def geometry(request):
-    return lk.contact_geometry if request.param == "compiled" else lk.contact_geometry.py_func
+    return lkc.contact_geometry if request.param == "compiled" else lkc.contact_geometry.py_func
 
 
 def _cached(setup):
@@ -120,12 +120,12 @@ def test_flat_punch_stiffness_follows_the_reference():
 def test_fit_law_reproduces_the_defaults():
     """The committed fit script's chain at the schema defaults gives the same force as the model (same law, same
     thicknesses), so its printed fit is the source of the defaults."""
-    from msgs_schema import tissue as schema
+    from skin_sim_node.model import calibration as schema
     from skin_sim_node.validation.fit_law import Chain
 
     ch = Chain()
     s = [schema.LOAD_SPREADING[la.name] for la in ch.cfg.layers]
     d = np.array([0.5e-3, 1e-3, 3e-3])
-    f_chain = ch.forces(s, schema.STIFFENING_EXPONENT, schema.WALL_STRAIN, d)
+    f_chain = ch.forces(s, schema.FITTED_STIFFENING_EXPONENT, schema.WALL_STRAIN, d)
     f_model, _ = model_curve(preset("default"), tuple(d))
     np.testing.assert_allclose(f_chain, f_model, rtol=1e-5)  # the static step leaves dampers at ~1e-6 (STATIC_DT_S)

@@ -8,9 +8,10 @@ import pytest
 from conftest import kernel
 
 from skin_sim_node.model import SkinModel, physics
-from skin_sim_node.model import layered as lk
+from skin_sim_node.model import layered_law as lkl
 from skin_sim_node.model import layout as lo
-from skin_sim_node.model.config import WALL_STRAIN, preset
+from skin_sim_node.model.calibration import WALL_STRAIN
+from skin_sim_node.model.config import preset
 from skin_sim_node.validation import viscoelastic as ve
 
 
@@ -26,7 +27,7 @@ def elastic(cfg):
 @pytest.mark.parametrize("compiled", [True, False])
 def test_prony_arms_match_the_exponential_update(compiled, cfg, rng):
     """prony_prepare / prony_commit against the backward-Euler QLV update written out in NumPy."""
-    prepare, commit = kernel(lk.prony_prepare, compiled), kernel(lk.prony_commit, compiled)
+    prepare, commit = kernel(lkl.prony_prepare, compiled), kernel(lkl.prony_commit, compiled)
     m = SkinModel(cfg)
     lp = m._arrays.lp
     nl = lp.shape[1]
@@ -46,7 +47,7 @@ def test_prony_arms_match_the_exponential_update(compiled, cfg, rng):
         )
         for li in range(nl):
             commit(lp, ls, li, c[li], h[li], WALL_STRAIN, dt, False)
-        fe = np.array([lp[lo.LP_EA, i] * lk.compression_law(c[i] / h[i], lp[lo.LP_N, i], WALL_STRAIN)[0] for i in range(nl)])
+        fe = np.array([lp[lo.LP_EA, i] * lkl.compression_law(c[i] / h[i], lp[lo.LP_N, i], WALL_STRAIN)[0] for i in range(nl)])
         h1 = a1 * (h1 + lp[lo.LP_G1] * (fe - fe_ref))
         h2 = a2 * (h2 + lp[lo.LP_G2] * (fe - fe_ref))
         fe_ref = fe

@@ -74,7 +74,7 @@ def _topic(types: dict[str, str], name: str) -> str | None:
 
 def read_outputs(
     bag, wrench_topic: str = TOPICS["tool_wrench"].name, grid_topic: str = TOPICS["layer_heights"].name, grids: bool = True
-) -> tuple[dict[int, float], dict[int, np.ndarray]]:
+) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
     """``({stamp_ns: force vector (fx, fy, fz)}, {stamp_ns: layer_heights})`` of an output bag."""
     bag = Path(bag)
     with open_bag(bag) as reader:

@@ -47,7 +47,7 @@ class InputOptions:
     twist_topic: str | None = None
     frame: str | None = None
     convention: str | None = None
-    device_ns: str = DEFAULTS["device_ns"]
+    device_ns: str = str(DEFAULTS["device_ns"])
     mapping: DeviceMapping = field(default_factory=DeviceMapping)
 
     def topics(self) -> tuple[str, str | None, bool]:
@@ -93,7 +93,7 @@ class Inputs:
         if not foreign:
             return None
         held = ", ".join(f"'{f}' ({n} poses)" for f, n in sorted(foreign.items(), key=lambda kv: -kv[1]))
-        top = max(foreign, key=foreign.get)
+        top = max(foreign, key=lambda f: foreign[f])
         return (
             f"{self.pose_topic} holds poses in frame {held}; the model answers only frame '{tissue_frame}': "
             f"map one with --frame {top} (it is then treated as the tissue frame), or --convention crtk|omni "
@@ -175,7 +175,7 @@ def read_inputs(bag, opts: InputOptions, tissue_frame: str = FRAMES["tissue"]) -
             if opts.frame is not None and frame == opts.frame:
                 frame = tissue_frame
             # stamp 0: bag time, as the bridge; the orientation (x, y, z, w) rides along (the needle's axis), None for a twist
-            events.append((stamp or t_ns, rank, frame, tuple(float(c) for c in xyz), quat))
+            events.append((stamp or t_ns, rank, frame, (float(xyz[0]), float(xyz[1]), float(xyz[2])), quat))
     if n_pose == 0:
         raise EmptyTopicError(
             f"{bag}: pose topic '{pose_topic}' holds no messages ({n_twist} on the twist topic); nothing to replay. "

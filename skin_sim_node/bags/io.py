@@ -12,15 +12,16 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from functools import cache
 from pathlib import Path
+from typing import Any, Final
 
-from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+from rosbags.interfaces import Connection, Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.typesys import Stores, get_typestore
 
 from msgs_schema.topics import TOPICS
 
-BAG_VERSION = 9
+BAG_VERSION: Final = 9
 """rosbag2 metadata version written: 9 is what Jazzy's ``ros2 bag record`` writes."""
 
 STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
@@ -181,7 +182,7 @@ class BagWriter:
         self._writer.set_custom_data("skin_sim.writer", "skin_sim_node.bags")
         for k, v in (custom_data or {}).items():
             self._writer.set_custom_data(str(k), str(v))
-        self._connections: dict[str, object] = {}
+        self._connections: dict[str, Connection] = {}
         self._writer.open()
 
     def add_topic(self, topic: str, msgtype: str, qos: list[Qos] | None = None) -> None:
@@ -310,7 +311,7 @@ def iter_raw(path, reader: Reader, topics) -> Iterator[tuple[str, str, int, byte
         raise _truncated(Path(path), EOFError(f"read {', '.join(short)} messages listed in its metadata"))
 
 
-def iter_messages(path, reader: Reader, topics) -> Iterator[tuple[str, str, int, object]]:
+def iter_messages(path, reader: Reader, topics) -> Iterator[tuple[str, str, int, Any]]:
     """``(topic, msgtype, bag_t_ns, message)``: :func:`iter_raw` with each record decoded.
 
     Raises

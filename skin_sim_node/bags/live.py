@@ -85,6 +85,7 @@ def _run_source(rec, inputs: Inputs, speed: float, out: Path, timeout_s: float =
                 )
             time.sleep(0.01)
         t_handshake = time.perf_counter() - t0
+        assert proc.stdin is not None  # started with stdin=PIPE
         proc.stdin.write("go\n")
         proc.stdin.flush()
         span_s = (inputs.events[-1][0] - inputs.events[0][0]) * 1e-9 / speed

@@ -18,14 +18,17 @@ from pathlib import Path
 import numpy as np
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import session_params, validate_parameters
+from msgs_schema.parameters import session_params
 from msgs_schema.tissue import LAYER_NAMES
 from msgs_schema.topics import TOPICS
 
-from ..model import SkinModel
-from ..model.config import build_config, load_yaml
+from .. import tools
+from ..configure import configure
+from ..model import SkinModel, TissueConfig
+from ..model.config import load_yaml
 from ..scenes import DEFAULT_PARAMS
 from ..session import HapticSession
+from ..tools import make_tool
 from .inputs import POSE, Inputs
 from .io import BagWriter, new_message, qos_profiles
 
@@ -39,9 +42,9 @@ def bag_topic(key: str) -> str:
 
 def load_params(path=DEFAULT_PARAMS):
     """(SessionParams with the stamp-age check off, TissueConfig) from a node parameter file."""
-    node_params, tissue = validate_parameters(load_yaml(path))
+    node_params, cfg = configure(load_yaml(path))  # the node's way (skin_sim_node.configure)
     # offline: stamps are not compared with any clock
-    return session_params(node_params, max_stamp_age_s=0.0), build_config(tissue)
+    return session_params(node_params, max_stamp_age_s=0.0), cfg
 
 
 @dataclass
@@ -59,7 +62,7 @@ class ReplayResult:
     n_grids: int
     peak_index: int
     peak_state: dict | None = None  # the model's dynamic state at peak force (SkinModel.state)
-    cfg: object = None
+    cfg: TissueConfig | None = None
     layer_names: tuple[str, ...] = field(default_factory=tuple)
     tissue_frame: str = "tissue"  # the frame_id the replayed poses had to carry
     force_vec_n: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # the published vectors (N), (n, 3)
@@ -82,7 +85,8 @@ class ReplayResult:
     def model_at_peak(self) -> SkinModel:
         """A model holding the deformation at peak force: the whole dynamic state copied at that tick
         (modal amplitudes, patch centres, mode levels and the active layer set)."""
-        m = SkinModel(self.cfg)
+        assert self.cfg is not None, "a replay result without its configuration"
+        m = tools.tissue(self.cfg)  # as the replayed tool pressed it
         if self.peak_state is not None:
             m.set_state(self.peak_state)
         return m
@@ -134,7 +138,7 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
         time; 0 writes none.
     """
     sp, cfg = load_params(params)
-    session = HapticSession(SkinModel(cfg), sp)
+    session = HapticSession(make_tool(cfg), sp)
     frame = sp.tissue_frame
     out = _Out()
     grid_ns = int(round(1e9 / grid_rate_hz)) if grid_rate_hz > 0 else 0

@@ -11,6 +11,7 @@ one for one by stamp. A published force that differs from the offline answer by 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -50,7 +51,7 @@ class PublishedCheck:
         return not self.fails
 
 
-def check_published(offline: dict[int, float], published: dict[int, float], tol: Tolerances = PUBLISHED) -> PublishedCheck:
+def check_published(offline: dict[int, Any], published: dict[int, Any], tol: Tolerances = PUBLISHED) -> PublishedCheck:
     """Compare ``published`` with ``offline`` at their common stamps, as whole vectors.
 
     Parameters
@@ -85,7 +86,7 @@ def format_check(c: PublishedCheck, what: str, t0_ns: int | None = None, tol: To
     """
     d = c.diff
     head = f"{what}: {d.matched} of {d.n_b} published forces answer a replayed pose; max |dF| {d.max_df_n:.3e} N"
-    if c.worst_stamp_ns is not None:
+    if c.worst_stamp_ns is not None and c.worst is not None:
         at = f"t = {(c.worst_stamp_ns - t0_ns) * 1e-9:.3f} s" if t0_ns is not None else f"stamp {c.worst_stamp_ns}"
         head += f" at {at} (published {c.worst[0]:.4f} N, offline {c.worst[1]:.4f} N)"
     head += f", offline peak {d.peak_a_n:.4f} N; limit {describe(tol)}"

@@ -103,6 +103,7 @@ class Recorder:
             if item is None:
                 return
             rx, key, raw = item
+            assert self.writer is not None  # only a recorder with a writer queues records
             self.writer.write_raw(bag_topic(key), TOPICS[key].type, rx, raw)
 
     def publisher(self, key: str):

@@ -105,16 +105,16 @@ def main(argv=None) -> int:
         print(f"note: {hint}")
     if not args.no_report:
         print(f"report: {out / 'report.png'} (force over time; surface and cross-section at peak force), {out / 'summary.json'}")
-    recorded = check_recording(args, inputs)
-    if recorded is not None:
-        print(format_check(recorded, "recorded forces vs offline", int(res.stamps_ns[0])))
+    checked = check_recording(args, inputs)
+    if checked is not None:
+        print(format_check(checked, "recorded forces vs offline", int(res.stamps_ns[0])))
     if not args.live:
-        if recorded is not None:
-            print(verdict_line("replay", [(recorded.ok, "the bag's recorded forces vs offline")]))
-        return 0 if recorded is None or recorded.ok else 1
+        if checked is not None:
+            print(verdict_line("replay", [(checked.ok, "the bag's recorded forces vs offline")]))
+        return 0 if checked is None or checked.ok else 1
     from .live import run_live
 
-    return run_live(inputs, res, args, out, recorded=recorded)
+    return run_live(inputs, res, args, out, recorded=checked)
 
 
 def check_recording(args, inputs) -> PublishedCheck | None:

@@ -144,7 +144,7 @@ def _finite(v) -> bool:
 
 def friction_law_force(normal, fn: float, mu: float, slip_speed_m_s: float, v) -> np.ndarray:
     """``F_n (n - mu v_t / sqrt(|v_t|^2 + v_s^2))``, ``v_t = (I - n n^T) v`` (N): the layered form's contact force
-    (:func:`skin_sim_node.model.layered.contact_jacobians`) at normal force ``fn`` and tool velocity ``v``.
+    (:func:`skin_sim_node.model.layered_contact.contact_jacobians`) at normal force ``fn`` and tool velocity ``v``.
 
     Its tangential part opposes ``v_t`` (``F . v_t = -mu F_n |v_t|^2 / r <= 0``: it only dissipates) and is at most
     ``mu F_n``. ``slip_speed_m_s`` 0 with ``v_t`` 0: no friction (the sign is undefined; the law's limit is 0).

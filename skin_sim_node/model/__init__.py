@@ -1,10 +1,10 @@
-"""Pure model core: no rclpy. Config, interfaces, Reuss mechanics, modal deformation."""
+"""Pure model core: no rclpy. Config, interfaces, Reuss mechanics, modal deformation: the tissue (the tools that press
+it: :mod:`skin_sim_node.tools`)."""
 
 from .config import ConfigError, TissueConfig, config_from_flat, load_tissue_config, preset
-from .contact import ContactTangent, normal_tangent
+from .contact import ContactTangent, Indenter, normal_tangent
 from .interfaces import classify, interface_depths_m
 from .layout import FLAG_BOTTOMED, FLAG_CONTACT, FLAG_LAYER_BOUND, FLAG_OFF_SHEET, FLAG_SEPARATED
-from .needle_skin import NeedleSkin  # registers the needle's model with SkinModel
 from .skin_model import DEGENERATE_RETURN_S, Grid, SkinModel, warm_up
 
 __all__ = [
@@ -17,7 +17,7 @@ __all__ = [
     "ConfigError",
     "ContactTangent",
     "Grid",
-    "NeedleSkin",
+    "Indenter",
     "SkinModel",
     "TissueConfig",
     "classify",

@@ -19,10 +19,9 @@ import yaml
 
 from msgs_schema.parameters import NODE_NAME, check_tissue, tissue_part
 from msgs_schema.spec import ConfigError
-from msgs_schema.tissue import INTERFACE_NAMES, LAYER_NAMES, LOD_TOLERANCE_M, WALL_STRAIN, tissue_defaults
+from msgs_schema.tissue import INTERFACE_NAMES, LAYER_NAMES, LOD_TOLERANCE_M, tissue_defaults
 
 __all__ = [
-    "WALL_STRAIN",
     "ConfigError",
     "InterfaceConfig",
     "LayerConfig",
@@ -162,7 +161,9 @@ def default_flat() -> dict[str, Any]:
 
 
 def config_from_flat(values: dict[str, Any]) -> TissueConfig:
-    """Check dotted tissue parameters (missing ones take schema defaults) and build a TissueConfig.
+    """Check dotted tissue parameters (missing ones take schema defaults) and build a TissueConfig: the one way from a
+    parameter set to a tissue configuration (:func:`load_tissue_config`, :func:`preset`, :meth:`TissueConfig.replace`
+    and, for a node's whole parameter set, :func:`skin_sim_node.configure.configure` all come through here).
 
     :func:`msgs_schema.parameters.check_tissue` (unknown names, wrong types, out-of-bound values), then
     :func:`build_config` (the geometry); either raises :class:`ConfigError` with the reason.

@@ -15,6 +15,33 @@ import numpy as np
 from msgs_schema.contact_model import NeedleLaw
 
 Z_UP = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class Indenter:
+    """The rigid tip the tissue's kernel is pressed by: the contact geometry of the layered form's eq 6 and of the modal
+    load (a uniform pressure on the contact disk, :func:`~.modal.disk_load_coefficients`).
+
+    The tool (:mod:`skin_sim_node.tools`) gives it to :class:`~.skin_model.SkinModel`; the tissue does not know which
+    tool pressed it.
+
+    Attributes
+    ----------
+    radius_m : float
+        Radius of the flat tip, or of the sphere (m).
+    sphere : bool
+        A spherical tip (Hertz contact radius ``a = sqrt(R d)``); else a flat punch.
+    """
+
+    radius_m: float
+    sphere: bool = False
+
+    @classmethod
+    def of(cls, cfg) -> Indenter:
+        """The punch of a tissue configuration (``tool.radius_m``; spherical for ``tool.shape`` 'sphere')."""
+        return cls(cfg.tool_radius_m, cfg.tool_shape == "sphere")
+
+
 _ZZ = np.outer(Z_UP, Z_UP)
 
 
@@ -57,6 +84,37 @@ class ContactTangent:
     tangential_stiffness_n_per_m: float = 0.0
     friction_anchor_m: np.ndarray | None = None
     needle: NeedleLaw | None = None
+
+    def published(self, force_n: np.ndarray, scale: float, friction: bool = True) -> ContactTangent:
+        """This tangent as the session publishes it: ``f0 = force_n`` (the published force, this one's scaled by
+        ``scale``), ``K``, ``D`` and the tool's law scaled alike, and the presliding friction the force follows.
+
+        Parameters
+        ----------
+        force_n : ndarray, shape (3,)
+            The published force (N); copied.
+        scale : float
+            Published over the tool's force magnitude (> 0).
+        friction : bool
+            The tool's force follows the tissue's friction (:attr:`skin_sim_node.tools.base.ToolNeeds.friction`): its
+            anchor, and its stiffness scaled as the force was (the slip distance ``mu F_n / k_t`` is the model's);
+            False: no friction law in the contact model (the needle's law is its own).
+
+        Returns
+        -------
+        ContactTangent
+        """
+        return ContactTangent(
+            force_n=force_n.copy(),
+            stiffness_n_per_m=self.stiffness_n_per_m * scale,
+            damping_n_s_per_m=self.damping_n_s_per_m * scale,
+            normal=self.normal,
+            contact_radius_m=self.contact_radius_m,
+            friction_coefficient=self.friction_coefficient if friction else 0.0,
+            tangential_stiffness_n_per_m=self.tangential_stiffness_n_per_m * scale if friction else 0.0,
+            friction_anchor_m=self.friction_anchor_m if friction else None,
+            needle=None if self.needle is None else self.needle.scaled(scale),
+        )
 
     @property
     def in_contact(self) -> bool:

@@ -27,11 +27,12 @@ of the figures (``skin-sim friction``), never on the force path.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
 
-JIT_OPTIONS = {"cache": True, "nogil": True}
+JIT_OPTIONS: dict[str, Any] = {"cache": True, "nogil": True}
 """numba options of every kernel of this module (defined once)."""
 
 

@@ -49,7 +49,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import WALL_STRAIN, TissueConfig
+from .calibration import WALL_STRAIN
+from .config import TissueConfig
+from .contact import Indenter
 from .modal import ModalBasis
 
 FLAG_CONTACT = 1
@@ -465,8 +467,9 @@ def pack_layers(cfg: TissueConfig) -> np.ndarray:
     return lp
 
 
-def pack_scalars(cfg: TissueConfig) -> np.ndarray:
-    """``sp`` (see :data:`SP_SIZE`) of ``cfg``."""
+def pack_scalars(cfg: TissueConfig, indenter: Indenter | None = None) -> np.ndarray:
+    """``sp`` (see :data:`SP_SIZE`) of ``cfg`` pressed by ``indenter`` (default: the configuration's punch)."""
+    indenter = Indenter.of(cfg) if indenter is None else indenter
     sp = np.zeros(SP_SIZE)
     sx, sy = cfg.sheet_size_m
     sp[SP_BOTTOM] = cfg.total_thickness_m
@@ -475,8 +478,8 @@ def pack_scalars(cfg: TissueConfig) -> np.ndarray:
     sp[SP_MODE_TOL] = cfg.lod.tolerance_m
     sp[SP_SETTLE_TOL] = settle_tolerance_m(cfg)
     sp[SP_SKIP_SETTLED] = 1.0 if cfg.lod.affected_layers else 0.0
-    sp[SP_TOOL_R] = cfg.tool_radius_m
-    sp[SP_SPHERE] = 1.0 if cfg.tool_shape == "sphere" else 0.0
+    sp[SP_TOOL_R] = indenter.radius_m
+    sp[SP_SPHERE] = 1.0 if indenter.sphere else 0.0
     sp[SP_MU] = cfg.friction_coefficient
     sp[SP_K_T] = cfg.tangential_stiffness_n_per_m
     sp[SP_WALL] = WALL_STRAIN
@@ -554,8 +557,9 @@ class Form:
         raise NotImplementedError
 
 
-def pack(cfg: TissueConfig, basis: ModalBasis) -> KernelArrays:
-    """The kernel arrays of ``cfg`` with its modal ``basis``; the state is zero (no cached propagator)."""
+def pack(cfg: TissueConfig, basis: ModalBasis, indenter: Indenter | None = None) -> KernelArrays:
+    """The kernel arrays of ``cfg`` with its modal ``basis``, pressed by ``indenter`` (default: the configuration's
+    punch); the state is zero (no cached propagator)."""
     n_l = len(cfg.layers)
     nv = basis.level_modes.size
     bmodes = np.ascontiguousarray(np.vstack([basis.beta_table, basis.lam]))
@@ -564,7 +568,7 @@ def pack(cfg: TissueConfig, basis: ModalBasis) -> KernelArrays:
     lstate[LS_PROP_DT] = np.nan
     return KernelArrays(
         lp=pack_layers(cfg),
-        sp=pack_scalars(cfg),
+        sp=pack_scalars(cfg, indenter),
         bmodes=bmodes,
         bvec=np.concatenate([basis.trunc_err, basis.gamma]),
         blev=np.ascontiguousarray(np.vstack([basis.k_prefix, basis.m_lim]).astype(np.int64)),

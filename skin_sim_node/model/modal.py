@@ -85,7 +85,7 @@ def shape_coefficients(m_max: int, n_max: int, a: float, b: float, r0: float, fo
     return w / np.sum(w * centre)
 
 
-def truncation_bound(w: np.ndarray, m_max: int, n_max: int) -> float:
+def truncation_bound(w: np.ndarray, m_max: int | np.integer, n_max: int | np.integer) -> float:
     """Sup-norm bound on ``|u_MN - u_ref|`` per metre of compression, from the coefficients alone.
 
     ``w`` (P, Q) are the reference coefficients (:func:`disk_load_coefficients`); ``u_ref`` is
@@ -145,7 +145,7 @@ def _shell_modes(m_max: int, n_max: int):
     return np.array([p[0] for p in pairs], dtype=np.int64), np.array([p[1] for p in pairs], dtype=np.int64)
 
 
-def modal_basis(cfg: TissueConfig) -> ModalBasis:
+def modal_basis(cfg: TissueConfig, radius_m: float | None = None) -> ModalBasis:
     """Build the basis for ``cfg``: only modes with a nonzero coefficient are kept.
 
     Damping: the layer's Kelvin-Voigt damper ``b`` acts on the fundamental mode's modal
@@ -156,9 +156,10 @@ def modal_basis(cfg: TissueConfig) -> ModalBasis:
     ``gamma`` grows by the factor ``lambda_11`` grows and the released dent does not overshoot.
     With ``lod.adaptive_modes`` the basis holds the odd modes up to :data:`REFERENCE_MODES` per
     axis, in levels of 1, 3, 5, ... modes per axis; otherwise the fixed ``modes.m x modes.n``.
+    ``radius_m``: the loaded disk's radius (the indenter's, :class:`~.contact.Indenter`); default ``cfg.tool_radius_m``.
     """
     a, b = cfg.patch_size_m
-    r0 = cfg.tool_radius_m
+    r0 = cfg.tool_radius_m if radius_m is None else radius_m
     ell = cfg.foundation_length_m
     adaptive = cfg.lod.adaptive_modes
     m_max, n_max = (REFERENCE_MODES, REFERENCE_MODES) if adaptive else cfg.modes

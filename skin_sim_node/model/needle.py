@@ -15,7 +15,7 @@ Per tick the axial resistance ``R`` (N, along ``u_e``, positive against insertio
 
 - **dimple** (before the next layer ``k`` ruptures): the tip presses layer ``k``'s top ``w = L - t_k`` ahead of
   it; the stack below, layers ``k..L-1``, answers with the layered form's equilibrium series chain (its fitted
-  law, :func:`~.layered.chain_solve`) at the normal compression ``w |u_z|``, acting along the axis (the column along
+  law, :func:`~.layered_law.chain_solve`) at the normal compression ``w |u_z|``, acting along the axis (the column along
   the needle, strained as the normal compression strains the stack), scaled from the calibrated 2.5 mm
   punch to the *tent's* radius ``a + l_f`` as a half-space is (Sneddon: force proportional to the contact radius),
   and projected on the axis. ``a`` is the needle's radius and ``l_f`` the layers' own spread length
@@ -51,9 +51,10 @@ from typing import Any
 import numpy as np
 
 from msgs_schema.contact_model import NeedleLaw
-from msgs_schema.tissue import LAYER_DEFAULTS, LAYER_NAMES, TOOL_RADIUS_M
+from msgs_schema.tissue import LAYER_NAMES
 
-from .config import WALL_STRAIN, TissueConfig
+from .calibration import CALIBRATED_TOOL_RADIUS_M, WALL_STRAIN, youngs_moduli_pa
+from .config import TissueConfig
 from .layout import (
     LP_EA,
     LP_N,
@@ -202,7 +203,7 @@ def pack_needle(cfg: TissueConfig, params: NeedleParams) -> tuple[np.ndarray, np
     nl = len(cfg.layers)
     npar = np.zeros(NP_SIZE)
     # the tent: a punch of radius a + l_f (module docstring), scaled from the calibrated punch as Sneddon's F ~ radius
-    npar[NP_SCALE] = (0.5 * params.outer_diameter_m + cfg.foundation_length_m) / TOOL_RADIUS_M
+    npar[NP_SCALE] = (0.5 * params.outer_diameter_m + cfg.foundation_length_m) / CALIBRATED_TOOL_RADIUS_M
     npar[NP_FRICTION] = params.lubrication_factor * params.shaft_shear_pa * math.pi * params.outer_diameter_m
     npar[NP_CUT_RATIO] = params.cutting_ratio
     npar[NP_DAHL_M] = params.dahl_length_m
@@ -214,7 +215,7 @@ def pack_needle(cfg: TissueConfig, params: NeedleParams) -> tuple[np.ndarray, np
     nlp = np.zeros((NL_SIZE, nl))
     nlp[NL_FP] = [params.puncture_force_n(i) for i in range(nl)]
     nlp[NL_H] = [la.thickness_m for la in cfg.layers]
-    nlp[NL_MODULUS] = [LAYER_DEFAULTS[name][1] for name in LAYER_NAMES]
+    nlp[NL_MODULUS] = youngs_moduli_pa(cfg)  # the live layers' (a stiffness change moves the bed with the dimple)
     return npar, nlp
 
 

@@ -1,7 +1,7 @@
 """The needle's kernels (issue 22): track start, one tick of the axial and lateral force, and the law at the tip.
 
 The physics is :mod:`.needle`'s (its module docstring and docs/needle.md): a dimple of the next intact layer by the
-layered form's equilibrium series chain (:func:`~.layered.chain_solve`), puncture at ``F_p = lambda Gamma d`` with a
+layered form's equilibrium series chain (:func:`~.layered_law.chain_solve`), puncture at ``F_p = lambda Gamma d`` with a
 cascade and a latched track, a cutting ramp behind the crack front, Dahl shaft friction per ruptured layer and a
 Winkler bed sideways. The crossings of the axis with the egg-carton interfaces (section II.C) use the point depths of
 :func:`~.paper.layer_bounds`.
@@ -23,7 +23,7 @@ import math
 
 from numba import njit
 
-from .layered import chain_solve, layer_compression
+from .layered_law import chain_solve, layer_compression
 from .layout import (
     LP_EA,
     LP_IF_AMP,
@@ -249,7 +249,7 @@ def start_track(px, py, pz, ux, uy, uz, lp, npar, nstate, ntrack, nbuf):
 def dimple_force(layer, w, t0, lp, npar, nlp, nstate, nbuf):
     """Axial force (N) of the stack below ``layer``'s top pressed ``w`` along the axis by the tip, and its chain force.
 
-    The layered form's equilibrium series chain of layers ``layer..L-1`` (:func:`~.layered.chain_solve`, eq 4 with
+    The layered form's equilibrium series chain of layers ``layer..L-1`` (:func:`~.layered_law.chain_solve`, eq 4 with
     the fitted compression law) at the normal compression ``w |u_z|``, scaled by ``NP_SCALE`` and acting along the
     axis (the column along the needle, strained as the normal compression strains the stack): ``F = scale T(w |u_z|)``.
 
@@ -483,7 +483,7 @@ def rupture_insertion(lp, npar, nlp, nstate, ntrack, nbuf):
 
     The dimple law is the series chain's, so it inverts in closed form: the chain force at the threshold is
     ``T* = F_p,k / (scale |u_z|)``, each layer's compression at ``T*`` solves its own monotone law
-    (:func:`~.layered.layer_compression`, Newton), and ``L = t_k + sum_i c_i(T*) / |u_z|``. No search on the dimple.
+    (:func:`~.layered_law.layer_compression`, Newton), and ``L = t_k + sum_i c_i(T*) / |u_z|``. No search on the dimple.
 
     Parameters
     ----------

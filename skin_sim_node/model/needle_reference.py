@@ -14,11 +14,11 @@ import math
 import numpy as np
 
 from msgs_schema.contact_model import NeedleLaw
-from msgs_schema.tissue import LAYER_DEFAULTS, LAYER_NAMES, TOOL_RADIUS_M
 
-from .config import WALL_STRAIN, TissueConfig
+from .calibration import CALIBRATED_TOOL_RADIUS_M, WALL_STRAIN, youngs_moduli_pa
+from .config import TissueConfig
 from .interfaces import interface_depths_m
-from .layered import chain_solve
+from .layered_law import chain_solve
 from .layout import LP_EA, LP_N, pack_layers
 from .needle import LATERAL_FACTOR, MIN_ANGLE_RAD, NeedleParams, NeedleTick
 from .physics import equilibrium
@@ -35,8 +35,8 @@ class NumpyNeedleModel:
         self._ea = lp[LP_EA].copy()
         self._n = lp[LP_N].copy()
         self._h = np.array([la.thickness_m for la in self.cfg.layers])
-        self._moduli = np.array([LAYER_DEFAULTS[name][1] for name in LAYER_NAMES])
-        self._scale = (0.5 * self.params.outer_diameter_m + self.cfg.foundation_length_m) / TOOL_RADIUS_M  # the tent
+        self._moduli = np.array(youngs_moduli_pa(self.cfg))
+        self._scale = (0.5 * self.params.outer_diameter_m + self.cfg.foundation_length_m) / CALIBRATED_TOOL_RADIUS_M  # the tent
         self.reset()
 
     def reset(self) -> None:

@@ -273,7 +273,7 @@ class PaperForm(Form):
     def __init__(self, arrays: KernelArrays, cfg: TissueConfig):
         super().__init__(arrays, cfg)
         self._k, self._b, self._area = arrays.lp[LP_K], arrays.lp[LP_B], arrays.lp[LP_AREA]
-        self._radius = cfg.tool_radius_m
+        self._radius = float(arrays.sp[SP_TOOL_R])  # the indenter's (pack)
 
     def tick(self, x, y, z, vx, vy, vz, dt, restart=False) -> int:
         """:func:`paper_step_kernel`; only the normal velocity ``vz`` enters (eq 6)."""

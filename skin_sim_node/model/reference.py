@@ -184,7 +184,16 @@ class NumpySkinModel:
         disp = np.stack(
             [
                 layer_field_ref(
-                    self.q[li], *self.centre[li], bm.mode_m, bm.mode_n, a, b, self.xs, self.ys, self.cfg.anisotropy_angle_rad
+                    self.q[li],
+                    self.centre[li, 0],
+                    self.centre[li, 1],
+                    bm.mode_m,
+                    bm.mode_n,
+                    a,
+                    b,
+                    self.xs,
+                    self.ys,
+                    self.cfg.anisotropy_angle_rad,
                 )
                 for li in range(self.q.shape[0])
             ]
@@ -203,7 +212,7 @@ def compression_law_ref(eps, n, wall):
     def phi(e):
         return -np.log1p(-e) if n <= 1e-9 else ((1.0 - e) ** (-n) - 1.0) / n
 
-    from msgs_schema.tissue import BONE_STIFFNESS, BONE_STRAIN
+    from .calibration import BONE_STIFFNESS, BONE_STRAIN
 
     x = min(max(eps - BONE_STRAIN, 0.0), 1.0 - BONE_STRAIN)
     bone = BONE_STIFFNESS * (0.5 * x * x + x * max(eps - 1.0, 0.0))

@@ -14,13 +14,12 @@ affected layers only, patch-only grid work, and idle (no kernel call at rest).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from .config import TissueConfig
-from .contact import ContactTangent
+from .contact import ContactTangent, Indenter
 from .grid import assemble_heights, assemble_heights_box, layer_field_box_rot, patch_box
 from .interfaces import interface_depths_m
 from .layered import LayeredForm
@@ -95,6 +94,9 @@ class SkinModel:
     ----------
     cfg : TissueConfig
         A validated configuration (see :func:`skin_sim_node.model.config.config_from_flat`).
+    indenter : Indenter, optional
+        The rigid tip that presses it (its radius and shape); default the configuration's punch
+        (``tool.radius_m``, ``tool.shape``). A tool (:mod:`skin_sim_node.tools`) passes its own.
 
     Notes
     -----
@@ -102,21 +104,10 @@ class SkinModel:
     surface at z = 0; the tool depth is ``-z``. The reaction force acts along +z.
     """
 
-    TOOL_MODELS: dict[str, type] = {}
-    """Subclasses by ``tool_shape`` that ``SkinModel(cfg)`` returns instead (the needle's registers itself in
-    :mod:`.needle_skin`, which the package imports): one model class for every caller."""
-
-    TOOL_WARM_UPS: dict[str, Callable[[TissueConfig], None]] = {}
-    """Warm-ups of those subclasses' own kernels by ``tool_shape``, called by :func:`warm_up`."""
-
-    def __new__(cls, cfg: TissueConfig | None = None, *args, **kwargs):
-        if cls is SkinModel and cfg is not None:  # (copy and pickle call __new__ with no arguments)
-            cls = SkinModel.TOOL_MODELS.get(cfg.tool_shape, SkinModel)
-        return super().__new__(cls)
-
-    def __init__(self, cfg: TissueConfig):
+    def __init__(self, cfg: TissueConfig, indenter: Indenter | None = None):
         self.cfg = cfg
-        self.basis: ModalBasis = modal_basis(cfg)
+        self.indenter = Indenter.of(cfg) if indenter is None else indenter
+        self.basis: ModalBasis = modal_basis(cfg, self.indenter.radius_m)
         lod = cfg.lod
         self._skip_settled = lod.affected_layers
         self._settle_tol = settle_tolerance_m(cfg)
@@ -132,7 +123,7 @@ class SkinModel:
         self._patch = cfg.patch_size_m
         self._turn = (math.cos(cfg.anisotropy_angle_rad), math.sin(cfg.anisotropy_angle_rad))  # the patch along the lines
         # the kernels' grouped arguments (.layout), with named views of the state
-        self._arrays = arrays = pack(cfg, self.basis)
+        self._arrays = arrays = pack(cfg, self.basis, self.indenter)
         self.q, self.v, self._prop = arrays.mstate[0], arrays.mstate[1], arrays.mstate[2:6]
         self.compression_m = arrays.lstate[LS_COMP]
         self.dropped_m = arrays.lstate[LS_DROPPED]  # displacement bound shed with outer modes since last driven
@@ -233,7 +224,7 @@ class SkinModel:
         self._out[OUT_T] = 0.0
         self._out[OUT_HOLD] = 2.0  # the tool did not leave: the friction's anchor waits for it (layered form)
 
-    def step(self, tool_xyz, tool_velocity, dt: float, restart: bool = False, axis=None) -> float:
+    def step(self, tool_xyz, tool_velocity, dt: float, restart: bool = False) -> float:
         """Advance one tick with the tool at ``tool_xyz`` (m) moving at ``tool_velocity`` (m/s).
 
         Returns the normal reaction force magnitude in newtons (>= 0; along +z in the paper form,
@@ -241,8 +232,7 @@ class SkinModel:
         :attr:`force_vector_n`). ``dt`` (s) is the time since the previous tick; the release dynamics
         are exact for any ``dt >= 0`` and the layered form's chain is implicit (passive for any ``dt``).
         ``restart``: contact restarts after an unknown time (a first pose, a stale spell, a teleport), so the layered
-        form's viscoelastic arms start relaxed. ``axis``: the tool's unit axis toward the tip, used by the needle
-        (:class:`~.needle_skin.NeedleSkin`) only.
+        form's viscoelastic arms start relaxed.
         """
         x, y, z = tool_xyz
         if self._idle_ok and z >= 0.0 and self._out[OUT_SETTLED]:
@@ -493,6 +483,3 @@ def warm_up(cfg: TissueConfig) -> None:
     model.surface_displacement_at(0.0, 0.0)
     model.energy()
     model.build_grid()
-    tool_warm_up = SkinModel.TOOL_WARM_UPS.get(cfg.tool_shape)
-    if tool_warm_up is not None:  # a tool model's own kernels, every path (the steps above touch most of them)
-        tool_warm_up(cfg)

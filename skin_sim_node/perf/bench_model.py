@@ -93,21 +93,31 @@ def time_needle(model, path, axis) -> np.ndarray:
     return times * 1e-3
 
 
-def time_model_tangent(model, path, dt: float, axis=None) -> np.ndarray:
-    """Wall time per tick (us) over ``path`` (position, velocity pairs) of what the session asks of a
-    :class:`SkinModel`: ``step``, and ``tangent`` in contact
-    (for the needle, :class:`~skin_sim_node.model.needle_skin.NeedleSkin`: the needle, its law and the layered
-    kernel's display drive of the dimple)."""
+def time_model_tangent(model, path, dt: float) -> np.ndarray:
+    """Wall time per tick (us) over ``path`` (position, velocity pairs) of a :class:`SkinModel`'s ``step``, and
+    ``tangent`` in contact."""
     times = np.empty(len(path))
     clock = time.perf_counter_ns
     for i, (p, v) in enumerate(path):
         t0 = clock()
-        if axis is None:
-            model.step(p, v, dt)
-        else:
-            model.step(p, v, dt, False, axis)
+        model.step(p, v, dt)
         if model.in_contact:
             model.tangent()
+        times[i] = clock() - t0
+    return times * 1e-3
+
+
+def time_tool(tool, path, dt: float, axis) -> np.ndarray:
+    """Wall time per tick (us) over ``path`` (position, velocity pairs) of what the session asks of a tool
+    (:meth:`skin_sim_node.tools.Tool.step`, its tangent in contact included): for the needle, the needle, its law and
+    the layered kernel's display drive of the dimple."""
+    from ..tools import ToolPose
+
+    times = np.empty(len(path))
+    clock = time.perf_counter_ns
+    for i, (p, v) in enumerate(path):
+        t0 = clock()
+        tool.step(ToolPose(p, v, axis, dt, False))
         times[i] = clock() - t0
     return times * 1e-3
 
@@ -119,6 +129,7 @@ def needle_rows(ticks: int, numpy_ticks: int, repeats: int = 3):
     the kernels' on that path. Yields one row each, the flat punch first."""
     from ..model.needle import NeedleModel, NeedleParams
     from ..model.needle_reference import NumpyNeedleModel
+    from ..tools import make_tool
 
     cfg = preset("default")
     params = NeedleParams.gauge(21)
@@ -140,10 +151,10 @@ def needle_rows(ticks: int, numpy_ticks: int, repeats: int = 3):
         keep("flat punch, step + tangent", time_model_tangent(m, flat_path, dt))
         tips, axis = cases["needle 90 deg"]
         path = [(p, (0.0, 0.0, 0.0)) for p in tips]
-        ns = SkinModel(needle_cfg)
-        time_model_tangent(ns, path[: len(path) // 2 : 10], dt, axis)
+        ns = make_tool(needle_cfg)
+        time_tool(ns, path[: len(path) // 2 : 10], dt, axis)
         ns.reset()
-        keep("needle 90 deg, SkinModel step + tangent", time_model_tangent(ns, path, dt, axis))
+        keep("needle 90 deg, tool step + tangent", time_tool(ns, path, dt, axis))
         for name, (path, axis) in cases.items():
             needle = NeedleModel(cfg, params)
             time_needle(needle, path[: len(path) // 2 : 10], axis)  # compile / load the kernels, then start over

@@ -424,13 +424,14 @@ def tick_cost(n: int = 5000) -> dict:
     from msgs_schema import convert as cv
     from msgs_schema.qos import publisher
 
-    from ..model import SkinModel, preset
-    from ..model.skin_model import warm_up
+    from ..model import preset
     from ..session import HapticSession, SessionParams
+    from ..tools import make_tool, warm_up
 
     cfg = preset("default")
     warm_up(cfg)
-    model = SkinModel(cfg)  # its step is wrapped below to time the nogil kernel alone
+    tool = make_tool(cfg)
+    model = tool.tissue  # its step is wrapped below to time the nogil kernel alone
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     node = rclpy.create_node("bench_tick_cost", context=ctx)
@@ -455,7 +456,7 @@ def tick_cost(n: int = 5000) -> dict:
         return r
 
     model.step = timed_step
-    session = HapticSession(model, SessionParams(max_stamp_age_s=0.0))
+    session = HapticSession(tool, SessionParams(max_stamp_age_s=0.0))
     clock = time.perf_counter_ns
     base = time.time_ns()
     try:

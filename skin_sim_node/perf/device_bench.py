@@ -247,11 +247,11 @@ def truth_vector(result) -> np.ndarray:
 def ground_truth(slots: np.ndarray) -> np.ndarray:
     """The offline session stepped on every published pose (stamps, tissue positions and velocities)."""
     from ..bags.offline import load_params
-    from ..model import SkinModel
     from ..session import HapticSession
+    from ..tools import make_tool
 
     sp, cfg = load_params()
-    s = HapticSession(SkinModel(cfg), sp)
+    s = HapticSession(make_tool(cfg), sp)
     out = np.zeros((len(slots), 3))
     prev = None
     for i, row in enumerate(slots):

@@ -32,8 +32,8 @@ from msgs_schema.contact_model import DEFAULT_TTL_S, DEFAULT_VALIDITY_RADIUS_M, 
 from ..device.render import ContactRenderer, HoldLastRenderer
 from ..device.trajectories import TRAJECTORIES
 from ..model import SkinModel, load_tissue_config
-from ..model.skin_model import warm_up
 from ..scenes import DEFAULT_PARAMS, REPO
+from ..tools import make_tool, warm_up
 
 DEVICE_HZ = 1000.0
 RATES_HZ = (1000.0, 500.0, 250.0, 100.0)
@@ -190,7 +190,7 @@ def device_drag(
     from .device_bench import DRAG_PERIOD_S, WARM_S, hand
 
     sp, cfg = load_params()
-    truth_s, srv = HapticSession(SkinModel(cfg), sp), HapticSession(SkinModel(cfg), sp)
+    truth_s, srv = HapticSession(make_tool(cfg), sp), HapticSession(make_tool(cfg), sp)
     kw = {**bridge_renderer_kw(DeviceParams.mass_kg), **(renderer_kw or {})}
     render, hold = ContactRenderer(**kw), HoldLastRenderer()
     msg = _plain_contact_model_msg()
@@ -257,7 +257,7 @@ def closed_loop_drag(
 
     sp, cfg = load_params()
     dev = SimulatedDevice(path)
-    s = HapticSession(SkinModel(cfg), sp)
+    s = HapticSession(make_tool(cfg), sp)
     r = ContactRenderer(**{**bridge_renderer_kw(dev.params.mass_kg), **(renderer_kw or {})})
     msg = _plain_contact_model_msg()
     n = int(round(dev.hand_path.duration_s * DEVICE_HZ))

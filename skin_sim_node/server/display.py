@@ -23,6 +23,7 @@ import numpy as np
 from msgs_schema.tissue import LAYER_NAMES
 
 from ..model import SkinModel, TissueConfig
+from ..tools import tissue
 
 MAX_LAYERS = len(LAYER_NAMES)
 MAX_MODES = 31 * 31  # odd-odd modes of the 61 x 61 parameter bound
@@ -140,7 +141,7 @@ def mesh_due(now_s: float, last_mesh_s: float, mesh_rate_hz: float, joined: bool
 def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # pragma: no cover - child process
     # start-up at normal priority: loading the numba kernels at niceness 19 beside a busy haptic process took the
     # worker over 15 s (no frame within the browser's and the tests' waits); the model and a first grid first
-    model = SkinModel(cfg)  # the config the node validated and built
+    model = tissue(cfg)  # the config the node validated and built, pressed as the tool presses it
     model.build_grid()
     lower_priority()  # then every thread, and all that rclpy and DDS start below, at DISPLAY_NICE
     import rclpy
@@ -172,7 +173,7 @@ def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # p
                     return
                 kind, payload = msg
                 if kind == "tissue":
-                    version, model = payload[0], SkinModel(payload[1])
+                    version, model = payload[0], tissue(payload[1])
                     last_q = last_centre = last_active = None  # new rest heights: the next frame rebuilds
                     mesh_grid = None  # a pending mesh of the old tissue is not sent
                 elif kind == "display":

@@ -37,19 +37,18 @@ from msgs_schema.parameters import (
     TISSUE_PREFIX,
     NodeParams,
     session_params,
-    validate_parameters,
 )
 from msgs_schema.qos import publisher, subscription
 from msgs_schema.tissue import TISSUE_PARAMETERS
 from msgs_schema.topics import FRAMES
 
-from ..model import ConfigError, SkinModel, TissueConfig
-from ..model.config import build_config
-from ..model.skin_model import warm_up
+from ..configure import configure
+from ..model import ConfigError, TissueConfig
 from ..rate import LATE_AGE_MIN_S, RateGovernor, RateWindow
 from ..ros_util import LoopTiming, PeriodicLoop, localhost_udp_env, run_nodes, set_process_realtime, set_realtime
 from ..session import WATCHDOG, AnswerThrottle, HapticSession, TickResult
 from ..startup import start_line
+from ..tools import make_tool, warm_up
 from .display import DisplayProcess
 
 STATS_LEN = 16384
@@ -99,8 +98,8 @@ def reason(exc: Exception) -> str:
 def validate(flat: dict, changed=()) -> tuple[NodeParams, TissueConfig]:
     """The node parameters and the built tissue config of a full dotted parameter dict.
 
-    The contract validates (:func:`msgs_schema.parameters.validate_parameters`), the model builds
-    (:func:`skin_sim_node.model.config.build_config`, with its geometry checks).
+    :func:`skin_sim_node.configure.configure`: the contract validates the node parameters, the tissue goes the one way
+    every tissue configuration is built (:func:`skin_sim_node.model.config.config_from_flat`, with its geometry checks).
 
     Parameters
     ----------
@@ -118,8 +117,7 @@ def validate(flat: dict, changed=()) -> tuple[NodeParams, TissueConfig]:
     ConfigError
         With the reason.
     """
-    node_params, tissue = validate_parameters(flat, changed)
-    return node_params, build_config(tissue)
+    return configure(flat, changed)
 
 
 class SkinSimNode(Node):
@@ -138,7 +136,7 @@ class SkinSimNode(Node):
         warm_up(cfg)
         self._warmup_s = time.perf_counter() - t0
         self._lock = threading.Lock()
-        self.session = HapticSession(SkinModel(cfg), session_params(self.params), log=self._log_event)
+        self.session = HapticSession(make_tool(cfg), session_params(self.params), log=self._log_event)
         self._frame = FRAMES["tissue"]
         self._sim_time = bool(self.get_parameter("use_sim_time").value)
         # preallocated messages
@@ -162,7 +160,7 @@ class SkinSimNode(Node):
         self._last_pub_ns = 0  # last wrench publish (idle heartbeat)
         self._last_pub_force = 0.0  # last published force (N): the idle heartbeat holds back only zeros
         self._n_idle_skipped = 0
-        self._display_key = None
+        self._display_key: tuple[int, int] | None = None
         self._last: TickResult | None = None
         # I/O
         self._pub_wrench = publisher(self, "tool_wrench")
@@ -170,8 +168,8 @@ class SkinSimNode(Node):
         self._model_msg = ContactModel()
         self._pub_model = publisher(self, "contact_model")
         self._pub_diag = publisher(self, "diagnostics")
-        self._pub_needle = publisher(self, "needle")
-        self._needle_msg = self._pub_needle.msg_type()
+        self._readouts: dict = {}  # a tool's own read-out topic (ToolNeeds.readout): key -> (publisher, message)
+        self._add_readout()
         self._readers_checked_ns = -READERS_CHECK_NS
         self._contact_read = self._model_read = True
         self.local_model_sink: Callable[[ContactModel], None] | None = None
@@ -348,7 +346,7 @@ class SkinSimNode(Node):
         if now_ns >= self._next_display_ns and self.params.display_rate_hz > 0:
             self._next_display_ns = now_ns + self._display_period_ns()
             self._snapshot_display()  # after the publishes: the wrench never waits for it
-            self._publish_needle()
+            self._publish_readout()
 
     # --- the server rate (skin_sim_node/rate.py) ------------------------------------------------
     @staticmethod
@@ -420,11 +418,23 @@ class SkinSimNode(Node):
         self._display_key = key
         self._display.write(self.session.display_state())
 
-    def _publish_needle(self) -> None:
-        """``tissue/needle`` at the display rate, for a needle with readers (a few us; under the lock)."""
-        if (state := self.session.needle_state()) is None or self._pub_needle.get_subscription_count() == 0:
+    def _add_readout(self) -> None:
+        """The publisher of the tool's own read-out topic (:attr:`ToolNeeds.readout`), if it declares one: created for
+        the first tool that needs it, kept across tool changes (ROS publishers are not destroyed under readers)."""
+        ro = self.session.tool.needs.readout
+        if ro is not None and ro.topic not in self._readouts:
+            pub = publisher(self, ro.topic)
+            self._readouts[ro.topic] = (pub, pub.msg_type())
+
+    def _publish_readout(self) -> None:
+        """The tool's read-out topic (``tissue/needle``) at the display rate, while read (a few us; under the lock)."""
+        ro = self.session.tool.needs.readout
+        if ro is None:
             return
-        self._pub_needle.publish(cv.fill_needle_state(self._needle_msg, state, self._ros_now_ns(), self._frame))
+        pub, msg = self._readouts[ro.topic]
+        if pub.get_subscription_count() == 0 or (state := self.session.readout()) is None:
+            return
+        pub.publish(ro.fill(msg, state, self._ros_now_ns(), self._frame))
 
     # --- diagnostics ------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
@@ -550,10 +560,11 @@ class SkinSimNode(Node):
         if accepted is None or accepted[0] != changes:  # rclpy calls post_set right after on_set accepted this set
             accepted = (changes, self._flat | changes, *validate(self._flat | changes, changes))
         _, flat, node_params, cfg = accepted
-        new_model = SkinModel(cfg) if any(p.name.startswith(TISSUE_PREFIX) for p in ours) else None
+        new_tool = make_tool(cfg) if any(p.name.startswith(TISSUE_PREFIX) for p in ours) else None
         with self._lock:
-            if new_model is not None:
-                self.session.set_model(new_model)
+            if new_tool is not None:
+                self.session.set_tool(new_tool)
+                self._add_readout()
                 self._display.set_tissue(cfg)  # under the lock: snapshots carry the new version
             self.session.params = session_params(node_params)
             self.params = node_params
@@ -567,7 +578,7 @@ class SkinSimNode(Node):
         self.get_logger().info(
             "parameters applied: "
             + ", ".join(f"{p.name}={p.value}" for p in ours)
-            + (" (tissue restarts at rest)" if new_model else "")
+            + (" (tissue restarts at rest)" if new_tool else "")
         )
 
 

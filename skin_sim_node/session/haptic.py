@@ -1,8 +1,10 @@
-"""The haptic session's tick: input policy -> model step -> force limits -> one :class:`TickResult`. No rclpy.
+"""The haptic session's tick: input policy -> tool step -> force limits -> one :class:`TickResult`. No rclpy.
 
-The live node and the offline replay both drive the model through :class:`HapticSession`, so they apply the
-same input checks (:mod:`.inputs`), velocity estimate and force limits (:mod:`.limits`). Times are integer
-nanoseconds: message stamps for inputs, the caller's clock for ``now_ns``.
+The live node and the offline replay both drive a tool (:mod:`skin_sim_node.tools`) through :class:`HapticSession`,
+so they apply the same input checks (:mod:`.inputs`), velocity estimate and force limits (:mod:`.limits`). The session
+knows no tool: what a tool needs it declares (:class:`~skin_sim_node.tools.ToolNeeds`), what its step produced it
+returns in one record (:class:`~skin_sim_node.tools.ToolStep`). Times are integer nanoseconds: message stamps for
+inputs, the caller's clock for ``now_ns``.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from ..model import (
     SkinModel,
     normal_tangent,
 )
+from ..tools import Tool, ToolPose, ToolStep
 from .events import (
     CONTACT_SEPARATED,
     DEGENERATE_WAVE_SPEED,
@@ -39,7 +42,7 @@ from .limits import ForceLimits
 
 NO_CONTACT = normal_tangent(0.0, 0.0, 0.0, 0.0)
 """The tangent out of contact (no force, no stiffness), shared: :meth:`SkinModel.tangent` builds its arrays
-anew on each call (8 us of a 1 ms tick), so it is called only while the tool is in contact."""
+anew on each call (8 us of a 1 ms tick), so a tool builds its tangent only while it is in contact."""
 
 STATE_CHECK_TICKS = 64
 """Every this many ticks the force limits also ask whether the model's energy is finite (a NaN can hide in
@@ -86,7 +89,7 @@ class TickResult:
         The model skipped the kernel (tissue at rest, tool off it).
     tangent : ContactTangent
         The local linearisation of the published force at ``x0_m``, for the local contact model: ``f0 = force_n``,
-        and the model's ``K``, ``D`` (:meth:`SkinModel.tangent`) scaled as the force was.
+        and the tool's ``K``, ``D`` (:attr:`ToolStep.tangent`) scaled as the force was.
     """
 
     seq: int
@@ -130,15 +133,16 @@ def _part(part: str, name: str, doc: str) -> property:
 
 
 class HapticSession:
-    """Owns a :class:`SkinModel` and turns input samples into force ticks.
+    """Owns a :class:`~skin_sim_node.tools.Tool` (and the tissue it presses) and turns input samples into force ticks.
 
-    Composes the :class:`~.inputs.InputPolicy` (which samples are accepted, what a tick runs at), the model's
+    Composes the :class:`~.inputs.InputPolicy` (which samples are accepted, what a tick runs at), the tool's
     step and the :class:`~.limits.ForceLimits` (what is published of its force), and builds the tick's
     :class:`TickResult`.
 
     Parameters
     ----------
-    model : SkinModel
+    tool : Tool
+        :func:`skin_sim_node.tools.make_tool` of the configuration.
     params : SessionParams
     log : callable(kind, message), optional
         Called once per event kind (the first occurrence); every occurrence is counted
@@ -146,8 +150,8 @@ class HapticSession:
 
     Attributes
     ----------
-    model : SkinModel
-        The model it runs (:meth:`set_model` swaps it).
+    tool : Tool
+        The tool it runs (:meth:`set_tool` swaps it); :attr:`model` is the tissue it presses.
     inputs : InputPolicy
         The input and stamp policy (its state: :attr:`pose`, :attr:`stale`, ... read through the session).
     limits : ForceLimits
@@ -158,8 +162,8 @@ class HapticSession:
         The last tick's result.
     """
 
-    def __init__(self, model: SkinModel, params: SessionParams, log: Callable[[str, str], None] | None = None):
-        self.model: SkinModel = model  # set_model below also logs its degenerate layers
+    def __init__(self, tool: Tool, params: SessionParams, log: Callable[[str, str], None] | None = None):
+        self.tool: Tool = tool  # set_tool below also logs its tissue's degenerate layers
         self._event = EventLog(log)
         self.inputs = InputPolicy(params, self._event)
         self.limits = ForceLimits(params, self._event)
@@ -168,7 +172,7 @@ class HapticSession:
         self.velocity = (0.0, 0.0, 0.0)
         self._seq = 0
         self.last: TickResult | None = None  # the last tick's result
-        self.set_model(model)
+        self.set_tool(tool)
 
     # --- parameters, and the parts' state as attributes of the session (read-only) -----------------------
     @property
@@ -191,14 +195,20 @@ class HapticSession:
     twist = _part("inputs", "twist", "The last accepted tool velocity (m/s).")
     answered_stamp_ns = _part("inputs", "answered_stamp_ns", "Stamp of the last pose a tick answered (0 before any).")
 
-    def set_model(self, model: SkinModel) -> None:
-        """Swap in a new model (a live tissue parameter change); the tissue restarts at rest.
+    @property
+    def model(self) -> SkinModel:
+        """The tissue the tool presses (its state, grid and energy)."""
+        return self.tool.tissue
+
+    def set_tool(self, tool: Tool) -> None:
+        """Swap in a new tool and tissue (a live tissue parameter change); the tissue restarts at rest.
 
         Parameters
         ----------
-        model : SkinModel
+        tool : Tool
         """
-        self.model = model
+        self.tool = tool
+        model = tool.tissue
         if model.degenerate_layers:  # the model releases them from rest itself
             self._event(
                 DEGENERATE_WAVE_SPEED,
@@ -206,8 +216,13 @@ class HapticSession:
                 f"return (c = {min(la.wave_speed_m_per_s for la in model.cfg.layers):.3g} m/s); released from rest",
             )
         cfg = model.cfg
-        self._needle = cfg.tool_shape == "needle"
-        self.inputs.orientation_required = self._needle
+        needs = tool.needs
+        self.inputs.orientation_required = needs.orientation
+        self._rises_only = needs.rises_only
+        # the presliding friction the tool's force follows (issue 30), carried in the local contact model with its
+        # anchor so the device renders it from its own positions; the paper form's force has none (its tangent's
+        # friction_coefficient is 0), a tool that declares no friction (the needle) publishes none
+        self._friction = needs.friction
         self._patch_free = (0.5 * (cfg.sheet_size_m[0] - cfg.patch_size_m[0]), 0.5 * (cfg.sheet_size_m[1] - cfg.patch_size_m[1]))
 
     # --- inputs (the policy's) --------------------------------------------------------------
@@ -215,7 +230,7 @@ class HapticSession:
         self, stamp_ns: int, frame: str, xyz, now_ns: int | None = None, rx_ns: int | None = None, quat=None
     ) -> str | None:
         """Validate and store a tool pose: :meth:`.inputs.InputPolicy.on_pose` (its parameters and return; ``quat``
-        the orientation ``(x, y, z, w)``, used by the needle).
+        the orientation ``(x, y, z, w)``, used by a tool that declares it, :attr:`ToolNeeds.orientation`).
 
         Returns
         -------
@@ -236,7 +251,7 @@ class HapticSession:
 
     # --- the tick ---------------------------------------------------------------------
     def tick(self, now_ns: int, elapsed_ns: int) -> TickResult:
-        """One haptic tick: the input policy's sample, the model's step, the force limits.
+        """One haptic tick: the input policy's sample, the tool's step, the force limits.
 
         If a new pose arrived, the model advances by the pose stamps' difference (less
         the time already advanced by pose-less ticks); otherwise by ``elapsed_ns`` with the
@@ -254,7 +269,7 @@ class HapticSession:
         TickResult
             Also kept in :attr:`last`; its force's magnitude (N) is also :attr:`force_n`.
         """
-        model = self.model
+        tool = self.tool
         ti = self.inputs.take(now_ns, elapsed_ns)
         if ti.hold and self.last is not None:  # no new pose: model, force and local model held (model time = stamps)
             self._seq += 1
@@ -262,22 +277,20 @@ class HapticSession:
             return self.last
         self.velocity = ti.velocity
         if ti.release:
-            model.release()
-        if self._needle:
-            model.step(ti.pos, ti.velocity, ti.dt_s, ti.restart, ti.axis)
-        else:
-            model.step(ti.pos, ti.velocity, ti.dt_s, ti.restart)
+            tool.release()
+        step = tool.step(ToolPose(ti.pos, ti.velocity, ti.axis, ti.dt_s, ti.restart))
         self._ticks += 1
-        self._regime_events(ti.pos)
+        self._regime_events(ti.pos, step.flags)
         # the whole vector (normal along the deformed surface plus friction): the limits act on its magnitude and
         # scale it, so the wrench, the contact model's f0 and its K, D all describe the one published force
-        raw = model.force_vector_n
+        raw = step.force_n
         magnitude = math.sqrt(float(raw @ raw))
         check = self._state_finite if self._ticks % STATE_CHECK_TICKS == 0 else None
-        published, reset = self.limits.apply(magnitude, ti.rate_dt_ns, ti.stale, check, rises_only=self._needle)
+        published, reset = self.limits.apply(magnitude, ti.rate_dt_ns, ti.stale, check, rises_only=self._rises_only)
         if reset:
-            model.reset()
-        return self._result(ti.answered, ti.pos, ti.velocity, *self._published_vector(raw, magnitude, published), ti.stale)
+            tool.reset()
+            step = tool.at_rest(step)
+        return self._result(step, ti.answered, ti.pos, ti.velocity, *self._published_vector(raw, magnitude, published), ti.stale)
 
     def _published_vector(self, raw: np.ndarray, magnitude: float, published: float) -> tuple[np.ndarray, float]:
         """The published force vector of magnitude ``published`` and the scale it applies to the model's ``raw``.
@@ -302,41 +315,28 @@ class HapticSession:
         """Whether the model's energy (hence its whole state) is finite."""
         return math.isfinite(self.model.energy())
 
-    def _result(self, answered: bool, pos, v, force: np.ndarray, scale: float, stale: bool) -> TickResult:
+    def _result(self, step: ToolStep, answered: bool, pos, v, force: np.ndarray, scale: float, stale: bool) -> TickResult:
         """The frozen record of this tick (the contact message's per-layer rate and stress included).
 
-        ``force`` is the published vector, the model's scaled by ``scale`` (the limits' share of it); the tangent is
-        that of the published force: ``f0 = force`` and the model's ``K``, ``D`` scaled alike.
+        ``force`` is the published vector, the tool's scaled by ``scale`` (the limits' share of it); the tangent is
+        that of the published force: ``f0 = force`` and the tool's ``K``, ``D`` scaled alike.
         """
-        m = self.model
-        n = m.n_affected
-        depth = m.depth_m
-        comp = tuple(m.compression_m.tolist())
+        n = step.n_affected
+        depth = step.depth_m
+        comp = step.compression_m
         nl = len(comp)
         k = -v[2] / depth if depth > 0 else 0.0  # the normal speed, shared in proportion to each layer's compression
         rate = tuple([k * c for c in comp])
-        stress = (m.stress_pa,) * n + (0.0,) * (nl - n)
+        stress = (step.stress_pa,) * n + (0.0,) * (nl - n)
         self._seq += 1
         events = self._event.take()
-        flags = m.flags
+        flags = step.flags
         tangent = NO_CONTACT
+        t = step.tangent
         if scale == 0.0 and force.any():  # ramping down out of contact: f0 is the published force, no stiffness
             tangent = ContactTangent(force.copy(), np.zeros((3, 3)), np.zeros((3, 3)), NO_CONTACT.normal, 0.0)
-        elif flags & FLAG_CONTACT and scale > 0.0:
-            t = m.tangent()
-            tangent = ContactTangent(
-                force_n=force.copy(),
-                stiffness_n_per_m=t.stiffness_n_per_m * scale,
-                damping_n_s_per_m=t.damping_n_s_per_m * scale,
-                normal=t.normal,
-                contact_radius_m=t.contact_radius_m,
-                # the presliding friction (issue 30): its anchor, and its stiffness scaled as the force was (the slip
-                # distance mu F_n / k_t is the model's)
-                friction_coefficient=t.friction_coefficient,
-                tangential_stiffness_n_per_m=t.tangential_stiffness_n_per_m * scale,
-                friction_anchor_m=t.friction_anchor_m,
-                needle=None if t.needle is None else t.needle.scaled(scale),
-            )
+        elif t is not None and scale > 0.0:
+            tangent = t.published(force, scale, self._friction)
         self.last = TickResult(
             seq=self._seq,
             stamp_ns=self.inputs.answered_stamp_ns,
@@ -352,7 +352,7 @@ class HapticSession:
             flags=flags,
             events=events,
             stale=stale,
-            idle=m.last_tick_idle,
+            idle=step.idle,
             tangent=tangent,
         )
         return self.last
@@ -386,14 +386,13 @@ class HapticSession:
         """The display grid of the current deformation (:meth:`SkinModel.build_grid`)."""
         return self.model.build_grid()
 
-    def needle_state(self) -> dict | None:
-        """The needle's read-out (``NeedleState.msg`` fields) for the view; None for the other tools."""
-        read = getattr(self.model, "needle_state", None)
-        return read() if read is not None else None
+    def readout(self) -> dict | None:
+        """The tool's own read-out (:attr:`ToolNeeds.readout`'s topic fields), None for a tool without one."""
+        return self.tool.readout()
 
     def state(self) -> dict:
-        """A copy of the model's dynamic state (see :meth:`SkinModel.state`), e.g. at peak force."""
-        return self.model.state()
+        """A copy of the tool's dynamic state (see :meth:`SkinModel.state`), e.g. at peak force."""
+        return self.tool.state()
 
     def describe_modes(self) -> str:
         """The mode counts the model really runs: adaptive levels, or the fixed ``modes.m x modes.n``."""
@@ -408,9 +407,8 @@ class HapticSession:
         return f"fixed modes: {cfg.modes[0]}x{cfg.modes[1]} per axis ({b.n_modes} odd modes), adaptive modes off"
 
     # --- model regime ---------------------------------------------------------------------
-    def _regime_events(self, pos) -> None:
-        """Log (once each) the model-regime flags of the last step; the kernel already bounded them."""
-        f = self.model.flags
+    def _regime_events(self, pos, f: int) -> None:
+        """Log (once each) the model-regime flags ``f`` of the last step; the kernel already bounded them."""
         if f & FLAG_BOTTOMED:
             self._event(TOOL_BELOW_TISSUE, f"tool {-pos[2] * 1e3:.2f} mm deep, below the tissue: depth clamped at the bottom")
         if f & FLAG_LAYER_BOUND:

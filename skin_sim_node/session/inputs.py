@@ -24,7 +24,7 @@ AT_REST = (0.0, 0.0, 0.0)
 DOWN = (0.0, 0.0, -1.0)
 """The tool axis of an identity orientation: straight down into the tissue (``tool_pose`` in msgs_schema/topics.py)."""
 QUATERNION_NORM_TOLERANCE = 1e-3
-"""How far a pose's quaternion norm may be from 1 for a tool that uses its orientation (the needle): a driver's
+"""How far a pose's quaternion norm may be from 1 for a tool that uses its orientation (:attr:`ToolNeeds.orientation`): a driver's
 double-precision rotation is within 1e-12, a float32 one within 1e-6; a norm off by more is an uninitialised or
 corrupt orientation (the all-zero quaternion of a default-constructed message among them), rejected rather than
 guessed (stated choice)."""
@@ -63,7 +63,7 @@ class TickInput(NamedTuple):
         where it is for an unknown time, so the model starts from the quasi-static state (dampers and viscoelastic
         arms relaxed).
     axis : tuple of 3 float
-        The tool's unit axis toward its tip, from the pose's orientation (:func:`quaternion_axis`; the needle's).
+        The tool's unit axis toward its tip, from the pose's orientation (:func:`quaternion_axis`; for a tool that declares it).
     """
 
     answered: bool
@@ -142,7 +142,7 @@ class InputPolicy:
         self.pose_stamp_ns: int | None = None  # last accepted pose
         self.pose = LIFTED
         self.axis = DOWN  # the last accepted pose's tool axis
-        self.orientation_required = False  # the tool uses the orientation (the needle): a bad quaternion is rejected
+        self.orientation_required = False  # the tool uses the orientation (ToolNeeds.orientation): a bad one is rejected
         self.pose_rx_ns: int | None = None  # caller clock when it arrived
         self._prev_pose_stamp_ns: int | None = None
         self._prev_pose = LIFTED
@@ -175,7 +175,7 @@ class InputPolicy:
             Arrival time on the clock that :meth:`take` gets (default ``now_ns``, else the stamp).
         quat : sequence of 4 float, optional
             The pose's orientation ``(x, y, z, w)`` (default identity). Non-finite: rejected; with
-            :attr:`orientation_required` (the needle) a norm off 1 by more than :data:`QUATERNION_NORM_TOLERANCE` is
+            :attr:`orientation_required` a norm off 1 by more than :data:`QUATERNION_NORM_TOLERANCE` is
             rejected too, and the tool axis is :func:`quaternion_axis` of the normalised quaternion.
 
         Returns
@@ -206,7 +206,7 @@ class InputPolicy:
                     return self._event(
                         ev.BAD_ORIENTATION,
                         f"rejected tool pose: orientation quaternion ({qx:.3g}, {qy:.3g}, {qz:.3g}, {qw:.3g}) has norm "
-                        f"{norm:.4g}, not 1 (the needle's axis comes from it)",
+                        f"{norm:.4g}, not 1 (the tool's axis comes from it)",
                     )
                 axis = quaternion_axis(qx / norm, qy / norm, qz / norm, qw / norm)
         if now_ns is not None and p.max_stamp_age_s > 0:

@@ -69,8 +69,9 @@ class ForceLimits:
             Asked (only while the force is finite) whether the model's state is still finite; None skips it
             (the session asks every 64 ticks).
         rises_only : bool
-            The rate bound limits rises only (the needle, issue 22): a falling force takes energy from no one, and a
-            needle's puncture drop is the event the hand must feel within one tick, not spread over several.
+            The rate bound limits rises only (a tool that declares it, ``ToolNeeds.rises_only``): a falling force takes
+            energy from no one, and a puncture's drop is the event the hand must feel within one tick, not spread over
+            several.
 
         Returns
         -------

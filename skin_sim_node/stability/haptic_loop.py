@@ -62,10 +62,10 @@ class TissueEnv:
     """The skin model through the haptic session (input checks, velocity, force limits), as the node runs it."""
 
     def __init__(self, cfg, session_params=None):
-        from ..model import SkinModel
         from ..session import HapticSession, SessionParams
+        from ..tools import make_tool
 
-        self.session = HapticSession(SkinModel(cfg), session_params or SessionParams(max_stamp_age_s=0.0))
+        self.session = HapticSession(make_tool(cfg), session_params or SessionParams(max_stamp_age_s=0.0))
 
     def force(self, t_s: float, pos, vel, dt: float) -> float:
         """Normal force of the haptic session at ``pos``, ``vel`` for a tick of ``dt`` (N): pose and twist in, one tick."""

@@ -77,7 +77,9 @@ def score(cfg: TissueConfig, label: str, refs: dict) -> Scored:
 def paper_form_default() -> TissueConfig:
     """The paper's form on the default tissue with the Sneddon springs it shipped with (before the layered form) and the
     paper's bare membranes (no foundation)."""
-    from msgs_schema.tissue import PAPER_MODULI_PA, TOOL_RADIUS_M, flat_punch_stiffness_n_per_m
+    from msgs_schema.tissue import TOOL_RADIUS_M
+
+    from ..model.calibration import PAPER_MODULI_PA, flat_punch_stiffness_n_per_m
 
     k = {f"layers.{n}.stiffness_n_per_m": flat_punch_stiffness_n_per_m(e, TOOL_RADIUS_M) for n, e in PAPER_MODULI_PA.items()}
     return preset("default").replace(form="paper", **k, **{"patch.foundation_length_m": 0.0})

@@ -9,7 +9,7 @@ lies in, judged against the egg-carton interface functions
 material is evaluated at every quadrature point of every element (a finer version of
 "each element's material by its position", so an interface that cuts an element is
 resolved at quadrature resolution instead of snapped to element faces). Moduli: the
-``default`` preset's sources (``msgs_schema.tissue.LAYER_DEFAULTS``), Poisson ratio 0.48.
+``default`` preset's sources (``skin_sim_node.model.calibration.LAYER_SOURCES``), Poisson ratio 0.48.
 
 Element: 20-node serendipity hexahedra (``ElementHexS2``). Linear tets/hexes lock at
 nu = 0.48 (bulk/shear = 24.7): their constant-strain kinematics cannot represent the
@@ -53,7 +53,7 @@ from skfem import solve as solve_linear
 from skfem.helpers import ddot, sym_grad, trace
 from tqdm import tqdm
 
-from msgs_schema.tissue import LAYER_DEFAULTS, POISSON_RATIO
+from skin_sim_node.model.calibration import LAYER_SOURCES, POISSON_RATIO
 from skin_sim_node.model.config import TissueConfig, preset
 
 FEM_VERSION = 1  # bump when the discretisation changes: part of the cache key
@@ -78,7 +78,7 @@ class FemSetup:
     n_out: int = 8
     nz: tuple[int, int, int] = (3, 6, 4)
     side_bc: str = "rollers"  # or "clamped"
-    moduli_pa: tuple[float, float, float] = tuple(v[1] for v in LAYER_DEFAULTS.values())
+    moduli_pa: tuple[float, float, float] = tuple(v[1] for v in LAYER_SOURCES.values())
     poisson: float = POISSON_RATIO
     tissue: tuple = field(default_factory=lambda: _geometry_key(preset("default")))
 

@@ -1,7 +1,7 @@
 """``python -m skin_sim_node.validation.fit_law``: refit the layered form's equilibrium compression law to the
 flat-punch neo-Hookean reference's force *and* its slope (issue 20, item 3a).
 
-What is fitted: the load-spreading factors of dermis and fat (``msgs_schema.tissue.LOAD_SPREADING``: the layer
+What is fitted: the load-spreading factors of dermis and fat (``skin_sim_node.model.calibration.LOAD_SPREADING``: the layer
 springs ``k_i = s_i E_i A / h_i``), the stiffening exponent ``n`` (``STIFFENING_EXPONENT``, common to every layer)
 and, optionally, the wall strain (``WALL_STRAIN``). The epidermis is not fitted (0.1 % of the chain's compliance).
 
@@ -26,11 +26,11 @@ import argparse
 import numpy as np
 from scipy.optimize import least_squares
 
-from msgs_schema import tissue as schema
 from skin_sim_node.model import SkinModel, TissueConfig, preset
-from skin_sim_node.model.layered import chain_solve
+from skin_sim_node.model.layered_law import chain_solve
 from skin_sim_node.model.layout import AUX_THICK, LP_EA
 
+from ..model import calibration as schema
 from .methods import STATIC_DT_S, static_force_n
 from .references import AXI_REFERENCE_LEVEL, axisym
 
@@ -143,7 +143,7 @@ def fit(fit_wall: bool = False, level: int = AXI_REFERENCE_LEVEL, per_layer_n: b
             )
             grid.append((float(np.sum(g.fun**2)), w))
         w0 = min(grid)[1]
-    p0 = [ch.s0[1], ch.s0[2]] + [0.3 if fit_wall else schema.STIFFENING_EXPONENT] * nn + ([w0] if fit_wall else [])
+    p0 = [ch.s0[1], ch.s0[2]] + [0.3 if fit_wall else schema.FITTED_STIFFENING_EXPONENT] * nn + ([w0] if fit_wall else [])
     lo = [1.0, 1.0] + [0.0] * nn + ([0.3] if fit_wall else [])
     hi = [8.8, 8.8] + [5.0] * nn + ([0.999] if fit_wall else [])
     sol = least_squares(res, p0, bounds=(lo, hi), x_scale="jac")

@@ -47,7 +47,7 @@ import scipy.sparse.linalg as spla
 from skfem import Basis, ElementQuad2, ElementVector, MeshQuad
 from tqdm import tqdm
 
-from msgs_schema.tissue import LOAD_SPREADING, POISSON_RATIO
+from skin_sim_node.model.calibration import LOAD_SPREADING, POISSON_RATIO
 from skin_sim_node.model.config import TissueConfig, preset
 
 from .cache import cached
@@ -64,11 +64,11 @@ def layer_moduli_pa(cfg: TissueConfig, poisson: float = POISSON_RATIO) -> tuple[
     ``layers.<name>.youngs_modulus_pa`` when the schema has it; otherwise inverted from the layer
     spring, by the rule the form's springs are built with (``msgs_schema.tissue``):
 
-    - ``layered``: the spread column, ``k = s E A / h`` (:func:`msgs_schema.tissue.layered_stiffness_n_per_m`,
-      ``s`` = :data:`msgs_schema.tissue.LOAD_SPREADING`), so ``E = k h / (s A)`` with the layer's ``thickness_m``
+    - ``layered``: the spread column, ``k = s E A / h`` (:func:`skin_sim_node.model.calibration.layered_stiffness_n_per_m`,
+      ``s`` = :data:`skin_sim_node.model.calibration.LOAD_SPREADING`), so ``E = k h / (s A)`` with the layer's ``thickness_m``
       and ``area_m2``;
     - ``paper``: Sneddon's flat punch on a half-space, ``k = 2 E r0 / (1 - nu^2)``
-      (:func:`msgs_schema.tissue.flat_punch_stiffness_n_per_m`), so ``E = k (1 - nu^2) / (2 r0)``.
+      (:func:`skin_sim_node.model.calibration.flat_punch_stiffness_n_per_m`), so ``E = k (1 - nu^2) / (2 r0)``.
 
     Either way the preset's moduli come back, and a changed spring changes the reference's modulus.
     """

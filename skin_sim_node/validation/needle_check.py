@@ -28,10 +28,11 @@ import numpy as np
 from msgs_schema.parameters import SessionParams
 
 from ..device.trajectories import needle_orientation
-from ..model import SkinModel, preset
+from ..model import preset
 from ..model.interfaces import interface_depths_m
 from ..model.needle import GAUGE_OUTER_DIAMETER_M, NeedleModel, NeedleParams
 from ..session.haptic import HapticSession
+from ..tools import make_tool
 
 GAUGES = (18, 21, 25)
 CADAVER_BAND_N = (2.75, 2.80)
@@ -62,7 +63,7 @@ def insertion(
     u = np.array([math.cos(e), 0.0, -math.sin(e)])
     q = needle_orientation(e)
     cfg = _cfg(gauge, **({"needle.lubricated": False} if dry else {}))
-    s = HapticSession(SkinModel(cfg), SessionParams(max_stamp_age_s=0.0))
+    s = HapticSession(make_tool(cfg), SessionParams(max_stamp_age_s=0.0))
     step = speed_m_s * DT_NS * 1e-9
     travel = np.arange(-0.5e-3 / math.sin(e), depth_m / math.sin(e), step)
     path = np.concatenate([travel, travel[::-1]])
@@ -71,7 +72,7 @@ def insertion(
         p = np.array([entry[0], entry[1], 0.0]) + a * u
         s.on_pose((k + 1) * DT_NS, "tissue", tuple(p), quat=q)
         r = s.tick((k + 1) * DT_NS, DT_NS)
-        t = s.model.last_needle
+        t = s.tool.last_needle
         tips.append(p)
         forces.append(r.force_n)
         parts.append((t.insertion_m, t.dimple_m, t.cutting_n, t.friction_n, t.ruptured))

@@ -37,9 +37,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from tqdm import tqdm
 
-from msgs_schema.tissue import POISSON_RATIO
 from skin_sim_node.model.config import TissueConfig, preset
 
+from ..model.calibration import POISSON_RATIO
 from .cache import cached
 from .hyperelastic import CACHE_DIR, HYPER_VERSION, AxiProblem, AxiSetup, layer_moduli_pa
 

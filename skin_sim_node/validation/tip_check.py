@@ -102,9 +102,9 @@ def table(r: dict) -> str:
 
 def fit_sphere_factor(cfg: TissueConfig | None = None) -> tuple[float, float]:
     """Least-squares (in ``log F``, depths :data:`~.sphere.CHECK_DEPTHS_M`) value of
-    :data:`~skin_sim_node.model.layered.SPHERE_LOAD_FACTOR` for the model's chain against the sphere reference, and
+    :data:`~skin_sim_node.model.layered_contact.SPHERE_LOAD_FACTOR` for the model's chain against the sphere reference, and
     the largest force error after it. ``s`` is proportional to the factor below its cap, so the fit is closed form."""
-    from skin_sim_node.model.layered import SPHERE_LOAD_FACTOR
+    from skin_sim_node.model.layered_contact import SPHERE_LOAD_FACTOR
 
     r = rows("sphere", cfg)
     lr = np.log(r["fr"] / r["f"])

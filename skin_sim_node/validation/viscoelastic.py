@@ -2,7 +2,7 @@
 
 Each layer carries quasi-linear viscoelasticity (Fung) with a two-term Prony series,
 ``G(t) = 1 + g1 exp(-t/tau1) + g2 exp(-t/tau2)`` relative to its equilibrium law
-(:func:`skin_sim_node.model.layered.prony_prepare`). This module drives the model offline through the
+(:func:`skin_sim_node.model.layered_law.prony_prepare`). This module drives the model offline through the
 protocols the data come from and prints, for the configured tissue (default preset unless ``--params-file``):
 
 - relaxation under a held indentation (2 mm, pressed at 10 mm/s, held 1 s): the force relaxed and its half time;

@@ -1,0 +1,42 @@
+"""The one way from a node's parameter set to what runs: its :class:`NodeParams` and its :class:`TissueConfig`.
+
+The contract checks the node parameters (:func:`msgs_schema.parameters.node_params_from_flat`); the tissue part goes
+the one way every tissue configuration is built, :func:`skin_sim_node.model.config.config_from_flat` (the contract's
+:func:`~msgs_schema.parameters.check_tissue`, then the model's geometry checks). Above the model core, which builds no
+node parameters (tests/test_presets.py). Used by the node (at start and on a live set) and the offline replay
+(:func:`skin_sim_node.bags.offline.load_params`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+from msgs_schema.parameters import NodeParams, check_value, node_params_from_flat, tissue_part
+
+from .model import TissueConfig, config_from_flat
+
+
+def configure(flat: Mapping[str, Any], changed: Iterable[str] = ()) -> tuple[NodeParams, TissueConfig]:
+    """The node parameters and the built tissue config of a full dotted parameter dict.
+
+    Parameters
+    ----------
+    flat : mapping
+        Declared name (tissue parameters with the ``tissue.`` prefix) -> value; missing ones take their defaults.
+    changed : iterable of str
+        Names checked first against their declared spec, so that the reason for a rejected set names them as declared
+        (``tissue.`` prefix kept).
+
+    Returns
+    -------
+    NodeParams, TissueConfig
+
+    Raises
+    ------
+    ConfigError
+        With the reason: an unknown name, a bad value, or a geometry that does not fit.
+    """
+    for name in changed:
+        check_value(name, flat[name])
+    return node_params_from_flat(flat), config_from_flat(tissue_part(flat))
