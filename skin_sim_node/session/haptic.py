@@ -221,7 +221,7 @@ class HapticSession:
         self._rises_only = needs.rises_only
         # the presliding friction the tool's force follows (issue 30), carried in the local contact model with its
         # anchor so the device renders it from its own positions; the paper form's force has none (its tangent's
-        # friction_coefficient is 0), a tool that declares no friction (the needle) publishes none
+        # friction_coefficient is 0), a tool that declares no friction publishes none
         self._friction = needs.friction
         self._patch_free = (0.5 * (cfg.sheet_size_m[0] - cfg.patch_size_m[0]), 0.5 * (cfg.sheet_size_m[1] - cfg.patch_size_m[1]))
 
