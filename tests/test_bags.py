@@ -371,3 +371,55 @@ def test_replay_takes_the_preset_the_bag_was_recorded_with(tmp_path, capsys):
     assert "needle.yaml (recorded with the bag)" in printed
     peak = float(printed.split("peak force ", 1)[1].split(" N", 1)[0])
     assert peak == pytest.approx(1.80, abs=0.01)  # the 21 G needle's skin peak, not a flat punch's
+
+
+def _params_at(tmp_path, **node):
+    """A copy of the default parameter file with node parameters changed."""
+    doc = yaml.safe_load(Path(DEFAULT_PARAMS).read_text())
+    doc["/**/skin_sim_node"]["ros__parameters"].update(node)
+    path = tmp_path / "params.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def test_offline_replay_answers_what_a_throttled_node_answers(tmp_path):
+    """Issue 28 item 4: a node with rate_hz 250 (fixed) answers every fourth pose of a 1 kHz bag on the stamps; the
+    offline replay applies the same throttle, and its forces are the session's stepped exactly as the node steps it
+    (every pose taken, only the due ones ticked), bit for bit."""
+    from skin_sim_node.bags.inputs import POSE
+    from skin_sim_node.bags.offline import load_params
+    from skin_sim_node.rate import AnswerThrottle
+    from skin_sim_node.session import HapticSession
+    from skin_sim_node.tools import make_tool
+
+    params = _params_at(tmp_path, rate_hz=250.0, rate_policy="fixed")
+    inputs = read_inputs(PRESS, InputOptions())
+    res = replay_offline(inputs, params, grid_rate_hz=0)
+    full = replay_offline(inputs, DEFAULT_PARAMS, grid_rate_hz=0)
+    assert 0.24 <= len(res.stamps_ns) / len(full.stamps_ns) <= 0.26
+    sp, cfg = load_params(params)
+    s, th, prev, want = HapticSession(make_tool(cfg), sp), AnswerThrottle(250.0), None, []
+    for stamp, rank, fr, xyz, quat in inputs.events:  # the node: on_pose for every pose, a tick for the due ones
+        if rank != POSE:
+            s.on_twist(stamp, fr, xyz)
+        elif s.on_pose(stamp, fr, xyz, quat=quat) is None and th.due(stamp):
+            want.append((stamp, s.tick(stamp, 0 if prev is None else stamp - prev).force_n))
+            prev = stamp
+    assert [w[0] for w in want] == list(res.stamps_ns)
+    assert np.array_equal(np.array([w[1] for w in want]), res.force_vec_n)
+
+
+def test_live_replay_of_a_throttled_node_agrees_with_offline(tmp_path, ros_domain):
+    """A real node at rate_hz 250 (fixed) fed the 1 kHz bag live: it answers the poses the offline replay answers
+    (the throttle on the stamps, issue 28 item 4), with the same forces."""
+    pytest.importorskip("rclpy")
+    bag = tmp_path / "in"
+    shutil.copytree(PRESS, bag)
+    params = _params_at(tmp_path, rate_hz=250.0, rate_policy="fixed")
+    code = replay.main(
+        [str(bag), "--out", str(tmp_path / "o"), "--no-report", "--grid-rate-hz", "0", "--live", "--params", str(params)]
+    )
+    s = json.loads((tmp_path / "o" / "live_summary.json").read_text())
+    assert s["max_df_n"] <= 0.01 * s["peak_force_n"], s
+    assert s["fraction_answered"] >= 0.90, s  # of the offline answers: the same quarter of the poses
+    assert code in (0, 1) and s["pass"] == (code == 0)

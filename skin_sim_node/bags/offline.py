@@ -26,6 +26,7 @@ from .. import tools
 from ..configure import configure
 from ..model import SkinModel, TissueConfig
 from ..model.config import load_yaml
+from ..rate import AnswerThrottle
 from ..scenes import DEFAULT_PARAMS
 from ..session import HapticSession
 from ..tools import make_tool
@@ -45,6 +46,17 @@ def load_params(path=DEFAULT_PARAMS):
     node_params, cfg = configure(load_yaml(path))  # the node's way (skin_sim_node.configure)
     # offline: stamps are not compared with any clock
     return session_params(node_params, max_stamp_age_s=0.0), cfg
+
+
+def answer_throttle(path=DEFAULT_PARAMS) -> AnswerThrottle | None:
+    """The node's answer throttle of a parameter file, as the node applies it on the pose stamps (input mode): the
+    replay answers the poses a node with these parameters answers, so a node run with ``rate_hz`` below 1 kHz (with
+    ``rate_policy: fixed``, or a deep input queue) replays bit for bit (issue 28 item 4). None in timer mode (the
+    node's clock picks the poses; offline answers each). The follow policy's rate changes depend on the machine, not
+    the poses: its replay answers at ``rate_hz``, and a bridge that forwards only the poses the node answers (the
+    default) records exactly those."""
+    node_params, _ = configure(load_yaml(path))
+    return AnswerThrottle(node_params.rate_hz) if node_params.loop_mode == "input" else None
 
 
 @dataclass
@@ -139,6 +151,7 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
     """
     sp, cfg = load_params(params)
     session = HapticSession(make_tool(cfg), sp)
+    throttle = answer_throttle(params)
     frame = sp.tissue_frame
     out = _Out()
     grid_ns = int(round(1e9 / grid_rate_hz)) if grid_rate_hz > 0 else 0
@@ -154,6 +167,8 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
             continue
         if session.on_pose(stamp, fr, xyz, quat=quat) is not None:
             continue
+        if throttle is not None and not throttle.due(stamp):
+            continue  # as the node: kept, and the next answered pose steps the model over both stamps
         r = session.tick(stamp, 0 if prev is None else stamp - prev)
         prev = stamp
         force = math.hypot(*r.force_n)
