@@ -28,6 +28,7 @@ TYPED_PATHS=(
   skin_sim_node/bags
   skin_sim_node/configure.py
   skin_sim_node/rate.py
+  skin_sim_node/ros_util.py
 )
 .venv/bin/mypy "${TYPED_PATHS[@]}"
 .venv/bin/python -m pytest -q -p no:cacheprovider "$@"

@@ -289,3 +289,88 @@ def device_tick_messages(
     bridge = device_side + forwarded * (1 + forward_twist) + answered
     node = forwarded * (1 + forward_twist) + answered * (2 + contact_readers)
     return {"bridge": bridge, "node": node, "total": bridge + node}
+
+
+GOVERNOR_WINDOW_NS = 500_000_000
+"""The rate governor's window (0.5 s: 500 answers at 1 kHz, enough to count a 5 % miss; two bad windows step down
+within a second, before a hand notices a changed feel)."""
+
+
+class ServerRate:
+    """The node's server rate in one object: the answer throttle, the governor of ``rate_policy: follow`` and its
+    window's counts, and the period the contact models announce. Pure: the node feeds it stamps and clocks.
+
+    Parameters
+    ----------
+    p : NodeParams
+        ``rate_hz``, ``rate_policy``, ``min_rate_hz``, ``loop_mode``, ``input_queue_depth``, ``watchdog_s``.
+    now_ns : int
+        The caller's monotonic clock (the governor's windows).
+    pose_ages : bool
+        Pose stamps are on the system clock (not ``use_sim_time``): their age at the answer counts as lateness.
+    """
+
+    def __init__(self, p, now_ns: int, pose_ages: bool = True):
+        self.params = p
+        self.pose_ages = pose_ages
+        self.throttle = AnswerThrottle(p.rate_hz)  # input mode: a rate below 1 kHz spaces the answers
+        # A node with input_queue_depth above 1 was asked to answer every sample in order (live replay, tests that
+        # count answers): it keeps rate_hz, as skipping poses would break that contract.
+        follow = p.rate_policy == "follow" and p.loop_mode == "input" and p.input_queue_depth <= 1
+        self.governor = RateGovernor(p.rate_hz, min(p.min_rate_hz, p.rate_hz)) if follow else None
+        self._reset(now_ns)
+
+    def _reset(self, now_ns: int) -> None:
+        self._start_ns = now_ns
+        self._answered = self._missed = self._late = 0
+        self._last_stamp: int | None = None
+
+    def due(self, stamp_ns: int) -> bool:
+        """Whether the pose stamped ``stamp_ns`` is answered (input mode: :class:`AnswerThrottle`)."""
+        return self.throttle.due(stamp_ns)
+
+    @property
+    def rate_hz(self) -> float:
+        """The rate the node answers at now."""
+        return self.governor.rate_hz if self.governor is not None else float(self.params.rate_hz)
+
+    @property
+    def answer_period_s(self) -> float:
+        """The period the contact models announce: the bridge forwards a pose this often (0: every pose)."""
+        p = self.params
+        if p.loop_mode == "timer":
+            return 0.0 if p.rate_hz >= ANSWER_ALL_HZ else 1.0 / p.rate_hz
+        return self.throttle.period_ns * 1e-9
+
+    def answered(self, stamp_ns: int, now_ns: int, wall_ns: int) -> str | None:
+        """Count one answered pose into the governor's window (``now_ns`` monotonic, ``wall_ns`` the system clock);
+        at the window's end the governor decides. Returns its one-line message when the rate changes."""
+        gov = self.governor
+        if gov is None:
+            return None
+        period_ns = 1e9 / gov.rate_hz
+        last = self._last_stamp
+        if last is not None and 0 < stamp_ns - last < self.params.watchdog_s * 1e9:
+            self._missed += max(int(round((stamp_ns - last) / period_ns)) - 1, 0)
+        self._last_stamp = stamp_ns
+        self._answered += 1
+        if self.pose_ages:  # the pose's age on the system clock (its stamp's, from a device or the bridge)
+            self._late += wall_ns - stamp_ns > max(LATE_AGE_MIN_S * 1e9, 2 * period_ns)
+        if now_ns - self._start_ns < GOVERNOR_WINDOW_NS:
+            return None
+        msg = gov.update(RateWindow(gov.rate_hz, self._answered, self._missed, self._late))
+        self._reset(now_ns)
+        if msg is not None:
+            self.throttle.set_rate(gov.rate_hz)
+        return msg
+
+    def diagnostics(self) -> dict[str, str]:
+        """The diagnostics key-values of the server rate."""
+        gov = self.governor
+        return {
+            "server_rate_hz": f"{self.rate_hz:.1f}",
+            "rate_policy": self.params.rate_policy if gov is not None else "fixed",
+            "rate_reason": gov.reason if gov is not None else "rate_hz",
+            "rate_changes_total": str(gov.changes if gov is not None else 0),
+            "answer_period_ms": f"{self.answer_period_s * 1e3:.2f}",
+        }

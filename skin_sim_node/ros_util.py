@@ -19,11 +19,12 @@ from pathlib import Path
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
 
 try:  # rclpy >= 7 (Jazzy): far less CPU per callback at 1 kHz than the default executors
     from rclpy.experimental import EventsExecutor
 except ImportError:  # pragma: no cover - older rclpy
-    EventsExecutor = None
+    EventsExecutor = None  # type: ignore[assignment]
 
 
 HAPTIC_TRANSPORTS = "UDPv4"
@@ -91,7 +92,7 @@ def localhost_udp_env(env, keep_shm: bool = False) -> tuple[dict[str, str], str]
     return updates, f"LOCALHOST discovery over UDPv4 on this host, no shared memory ({UDP_LOOPBACK_PROFILE.name})"
 
 
-def run_nodes(factories: list[Callable[[], object]], args=None, executor: str = "events") -> int:
+def run_nodes(factories: list[Callable[[], Node]], args=None, executor: str = "events") -> int:
     """Init rclpy, build the nodes, spin until SIGINT/SIGTERM, then stop and destroy them.
 
     rclpy's default signal handlers shut the context down on SIGINT and SIGTERM. The
@@ -170,7 +171,7 @@ try:  # ctypes.CDLL releases the GIL for the duration of each foreign call
     _LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
     _LIBC.clock_nanosleep.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.POINTER(_Timespec), ctypes.c_void_p]
 except (OSError, AttributeError):  # pragma: no cover - not glibc/Linux
-    _LIBC = None
+    _LIBC = None  # type: ignore[assignment]
 
 
 def sleep_until_ns(deadline_ns: int) -> None:

@@ -117,3 +117,26 @@ def test_message_budget_of_node_and_bridge_in_one_process():
     one = device_tick_messages(1000.0, in_process=True)
     assert one == {"bridge": 4.0, "node": 1.0, "total": 5.0}  # the pose and model hop (4 per answer) are gone
     assert device_tick_messages(1000.0)["total"] - one["total"] == 4.0
+
+
+def test_server_rate_steps_down_on_recorded_stamps_and_announces_the_period():
+    """The node's ServerRate fed the recorded loaded 1 kHz answers on their own time line: it steps to 500 Hz after
+    two windows, throttles to every second pose and announces 2 ms to the bridge; fixed or a deep queue never moves."""
+    from types import SimpleNamespace
+
+    from skin_sim_node.rate import ServerRate
+
+    p = SimpleNamespace(
+        rate_hz=1000.0, rate_policy="follow", min_rate_hz=125.0, loop_mode="input", input_queue_depth=1, watchdog_s=0.05
+    )
+    stamps = load("node_answers_fixed_1000hz_loaded")
+    rate = ServerRate(p, int(stamps[0]), pose_ages=False)
+    assert rate.answer_period_s == 0.0
+    first = stamps[stamps < stamps[0] + 1.01e9]  # two windows: the recording is at 1 kHz, not at the next rung
+    msgs = [m for s in first if (m := rate.answered(int(s), int(s), int(s)))]
+    assert len(msgs) == 1 and msgs[0].startswith("server rate 1000 -> 500 Hz") and rate.answer_period_s == 0.002
+    assert rate.diagnostics()["server_rate_hz"] == f"{rate.rate_hz:.1f}"
+    for policy, depth in (("fixed", 1), ("follow", 500)):
+        q = SimpleNamespace(**{**vars(p), "rate_policy": policy, "input_queue_depth": depth})
+        fixed = ServerRate(q, int(stamps[0]), pose_ages=False)
+        assert not [m for s in stamps if fixed.answered(int(s), int(s), int(s))] and fixed.rate_hz == 1000.0

@@ -33,42 +33,35 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Callable
 
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import TwistStamped, WrenchStamped
+from geometry_msgs.msg import WrenchStamped
 from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from skin_sim_msgs.msg import ContactModel
 
 from msgs_schema.contact_model import ContactModelCdr, LocalModel, read_contact_model
-from msgs_schema.convert import PoseCdr, WrenchCdr, fill_twist, read_pose_cdr, read_stamped_vec3_cdr, set_stamp
+from msgs_schema.convert import WrenchCdr, read_pose_cdr, read_stamped_vec3_cdr, set_stamp
 from msgs_schema.qos import PROFILES, publisher, subscription
 from msgs_schema.topics import FRAMES, TOPICS
 
 from ..rate import AnswerThrottle
 from ..ros_util import localhost_udp_env, ros_now_ns, set_pid_realtime, set_realtime
-from .base import DeviceNode, Param, publish_while_ok
+from .base import DeviceNode, publish_while_ok
+from .bridge_params import BRIDGE_PARAMS, FRICTION_RENDERS, RT_PRIORITY, SOURCES, STABILISERS  # noqa: F401
+from .links import LINK_JOIN_S, LocalLink, ServerLink, _never_called
 from .mapping import (
     CONVENTIONS,
-    DEFAULTS,
     MEASURED_FORCE,
-    TOUCH_MAX_DAMPING_N_S_PER_M,
-    TOUCH_MAX_STIFFNESS_N_PER_M,
     DeviceMapping,
     axes_matrix,
     force_to_tissue,
     normalize_namespace,
-    without_namespace_remap,
 )
-from .render import FADE_S, SERVO_PERIOD_S, ContactRenderer, stable_damping_n_s_per_m
-from .stylus import DeviceParams
+from .render import SERVO_PERIOD_S, ContactRenderer, stable_damping_n_s_per_m
 
-SOURCES = ("model", "wrench")
-STABILISERS = ("none", "passivity")
-FRICTION_RENDERS = ("law", "linear")
 TWIST_MAX_SKEW_NS = 5_000_000  # a device twist this close to the pose's stamp is the pose's velocity (as the node's 5 ms)
 HOLD_RADIUS_M = 1.0  # wrench source: a held force does not depend on the pose (any pose on a Touch's workspace)
 AGE_RING = 4096  # model ages kept for the diagnostics window (4 s at 1 kHz)
@@ -79,10 +72,6 @@ DEVICE_QUEUE_DEPTH = 10
 """History depth of the device pose, twist and measured-force subscriptions: device poses that arrive while the
 servo thread is busy (a burst after a scheduling hiccup) are each answered, in order, with their own stamp, instead
 of all but the newest being overwritten (issue 19: depth 1 answered 85 % of the poses). 10 ms at 1 kHz."""
-RT_PRIORITY = 80
-"""SCHED_FIFO priority of the device path (the executor thread that renders each device pose and the device-side
-DDS threads); the node link's threads run one below. 80 sits above the kernel's threaded IRQs (50 on PREEMPT_RT),
-as the node's ``rt_priority`` documents for servo loops."""
 SWITCH_INTERVAL_S = 2e-4
 """``sys.setswitchinterval`` of the bridge (Python's default 5 ms): a servo thread waiting for the GIL gets it
 within 0.2 ms of the link thread holding it (the node uses the same)."""
@@ -91,184 +80,6 @@ within 0.2 ms of the link thread holding it (the node uses the same)."""
 NO_NODE_HINT_NS = 3_000_000_000
 """Device poses without a contact model (or wrench) from the node for this long (3 s; DDS discovery on localhost
 takes well under 2 s): the bridge says once that the node seems missing."""
-
-LINK_JOIN_S = 2.0
-"""How long the bridge waits at shutdown for each of its node-link threads (they poll every 50 ms)."""
-
-
-class ServerLink:
-    """The bridge's side towards the node, on its own DDS participant (an rclpy context) and one thread.
-
-    Measured (tests/test_force_path_ros.py): a node killed with SIGKILL while writing into a participant's
-    shared-memory port stalls that port for 1000 ms (Fast DDS's health-check timeout). With one participant the
-    device's poses then stopped reaching the bridge: no tick to render on, the force held, then a watchdog step.
-    Here the node writes only into this participant's port, the device only into the bridge's own, and the tool
-    pose goes out from this link's thread (a latest-value hand-off), so a dead node cannot stall the servo path.
-
-    The thread blocks in one wait set (``rcl_wait``, the GIL released) on the node's contact model (serialized: read
-    by :class:`msgs_schema.contact_model.ContactModelCdr`, no message object), a guard condition the servo thread
-    triggers when a pose is due, and the diagnostics' period: no executor, nothing that polls (issue 27).
-    """
-
-    def __init__(
-        self,
-        bridge: BridgeNode,
-        ros_args: list[str],
-        on_model: Callable[[bytes], None],
-        node_ns: str = "",
-        rt_priority: int = 0,
-        periodic: tuple[float, Callable[[], None]] | None = None,
-        forward_twist: bool = False,
-    ):
-        self._periodic = periodic
-        self._periodic_failed = False
-        self.ctx = rclpy.Context()
-        rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
-        self.node = rclpy.create_node(
-            f"{bridge.get_name()}_server", context=self.ctx, namespace=node_ns or None, start_parameter_services=False
-        )
-        self.rt_priority = rt_priority
-        self._pose_pub = publisher(self.node, "tool_pose")
-        self._twist_pub = publisher(self.node, "tool_twist") if forward_twist else None
-        self._pose_cdr = PoseCdr(bridge.tissue_frame)
-        self._twist = TwistStamped()
-        self._on_model = on_model
-        key = "contact_model" if bridge.model_source else "tool_wrench"
-        # taken by this link's wait set only (the node is in no executor)
-        self._sub = subscription(self.node, key, _never_called, raw=True)
-        self._latest: tuple | None = None
-        self._lock = threading.Lock()
-        self._wake = GuardCondition(None, None, context=self.ctx)
-        self._stop = threading.Event()
-        self.forwarded = 0
-        self._thread = threading.Thread(target=self._run, name="server-link", daemon=True)
-        self._thread.start()
-
-    def send(self, pose: tuple, twist: tuple | None = None) -> None:
-        """Hand the newest due pose ``(stamp, xyz, quat)`` (and the device's twist ``(stamp, linear)``) to the thread."""
-        with self._lock:
-            self._latest = (pose, twist)
-        self._wake.trigger()
-
-    def _run(self) -> None:
-        """Wait for a model, a pose to forward or the diagnostics' time; handle each; until :meth:`close`."""
-        if self.rt_priority > 1:  # one below the servo thread: no priority inversion through the GIL
-            set_realtime(self.rt_priority - 1)
-        period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
-        next_ns = time.monotonic_ns() + period_ns  # the first after one period: the bridge finishes its start first
-        ws = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self.ctx.handle)
-        sub = self._sub
-        while not self._stop.is_set() and self.ctx.ok():
-            timeout = max(next_ns - time.monotonic_ns(), 0) if period_ns else 50_000_000
-            try:
-                ws.clear_entities()
-                ws.add_subscription(sub.handle)
-                ws.add_guard_condition(self._wake.handle)
-                ws.wait(timeout)
-                while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
-                    self._on_model(taken[0])
-            except Exception:
-                if self._stop.is_set() or not self.ctx.ok():
-                    return
-                raise
-            with self._lock:
-                latest, self._latest = self._latest, None
-            if latest is not None:
-                (stamp, x, q), tw = latest
-                if tw is not None and self._twist_pub is not None:  # twist first, as the device publishes them
-                    publish_while_ok(self.node, self._twist_pub, fill_twist(self._twist, tw[0], FRAMES["tissue"], tw[1]))
-                publish_while_ok(self.node, self._pose_pub, self._pose_cdr.fill(stamp, x, q))
-                self.forwarded += 1
-            if self._periodic is not None and time.monotonic_ns() >= next_ns:
-                next_ns = time.monotonic_ns() + period_ns
-                try:
-                    self._periodic[1]()
-                except Exception as exc:  # never let it stop the tool pose going to the node
-                    if not self._periodic_failed:
-                        self._periodic_failed = True
-                        print(f"skin-sim bridge: diagnostics failed: {exc!r} (reported once)", flush=True)
-
-    def close(self) -> None:
-        """Stop the link's thread, then destroy its node and context, never under a thread still inside them.
-
-        A thread still running after :data:`LINK_JOIN_S` (starved on a loaded machine) keeps the node and the
-        context alive until the process exits: destroying them under its wait corrupted the heap at exit
-        (``malloc_consolidate(): unaligned fastbin chunk``, exit -6, once in 15 shutdowns beside four busy processes).
-        """
-        self._stop.set()
-        try:
-            self._wake.trigger()
-        except Exception:
-            pass
-        self._thread.join(timeout=LINK_JOIN_S)
-        if self._thread.is_alive():
-            return
-        try:
-            self.node.destroy_node()
-        except Exception:
-            pass
-        rclpy.try_shutdown(context=self.ctx)
-
-
-class LocalLink:
-    """The node in this process (``skin-sim bridge --with-node``, issue 27 item 5): no DDS hop between them.
-
-    A due pose goes to the node's :meth:`~skin_sim_node.server.node.SkinSimNode.answer_pose` on this link's thread
-    (a latest-value hand-off, as :class:`ServerLink`), and the node's tick hands each contact model back through its
-    ``local_model_sink``: per answer, four rclpy messages fewer (pose out and in, model out and in). The node still
-    publishes ``tool/wrench`` (and the contact model, for other readers) over DDS.
-    """
-
-    def __init__(self, bridge: BridgeNode, node, rt_priority: int = 0, periodic: tuple[float, Callable[[], None]] | None = None):
-        self.node = node
-        self._frame = bridge.tissue_frame
-        self._periodic = periodic
-        self.rt_priority = rt_priority
-        node.local_model_sink = bridge._on_local_model
-        self._latest: tuple | None = None
-        self._lock = threading.Lock()
-        self._wake = threading.Event()
-        self._stop = threading.Event()
-        self.forwarded = 0
-        self._thread = threading.Thread(target=self._run, name="local-link", daemon=True)
-        self._thread.start()
-
-    def send(self, pose: tuple, twist: tuple | None = None) -> None:
-        """Hand the newest due pose ``(stamp, xyz, quat)`` (and twist ``(stamp, linear)``) to the link's thread."""
-        with self._lock:
-            self._latest = (pose, twist)
-        self._wake.set()
-
-    def _run(self) -> None:
-        if self.rt_priority > 1:
-            set_realtime(self.rt_priority - 1)
-        period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
-        next_ns = time.monotonic_ns() + period_ns
-        while not self._stop.is_set():
-            self._wake.wait(max(next_ns - time.monotonic_ns(), 0) * 1e-9 if period_ns else 0.05)
-            self._wake.clear()
-            with self._lock:
-                latest, self._latest = self._latest, None
-            if latest is not None and not self._stop.is_set():
-                (stamp, x, q), tw = latest
-                if tw is not None:
-                    self.node.answer_twist(tw[0], self._frame, tw[1])
-                self.node.answer_pose(stamp, self._frame, x, q)
-                self.forwarded += 1
-            if self._periodic is not None and time.monotonic_ns() >= next_ns:
-                next_ns = time.monotonic_ns() + period_ns
-                self._periodic[1]()
-
-    def close(self) -> None:
-        """Stop the link's thread (the node stops after it: it was built first)."""
-        self._stop.set()
-        self._wake.set()
-        self._thread.join(timeout=LINK_JOIN_S)
-        self.node.local_model_sink = None
-
-
-def _never_called(_msg) -> None:  # pragma: no cover - the wait-set readers' subscriptions are in no executor
-    """The callback of a subscription that only a wait set takes from."""
 
 
 class BridgeNode(DeviceNode):
@@ -280,112 +91,7 @@ class BridgeNode(DeviceNode):
         "Device bridge: device pose -> tool/pose; tool/contact_model rendered at the device's rate -> force "
         "command (CRTK servo_cf or omni force_feedback). Start it after skin-sim node, before the device."
     )
-    PARAMS = (
-        Param("convention", DEFAULTS["convention"], "device driver topic convention", choices=tuple(CONVENTIONS)),
-        Param("device_ns", DEFAULTS["device_ns"], "namespace of the device topics (relative; '' for none)"),
-        Param("offset_m", DEFAULTS["offset_m"], "tissue-frame position of the device origin (m)"),
-        Param("scale", DEFAULTS["scale"], "motion scale: tissue m per device m", 1e-3, 1e3),
-        Param("axes", DEFAULTS["axes"], "tissue x, y, z as signed device axes, e.g. xyz, or x-zy for a Touch base frame"),
-        Param(
-            "force_scale",
-            DEFAULTS["force_scale"],
-            "force scale: F_device = force_scale * R^T F_tissue, before the clamp (a needle's puncture peak above the "
-            "clamp is flattened at scale 1; e.g. 0.6 keeps an 18 G peak, 2.7 N, under sawSensablePhantom's 2 N)",
-            0.0,
-            100.0,
-        ),
-        Param("max_force_n", DEFAULTS["max_force_n"], "device force clamp (N); Touch peak 3.3 N", 0.0, 100.0),
-        Param(
-            "max_stiffness_n_per_m",
-            TOUCH_MAX_STIFFNESS_N_PER_M,
-            "cap of the rendered stiffness at the device (N/m); Touch spec >= 1.02 N/mm on its weakest axis",
-            0.0,
-            1e6,
-        ),
-        Param(
-            "max_damping_n_s_per_m",
-            TOUCH_MAX_DAMPING_N_S_PER_M,
-            "cap of the rendered damping at the device (N*s/m); sawSensablePhantom's largest servo damping on a Touch",
-            0.0,
-            1e4,
-        ),
-        Param(
-            "friction_render",
-            "law",
-            "law: evaluate the contact model's friction law at the device's velocity (CRTK measured_cv) every tick; "
-            "linear: f0 + K dx + D dv (D capped), as a consumer without the law",
-            choices=FRICTION_RENDERS,
-        ),
-        Param(
-            "max_friction_slope_n_s_per_m",
-            0.0,
-            "cap of the rendered friction law's slope at zero slip, mu F_n / v_r (N*s/m); 0: the model's own law. "
-            "0.6 m / T (27 N*s/m for a 45 g stylus at 1 kHz) ends the stick chatter of a light stylus, at a render error",
-            0.0,
-            1e6,
-        ),
-        Param(
-            "chatter_guard",
-            "on",
-            "on: while the device's tangential velocity reverses twice within 10 ms (stick on a light stylus, or "
-            "velocity noise), cap the friction law's slope at the device's stable damping, 2 sin(pi/10) device_mass_kg / 1 ms",
-            choices=("on", "off"),
-        ),
-        Param(
-            "slip_speed_floor_m_s",
-            0.0,
-            "least regularisation speed of the rendered friction law, in the device's velocity (m/s): raise it to the "
-            "noise of the driver's measured_cv near rest; 0: the model's own v_s",
-            0.0,
-            1.0,
-        ),
-        Param(
-            "node_ns",
-            DEFAULTS["node_ns"],
-            "namespace of the node's topics (tool/pose, tool/twist, tool/contact_model, tool/wrench), e.g. /skin1; "
-            "'' : the process's. Unlike -r __ns:=, it leaves the device topics where they are",
-        ),
-        Param(
-            "rt_priority",
-            RT_PRIORITY,
-            "SCHED_FIFO priority of the device path, 1-99 (0: normal scheduling); refused without root/CAP_SYS_NICE",
-            0,
-            99,
-        ),
-        Param(
-            "force_source",
-            "model",
-            "model: render tool/contact_model per device tick; wrench: forward tool/wrench",
-            choices=SOURCES,
-        ),
-        Param("fade_s", FADE_S, "fade to zero when the model goes stale or the tool leaves it (s)", 1e-3, 1.0),
-        Param(
-            "stabiliser",
-            "passivity",
-            "passivity: time-domain passivity controller on the rendered force; none",
-            choices=STABILISERS,
-        ),
-        Param("device_mass_kg", DeviceParams.mass_kg, "apparent stylus mass for the passivity controller (kg)", 1e-3, 10.0),
-        Param(
-            "watchdog_s",
-            DEFAULTS["watchdog_s"],
-            "device pose age (s) after which one zero force is sent (wrench source: also the node's wrench age)",
-            1e-3,
-            10.0,
-        ),
-        Param("watchdog_rate_hz", DEFAULTS["watchdog_rate_hz"], "watchdog check rate (Hz)", 1.0, 1e4),
-        Param("device_frame", DEFAULTS["device_frame"], "frame_id of force commands; empty: the device pose's frame_id"),
-        Param("restamp", DEFAULTS["restamp"], "stamp tool poses with the bridge clock instead of the driver's", cli=""),
-        Param(
-            "forward_twist",
-            False,
-            "also forward the device's measured velocity as tool/twist (one more message per forwarded pose for the "
-            "bridge and the node); off: the node differentiates the poses it answers, so its force depends on the poses "
-            "alone and offline replay reproduces it",
-            cli="",
-        ),
-        Param("diagnostics_period_s", 1.0, "period of the bridge's diagnostics (s)", 0.05, 60.0),
-    )
+    PARAMS = BRIDGE_PARAMS
 
     TRANSPORT_NOTE = ""  # what localhost_udp_env decided before rclpy started (logged at start)
     WITH_NODE = False  # --with-node: skin_sim_node in this process, linked in memory (LocalLink)

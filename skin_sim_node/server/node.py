@@ -44,17 +44,14 @@ from msgs_schema.topics import FRAMES
 
 from ..configure import configure
 from ..model import ConfigError, TissueConfig
-from ..rate import LATE_AGE_MIN_S, RateGovernor, RateWindow
+from ..rate import ServerRate
 from ..ros_util import LoopTiming, PeriodicLoop, localhost_udp_env, run_nodes, set_process_realtime, set_realtime
-from ..session import WATCHDOG, AnswerThrottle, HapticSession, TickResult
+from ..session import WATCHDOG, HapticSession, TickResult
 from ..startup import start_line
 from ..tools import make_tool, warm_up
 from .display import DisplayProcess
 
 STATS_LEN = 16384
-GOVERNOR_WINDOW_NS = 500_000_000
-"""The rate governor's window (0.5 s: 500 answers at 1 kHz, enough to count a 5 % miss; two bad windows step down
-within a second, before a hand notices a changed feel)."""
 READERS_CHECK_NS = 100_000_000
 """How often the tick asks DDS whether ``tissue/contact`` and ``tool/contact_model`` have readers (100 ms).
 Neither is published while nobody reads it, as image_transport's lazy publishers do: measured here, the two
@@ -151,9 +148,7 @@ class SkinSimNode(Node):
         self._n_pose_ticks = 0
         self._stats_from = 0
         self._last_tick_ns = time.perf_counter_ns()
-        self._throttle = AnswerThrottle(self.params.rate_hz)  # input mode: rate_hz below 1 kHz spaces the answers
-        self._governor = self._new_governor(self.params)
-        self._gw_reset(self._last_tick_ns)
+        self._rate = ServerRate(self.params, self._last_tick_ns, pose_ages=not self._sim_time)
         self._cpu_last = (time.perf_counter_ns(), time.process_time())
         self._cpu_pct = float("nan")
         self._last_diag_ns = self._last_tick_ns
@@ -283,7 +278,7 @@ class SkinSimNode(Node):
         with self._lock:
             rx = time.perf_counter_ns()
             rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx, quat=quat)
-            if rejected is None and self.params.loop_mode == "input" and self._throttle.due(stamp):
+            if rejected is None and self.params.loop_mode == "input" and self._rate.due(stamp):
                 self._tick(rx, pose_driven=True)
 
     def _on_twist(self, data: bytes) -> None:
@@ -317,8 +312,11 @@ class SkinSimNode(Node):
         self._n_ticks += 1
         self._n_pose_ticks += pose_driven
         self._last_tick_ns = now_ns
-        if pose_driven and self._governor is not None:
-            self._govern(r.stamp_ns, now_ns)
+        if pose_driven and (msg := self._rate.answered(r.stamp_ns, now_ns, time.time_ns())) is not None:
+            if "not held" in msg:  # rclpy: one severity per call site
+                self.get_logger().warning(msg)
+            else:
+                self.get_logger().info(msg)
         hb = self.params.idle_heartbeat_hz
         quiet = force == 0.0 and self._last_pub_force == 0.0  # never hold back a force still ramping down
         if hb > 0 and quiet and r.idle and not r.stale and now_ns - self._last_pub_ns < 1e9 / hb:
@@ -335,7 +333,7 @@ class SkinSimNode(Node):
             sink = self.local_model_sink
             if self._model_read or sink is not None:  # the bridge renders it
                 msg = cv.fill_contact_model_from_tick(
-                    self._model_msg, r, stamp, self._frame, answer_period_s=self._answer_period_s()
+                    self._model_msg, r, stamp, self._frame, answer_period_s=self._rate.answer_period_s
                 )
                 if self._model_read:
                     self._pub_model.publish(msg)
@@ -347,53 +345,6 @@ class SkinSimNode(Node):
             self._next_display_ns = now_ns + self._display_period_ns()
             self._snapshot_display()  # after the publishes: the wrench never waits for it
             self._publish_readout()
-
-    # --- the server rate (skin_sim_node/rate.py) ------------------------------------------------
-    @staticmethod
-    def _new_governor(p: NodeParams) -> RateGovernor | None:
-        """The rate governor of ``rate_policy: follow`` in input mode (None: the rate is ``rate_hz``, fixed).
-
-        A node with ``input_queue_depth`` above 1 was asked to answer every sample in order (live replay, tests that
-        count answers): it keeps ``rate_hz``, as skipping poses would break that contract.
-        """
-        if p.rate_policy != "follow" or p.loop_mode != "input" or p.input_queue_depth > 1:
-            return None
-        return RateGovernor(p.rate_hz, min(p.min_rate_hz, p.rate_hz))
-
-    def _answer_period_s(self) -> float:
-        """The answer period the contact models announce: the bridge forwards a pose this often (0: every pose)."""
-        p = self.params
-        if p.loop_mode == "timer":
-            return 0.0 if p.rate_hz >= 1000.0 else 1.0 / p.rate_hz
-        return self._throttle.period_ns * 1e-9
-
-    def _gw_reset(self, now_ns: int) -> None:
-        self._gw_start_ns = now_ns
-        self._gw_answered = self._gw_missed = self._gw_late = 0
-        self._gw_last_stamp: int | None = None
-
-    def _govern(self, stamp_ns: int, now_ns: int) -> None:
-        """Count one answered pose into the governor's window; at the window's end, let it decide (under the lock)."""
-        gov = self._governor
-        assert gov is not None
-        period_ns = 1e9 / gov.rate_hz
-        last = self._gw_last_stamp
-        if last is not None and 0 < stamp_ns - last < self.params.watchdog_s * 1e9:
-            self._gw_missed += max(int(round((stamp_ns - last) / period_ns)) - 1, 0)
-        self._gw_last_stamp = stamp_ns
-        self._gw_answered += 1
-        if not self._sim_time:  # the pose's age on the system clock (its stamp's, from a device or the bridge)
-            self._gw_late += time.time_ns() - stamp_ns > max(LATE_AGE_MIN_S * 1e9, 2 * period_ns)
-        if now_ns - self._gw_start_ns < GOVERNOR_WINDOW_NS:
-            return
-        msg = gov.update(RateWindow(gov.rate_hz, self._gw_answered, self._gw_missed, self._gw_late))
-        self._gw_reset(now_ns)
-        if msg is not None:
-            self._throttle.set_rate(gov.rate_hz)
-            if "not held" in msg:  # rclpy: one severity per call site
-                self.get_logger().warning(msg)
-            else:
-                self.get_logger().info(msg)
 
     # --- display (built and published by the display worker process) -------------------
     def _display_settings(self) -> dict:
@@ -468,15 +419,10 @@ class SkinSimNode(Node):
         cpu_wall = (cpu_now[0] - self._cpu_last[0]) * 1e-9
         cpu_pct = 100 * (cpu_now[1] - self._cpu_last[1]) / cpu_wall if cpu_wall > 0 else float("nan")
         self._cpu_last = cpu_now
-        gov = self._governor
         values = {
             "achieved_rate_hz": f"{n / wall:.1f}" if wall > 0 else "nan",
             "target_rate_hz": f"{self.params.rate_hz:.1f}",
-            "server_rate_hz": f"{gov.rate_hz if gov is not None else self.params.rate_hz:.1f}",
-            "rate_policy": self.params.rate_policy if gov is not None else "fixed",
-            "rate_reason": gov.reason if gov is not None else "rate_hz",
-            "rate_changes_total": str(gov.changes if gov is not None else 0),
-            "answer_period_ms": f"{self._answer_period_s() * 1e3:.2f}",
+            **self._rate.diagnostics(),
             "cpu_pct": f"{cpu_pct:.1f}",
             "loop_mode": self.params.loop_mode,
             "ticks_total": str(self._n_ticks),
@@ -570,9 +516,7 @@ class SkinSimNode(Node):
             self.params = node_params
             self._flat = flat
             self._loop.period_ns = self._clock_period_ns()
-            self._throttle.set_rate(node_params.rate_hz)
-            self._governor = self._new_governor(node_params)
-            self._gw_reset(time.perf_counter_ns())
+            self._rate = ServerRate(node_params, time.perf_counter_ns(), pose_ages=not self._sim_time)
         self._next_display_ns = 0  # a new display rate applies at the next tick
         self._display.set_display(self._display_settings())
         self.get_logger().info(

@@ -1,0 +1,213 @@
+"""The bridge's two links towards the node: :class:`ServerLink` (its own DDS participant and one thread, the default)
+and :class:`LocalLink` (the node in the same process, ``skin-sim bridge --with-node``). Both take the newest due pose
+from the servo thread (:meth:`send`) and give the node's contact models back to the bridge."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import Protocol
+
+import rclpy
+from geometry_msgs.msg import TwistStamped
+from rclpy.guard_condition import GuardCondition
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+from msgs_schema.convert import PoseCdr, fill_twist
+from msgs_schema.qos import publisher, subscription
+from msgs_schema.topics import FRAMES
+
+from ..ros_util import set_realtime
+from .base import publish_while_ok
+from .mapping import without_namespace_remap
+
+
+class BridgeNode(Protocol):
+    """What a link needs of the bridge (:class:`skin_sim_node.device.bridge.BridgeNode`)."""
+
+    tissue_frame: str
+    model_source: bool
+
+    def get_name(self) -> str: ...
+
+    def _on_local_model(self, msg) -> None: ...
+
+
+LINK_JOIN_S = 2.0
+"""How long the bridge waits at shutdown for each of its node-link threads (they poll every 50 ms)."""
+
+
+class ServerLink:
+    """The bridge's side towards the node, on its own DDS participant (an rclpy context) and one thread.
+
+    Measured (tests/test_force_path_ros.py): a node killed with SIGKILL while writing into a participant's
+    shared-memory port stalls that port for 1000 ms (Fast DDS's health-check timeout). With one participant the
+    device's poses then stopped reaching the bridge: no tick to render on, the force held, then a watchdog step.
+    Here the node writes only into this participant's port, the device only into the bridge's own, and the tool
+    pose goes out from this link's thread (a latest-value hand-off), so a dead node cannot stall the servo path.
+
+    The thread blocks in one wait set (``rcl_wait``, the GIL released) on the node's contact model (serialized: read
+    by :class:`msgs_schema.contact_model.ContactModelCdr`, no message object), a guard condition the servo thread
+    triggers when a pose is due, and the diagnostics' period: no executor, nothing that polls (issue 27).
+    """
+
+    def __init__(
+        self,
+        bridge: BridgeNode,
+        ros_args: list[str],
+        on_model: Callable[[bytes], None],
+        node_ns: str = "",
+        rt_priority: int = 0,
+        periodic: tuple[float, Callable[[], None]] | None = None,
+        forward_twist: bool = False,
+    ):
+        self._periodic = periodic
+        self._periodic_failed = False
+        self.ctx = rclpy.Context()
+        rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
+        self.node = rclpy.create_node(
+            f"{bridge.get_name()}_server", context=self.ctx, namespace=node_ns or None, start_parameter_services=False
+        )
+        self.rt_priority = rt_priority
+        self._pose_pub = publisher(self.node, "tool_pose")
+        self._twist_pub = publisher(self.node, "tool_twist") if forward_twist else None
+        self._pose_cdr = PoseCdr(bridge.tissue_frame)
+        self._twist = TwistStamped()
+        self._on_model = on_model
+        key = "contact_model" if bridge.model_source else "tool_wrench"
+        # taken by this link's wait set only (the node is in no executor)
+        self._sub = subscription(self.node, key, _never_called, raw=True)
+        self._latest: tuple | None = None
+        self._lock = threading.Lock()
+        self._wake = GuardCondition(None, None, context=self.ctx)
+        self._stop = threading.Event()
+        self.forwarded = 0
+        self._thread = threading.Thread(target=self._run, name="server-link", daemon=True)
+        self._thread.start()
+
+    def send(self, pose: tuple, twist: tuple | None = None) -> None:
+        """Hand the newest due pose ``(stamp, xyz, quat)`` (and the device's twist ``(stamp, linear)``) to the thread."""
+        with self._lock:
+            self._latest = (pose, twist)
+        self._wake.trigger()
+
+    def _run(self) -> None:
+        """Wait for a model, a pose to forward or the diagnostics' time; handle each; until :meth:`close`."""
+        if self.rt_priority > 1:  # one below the servo thread: no priority inversion through the GIL
+            set_realtime(self.rt_priority - 1)
+        period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
+        next_ns = time.monotonic_ns() + period_ns  # the first after one period: the bridge finishes its start first
+        ws = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self.ctx.handle)
+        sub = self._sub
+        while not self._stop.is_set() and self.ctx.ok():
+            timeout = max(next_ns - time.monotonic_ns(), 0) if period_ns else 50_000_000
+            try:
+                ws.clear_entities()
+                ws.add_subscription(sub.handle)
+                ws.add_guard_condition(self._wake.handle)
+                ws.wait(timeout)
+                while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
+                    self._on_model(taken[0])
+            except Exception:
+                if self._stop.is_set() or not self.ctx.ok():
+                    return
+                raise
+            with self._lock:
+                latest, self._latest = self._latest, None
+            if latest is not None:
+                (stamp, x, q), tw = latest
+                if tw is not None and self._twist_pub is not None:  # twist first, as the device publishes them
+                    publish_while_ok(self.node, self._twist_pub, fill_twist(self._twist, tw[0], FRAMES["tissue"], tw[1]))
+                publish_while_ok(self.node, self._pose_pub, self._pose_cdr.fill(stamp, x, q))
+                self.forwarded += 1
+            if self._periodic is not None and time.monotonic_ns() >= next_ns:
+                next_ns = time.monotonic_ns() + period_ns
+                try:
+                    self._periodic[1]()
+                except Exception as exc:  # never let it stop the tool pose going to the node
+                    if not self._periodic_failed:
+                        self._periodic_failed = True
+                        print(f"skin-sim bridge: diagnostics failed: {exc!r} (reported once)", flush=True)
+
+    def close(self) -> None:
+        """Stop the link's thread, then destroy its node and context, never under a thread still inside them.
+
+        A thread still running after :data:`LINK_JOIN_S` (starved on a loaded machine) keeps the node and the
+        context alive until the process exits: destroying them under its wait corrupted the heap at exit
+        (``malloc_consolidate(): unaligned fastbin chunk``, exit -6, once in 15 shutdowns beside four busy processes).
+        """
+        self._stop.set()
+        try:
+            self._wake.trigger()
+        except Exception:
+            pass
+        self._thread.join(timeout=LINK_JOIN_S)
+        if self._thread.is_alive():
+            return
+        try:
+            self.node.destroy_node()
+        except Exception:
+            pass
+        rclpy.try_shutdown(context=self.ctx)
+
+
+class LocalLink:
+    """The node in this process (``skin-sim bridge --with-node``, issue 27 item 5): no DDS hop between them.
+
+    A due pose goes to the node's :meth:`~skin_sim_node.server.node.SkinSimNode.answer_pose` on this link's thread
+    (a latest-value hand-off, as :class:`ServerLink`), and the node's tick hands each contact model back through its
+    ``local_model_sink``: per answer, four rclpy messages fewer (pose out and in, model out and in). The node still
+    publishes ``tool/wrench`` (and the contact model, for other readers) over DDS.
+    """
+
+    def __init__(self, bridge: BridgeNode, node, rt_priority: int = 0, periodic: tuple[float, Callable[[], None]] | None = None):
+        self.node = node
+        self._frame = bridge.tissue_frame
+        self._periodic = periodic
+        self.rt_priority = rt_priority
+        node.local_model_sink = bridge._on_local_model
+        self._latest: tuple | None = None
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self.forwarded = 0
+        self._thread = threading.Thread(target=self._run, name="local-link", daemon=True)
+        self._thread.start()
+
+    def send(self, pose: tuple, twist: tuple | None = None) -> None:
+        """Hand the newest due pose ``(stamp, xyz, quat)`` (and twist ``(stamp, linear)``) to the link's thread."""
+        with self._lock:
+            self._latest = (pose, twist)
+        self._wake.set()
+
+    def _run(self) -> None:
+        if self.rt_priority > 1:
+            set_realtime(self.rt_priority - 1)
+        period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
+        next_ns = time.monotonic_ns() + period_ns
+        while not self._stop.is_set():
+            self._wake.wait(max(next_ns - time.monotonic_ns(), 0) * 1e-9 if period_ns else 0.05)
+            self._wake.clear()
+            with self._lock:
+                latest, self._latest = self._latest, None
+            if latest is not None and not self._stop.is_set():
+                (stamp, x, q), tw = latest
+                if tw is not None:
+                    self.node.answer_twist(tw[0], self._frame, tw[1])
+                self.node.answer_pose(stamp, self._frame, x, q)
+                self.forwarded += 1
+            if self._periodic is not None and time.monotonic_ns() >= next_ns:
+                next_ns = time.monotonic_ns() + period_ns
+                self._periodic[1]()
+
+    def close(self) -> None:
+        """Stop the link's thread (the node stops after it: it was built first)."""
+        self._stop.set()
+        self._wake.set()
+        self._thread.join(timeout=LINK_JOIN_S)
+        self.node.local_model_sink = None
+
+
+def _never_called(_msg) -> None:  # pragma: no cover - the wait-set readers' subscriptions are in no executor
+    """The callback of a subscription that only a wait set takes from."""
