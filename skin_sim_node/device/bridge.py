@@ -24,6 +24,10 @@ answers every queued pose (:data:`DEVICE_QUEUE_DEPTH`), and under ``LOCALHOST`` 
 A watchdog sends one zero force when the device pose is older than ``watchdog_s`` (the device has
 stopped reporting; no tick to render on). Diagnostics (``diagnostics``, 1 Hz) report the render rate,
 ticks without a fresh model and the model ages. See ``docs/devices.md``.
+
+Size (issue 28: over 500 lines, with a reason): one node, the device path end to end (servo thread, model hand-off,
+watchdog, hints, diagnostics); its links (:mod:`.links`), parameter table (:mod:`.bridge_params`) and renderer
+(:mod:`.render`) are modules of their own.
 """
 
 from __future__ import annotations

@@ -36,6 +36,9 @@ where the device's velocity crosses zero, whatever the server's rate.
 Units: SI, tissue frame (the bridge maps the device pose in and the force out, see
 :class:`skin_sim_node.device.bridge.DeviceMapping`). Times are seconds on the device's clock (its pose stamps;
 :data:`MAX_TICK_S`).
+
+Size (issue 28: over 500 lines, with a reason): one state machine (crossfade, TTL and radius fades, caps, passivity,
+chatter guard) whose parts share its slots; the laws it evaluates are in :mod:`.laws`.
 """
 
 from __future__ import annotations

@@ -11,6 +11,10 @@ Loop modes (parameter ``loop_mode``):
   wrenches carry the node's clock.
 
 The model kernels are ``nogil``; one lock orders ticks, parameter swaps and display snapshots.
+
+Size (issue 28: over 500 lines, with a reason): the node is the server's whole ROS surface, its parameter
+declarations and live sets, its I/O, the haptic tick's publishes and its diagnostics; the physics, the session, the
+server rate and the display live in their own modules.
 """
 
 from __future__ import annotations
