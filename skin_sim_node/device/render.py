@@ -143,7 +143,14 @@ STATES = ("none", "model", "crossfade", "fade")
 
 
 def _finite(v) -> bool:
+    if len(v) == 3:  # the servo tick's vectors: plain floats, no NumPy call (a few microseconds each, issue 27)
+        return math.isfinite(v[0]) and math.isfinite(v[1]) and math.isfinite(v[2])
     return bool(np.isfinite(v).all())
+
+
+def _norm3(v) -> float:
+    """|v| of a 3-vector without a NumPy call (``np.linalg.norm`` costs microseconds per servo tick)."""
+    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
 @dataclass
@@ -189,7 +196,7 @@ class _Slot:
             if fn <= 0.0:
                 return np.zeros(3)
             t = f - fn * n
-            t_n = float(np.linalg.norm(t))
+            t_n = _norm3(t)
             if t_n > self.cone * fn:
                 t = t * (self.cone * fn / t_n)
             return fn * n + t
@@ -210,7 +217,7 @@ class _Slot:
             if fn <= 0.0:
                 return np.zeros(3)
             t = f - fn * n
-            t_n = float(np.linalg.norm(t))
+            t_n = _norm3(t)
             if t_n > self.cone * fn:
                 t = t * (self.cone * fn / t_n)
             return fn * n + t
@@ -223,7 +230,7 @@ class _Slot:
         t = f - fn * n
         if fn < self.fn0:
             t = t * (fn / self.fn0)
-        t_n = float(np.linalg.norm(t))
+        t_n = _norm3(t)
         if t_n > self.cone * fn:  # K or D asked for more friction than the tissue model can give: not amplified
             t = t * (self.cone * fn / t_n)
         return fn * n + t
@@ -238,7 +245,7 @@ def cap_spectral_norm(A: np.ndarray, limit: float) -> np.ndarray:
 
 def clamp_vec(f: np.ndarray, max_n: float) -> np.ndarray:
     """``f`` scaled down as a vector to magnitude ``max_n`` if longer (direction kept, never per axis)."""
-    mag = float(np.linalg.norm(f))
+    mag = _norm3(f)
     return f * (max_n / mag) if mag > max_n else f
 
 
@@ -540,7 +547,8 @@ class ContactRenderer:
         if slot is not None and finite_x:
             assert slot.rx_s is not None  # set just above
             fresh = raw - slot.rx_s <= slot.m.time_to_live_s
-            inside = float(np.linalg.norm(x - slot.m.x0_m)) <= slot.m.validity_radius_m
+            x0 = slot.m.x0_m
+            inside = _norm3((x[0] - x0[0], x[1] - x0[1], x[2] - x0[2])) <= slot.m.validity_radius_m
             valid = fresh and inside
             self.outside_reason = None if valid else ("ttl" if not fresh else "radius")
             if not valid and self._fade_t0 is None:
@@ -574,7 +582,7 @@ class ContactRenderer:
             f = g * self._fade_from
             pc_gain = 0.0  # the environment is being removed: the controller stands aside, the fade stays a ramp
             self.state = "fade" if slot is not None else "none"
-        if float(np.linalg.norm(f)) > self.max_force_n:
+        if _norm3(f) > self.max_force_n:
             self.counts_clamped += 1
         f = clamp_vec(f, self.max_force_n)
         if not _finite(f):  # cannot happen with finite models and x; never send it
