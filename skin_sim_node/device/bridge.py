@@ -50,6 +50,7 @@ from .base import DeviceNode, Param, publish_while_ok
 from .mapping import (
     CONVENTIONS,
     DEFAULTS,
+    DEVICE_PRESETS,
     MEASURED_FORCE,
     TOUCH_MAX_DAMPING_N_S_PER_M,
     TOUCH_MAX_STIFFNESS_N_PER_M,
@@ -207,6 +208,10 @@ class BridgeNode(DeviceNode):
         "command (CRTK servo_cf or omni force_feedback). Start it after skin-sim node, before the device."
     )
     PARAMS = (
+        Param(
+            "device", "sim", "device preset: sim (skin-sim device, axes xyz) or touch (a Touch under sawSensablePhantom: "
+            "convention crtk, axes x-zy); options given explicitly win", choices=tuple(DEVICE_PRESETS), presets=DEVICE_PRESETS,
+        ),
         Param("convention", DEFAULTS["convention"], "device driver topic convention", choices=tuple(CONVENTIONS)),
         Param("device_ns", DEFAULTS["device_ns"], "namespace of the device topics (relative; '' for none)"),
         Param("offset_m", DEFAULTS["offset_m"], "tissue-frame position of the device origin (m)"),
