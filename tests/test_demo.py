@@ -68,3 +68,25 @@ def test_the_picture_state_is_the_deepest_instant():
     surface = model.cross_section(np.array([x]), y)[0][0]
     assert abs(surface - z) < 0.1 * abs(z), (surface, z)
     assert model.build_grid().heights_m[0].min() < 0.5 * z
+
+
+def test_layers_reached_come_from_the_depth_not_the_chain(default_cfg):
+    """A 20 um touch reaches the epidermis only; the dermis from its rest top (75 um), the fat from 1.275 mm."""
+    from skin_sim_node.demo import layers_reached
+
+    assert layers_reached(0.0, default_cfg) == [] and layers_reached(-1e-3, default_cfg) == []
+    assert layers_reached(20e-6, default_cfg) == ["epidermis"]
+    assert layers_reached(0.5e-3, default_cfg) == ["epidermis", "dermis"]
+    assert layers_reached(2.6e-3, default_cfg) == ["epidermis", "dermis", "fat"]
+
+
+def test_rate_check_holds_within_its_tolerance_and_names_the_reason():
+    from skin_sim_node.demo import RATE_TOLERANCE, rate_check, rate_reasons
+
+    assert RATE_TOLERANCE == 0.05
+    assert rate_check("node ticks", 960.0) == (True, "node ticks 960/s of 1000/s (tolerance 5 %)")
+    assert rate_check("node ticks", 949.0)[0] is False and rate_check("device forces", 273.0)[0] is False
+    assert rate_check("node ticks", float("nan"))[0] is False  # nothing measured is not held
+    why = rate_reasons(4, overruns=12)
+    assert why.startswith("CPU: load average ") and "4 processes of this scene" in why and "woke late 12 times" in why
+    assert "priorities: every process at normal scheduling" in why
