@@ -7,6 +7,7 @@ one-line answer is what a terminal shows.
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -249,3 +250,28 @@ def test_bridge_touch_preset_sets_the_touch_axes(tmp_path, ros_domain):
         assert "bridge crtk: /arm/measured_cp" in touch.log()
         own = scene.start("own", "bridge", "--device", "touch", "--axes", "xyz", "--device-ns", "arm2")
         scene.wait_for_log(own, "axes xyz", timeout_s=120)
+
+
+# --- hints where there was silence (issue 29 item 5) ---------------------------------------------------------------
+@pytest.mark.ros
+def test_view_without_a_node_says_so(ros_domain):
+    """This test's own DDS domain has no node: the live view says so (it printed only its URL) and keeps serving."""
+    p = run("view", "--port", "0", "--duration-s", "1", timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert "skin-sim view: no skin_sim_node answered in namespace / (no namespace) within 3 s" in p.stdout, p.stdout
+    assert "skin-sim node, on this ROS_DOMAIN_ID" in p.stdout
+
+
+def test_view_screenshot_exits_after_its_picture(tmp_path):
+    """``--screenshot`` without ``--duration-s``: the command ends by itself once the picture is saved (it served on
+    forever). A bag source, so no node or DDS is involved; without Chromium it ends too, exit 1 with the reason."""
+    shot = tmp_path / "view.png"
+    data = REPO / "tests" / "data" / "press_all_layers"
+    p = run(
+        "view", str(data / "input"), str(data / "expected"), "--port", "0", "--screenshot", str(shot), "--shot-after-s", "0.2"
+    )
+    if shutil.which("chromium") is None:
+        assert p.returncode == 1 and "skin-sim view: no screenshot:" in p.stdout, (p.stdout, p.stderr)
+        return
+    assert p.returncode == 0, (p.stdout, p.stderr)
+    assert f"skin-sim view: screenshot {shot}" in p.stdout and shot.stat().st_size > 10_000, p.stdout
