@@ -12,6 +12,7 @@ import argparse
 import csv
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -34,7 +35,7 @@ from skin_sim_node.solvers import (
     static_indentation,
 )
 
-from . import accuracy, calibrate, fem, large_deformation
+from . import accuracy, cache, calibrate, fem, large_deformation
 from .fem import FemSetup, mesh_levels, reference
 from .methods import (
     AllLayersVariant,
@@ -440,6 +441,18 @@ def paper_validation(out: Path, fems: dict, cfgs: dict) -> dict:
     return results
 
 
+class Progress:
+    """One line per stage of a long command: ``NAME: stage k of N: what (T s so far)``, flushed at once."""
+
+    def __init__(self, name: str, n_stages: int):
+        self.name, self.n, self.k, self.t0 = name, n_stages, 0, time.perf_counter()
+
+    def step(self, what: str) -> None:
+        """Announce the next stage."""
+        self.k += 1
+        print(f"{self.name}: stage {self.k} of {self.n}: {what} ({time.perf_counter() - self.t0:.0f} s so far)", flush=True)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart validation", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(OUT))
@@ -462,6 +475,13 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    cache.WRITE_DOCS = out.resolve().is_relative_to(cache.DOCS)  # skin-sim chart validation --docs: the tracked caches
+    if a.prune_cache and not cache.WRITE_DOCS:
+        print("skin-sim chart validation: error: --prune-cache deletes tracked cache files: give --docs too", file=sys.stderr)
+        return 2
+    where = "the tracked caches (--docs)" if cache.WRITE_DOCS else f"{cache.LOCAL_CACHE}, not the tracked docs caches"
+    print(f"chart validation: FEM solves not in docs/validation/*_cache are stored in {where}", flush=True)
+    progress = Progress("chart validation", 1 if a.only == "reference" else 9)
     if a.only == "accuracy":  # into --out (accuracy.main writes docs/validation)
         configs = {"default (layered)": accuracy.preset("default"), "paper form, Sneddon springs": accuracy.paper_form_default()}
         extra = a.config or [p for p in [OUT / "calibrated_nonlinear.yaml"] if p.exists()]  # the committed table's rows
@@ -474,29 +494,38 @@ def main(argv=None) -> int:
         accuracy.speed_accuracy(out)
         accuracy.table_ii_nonlinear(out)
         return 0
+    progress.step("large-deformation reference (neo-Hookean and linear, per mesh level)")
     large_deformation.run(out, a.fresh)
     if a.only == "reference":
         return 0
+    progress.step("linear FEM mesh convergence")
     conv = convergence(out)
+    progress.step("converged linear FEM per scenario (cached solves are read)")
     fems = {sc.name: converged_fem(sc) for sc in SUITE}
+    progress.step("speed-accuracy chart of every method")
     rows = speed_accuracy(out, fems)
     modes, grid = khz_setting(rows)
+    progress.step("calibration of the modal model at the 1 kHz setting")
     cal = calibration(out, fems, modes, grid)
     cal_method = ModalMethod(modes, grid, cal["cfg"], f"calibrated modal {modes}x{modes}, grid {grid}")
     # the prototype form change: one series stiffness for all depths, best over the suite (relative errors)
     ks = np.array([fems[sc.name].stiffness_n_per_m for sc in SUITE])
     k_series = float(np.sum(1 / ks) / np.sum(1 / ks**2))
     variant = AllLayersVariant(modes, grid, cal["cfg"], k_series, f"variant: all layers engaged, {modes}x{modes}")
+    progress.step("one-membrane baseline fit")
     mem_fit = calibrate.fit_membrane(calibrate.fem_datasets(), preset("default"))
     print("calibrated one-membrane baseline (T, k_A):", json.dumps(mem_fit))
     mem = skin_membrane(preset("default"), mem_fit["tension_n_per_m"], mem_fit["foundation_n_per_m3"])
     cal_grids = [
         GridMethod(kind, 59, mem, preset("default"), f"calibrated {kind} 59x59") for kind in ("mass-spring", "explicit FD")
     ]
+    progress.step("speed-accuracy chart with the calibrated methods")
     rows = speed_accuracy(out, fems, extra=[cal_method, variant, *cal_grids])
     var_row = next(r for r in rows if r["method"] == variant.label)
+    progress.step("release chart")
     rel = release_chart(out)
     base = model_config(modes, grid)
+    progress.step("the paper's Table II redone")
     val = paper_validation(out, fems, {"uncalibrated": base, "calibrated": cal["cfg"]})
     sc = BY_NAME["peak-3layer"]
     cal_row = next(r for r in rows if r["method"] == cal_method.label)
