@@ -83,6 +83,7 @@ def main(argv=None) -> int:
     ap.add_argument("--bench", action="store_true", help="latency benchmark: node p99 with the view open vs closed")
     ap.add_argument("--compare-libs", action="store_true", help="library comparison (mesh rate, CPU, install size)")
     args = ap.parse_args(argv)
+    hint = None
     if args.bags:
         from ..bags.io import BagError
         from .bag import BagSource
@@ -97,14 +98,15 @@ def main(argv=None) -> int:
         from .live import LiveSource
 
         source = LiveSource(args.namespace, rate_hz=args.rate_hz, contact=args.contact)
-        # a view started before its node serves at once, with default geometry, and says so
-        if not source.refresh_geometry(wait_s=NODE_WAIT_S):
-            print(no_node_hint(source.namespace), flush=True)
-    on_ready = None
+        # a view started before its node serves at once, with default geometry, and says so (after its URL line)
+        hint = None if source.refresh_geometry(wait_s=NODE_WAIT_S) else no_node_hint(source.namespace)
     shots: list[bool] = []
-    if args.screenshot:
 
-        def on_ready(server):
+    def on_ready(server):
+        if not args.bags and hint:
+            print(hint, flush=True)
+        if args.screenshot:
+
             def shoot():
                 shots.append(_screenshot(server, args.screenshot, args.shot_after_s, args.shot_when_force_n))
                 source.stop()  # the picture was what was asked for: the command ends after it
