@@ -209,8 +209,12 @@ class BridgeNode(DeviceNode):
     )
     PARAMS = (
         Param(
-            "device", "sim", "device preset: sim (skin-sim device, axes xyz) or touch (a Touch under sawSensablePhantom: "
-            "convention crtk, axes x-zy); options given explicitly win", choices=tuple(DEVICE_PRESETS), presets=DEVICE_PRESETS,
+            "device",
+            "sim",
+            "device preset: sim (skin-sim device, axes xyz) or touch (a Touch under sawSensablePhantom: "
+            "convention crtk, axes x-zy); options given explicitly win",
+            choices=tuple(DEVICE_PRESETS),
+            presets=DEVICE_PRESETS,
         ),
         Param("convention", DEFAULTS["convention"], "device driver topic convention", choices=tuple(CONVENTIONS)),
         Param("device_ns", DEFAULTS["device_ns"], "namespace of the device topics (relative; '' for none)"),
