@@ -275,3 +275,26 @@ def test_view_screenshot_exits_after_its_picture(tmp_path):
         return
     assert p.returncode == 0, (p.stdout, p.stderr)
     assert f"skin-sim view: screenshot {shot}" in p.stdout and shot.stat().st_size > 10_000, p.stdout
+
+
+def test_record_refuses_a_bad_parameter_file_before_anything_starts(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(MISSPELT)
+    line = one_line_error(run("record", str(tmp_path / "rec"), "--params", str(bad)))
+    assert line.startswith("skin-sim record: error: unknown parameter 'max_forse_n' (did you mean 'max_force_n'?)"), line
+    assert not (tmp_path / "rec").exists() and not (tmp_path / "rec_logs").exists()  # nothing half-written
+
+
+@pytest.mark.ros
+def test_a_scene_node_that_refuses_its_parameters_is_one_configuration_error(tmp_path, ros_domain):
+    """Commands that start a node through a Scene (record, benchmarks with --node-param, ...) end with the node's one
+    line: ``wait_for_log`` raises a ConfigError (cli: one line, exit 2), still a RuntimeError for their callers."""
+    from msgs_schema.spec import ConfigError
+    from skin_sim_node.scenes import Scene, StartRefusedError
+
+    with Scene(tmp_path / "logs") as scene:
+        node = scene.node("-p", "rate_hzz:=500.0")
+        with pytest.raises(StartRefusedError) as e:
+            scene.wait_for_log(node, "live:", timeout_s=180)
+    assert isinstance(e.value, ConfigError) and isinstance(e.value, RuntimeError)
+    assert str(e.value) == "skin_sim_node: unknown parameter 'rate_hzz' (did you mean 'rate_hz'?); the node does not start"
