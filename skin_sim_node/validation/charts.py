@@ -441,16 +441,62 @@ def paper_validation(out: Path, fems: dict, cfgs: dict) -> dict:
     return results
 
 
-class Progress:
-    """One line per stage of a long command: ``NAME: stage k of N: what (T s so far)``, flushed at once."""
+STAGE_TIMES = Path("out") / "stage_times" / "chart_validation"
+"""Where ``skin-sim chart validation`` keeps the stage times of its last complete run (untracked, also with --docs),
+one file per ``--only`` choice (``all.json`` for the whole run): the next run's expected duration."""
 
-    def __init__(self, name: str, n_stages: int):
-        self.name, self.n, self.k, self.t0 = name, n_stages, 0, time.perf_counter()
+
+def duration(seconds: float) -> str:
+    """``"42 s"`` below two minutes, else ``"7.5 min"``."""
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
+
+
+class Progress:
+    """One line per stage of a long command, ``NAME: stage k of N: what (T s so far)``, and the expected duration: the
+    stage times of this machine's last complete run, kept in ``record`` (none on a first run, and it says so).
+
+    Parameters
+    ----------
+    name : str
+    n_stages : int
+    record : Path
+        JSON file of the last complete run's stage times (written by :meth:`done`).
+    """
+
+    def __init__(self, name: str, n_stages: int, record: Path):
+        self.name, self.n, self.k, self.record = name, n_stages, 0, record
+        self.t0 = time.perf_counter()
+        self.times: list[float] = []
+        try:
+            last = json.loads(record.read_text())
+        except (OSError, ValueError):
+            last = None
+        if isinstance(last, dict) and last.get("n_stages") == n_stages:
+            print(
+                f"{name}: expected about {duration(last['total_s'])}: this machine's last complete run "
+                f"({last['date']}; stage times in {record})",
+                flush=True,
+            )
+        else:
+            print(
+                f"{name}: no complete run on this machine to estimate from ({record}); FEM setups missing from the "
+                "caches are solved with a progress bar each, minutes per solve on 2 cores",
+                flush=True,
+            )
 
     def step(self, what: str) -> None:
         """Announce the next stage."""
         self.k += 1
-        print(f"{self.name}: stage {self.k} of {self.n}: {what} ({time.perf_counter() - self.t0:.0f} s so far)", flush=True)
+        self.times.append(time.perf_counter() - self.t0)
+        print(f"{self.name}: stage {self.k} of {self.n}: {what} ({self.times[-1]:.0f} s so far)", flush=True)
+
+    def done(self) -> None:
+        """Say the total and keep the stage times for the next run's estimate."""
+        total = time.perf_counter() - self.t0
+        print(f"{self.name}: done in {duration(total)}", flush=True)
+        stamp = time.strftime("%Y-%m-%d %H:%M")
+        self.record.parent.mkdir(parents=True, exist_ok=True)
+        self.record.write_text(json.dumps({"n_stages": self.n, "total_s": total, "stage_start_s": self.times, "date": stamp}))
 
 
 def main(argv=None) -> int:
@@ -481,7 +527,6 @@ def main(argv=None) -> int:
         return 2
     where = "the tracked caches (--docs)" if cache.WRITE_DOCS else f"{cache.LOCAL_CACHE}, not the tracked docs caches"
     print(f"chart validation: FEM solves not in docs/validation/*_cache are stored in {where}", flush=True)
-    progress = Progress("chart validation", 1 if a.only == "reference" else 9)
     if a.only == "accuracy":  # into --out (accuracy.main writes docs/validation)
         configs = {"default (layered)": accuracy.preset("default"), "paper form, Sneddon springs": accuracy.paper_form_default()}
         extra = a.config or [p for p in [OUT / "calibrated_nonlinear.yaml"] if p.exists()]  # the committed table's rows
@@ -494,9 +539,11 @@ def main(argv=None) -> int:
         accuracy.speed_accuracy(out)
         accuracy.table_ii_nonlinear(out)
         return 0
+    progress = Progress("chart validation", 1 if a.only == "reference" else 9, STAGE_TIMES / f"{a.only or 'all'}.json")
     progress.step("large-deformation reference (neo-Hookean and linear, per mesh level)")
     large_deformation.run(out, a.fresh)
     if a.only == "reference":
+        progress.done()
         return 0
     progress.step("linear FEM mesh convergence")
     conv = convergence(out)
@@ -551,6 +598,7 @@ def main(argv=None) -> int:
             if f.stem not in fem.USED_KEYS:
                 f.unlink()
     print(json.dumps(summary, indent=1))
+    progress.done()
     return 0
 
 
