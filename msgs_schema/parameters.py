@@ -13,7 +13,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import field, make_dataclass, replace
 from typing import TYPE_CHECKING, Any
 
-from .spec import ConfigError, ParamSpec
+from .spec import ConfigError, ParamSpec, check_names, unknown_name
 from .tissue import TISSUE_PARAMETERS, tissue_defaults
 
 NODE_NAME = "skin_sim_node"
@@ -305,8 +305,33 @@ def check_value(name: str, value: Any) -> Any:
     """
     spec = SPEC_BY_NAME.get(name)
     if spec is None:
-        raise ConfigError(f"unknown parameter {name!r}")
+        raise ConfigError(unknown_name(name, SPEC_BY_NAME))
     return spec.check(value)
+
+
+def check_overrides(overrides: Mapping[str, Any], builtin: Iterable[str] = ()) -> dict[str, Any]:
+    """The node's start-up overrides (parameter files and ``-p``), every name and value checked against the contract.
+
+    Parameters
+    ----------
+    overrides : mapping
+        Declared name -> value, as rcl resolved them for the node (every file entry that matches it, every ``-p``).
+    builtin : iterable of str
+        Names the ROS client library declares itself (``use_sim_time``, ...): accepted and left out of the result.
+
+    Returns
+    -------
+    dict
+        Declared name -> the value as its spec's type (an integer given for a float is a float).
+
+    Raises
+    ------
+    ConfigError
+        Unknown names (each with the closest valid name) or the first bad value, in one line.
+    """
+    builtin = set(builtin)
+    check_names(overrides, set(SPEC_BY_NAME) | builtin)
+    return {name: check_value(name, value) for name, value in overrides.items() if name not in builtin}
 
 
 def node_params_from_flat(flat: Mapping[str, Any]) -> NodeParams:
@@ -368,9 +393,8 @@ def check_tissue(values: Mapping[str, Any]) -> dict[str, Any]:
     ConfigError
         Unknown names, wrong types, out-of-bound values; the message names the parameter without the prefix.
     """
-    unknown = sorted(n for n in values if TISSUE_PREFIX + n not in SPEC_BY_NAME)
-    if unknown:
-        raise ConfigError(f"unknown tissue parameter(s): {', '.join(unknown)}")
+    tissue_names = [s.name for s in TISSUE_PARAMETERS]
+    check_names(values, tissue_names)
     flat = tissue_defaults()
     for name, value in values.items():
         flat[name] = SPEC_BY_NAME[TISSUE_PREFIX + name].check(value, label=name)
@@ -400,6 +424,7 @@ def validate_parameters(flat: Mapping[str, Any], changed: Iterable[str] = ()) ->
     ConfigError
         With the reason.
     """
+    check_names(flat, SPEC_BY_NAME)  # every unknown name at once, each with its closest valid name
     for name in changed:
         check_value(name, flat[name])
     return node_params_from_flat(flat), check_tissue(tissue_part(flat))

@@ -5,7 +5,9 @@ Imports nothing from the implementation: the model and the node import this, nev
 
 from __future__ import annotations
 
+import difflib
 import math
+from collections.abc import Iterable
 from dataclasses import KW_ONLY, dataclass
 from typing import Any, Generic, TypeVar, cast
 
@@ -16,6 +18,52 @@ T = TypeVar("T", bool, int, float, str)
 
 class ConfigError(ValueError):
     """A parameter value or a tissue configuration that cannot be used; the message says why."""
+
+
+SUGGEST_CUTOFF = 0.6
+"""difflib similarity from which a valid name is offered as the one meant (difflib's own default: ``max_forse_n``
+finds ``max_force_n`` and ``tissue.layers.dermis.stifness_n_per_m`` its layer's ``stiffness_n_per_m``, while an
+unrelated word gets no guess)."""
+
+
+def unknown_name(name: str, valid: Iterable[str]) -> str:
+    """The reason an unknown parameter name is refused: the name and the closest valid one.
+
+    Parameters
+    ----------
+    name : str
+        The name as given (dotted for nested keys).
+    valid : iterable of str
+        Every name the reader accepts.
+
+    Returns
+    -------
+    str
+        E.g. ``unknown parameter 'max_forse_n' (did you mean 'max_force_n'?)``; with no close name, where the
+        valid names are listed.
+    """
+    close = difflib.get_close_matches(name, list(valid), n=1, cutoff=SUGGEST_CUTOFF)
+    hint = f"did you mean {close[0]!r}?" if close else "docs/parameters.md lists the valid names"
+    return f"unknown parameter {name!r} ({hint})"
+
+
+def check_names(names: Iterable[str], valid: Iterable[str]) -> None:
+    """Refuse any name not in ``valid``, each with the closest valid name, in one line.
+
+    Parameters
+    ----------
+    names : iterable of str
+    valid : iterable of str
+
+    Raises
+    ------
+    ConfigError
+        At least one unknown name (all are named, sorted).
+    """
+    valid = set(valid)
+    unknown = sorted(set(names) - valid)
+    if unknown:
+        raise ConfigError("; ".join(unknown_name(n, valid) for n in unknown))
 
 
 @dataclass(frozen=True)
@@ -98,11 +146,12 @@ class ParamSpec(Generic[T]):
             value = float(value)
             if not math.isfinite(value):
                 raise ConfigError(f"{name}: must be finite, got {value!r}")
+        unit = "" if self.unit in ("1", "-", "") else f" {self.unit}"  # a count or a unitless value: no unit
         if self.min is not None:
             bad = value <= self.min if self.min_exclusive else value < self.min
             if bad:
                 op = ">" if self.min_exclusive else ">="
-                raise ConfigError(f"{name} = {value!r} {self.unit}: must be {op} {self.min}")
+                raise ConfigError(f"{name} = {value!r}{unit}: must be {op} {self.min}")
         if self.max is not None and value > self.max:
-            raise ConfigError(f"{name} = {value!r} {self.unit}: must be <= {self.max}")
+            raise ConfigError(f"{name} = {value!r}{unit}: must be <= {self.max}")
         return value

@@ -6,6 +6,8 @@ import importlib
 import sys
 from pathlib import Path
 
+from msgs_schema.spec import ConfigError
+
 from .startup import install_option_suggestions, node_argument_error, suggest
 
 COMMANDS = {
@@ -165,6 +167,9 @@ def main(argv=None) -> int:
         return int(module.main(rest) or 0)
     except FileNotFoundError as exc:  # a missing input file is one line, not a traceback
         print(f"skin-sim {cmd}: error: {exc.filename or exc}: no such file", file=sys.stderr)
+        return 2
+    except ConfigError as exc:  # a bad parameter (file, option) in an offline command: one line, exit 2
+        print(f"skin-sim {cmd}: error: {exc}", file=sys.stderr)
         return 2
 
 

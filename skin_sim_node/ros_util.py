@@ -126,7 +126,14 @@ def run_nodes(factories: list[Callable[[], Node]], args=None, executor: str = "e
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:
-        if rclpy.ok():  # a real error (e.g. at start-up): say it, exit non-zero
+        import sys
+
+        from msgs_schema.spec import ConfigError
+
+        if isinstance(exc, ConfigError) and not nodes:  # a bad parameter at start-up: one line, no traceback, exit 2
+            print(f"error: {exc}; the node does not start", file=sys.stderr, flush=True)
+            code = 2
+        elif rclpy.ok():  # a real error (e.g. at start-up): say it, exit non-zero
             import traceback
 
             traceback.print_exc()

@@ -18,7 +18,16 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from msgs_schema.spec import ConfigError
+
 REPO = Path(__file__).resolve().parents[1]
+
+
+class StartRefusedError(ConfigError, RuntimeError):
+    """A scene's process refused its parameters at start (a :class:`ConfigError`: the command ends with its one line;
+    a ``RuntimeError`` as every other failed start)."""
+
+
 DEFAULT_PARAMS = Path(__file__).resolve().parent / "config" / "default.yaml"
 """The node parameter file of the scenes: the packaged copy of ``config/default.yaml`` (found in an install too)."""
 
@@ -99,7 +108,18 @@ class Scene:
         return proc
 
     def node(self, *extra: str, params: Path = DEFAULT_PARAMS) -> Proc:
-        """Start ``skin_sim_node`` with the parameter file ``params`` and extra ``--ros-args``."""
+        """Start ``skin_sim_node`` with the parameter file ``params`` and extra ``--ros-args``.
+
+        Raises
+        ------
+        ConfigError
+            ``params`` has an unknown name or a bad value (checked against the contract before any process starts).
+        """
+        from msgs_schema.parameters import validate_parameters
+
+        from .model.config import load_yaml
+
+        validate_parameters(load_yaml(params))  # one line through the command's error, not a node's failed start
         return self.start("skin_sim_node", "node", "--ros-args", "--params-file", str(params), *extra)
 
     def wait_for_log(self, proc: Proc, text: str, timeout_s: float = 60.0) -> None:
@@ -107,6 +127,8 @@ class Scene:
 
         Raises
         ------
+        StartRefusedError
+            The process refused its parameters (exit 2 with one ``error:`` line): that line.
         RuntimeError
             The process exited first (with the log's tail).
         TimeoutError
@@ -117,6 +139,9 @@ class Scene:
             if text in proc.log():
                 return
             if proc.popen.poll() is not None:
+                last = (proc.log().strip().splitlines() or [""])[-1]
+                if proc.popen.returncode == 2 and last.startswith("error: "):  # a refused parameter: its one line
+                    raise StartRefusedError(f"{proc.name}: {last[len('error: ') :]}")
                 raise RuntimeError(f"{proc.name} exited with {proc.popen.returncode}:\n{proc.log()[-3000:]}")
             time.sleep(0.05)
         raise TimeoutError(f"{proc.name} did not log {text!r} within {timeout_s} s:\n{proc.log()[-3000:]}")

@@ -68,3 +68,68 @@ def test_the_picture_state_is_the_deepest_instant():
     surface = model.cross_section(np.array([x]), y)[0][0]
     assert abs(surface - z) < 0.1 * abs(z), (surface, z)
     assert model.build_grid().heights_m[0].min() < 0.5 * z
+
+
+def test_layers_reached_come_from_the_depth_not_the_chain(default_cfg):
+    """A 20 um touch reaches the epidermis only; the dermis from its rest top (75 um), the fat from 1.275 mm."""
+    from skin_sim_node.demo import layers_reached
+
+    assert layers_reached(0.0, default_cfg) == [] and layers_reached(-1e-3, default_cfg) == []
+    assert layers_reached(20e-6, default_cfg) == ["epidermis"]
+    assert layers_reached(0.5e-3, default_cfg) == ["epidermis", "dermis"]
+    assert layers_reached(2.6e-3, default_cfg) == ["epidermis", "dermis", "fat"]
+
+
+def test_rate_check_holds_within_its_tolerance_and_names_the_reason():
+    from skin_sim_node.demo import RATE_TOLERANCE, rate_check, rate_reasons
+
+    assert RATE_TOLERANCE == 0.05
+    assert rate_check("node ticks", 960.0) == (True, "node ticks 960/s of 1000/s (tolerance 5 %)")
+    assert rate_check("node ticks", 949.0)[0] is False and rate_check("device forces", 273.0)[0] is False
+    assert rate_check("node ticks", float("nan"))[0] is False  # nothing measured is not held
+    why = rate_reasons(4, overruns=12)
+    assert why.startswith("CPU: load average ") and "4 processes of this scene" in why and "woke late 12 times" in why
+    assert "priorities: every process at normal scheduling" in why
+
+
+def test_picture_interfaces_never_above_the_deformed_layer_above():
+    """Issue 29 item 7: each interface is drawn clipped to the deformed layer above it and the stack's bottom."""
+    import numpy as np
+
+    from skin_sim_node.viz.plots import clipped_layer_tops
+
+    surface = np.array([-2.6e-3, -1.0e-3, 0.0])
+    dermis_top = np.array([-2.0e-3, -1.1e-3, -75e-6])  # above the surface under the punch: a negative epidermis
+    fat_top = np.array([-1.9e-3, -1.3e-3, -6e-3])  # above the dermis top, and below the 5.275 mm bottom
+    tops = clipped_layer_tops(np.array([surface, dermis_top, fat_top]), -5.275e-3)
+    assert np.array_equal(tops[0], surface)
+    assert np.array_equal(tops[1], [-2.6e-3, -1.1e-3, -75e-6])
+    assert np.array_equal(tops[2], [-2.6e-3, -1.3e-3, -5.275e-3])
+    assert np.all(np.diff(tops, axis=0) <= 0)
+
+
+def test_drawn_cross_section_keeps_every_interface_below_the_surface(tmp_path):
+    """The drawn lines of the demo's cross-section at the deepest instant of a recorded press: each interface at or
+    below the line above it (the picture showed the dermis/fat boundary above the surface under the punch)."""
+    from pathlib import Path
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from skin_sim_node.bags.inputs import InputOptions, read_inputs
+    from skin_sim_node.bags.offline import replay
+    from skin_sim_node.scenes import DEFAULT_PARAMS
+    from skin_sim_node.viz.plots import draw_cross_section
+
+    inputs = read_inputs(Path(__file__).parent / "data" / "press_hold_release" / "input", InputOptions())
+    res = replay(inputs, DEFAULT_PARAMS, None, 0.0)
+    k = int(np.argmin(res.tool_xyz_m[:, 2]))
+    model, (x, y, z), _ = model_at(inputs, DEFAULT_PARAMS, int(res.stamps_ns[k]))
+    fig, ax = plt.subplots()
+    draw_cross_section(ax, model, x, y, z, "t")
+    lines = [ln.get_ydata() for ln in ax.lines[: len(model.cfg.layers)]]
+    plt.close(fig)
+    assert len(lines) == 3 and all(np.all(lo <= hi) for hi, lo in zip(lines, lines[1:], strict=False))

@@ -171,6 +171,8 @@ def test_bridge_with_a_device_but_no_node_says_so(scene):
     dev = scene.start("device", "device", "--hand-path", "light_touch", "--start-delay-s", "3.0")
     scene.wait_for_log(bridge, "no contact model from skin_sim_node in 3 s", timeout_s=60)
     dev.popen.wait(timeout=60)
+    # the device's summary gives the forces it received: here all zero, and it says so (issue 29 item 5)
+    assert "0 of them non-zero" in dev.log() and "every force command was zero" in dev.log(), dev.log()[-1500:]
     scene.wait_for_log(bridge, "no device pose for", timeout_s=30)
     log = bridge.log()
     assert log.count("no contact model from skin_sim_node") == 1

@@ -121,3 +121,52 @@ def test_the_packaged_presets_are_the_top_level_files(name):
     from skin_sim_node.model.config import preset_path
 
     assert preset_path(name).read_text() == (ROOT / "config" / f"{name}.yaml").read_text()
+
+
+def _workspace_copy(dest: Path) -> None:
+    """The repository's tracked files (as a clone has them) under ``dest``."""
+    files = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+    for rel in filter(None, files.split("\0")):
+        src = ROOT / rel
+        if src.is_file():
+            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / rel)
+
+
+@pytest.mark.slow
+def test_colcon_builds_a_workspace_holding_the_repository(tmp_path):
+    """Issue 29 item 8: ``colcon build`` in a workspace whose ``src`` holds this repository builds the message package
+    (ament_cmake) and ``skin_sim_node`` (ament_python, ros/skin_sim_node), and the installed ``skin-sim --help`` runs
+    from the install space (its own copy of the packages, not this checkout). About 45 s on 2 cores (the messages)."""
+    colcon = Path(sys.executable).with_name("colcon")
+    if not colcon.exists() or shutil.which("cmake") is None:
+        pytest.skip("colcon (the test extra) or cmake is missing")
+    ws = tmp_path / "ws"
+    _workspace_copy(ws / "src" / "skin-sim")
+    env = dict(os.environ)
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"  # the venv's python and colcon
+    venv = Path(sys.prefix)
+    if (venv / "share" / "rclpy").is_dir():  # ROS from PyPI wheels: the venv is the underlay (scripts/build_msgs.sh)
+        env["AMENT_PREFIX_PATH"] = os.pathsep.join(filter(None, [str(venv), env.get("AMENT_PREFIX_PATH", "")]))
+    build = subprocess.run(
+        [str(colcon), "build", "--event-handlers", "console_direct-"],
+        cwd=ws,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=1200,
+    )
+    assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
+    assert "Finished <<< skin_sim_msgs" in build.stdout and "Finished <<< skin_sim_node" in build.stdout, build.stdout
+    install = ws / "install"
+    assert (install / "skin_sim_node" / "share" / "ament_index" / "resource_index" / "packages" / "skin_sim_node").is_file()
+    script = (
+        f". {install / 'setup.sh'} && command -v skin-sim && skin-sim --help && "
+        "python -c 'import skin_sim_node, skin_sim_msgs.msg; print(skin_sim_node.__file__); print(skin_sim_msgs.msg.__file__)'"
+    )
+    run = subprocess.run(["sh", "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
+    lines = run.stdout.splitlines()
+    assert lines[0] == str(install / "skin_sim_node" / "bin" / "skin-sim"), lines
+    assert "usage: skin-sim COMMAND [args]" in run.stdout
+    assert lines[-2].startswith(str(install / "skin_sim_node")) and lines[-1].startswith(str(install / "skin_sim_msgs")), lines

@@ -446,7 +446,8 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
                 return r.top >= 0 && r.bottom <= window.innerHeight && r.height > 0; })()""")
             assert seen is True
             r = b.evaluate("window.skinViewSetParam('tissue.layers.dermis.damping_n_s_per_m', 'soft')")
-            assert r["ok"] is False and "type" in r["reason"].lower(), r
+            # the schema's reason, as at start-up (issue 29; it was rclpy's "wrong parameter type")
+            assert r["ok"] is False and r["reason"] == "tissue.layers.dermis.damping_n_s_per_m: expected a number, got 'soft'", r
             r = b.evaluate("window.skinViewSetParam('tissue.lod.tolerance_m', '2e-5')")
             assert r["ok"] is True, r
         assert "parameter change rejected" in node.log()

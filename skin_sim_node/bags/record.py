@@ -16,8 +16,10 @@ import sys
 import time
 from pathlib import Path
 
+from msgs_schema.parameters import validate_parameters
 from msgs_schema.topics import TOPICS
 
+from ..model.config import load_yaml
 from ..scenes import DEFAULT_PARAMS, SCENES, Scene
 from .io import STORAGES, BagWriter, register_project_type
 
@@ -49,6 +51,7 @@ def record_scene(
             raise FileNotFoundError("skin_sim_msgs/msg/NeedleState.msg not found: cannot record tissue/needle")
         keys.append("needle")
     custom = {"skin_sim.scene": scene_kind, "skin_sim.path": path, "skin_sim.params": Path(params).name}
+    validate_parameters(load_yaml(params))  # a bad parameter file: one line, and no bag folder written
     with Scene(out.parent / f"{out.name}_logs") as scene:
         from .recorder import Recorder, use_scene_env
 

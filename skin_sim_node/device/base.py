@@ -12,13 +12,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import SimpleNamespace
 from typing import Any
 
 import rclpy
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from msgs_schema.spec import ConfigError, ParamSpec, check_names
 
 from ..ros_util import PeriodicLoop, run_nodes
 from .mapping import parse_vec3
@@ -39,6 +42,7 @@ class Param:
 
     ``cli``: the command-line option (``None``: ``--`` plus the name with dashes; ``""``: none).
     ``lo``/``hi``: the ROS descriptor's range (numbers only; both or neither). ``choices``: allowed strings.
+    ``presets``: per value of this parameter, other parameters it sets unless they are given (command line or ROS).
     """
 
     name: str
@@ -48,6 +52,37 @@ class Param:
     hi: float | None = None
     choices: tuple[str, ...] = ()
     cli: str | None = None
+    presets: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+
+def check_param(spec: Param, value: Any) -> Any:
+    """``value`` checked against a :class:`Param` by the contract's own check (:meth:`msgs_schema.spec.ParamSpec.check`:
+    type, finite, the inclusive range ``lo``-``hi``, the choices); a 3-vector's components as floats.
+
+    Parameters
+    ----------
+    spec : Param
+    value : Any
+
+    Returns
+    -------
+    Any
+        The value as the default's type (an integer given for a float is a float).
+
+    Raises
+    ------
+    ConfigError
+        With the reason, naming the parameter.
+    """
+    if isinstance(spec.default, list):
+        if not isinstance(value, (list, tuple)) or len(value) != len(spec.default):
+            raise ConfigError(f"{spec.name}: expected {len(spec.default)} numbers, got {value!r}")
+        item = ParamSpec(spec.name, float, 0.0, "-", spec.description)
+        return [item.check(c) for c in value]
+    kind = type(spec.default)
+    return ParamSpec(
+        spec.name, kind, spec.default, "-", spec.description, min=spec.lo, max=spec.hi, min_exclusive=False, choices=spec.choices
+    ).check(value)
 
 
 def publish_while_ok(node, pub, msg) -> bool:
@@ -79,24 +114,38 @@ class DeviceNode(Node):
 
     def __init__(self, overrides: dict | None = None, **kwargs):
         super().__init__(self.NODE_NAME, **kwargs)
+        # The command line's values, then every override rcl resolved for this node (file entries, -p; rclpy keeps
+        # them in Node._parameter_overrides, with no public accessor), checked before anything is declared: rclpy would
+        # ignore an unknown name silently and answer a bad value with a traceback.
+        self._builtin_parameters = frozenset(self._parameters)
+        specs = {s.name: s for s in self.PARAMS}
+        ros = {n: p.value for n, p in self._parameter_overrides.items() if n not in self._builtin_parameters}
+        check_names(ros, specs)
+        given = {n: check_param(specs[n], v) for n, v in ((overrides or {}) | ros).items()}
+        for spec in (s for s in self.PARAMS if s.presets):  # a preset fills in what was not given
+            for name, value in spec.presets.get(given.get(spec.name, spec.default), {}).items():
+                given.setdefault(name, check_param(specs[name], value))
         values = {}
         for spec in self.PARAMS:
-            default = (overrides or {}).get(spec.name, spec.default)
-            if isinstance(spec.default, float):
-                default = float(default)
-            elif isinstance(spec.default, list):
-                default = [float(c) for c in default]
+            default = given.get(spec.name, spec.default)
             d = ParameterDescriptor(read_only=True, description=spec.description)
             lo, hi = spec.lo, spec.hi
             if lo is not None and hi is not None and isinstance(spec.default, float):
                 d.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
             elif lo is not None and hi is not None and isinstance(spec.default, int) and not isinstance(spec.default, bool):
                 d.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi))]
-            self.declare_parameter(spec.name, default, d)
+            self.declare_parameter(spec.name, default, d, ignore_override=True)
             values[spec.name] = self.get_parameter(spec.name).value
-            if spec.choices and values[spec.name] not in spec.choices:
-                raise ValueError(f"{spec.name} {values[spec.name]!r}: choose one of {', '.join(spec.choices)}")
         self.p = SimpleNamespace(**values)
+
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
+        """A live set: an unknown name is refused with the reason start-up gives (the closest valid name); every
+        parameter here is read-only, so rclpy refuses the rest with its read-only reason."""
+        try:
+            check_names((p.name for p in parameter_list), {s.name for s in self.PARAMS} | self._builtin_parameters)
+        except ConfigError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return super().set_parameters_atomically(parameter_list)
 
     def say(self, text: str) -> None:
         """Log at info; once rclpy has shut down (Ctrl-C), print instead of failing to reach rosout."""

@@ -4,7 +4,7 @@ reason: one table, :data:`BRIDGE_PARAMS`, that :class:`skin_sim_node.device.brid
 from __future__ import annotations
 
 from .base import Param
-from .mapping import CONVENTIONS, DEFAULTS, TOUCH_MAX_DAMPING_N_S_PER_M, TOUCH_MAX_STIFFNESS_N_PER_M
+from .mapping import CONVENTIONS, DEFAULTS, DEVICE_PRESETS, TOUCH_MAX_DAMPING_N_S_PER_M, TOUCH_MAX_STIFFNESS_N_PER_M
 from .render import FADE_S
 from .stylus import DeviceParams
 
@@ -17,6 +17,14 @@ DDS threads); the node link's threads run one below. 80 sits above the kernel's 
 as the node's ``rt_priority`` documents for servo loops."""
 
 BRIDGE_PARAMS: tuple[Param, ...] = (
+    Param(
+        "device",
+        "sim",
+        "device preset: sim (skin-sim device, axes xyz) or touch (a Touch under sawSensablePhantom: "
+        "convention crtk, axes x-zy); options given explicitly win",
+        choices=tuple(DEVICE_PRESETS),
+        presets=DEVICE_PRESETS,
+    ),
     Param("convention", DEFAULTS["convention"], "device driver topic convention", choices=tuple(CONVENTIONS)),
     Param("device_ns", DEFAULTS["device_ns"], "namespace of the device topics (relative; '' for none)"),
     Param("offset_m", DEFAULTS["offset_m"], "tissue-frame position of the device origin (m)"),

@@ -22,6 +22,8 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from msgs_schema.spec import ConfigError
+
 Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
 Quat = tuple[float, float, float, float]
@@ -71,11 +73,11 @@ def axes_matrix(axes: str) -> Mat3:
             sign = -1.0 if ch == "-" else 1.0
             continue
         if ch not in "xyz":
-            raise ValueError(f"axes {axes!r}: unexpected character {ch!r}")
+            raise ConfigError(f"axes {axes!r}: unexpected character {ch!r}")
         tokens.append((sign, "xyz".index(ch)))
         sign = 1.0
     if len(tokens) != 3 or sorted(j for _, j in tokens) != [0, 1, 2]:
-        raise ValueError(f"axes {axes!r}: need each of x, y, z exactly once, e.g. 'xyz' or 'x-zy'")
+        raise ConfigError(f"axes {axes!r}: need each of x, y, z exactly once, e.g. 'xyz' or 'x-zy'")
     rows = []
     for s, j in tokens:
         row = [0.0, 0.0, 0.0]
@@ -170,13 +172,13 @@ class DeviceMapping:
     def __post_init__(self) -> None:
         object.__setattr__(self, "offset_m", tuple(float(c) for c in self.offset_m))
         if len(self.offset_m) != 3 or not _finite(self.offset_m):
-            raise ValueError(f"offset_m must be 3 finite numbers, got {self.offset_m}")
+            raise ConfigError(f"offset_m must be 3 finite numbers, got {self.offset_m}")
         if not (math.isfinite(self.scale) and self.scale > 0):
-            raise ValueError(f"scale must be finite and > 0, got {self.scale}")
+            raise ConfigError(f"scale must be finite and > 0, got {self.scale}")
         if not (math.isfinite(self.force_scale) and self.force_scale >= 0):
-            raise ValueError(f"force_scale must be finite and >= 0, got {self.force_scale}")
+            raise ConfigError(f"force_scale must be finite and >= 0, got {self.force_scale}")
         if not (math.isfinite(self.max_force_n) and self.max_force_n >= 0):
-            raise ValueError(f"max_force_n must be finite and >= 0, got {self.max_force_n}")
+            raise ConfigError(f"max_force_n must be finite and >= 0, got {self.max_force_n}")
         R = axes_matrix(self.axes)
         object.__setattr__(self, "R", R)
         object.__setattr__(self, "_q", _quat_from_rot(R) if _det(R) > 0 else None)
@@ -264,6 +266,17 @@ DEFAULTS = {
     "device_frame": "",  # frame_id of force commands; empty: the device pose's frame_id
     "restamp": False,  # stamp tool/pose with the bridge's clock instead of the driver's
 }
+DEVICE_PRESETS: dict[str, dict[str, str]] = {
+    "sim": {"axes": "xyz"},
+    "touch": {"convention": "crtk", "axes": "x-zy"},
+}
+"""The bridge's ``device`` presets: the parameters each sets unless they are given explicitly.
+
+- ``sim``: ``skin-sim device`` (and the benchmark's CRTK emulator), whose frame is the tissue's (``xyz``).
+- ``touch``: a Geomagic / Phantom Touch under jhu-saw sawSensablePhantom (CRTK topics). The Touch's base frame has
+  y up and z towards the user (OpenHaptics' device frame), so tissue x, y, z are device x, -z, y: ``x-zy``
+  (docs/devices.md, "With a real Touch"). Not run on hardware here: the mapping is checked against that frame only.
+"""
 MEASURED_FORCE = {"crtk": "crtk_measured_cf", "omni": None}
 """Topic of the force the device reports it applied, per convention (None: the bridge assumes its own commands)."""
 CONVENTIONS = {

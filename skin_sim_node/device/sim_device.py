@@ -14,6 +14,7 @@ force commands; it says so (start ``skin-sim node`` and ``skin-sim bridge`` firs
 
 from __future__ import annotations
 
+import math
 import os
 
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
@@ -40,6 +41,14 @@ NO_COMMAND_HINT_S = 3.0
 HINT = (
     "no force commands received: is the bridge running? Start, in separate terminals with the same "
     "ROS_DOMAIN_ID: 1) skin-sim node, 2) skin-sim bridge, 3) skin-sim device (docs/devices.md, 'three terminals')"
+)
+
+NONZERO_FORCE_N = 1e-3
+"""A force command above 1 mN counts as a force: far below what a hand feels through a Touch, far above the rounding
+of a zero command, so any contact the node answered is counted."""
+ZERO_FORCES_HINT = (
+    "every force command was zero: the bridge runs, but the tool never touched the tissue or no node answered "
+    "(is skin-sim node running on this ROS_DOMAIN_ID, with the tissue under the hand path? docs/devices.md)"
 )
 
 
@@ -106,6 +115,8 @@ class SimDeviceNode(ScriptedNode):
         self._pose, self._twist = PoseStamped(), TwistStamped()
         self._cmd = (0.0, 0.0, 0.0)
         self.commands = 0
+        self.nonzero_commands = 0
+        self.peak_command_n = 0.0
         self._hinted = False
         self._period_ns = int(1e9 / p.rate_hz)
         self.get_logger().info(
@@ -125,6 +136,22 @@ class SimDeviceNode(ScriptedNode):
     def _on_command(self, msg) -> None:
         self._cmd = read_wrench(msg)[2]
         self.commands += 1
+        f_n = math.sqrt(sum(c * c for c in self._cmd))
+        if f_n > NONZERO_FORCE_N:
+            self.nonzero_commands += 1
+            self.peak_command_n = max(self.peak_command_n, f_n)
+
+    def received(self) -> str:
+        """What the force commands were: how many, how many non-zero, the peak; a hint when all were zero."""
+        text = (
+            f"{self.commands} force commands received, {self.nonzero_commands} of them non-zero "
+            f"(> {NONZERO_FORCE_N * 1e3:g} mN), peak {self.peak_command_n:.3f} N"
+        )
+        if self.commands == 0:
+            return f"{text}; {HINT}"
+        if self.nonzero_commands == 0:
+            return f"{text}; {ZERO_FORCES_HINT}"
+        return text
 
     def _tick(self, now_ns: int, elapsed_ns: int) -> None:
         if self.finished:
@@ -142,16 +169,12 @@ class SimDeviceNode(ScriptedNode):
         ):
             return
         if self.p.exit_when_done and self.device.done:
-            self.finish(f"hand path done ({self.commands} force commands received): shutting down")
+            self.finish(f"hand path done ({self.received()}): shutting down")
 
     def stop(self) -> None:
         """Stop the servo loop and log its ticks, overruns and the force commands received."""
         self._loop.stop()
-        hint = f"; {HINT}" if self.commands == 0 else ""
-        self.say(
-            f"sim device stopping: {self._loop.ticks} ticks, {self._loop.overruns} overruns, "
-            f"{self.commands} force commands received{hint}"
-        )
+        self.say(f"sim device stopping: {self._loop.ticks} ticks, {self._loop.overruns} overruns, {self.received()}")
 
 
 def main(argv=None) -> int:

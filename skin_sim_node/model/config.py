@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from msgs_schema.parameters import NODE_NAME, check_tissue, tissue_part
-from msgs_schema.spec import ConfigError
+from msgs_schema.parameters import NODE_NAME, SPEC_BY_NAME, check_tissue, tissue_part
+from msgs_schema.spec import ConfigError, check_names
 from msgs_schema.tissue import INTERFACE_NAMES, LAYER_NAMES, LOD_TOLERANCE_M, tissue_defaults
 
 __all__ = [
@@ -368,7 +368,9 @@ def load_tissue_config(path: str | Path) -> TissueConfig:
     -------
     TissueConfig
     """
-    return config_from_flat(tissue_part(load_yaml(path)))
+    flat = load_yaml(path)
+    check_names(flat, SPEC_BY_NAME)  # a misspelt node parameter in the file is an error here too, not ignored
+    return config_from_flat(tissue_part(flat))
 
 
 def dump_yaml(flat_by_prefix: dict[str, Any], path: str | Path, node_name: str = NODE_NAME) -> None:

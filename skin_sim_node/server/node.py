@@ -30,6 +30,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from skin_sim_msgs.msg import ContactModel
 
@@ -40,9 +41,12 @@ from msgs_schema.parameters import (
     SPEC_BY_NAME,
     TISSUE_PREFIX,
     NodeParams,
+    check_overrides,
+    check_value,
     session_params,
 )
 from msgs_schema.qos import publisher, subscription
+from msgs_schema.spec import check_names
 from msgs_schema.tissue import TISSUE_PARAMETERS
 from msgs_schema.topics import FRAMES
 
@@ -128,8 +132,14 @@ class SkinSimNode(Node):
 
     def __init__(self, ros_args: list[str] | None = None, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        for spec in ALL_PARAMETERS:
-            self.declare_parameter(spec.name, spec.default, descriptor(spec))
+        # Every override rcl resolved for this node (matching file entries, -p) is checked against the contract before
+        # anything is declared: rclpy would silently ignore an unknown name (the node then runs on the defaults) and
+        # raise a traceback on a wrong type. The names rclpy declared itself (use_sim_time, ...) are its own.
+        # rclpy keeps the overrides in Node._parameter_overrides; it has no public accessor for them.
+        self._builtin_parameters = frozenset(self._parameters)
+        given = check_overrides({n: p.value for n, p in self._parameter_overrides.items()}, self._builtin_parameters)
+        for spec in ALL_PARAMETERS:  # the checked value, so an integer in a file sets a float parameter
+            self.declare_parameter(spec.name, given.get(spec.name, spec.default), descriptor(spec), ignore_override=True)
         self._flat = {s.name: self.get_parameter(s.name).value for s in ALL_PARAMETERS}
         self.params, cfg = validate(self._flat, self._flat)  # ConfigError: refuse to start, with the reason
         self.get_logger().info(start_line(self._flat, ros_args, self.get_fully_qualified_name()))  # form, preset, tool
@@ -468,6 +478,30 @@ class SkinSimNode(Node):
         self._pub_diag.publish(self._diag)
 
     # --- live parameters: validated once in on_set, applied in post_set (as ros2/demos) -------------
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
+        """A live set (the parameter services call this for both set services): names and values checked against the
+        contract first, so a refusal gives the reason start-up gives (rclpy's own would be "Invalid access to
+        undeclared parameter(s)" or its descriptor's range message); an integer for a float parameter is accepted.
+
+        Parameters
+        ----------
+        parameter_list : list of rclpy.parameter.Parameter
+
+        Returns
+        -------
+        SetParametersResult
+        """
+        try:
+            check_names((p.name for p in parameter_list), set(SPEC_BY_NAME) | self._builtin_parameters)
+            checked = [
+                Parameter(p.name, value=check_value(p.name, p.value)) if p.name in SPEC_BY_NAME else p for p in parameter_list
+            ]
+        except ConfigError as exc:
+            why = reason(exc)
+            self.get_logger().warning(f"parameter change rejected: {why}")
+            return SetParametersResult(successful=False, reason=why)
+        return super().set_parameters_atomically(checked)
+
     def _on_set_parameters(self, params) -> SetParametersResult:
         """Validate a set against the whole parameter set and keep the result for :meth:`_post_set_parameters`.
 

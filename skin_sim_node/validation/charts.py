@@ -12,6 +12,7 @@ import argparse
 import csv
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -34,7 +35,7 @@ from skin_sim_node.solvers import (
     static_indentation,
 )
 
-from . import accuracy, calibrate, fem, large_deformation
+from . import accuracy, cache, calibrate, fem, large_deformation
 from .fem import FemSetup, mesh_levels, reference
 from .methods import (
     AllLayersVariant,
@@ -440,6 +441,64 @@ def paper_validation(out: Path, fems: dict, cfgs: dict) -> dict:
     return results
 
 
+STAGE_TIMES = Path("out") / "stage_times" / "chart_validation"
+"""Where ``skin-sim chart validation`` keeps the stage times of its last complete run (untracked, also with --docs),
+one file per ``--only`` choice (``all.json`` for the whole run): the next run's expected duration."""
+
+
+def duration(seconds: float) -> str:
+    """``"42 s"`` below two minutes, else ``"7.5 min"``."""
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
+
+
+class Progress:
+    """One line per stage of a long command, ``NAME: stage k of N: what (T s so far)``, and the expected duration: the
+    stage times of this machine's last complete run, kept in ``record`` (none on a first run, and it says so).
+
+    Parameters
+    ----------
+    name : str
+    n_stages : int
+    record : Path
+        JSON file of the last complete run's stage times (written by :meth:`done`).
+    """
+
+    def __init__(self, name: str, n_stages: int, record: Path):
+        self.name, self.n, self.k, self.record = name, n_stages, 0, record
+        self.t0 = time.perf_counter()
+        self.times: list[float] = []
+        try:
+            last = json.loads(record.read_text())
+        except (OSError, ValueError):
+            last = None
+        if isinstance(last, dict) and last.get("n_stages") == n_stages:
+            print(
+                f"{name}: expected about {duration(last['total_s'])}: this machine's last complete run "
+                f"({last['date']}; stage times in {record})",
+                flush=True,
+            )
+        else:
+            print(
+                f"{name}: no complete run on this machine to estimate from ({record}); FEM setups missing from the "
+                "caches are solved with a progress bar each, minutes per solve on 2 cores",
+                flush=True,
+            )
+
+    def step(self, what: str) -> None:
+        """Announce the next stage."""
+        self.k += 1
+        self.times.append(time.perf_counter() - self.t0)
+        print(f"{self.name}: stage {self.k} of {self.n}: {what} ({self.times[-1]:.0f} s so far)", flush=True)
+
+    def done(self) -> None:
+        """Say the total and keep the stage times for the next run's estimate."""
+        total = time.perf_counter() - self.t0
+        print(f"{self.name}: done in {duration(total)}", flush=True)
+        stamp = time.strftime("%Y-%m-%d %H:%M")
+        self.record.parent.mkdir(parents=True, exist_ok=True)
+        self.record.write_text(json.dumps({"n_stages": self.n, "total_s": total, "stage_start_s": self.times, "date": stamp}))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim chart validation", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(OUT))
@@ -462,6 +521,12 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    cache.WRITE_DOCS = out.resolve().is_relative_to(cache.DOCS)  # skin-sim chart validation --docs: the tracked caches
+    if a.prune_cache and not cache.WRITE_DOCS:
+        print("skin-sim chart validation: error: --prune-cache deletes tracked cache files: give --docs too", file=sys.stderr)
+        return 2
+    where = "the tracked caches (--docs)" if cache.WRITE_DOCS else f"{cache.LOCAL_CACHE}, not the tracked docs caches"
+    print(f"chart validation: FEM solves not in docs/validation/*_cache are stored in {where}", flush=True)
     if a.only == "accuracy":  # into --out (accuracy.main writes docs/validation)
         configs = {"default (layered)": accuracy.preset("default"), "paper form, Sneddon springs": accuracy.paper_form_default()}
         extra = a.config or [p for p in [OUT / "calibrated_nonlinear.yaml"] if p.exists()]  # the committed table's rows
@@ -474,29 +539,40 @@ def main(argv=None) -> int:
         accuracy.speed_accuracy(out)
         accuracy.table_ii_nonlinear(out)
         return 0
+    progress = Progress("chart validation", 1 if a.only == "reference" else 9, STAGE_TIMES / f"{a.only or 'all'}.json")
+    progress.step("large-deformation reference (neo-Hookean and linear, per mesh level)")
     large_deformation.run(out, a.fresh)
     if a.only == "reference":
+        progress.done()
         return 0
+    progress.step("linear FEM mesh convergence")
     conv = convergence(out)
+    progress.step("converged linear FEM per scenario (cached solves are read)")
     fems = {sc.name: converged_fem(sc) for sc in SUITE}
+    progress.step("speed-accuracy chart of every method")
     rows = speed_accuracy(out, fems)
     modes, grid = khz_setting(rows)
+    progress.step("calibration of the modal model at the 1 kHz setting")
     cal = calibration(out, fems, modes, grid)
     cal_method = ModalMethod(modes, grid, cal["cfg"], f"calibrated modal {modes}x{modes}, grid {grid}")
     # the prototype form change: one series stiffness for all depths, best over the suite (relative errors)
     ks = np.array([fems[sc.name].stiffness_n_per_m for sc in SUITE])
     k_series = float(np.sum(1 / ks) / np.sum(1 / ks**2))
     variant = AllLayersVariant(modes, grid, cal["cfg"], k_series, f"variant: all layers engaged, {modes}x{modes}")
+    progress.step("one-membrane baseline fit")
     mem_fit = calibrate.fit_membrane(calibrate.fem_datasets(), preset("default"))
     print("calibrated one-membrane baseline (T, k_A):", json.dumps(mem_fit))
     mem = skin_membrane(preset("default"), mem_fit["tension_n_per_m"], mem_fit["foundation_n_per_m3"])
     cal_grids = [
         GridMethod(kind, 59, mem, preset("default"), f"calibrated {kind} 59x59") for kind in ("mass-spring", "explicit FD")
     ]
+    progress.step("speed-accuracy chart with the calibrated methods")
     rows = speed_accuracy(out, fems, extra=[cal_method, variant, *cal_grids])
     var_row = next(r for r in rows if r["method"] == variant.label)
+    progress.step("release chart")
     rel = release_chart(out)
     base = model_config(modes, grid)
+    progress.step("the paper's Table II redone")
     val = paper_validation(out, fems, {"uncalibrated": base, "calibrated": cal["cfg"]})
     sc = BY_NAME["peak-3layer"]
     cal_row = next(r for r in rows if r["method"] == cal_method.label)
@@ -522,6 +598,7 @@ def main(argv=None) -> int:
             if f.stem not in fem.USED_KEYS:
                 f.unlink()
     print(json.dumps(summary, indent=1))
+    progress.done()
     return 0
 
 

@@ -56,6 +56,8 @@ from tqdm import tqdm
 from skin_sim_node.model.calibration import LAYER_SOURCES, POISSON_RATIO
 from skin_sim_node.model.config import TissueConfig, preset
 
+from .cache import cached
+
 FEM_VERSION = 1  # bump when the discretisation changes: part of the cache key
 CACHE_DIR = Path(__file__).resolve().parents[2] / "docs" / "validation" / "fem_cache"
 USED_KEYS: set[str] = set()  # cache keys asked for in this process (for pruning stale entries)
@@ -314,23 +316,23 @@ def reference(setup: FemSetup, cache_dir: Path | None = CACHE_DIR, progress: boo
     """:func:`solve` with an on-disk cache keyed by the hash of ``setup``."""
     USED_KEYS.add(setup.key())
     path = None if cache_dir is None else Path(cache_dir) / f"{setup.key()}.npz"
-    if path is not None and path.exists():
-        z = np.load(path)
+
+    def load(z) -> FemResult:
         return FemResult(setup, float(z["stiffness"]), z["sx"], z["sy"], z["field"], int(z["n_dofs"]), float(z["solve_s"]))
-    res = solve(setup, progress)
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(
-            path,
-            stiffness=res.stiffness_n_per_m,
-            sx=res.sample_x_m,
-            sy=res.sample_y_m,
-            field=res.surface_per_depth.astype(np.float32),
-            n_dofs=res.n_dofs,
-            solve_s=res.solve_s,
-            setup=json.dumps(asdict(setup), default=str),
-        )
-    return res
+
+    def arrays(res: FemResult) -> dict:
+        return {
+            "stiffness": res.stiffness_n_per_m,
+            "sx": res.sample_x_m,
+            "sy": res.sample_y_m,
+            "field": res.surface_per_depth.astype(np.float32),
+            "n_dofs": res.n_dofs,
+            "solve_s": res.solve_s,
+            "setup": json.dumps(asdict(setup), default=str),
+        }
+
+    # the tracked cache is read; a new solve goes to out/cache unless skin-sim chart validation --docs (cache.py)
+    return cached(path, False, lambda: solve(setup, progress), load, arrays)
 
 
 def mesh_levels(level: int, base: FemSetup) -> FemSetup:

@@ -83,6 +83,7 @@ def main(argv=None) -> int:
     ap.add_argument("--bench", action="store_true", help="latency benchmark: node p99 with the view open vs closed")
     ap.add_argument("--compare-libs", action="store_true", help="library comparison (mesh rate, CPU, install size)")
     args = ap.parse_args(argv)
+    hint = None
     if args.bags:
         from ..bags.io import BagError
         from .bag import BagSource
@@ -97,22 +98,47 @@ def main(argv=None) -> int:
         from .live import LiveSource
 
         source = LiveSource(args.namespace, rate_hz=args.rate_hz, contact=args.contact)
-        source.refresh_geometry(wait_s=3.0)  # a view started before its node serves at once, with default geometry
-    on_ready = None
-    if args.screenshot:
+        # a view started before its node serves at once, with default geometry, and says so (after its URL line)
+        hint = None if source.refresh_geometry(wait_s=NODE_WAIT_S) else no_node_hint(source.namespace)
+    shots: list[bool] = []
 
-        def on_ready(server):
-            shot = (server, args.screenshot, args.shot_after_s, args.shot_when_force_n)
-            threading.Thread(target=_screenshot, args=shot, daemon=True).start()
+    def on_ready(server):
+        if not args.bags and hint:
+            print(hint, flush=True)
+        if args.screenshot:
 
-    return serve(source, args.host, args.port, args.duration_s, on_ready=on_ready)
+            def shoot():
+                shots.append(_screenshot(server, args.screenshot, args.shot_after_s, args.shot_when_force_n))
+                source.stop()  # the picture was what was asked for: the command ends after it
+
+            threading.Thread(target=shoot, daemon=True).start()
+
+    code = serve(source, args.host, args.port, args.duration_s, on_ready=on_ready)
+    if args.screenshot and not all(shots or [False]):
+        return 1  # asked for a picture and got none (the reason was printed), or stopped before it
+    return code
+
+
+NODE_WAIT_S = 3.0
+"""How long the live view first waits for the node's parameter services: DDS discovery on one host took up to 1.6 s
+here (docs/ros.md), so 3 s separates a slow discovery from no node."""
+
+
+def no_node_hint(namespace: str) -> str:
+    """The line the live view prints when no node answered: what it shows meanwhile and how to start one."""
+    where = namespace if namespace not in ("", "/") else "/ (no namespace)"
+    return (
+        f"skin-sim view: no skin_sim_node answered in namespace {where} within {NODE_WAIT_S:g} s: the page shows an "
+        "empty default tissue until one starts (skin-sim node, on this ROS_DOMAIN_ID; --namespace for another)"
+    )
 
 
 SHOT_GRID_DT_S = 0.05
 """A screenshot taken while pressing waits for a frame whose grid is at most this far in time from the tool's pose."""
 
 
-def _screenshot(server, path: Path, after_s: float, when_force_n: float = 0.0) -> None:
+def _screenshot(server, path: Path, after_s: float, when_force_n: float = 0.0) -> bool:
+    """Open the page headless, save ``path`` (see the command's options), print what it shows; True when saved."""
     import time
 
     from .browser import Browser
@@ -138,5 +164,7 @@ def _screenshot(server, path: Path, after_s: float, when_force_n: float = 0.0) -
             b.release()
             offset = f"grid {dt * 1e3:+.0f} ms from the tool" if isinstance(dt, (int, float)) else "no grid time offset known"
             print(f"skin-sim view: screenshot {shot} (force {f:.3f} N, {offset})", flush=True)
+            return True
     except (OSError, RuntimeError, TimeoutError) as exc:
         print(f"skin-sim view: no screenshot: {exc}", flush=True)
+        return False

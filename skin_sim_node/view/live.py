@@ -189,8 +189,14 @@ class LiveSource:
 
         return {n: (v.type, parameter_value_to_python(v)) for n, v in zip(names, res.values)}
 
-    def refresh_geometry(self, wait_s: float = SERVICE_WAIT_S) -> None:
-        """Sheet size and tool radius from the node (its grid and patch), defaults if it does not answer."""
+    def refresh_geometry(self, wait_s: float = SERVICE_WAIT_S) -> bool:
+        """Sheet size and tool radius from the node (its grid and patch), defaults if it does not answer.
+
+        Returns
+        -------
+        bool
+            Whether the node answered within ``wait_s``.
+        """
         try:
             names = [
                 "tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", "tissue.form", *GEOMETRY_EXTRA,
@@ -198,7 +204,8 @@ class LiveSource:
             ]  # fmt: skip
             self._set_geometry(self._get(names, wait_s=wait_s, tries=1))
         except TimeoutError:
-            return
+            return False
+        return True
 
     def _set_geometry(self, got: dict) -> bool:
         """Take sheet size and tool radius from a get_parameters answer; True if they changed.

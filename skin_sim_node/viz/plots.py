@@ -26,6 +26,36 @@ def punch_face_gap_m(model: SkinModel, x0: float, y0: float, tool_z: float, n: i
     return float(np.max(model.cross_section(xs, y0)[0] - tool_z))
 
 
+CLIP_NOTE_M = 1e-6
+"""A cross-section whose interfaces were clipped by more than 1 um (a thousandth of the 1 mm axis ticks, invisible
+below it) says so on the axes."""
+
+
+def clipped_layer_tops(heights_m: np.ndarray, bottom_m: float) -> np.ndarray:
+    """The surface and each interface as drawn: no interface above the deformed layer top above it, none below the
+    stack's bottom.
+
+    Each layer's displacement is its own smooth modal field, so under a deep press an interface can come out above
+    the surface (a negative layer thickness, e.g. the dermis/fat boundary at 2.6 mm under a flat punch); a layer is
+    never thinner than zero, so the picture clips it.
+
+    Parameters
+    ----------
+    heights_m : ndarray, shape (L, n)
+        The surface (row 0) and each layer's top below it, z up (m): :meth:`SkinModel.cross_section`.
+    bottom_m : float
+        The stack's bottom (m, z up: minus the total thickness).
+
+    Returns
+    -------
+    ndarray, shape (L, n)
+        Row 0 unchanged; every other row at most the row above and at least ``bottom_m``.
+    """
+    tops = np.minimum.accumulate(np.asarray(heights_m, dtype=float), axis=0)
+    tops[1:] = np.maximum(tops[1:], bottom_m)
+    return tops
+
+
 def draw_tool(ax, shape: str, x0_m: float, tool_z_m: float, radius_m: float, top_mm: float = 2.0) -> None:
     """The tool in a cross-section (mm axes): a flat punch as a rectangle, a sphere as a disk above its tip."""
     from matplotlib.patches import Circle, Rectangle
@@ -49,7 +79,8 @@ def draw_cross_section(
     """
     half = half_m if half_m is not None else 0.6 * model.cfg.patch_size_m[0]
     xs = np.linspace(x0 - half, x0 + half, 1200)
-    heights = model.cross_section(xs, y0)
+    heights = clipped_layer_tops(model.cross_section(xs, y0), -model.cfg.total_thickness_m)
+    clipped_m = float(np.max(model.cross_section(xs, y0) - heights))
     bottom = np.full_like(xs, -model.cfg.total_thickness_m)
     tops = list(heights) + [bottom]
     for li, layer in enumerate(model.cfg.layers):
@@ -71,6 +102,18 @@ def draw_cross_section(
                 bbox={"fc": "w", "alpha": 0.9, "lw": 0},
                 zorder=7,  # over the tool, which would otherwise hide part of the note
             )
+    if clipped_m > CLIP_NOTE_M:
+        ax.text(
+            0.01,
+            0.02,
+            f"interfaces drawn clipped to the layer above and the bottom (the layers' smooth modal fields put one up to "
+            f"{clipped_m * 1e3:.2f} mm past it here)",
+            transform=ax.transAxes,
+            fontsize=6,
+            va="bottom",
+            bbox={"fc": "w", "alpha": 0.8, "lw": 0},
+            zorder=7,
+        )
     ax.set_xlim((x0 - half) * 1e3, (x0 + half) * 1e3)
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("z (mm)")
