@@ -12,7 +12,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from msgs_schema.parameters import NodeParams, check_value, node_params_from_flat, tissue_part
+from msgs_schema.parameters import SPEC_BY_NAME, NodeParams, check_value, node_params_from_flat, tissue_part
+from msgs_schema.spec import check_names
 
 from .model import TissueConfig, config_from_flat
 
@@ -37,6 +38,7 @@ def configure(flat: Mapping[str, Any], changed: Iterable[str] = ()) -> tuple[Nod
     ConfigError
         With the reason: an unknown name, a bad value, or a geometry that does not fit.
     """
+    check_names(flat, SPEC_BY_NAME)  # every unknown name at once, each with its closest valid name (issue 29)
     for name in changed:
         check_value(name, flat[name])
     return node_params_from_flat(flat), config_from_flat(tissue_part(flat))

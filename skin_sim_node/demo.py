@@ -84,13 +84,10 @@ def rate_reasons(n_processes: int, overruns: int | None = None) -> str:
     soft = resource.getrlimit(resource.RLIMIT_RTPRIO)[0]
     can_fifo = os.geteuid() == 0 or soft == resource.RLIM_INFINITY or soft >= FIFO_PRIORITY_NEEDED
     prio = (
-        "priorities: every process at normal scheduling (the node's rt_priority 0; "
-        + (
-            "SCHED_FIFO is allowed here: skin-sim node --ros-args -p rt_priority:=80"
-            if can_fifo
-            else "SCHED_FIFO not allowed: not root, RLIMIT_RTPRIO 0"
-        )
-        + ")"
+        "priorities: SCHED_FIFO allowed here (the node's haptic threads at rt_priority 50, the bridge's servo thread at "
+        "80, the defaults; the simulated device at normal priority)"
+        if can_fifo
+        else "priorities: SCHED_FIFO not allowed (not root, RLIMIT_RTPRIO 0): every process at normal scheduling"
     )
     return f"{cpu}; {prio}"
 
@@ -108,7 +105,12 @@ def summarize(monitor, wall_s: float, poses: list) -> dict:
     out = {"wrenches": len(f), "wall_s": wall_s, "poses_seen": len(poses)}
     out["peak_force_n"] = float(f[:, 2].max()) if len(f) else 0.0
     out["layers_reached"] = int(max((np.count_nonzero(c[3] > 0) for c in contact), default=0))
-    out["node_rate_hz"] = _median([float(d["achieved_rate_hz"]) for d in node_d if d.get("input_stale") == "False"])
+    live = [d for d in node_d if d.get("input_stale") == "False"]
+    out["node_rate_hz"] = _median([float(d["achieved_rate_hz"]) for d in live])
+    # the rate the node answers at in those windows (its server rate follows the machine: skin_sim_node/rate.py)
+    out["server_rate_hz"] = _median([float(d.get("server_rate_hz", d.get("target_rate_hz", "nan"))) for d in live])
+    steps = {d.get("rate_reason", "target") for d in node_d}
+    out["rate_reasons"] = sorted(steps - {"target", "rate_hz"})
     # windows in which the device ran throughout: the total grew since the window before and grows in the next
     tot = [int(d.get("rendered_total", 0)) for d in bridge_d]
     rates = [float(bridge_d[i]["render_rate_hz"]) for i in range(1, len(tot) - 1) if tot[i - 1] > 0 and tot[i + 1] > tot[i]]
@@ -325,7 +327,13 @@ def main(argv=None) -> int:
             f"p99 {s['latency_ms_p99']:.2f} ms, max {s['latency_ms_max']:.2f} ms"
         )
     print(f"  model tick p99 (worst 1 s window of the node): {s['kernel_us_p99_worst']:.1f} us")
-    rates = [rate_check("node ticks", s["node_rate_hz"])]
+    print(
+        f"  server rate: {s['server_rate_hz']:.0f} Hz (node diagnostics server_rate_hz, median of the same windows; the "
+        "node steps down from 1000 Hz when the machine does not hold it and the bridge renders its model in between)"
+        + (f"; why: {'; '.join(s['rate_reasons'])}" if s["rate_reasons"] else "")
+    )
+    # the promise at the device is 1 kHz; the node's promise is to answer at the server rate it announces
+    rates = [rate_check("node ticks", s["node_rate_hz"], target_hz=s["server_rate_hz"])]
     if args.source == "device":
         rates.append(rate_check("device forces", s["render_rate_hz_median"]))
     if all(ok for ok, _ in rates):
