@@ -14,7 +14,7 @@ if ! command -v chromium >/dev/null 2>&1; then
 fi
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export ROS_LOG_DIR="${ROS_LOG_DIR:-$PWD/out/ros_log}"
-LINT_PATHS=(skin_sim_node msgs_schema tests scripts launch_scripts)
+LINT_PATHS=(skin_sim_node skin_sim_lab msgs_schema tests scripts launch_scripts)
 .venv/bin/ruff check "${LINT_PATHS[@]}"
 .venv/bin/ruff format --check "${LINT_PATHS[@]}"
 # the type-checked paths: TYPED_PATHS (mypy's settings, the stub-less packages: [tool.mypy] in pyproject.toml)

@@ -17,40 +17,40 @@ COMMANDS = {
     "device": ("skin_sim_node.device.sim_device", "simulated Touch device following a hand path"),
     "mock-tool": ("skin_sim_node.device.mock_tool", "scripted tool pose/twist publisher"),
     "scene": ("skin_sim_node.scenes", "start a scene as separate processes"),
-    "bench": ("skin_sim_node.perf.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
+    "bench": ("skin_sim_lab.perf.bench_node", "node latency / rate benchmark against bare rclpy baselines"),
     "visco": (
-        "skin_sim_node.validation.viscoelastic",
+        "skin_sim_lab.validation.viscoelastic",
         "offline: relaxation, creep, rate effect, recovery vs in-vivo data (~3 s)",
     ),
-    "bench-model": ("skin_sim_node.perf.bench_model", "model step micro-benchmark (numba vs NumPy)"),
+    "bench-model": ("skin_sim_lab.perf.bench_model", "model step micro-benchmark (numba vs NumPy)"),
     "bench-device": (
-        "skin_sim_node.perf.device_bench",
+        "skin_sim_lab.perf.device_bench",
         "device benchmark: CRTK emulator at 1 kHz vs node + bridge, per phase, vs offline ground truth",
     ),
-    "perf-lod": ("skin_sim_node.perf.lod", "node CPU in four scenes with the level-of-detail levers off and on"),
+    "perf-lod": ("skin_sim_lab.perf.lod", "node CPU in four scenes with the level-of-detail levers off and on"),
     "force-path": (
-        "skin_sim_node.perf.force_path",
+        "skin_sim_lab.perf.force_path",
         "offline: device force error vs server rate, model vs hold-last (~10 s on 2 cores)",
     ),
     "friction": (
-        "skin_sim_node.perf.friction_path",
+        "skin_sim_lab.perf.friction_path",
         "offline: presliding friction figures: tremor vs today's law, drag at 1/10/30 mm/s, reversal loop (~20 s)",
     ),
     "needle-device": (
-        "skin_sim_node.perf.needle_device",
+        "skin_sim_lab.perf.needle_device",
         "offline: needle insertion rendered at 1 kHz from a 250 Hz server vs truth and hold-last (~10 s)",
     ),
-    "soak": ("skin_sim_node.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),
-    "scale": ("skin_sim_node.perf.scale", "how many 1 kHz sessions (node + bridge + device, own namespaces) one machine holds"),
-    "netns-role": ("skin_sim_node.perf.netns", "netns_scale.sh helper: device side (bridge, device, observer); comparison"),
-    "echo": ("skin_sim_node.perf.echo", "bare rclpy echo node (pose in, wrench out): the latency baseline"),
-    "chart": ("skin_sim_node.viz.figures", "regenerate figures: chart model|validation|stability|performance"),
-    "stability-loop": ("skin_sim_node.stability.haptic_loop", "haptic loop stability sweep (naive vs passivity controller)"),
-    "stability-numerics": ("skin_sim_node.stability.numerics", "measured explicit solver limits vs CFL / omega*dt < 2"),
-    "stability-dds": ("skin_sim_node.stability.dds_confirm", "confirm haptic-loop sweep points with real processes over DDS"),
+    "soak": ("skin_sim_lab.perf.soak", "soak: node + bridge + simulated device at 1 kHz; memory growth and force gaps"),
+    "scale": ("skin_sim_lab.perf.scale", "how many 1 kHz sessions (node + bridge + device, own namespaces) one machine holds"),
+    "netns-role": ("skin_sim_lab.perf.netns", "netns_scale.sh helper: device side (bridge, device, observer); comparison"),
+    "echo": ("skin_sim_lab.perf.echo", "bare rclpy echo node (pose in, wrench out): the latency baseline"),
+    "chart": ("skin_sim_lab.viz.figures", "regenerate figures: chart model|validation|stability|performance"),
+    "stability-loop": ("skin_sim_lab.stability.haptic_loop", "haptic loop stability sweep (naive vs passivity controller)"),
+    "stability-numerics": ("skin_sim_lab.stability.numerics", "measured explicit solver limits vs CFL / omega*dt < 2"),
+    "stability-dds": ("skin_sim_lab.stability.dds_confirm", "confirm haptic-loop sweep points with real processes over DDS"),
     "record": ("skin_sim_node.bags.record", "record a scene's tool inputs and node outputs to a rosbag2 folder"),
     "replay": ("skin_sim_node.bags.replay", "replay a bag through the model offline (or --live against a node)"),
-    "calibrate": ("skin_sim_node.validation.calibrate", "fit the layer springs, stiffening and foundation to the FEM or a CSV"),
+    "calibrate": ("skin_sim_lab.validation.calibrate", "fit the layer springs, stiffening and foundation to the FEM or a CSV"),
     "compare": ("skin_sim_node.bags.compare", "diff two output bags with tolerances; non-zero exit when they differ"),
     "view": ("skin_sim_node.view", "live 3D view of the tissue in the browser, from the node's topics or a bag (docs/view.md)"),
 }
@@ -58,10 +58,10 @@ COMMANDS = {
 
 # ``skin-sim chart TARGET``: each target's module regenerates its own docs figures.
 CHART_TARGETS = {
-    "model": ("skin_sim_node.viz.figures", "model figures: deformation, layers, modes (docs/figures)"),
-    "validation": ("skin_sim_node.validation.charts", "FEM reference, speed-accuracy chart, calibration, Table II"),
-    "stability": ("skin_sim_node.stability.charts", "numerical and haptic-loop stability maps (~1.5-2 min measured on 2 cores)"),
-    "performance": ("skin_sim_node.perf.charts", "cost growth against modes and grid size"),
+    "model": ("skin_sim_lab.viz.figures", "model figures: deformation, layers, modes (docs/figures)"),
+    "validation": ("skin_sim_lab.validation.charts", "FEM reference, speed-accuracy chart, calibration, Table II"),
+    "stability": ("skin_sim_lab.stability.charts", "numerical and haptic-loop stability maps (~1.5-2 min measured on 2 cores)"),
+    "performance": ("skin_sim_lab.perf.charts", "cost growth against modes and grid size"),
 }
 
 

@@ -188,7 +188,7 @@ def deepest_figure(model, tool_xyz, path: Path, title: str, note: str) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .viz.plots import cross_section_legend, draw_cross_section, draw_surface, save_figure
+    from .bags.plots import cross_section_legend, draw_cross_section, draw_surface, save_figure
 
     x, y, z = tool_xyz
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1, 1.5]})
@@ -233,7 +233,7 @@ def main(argv=None) -> int:
     from msgs_schema import convert as cv
     from msgs_schema.qos import subscription
 
-    from .perf.monitor import Monitor  # rclpy reads the domain at init
+    from .bags.monitor import Monitor  # rclpy reads the domain at init
 
     print(f"skin-sim demo: ROS_DOMAIN_ID={scene.env['ROS_DOMAIN_ID']}, source={args.source}, path={args.path}", flush=True)
     monitor = Monitor(record_depth=1)  # latency as a device sees it: newest sample

@@ -4,8 +4,9 @@ Rules (issue 13): no import cycles among ``skin_sim_node`` modules, the contract
 (``msgs_schema``) imports nothing from the implementation, and at most 8 flat modules sit at the
 top of ``skin_sim_node/``. Issue 18: the session uses only the model's public API (the package
 ``skin_sim_node.model``, none of its modules), and the model core (``skin_sim_node/model/``) imports
-no rclpy and nothing from the session, the server, the device side or the benchmarks. Run as a
-script to print the graph's figures (modules per folder, edges, cycles, upward ties).
+no rclpy and nothing from the session, the server, the device side or the benchmarks. Issue 28: the runtime
+(``skin_sim_node``, ``msgs_schema``) imports nothing from the lab (``skin_sim_lab``); the lab may import the runtime. Run as
+a script to print the graph's figures (modules per folder, edges, cycles, upward ties).
 """
 
 from __future__ import annotations
@@ -16,7 +17,9 @@ from collections import defaultdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("skin_sim_node", "msgs_schema")
+PACKAGES = ("skin_sim_node", "msgs_schema", "skin_sim_lab")
+RUNTIME = ("skin_sim_node", "msgs_schema")
+LAB = "skin_sim_lab"
 MAX_FLAT_MODULES = 8
 
 
@@ -132,6 +135,20 @@ def _within(mod: str, package: str) -> bool:
     return mod == package or mod.startswith(package + ".")
 
 
+def test_runtime_imports_nothing_from_the_lab():
+    """Issue 28: the runtime (``skin_sim_node``, ``msgs_schema``) imports nothing from ``skin_sim_lab``, not even inside a
+    function; the lab may import the runtime (the CLI names the lab's commands as strings, imported when run)."""
+    g = import_graph()
+    runtime = [m for m in g if any(_within(m, pkg) for pkg in RUNTIME)]
+    bad = {m: sorted(t for t in g[m] if _within(t, LAB)) for m in runtime}
+    assert {m: ts for m, ts in bad.items() if ts} == {}
+    names = {m: [n for n in imported_names(m, p) if _within(n, LAB)] for m, p in modules().items() if m in runtime}
+    assert {m: ns for m, ns in names.items() if ns} == {}  # a lab name the graph would not resolve to a module counts too
+    lab = [m for m in g if _within(m, LAB)]
+    assert len(lab) > 50 and len(runtime) > 50
+    assert any(_within(t, "skin_sim_node") for m in lab for t in g[m])  # the rule sees the lab's real imports of the runtime
+
+
 def test_session_uses_only_the_model_package():
     """The session imports ``skin_sim_node.model`` (its public API) and none of the model's modules."""
     g = import_graph()
@@ -145,8 +162,8 @@ MODEL_MAY_NOT_IMPORT = (
     "skin_sim_node.session",
     "skin_sim_node.server",
     "skin_sim_node.device",
-    "skin_sim_node.perf",
     "skin_sim_node.tools",
+    "skin_sim_lab",
 )
 
 

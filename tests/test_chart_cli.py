@@ -39,7 +39,7 @@ def test_chart_docs_and_out_together_is_an_error(tmp_path):
 
 def test_force_path_draws_to_out_unless_told_docs(tmp_path):
     """``skin-sim force-path`` draws its chart under out/ by default; ``--docs`` with ``--chart`` is refused."""
-    from skin_sim_node.perf import force_path
+    from skin_sim_lab.perf import force_path
 
     assert not force_path.OUT_CHART.is_absolute() and force_path.OUT_CHART.parts[0] == "out"
     assert force_path.DOCS_CHART == REPO / "docs" / "figures" / "force_path_rate.png"

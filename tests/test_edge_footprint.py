@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from conftest import kernel
 
+from skin_sim_lab.oracles import reference as ref
 from skin_sim_node.model import FLAG_CONTACT, FLAG_OFF_SHEET, SkinModel, preset
 from skin_sim_node.model import layout as lo
 from skin_sim_node.model import modal_kernels as mk
-from skin_sim_node.model import reference as ref
 
 DEPTH_M = 2e-3
 
@@ -143,8 +143,8 @@ def test_paper_form_keeps_contact_at_the_tool_centre():
 
 
 def test_edge_command_prints_the_figures():
-    """``python -m skin_sim_node.validation.edge``: the layered form's drop per 0.1 mm is under 5 %, the paper's 100 %."""
-    from skin_sim_node.validation import edge
+    """``python -m skin_sim_lab.validation.edge``: the layered form's drop per 0.1 mm is under 5 %, the paper's 100 %."""
+    from skin_sim_lab.validation import edge
 
     s = edge.sweep(preset("default"))
     assert s.largest_drop_n(1e-4)[0] < 0.05 * s.before_n and s.zero_from_m > 0.06

@@ -14,12 +14,12 @@ from conftest import kernel
 
 from msgs_schema.contact_model import fill_contact_model_from_tick, read_contact_model
 from msgs_schema.tissue import TANGENTIAL_STIFFNESS_N_PER_M
+from skin_sim_lab.perf import friction_path as fp
+from skin_sim_lab.perf.force_path import _plain_contact_model_msg, closed_loop_drag, device_drag, stick_flips
 from skin_sim_node.device.render import ContactRenderer, presliding_update
 from skin_sim_node.model import SkinModel
 from skin_sim_node.model import friction as fr
 from skin_sim_node.model.layout import OUT_ANCHORED, OUT_ZX, OUT_ZZ
-from skin_sim_node.perf import friction_path as fp
-from skin_sim_node.perf.force_path import _plain_contact_model_msg, closed_loop_drag, device_drag, stick_flips
 from skin_sim_node.session import HapticSession, SessionParams
 from skin_sim_node.tools import make_tool
 
@@ -326,7 +326,7 @@ def test_live_view_header_carries_the_friction_anchor(default_cfg):
 def test_closed_loop_press_kicked_sideways_settles_with_presliding():
     """The demo's press with the stylus in the loop, kicked sideways at 5 mm/s during the hold: the presliding law
     rings elastically (k_t times the stylus' excursion) and settles; issue 19's velocity law swings +-mu F_n."""
-    from skin_sim_node.perf.force_path import print_closed_loop_press
+    from skin_sim_lab.perf.force_path import print_closed_loop_press
 
     out = print_closed_loop_press()
     fmin, fmax, fx_max, fx_late, _, guard = out["presliding law"]

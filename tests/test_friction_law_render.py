@@ -1,7 +1,7 @@
 """The legacy velocity law in the local contact model (issue 19): ``F = F_n(x) (n - mu v_t / sqrt(|v_t|^2 + v_s^2))``,
 which the bridge's renderer evaluates at the device's velocity. Since issue 30 the node sends the presliding law
 (tests/test_friction.py); the velocity law stays as the figures' baseline, built from the node's models by
-:func:`skin_sim_node.perf.force_path.legacy_model`.
+:func:`skin_sim_lab.perf.force_path.legacy_model`.
 
 Pure and deterministic (no ROS graph, no wall clock): the message fields agree with the published force and its
 linearisation, the renderer's safety limits act on the law, the friction is passive (the bridge's energy observer),
@@ -17,10 +17,7 @@ import numpy as np
 import pytest
 
 from msgs_schema.contact_model import LocalModel, fill_contact_model_from_tick, read_contact_model
-from skin_sim_node.device.mapping import TOUCH_MAX_STIFFNESS_N_PER_M, TOUCH_PEAK_FORCE_N
-from skin_sim_node.device.render import ContactRenderer, friction_law_force, stable_damping_n_s_per_m
-from skin_sim_node.device.stylus import DeviceParams
-from skin_sim_node.perf.force_path import (
+from skin_sim_lab.perf.force_path import (
     CLOSED_LOOP_DRAG_S,
     LEGACY_SLIP_SPEED_M_S,
     _plain_contact_model_msg,
@@ -29,6 +26,9 @@ from skin_sim_node.perf.force_path import (
     legacy_model,
     stick_flips,
 )
+from skin_sim_node.device.mapping import TOUCH_MAX_STIFFNESS_N_PER_M, TOUCH_PEAK_FORCE_N
+from skin_sim_node.device.render import ContactRenderer, friction_law_force, stable_damping_n_s_per_m
+from skin_sim_node.device.stylus import DeviceParams
 from skin_sim_node.session import HapticSession, SessionParams
 from skin_sim_node.tools import make_tool
 

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from skin_sim_lab.validation import hyperelastic as h
+from skin_sim_lab.validation.large_deformation import SMALL_STRAIN_DEPTH_M, SMALL_STRAIN_TOL
+from skin_sim_lab.validation.references import AXI_REFERENCE_LEVEL, axisym
 from skin_sim_node.model import preset
 from skin_sim_node.model.calibration import LAYER_SOURCES as LAYER_DEFAULTS
-from skin_sim_node.validation import hyperelastic as h
-from skin_sim_node.validation.large_deformation import SMALL_STRAIN_DEPTH_M, SMALL_STRAIN_TOL
-from skin_sim_node.validation.references import AXI_REFERENCE_LEVEL, axisym
 
 
 def test_neo_hookean_tangent_is_the_derivative_of_the_stress():

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from conftest import kernel
 
+from skin_sim_lab.oracles import reference as ref
 from skin_sim_node.model import SkinModel
 from skin_sim_node.model import grid as gk
 from skin_sim_node.model import layout as lo
 from skin_sim_node.model import modal_kernels as mk
 from skin_sim_node.model import paper as pk
-from skin_sim_node.model import reference as ref
 
 K = np.array([9745.0, 130.0, 16.2])
 B = np.array([21.7, 0.29, 0.036])

@@ -9,13 +9,14 @@ from conftest import kernel
 from scipy.integrate import quad
 from scipy.special import j0, j1
 
-from skin_sim_node.model import SkinModel, physics, preset
+from skin_sim_lab.oracles import physics
+from skin_sim_lab.oracles import reference as ref
+from skin_sim_node.model import SkinModel, preset
 from skin_sim_node.model import friction as fr
 from skin_sim_node.model import layered as lk
 from skin_sim_node.model import layered_contact as lkc
 from skin_sim_node.model import layered_law as lkl
 from skin_sim_node.model import layout as lo
-from skin_sim_node.model import reference as ref
 from skin_sim_node.model.calibration import BONE_STIFFNESS, BONE_STRAIN, WALL_STRAIN
 
 

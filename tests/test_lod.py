@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from conftest import kernel
 
+from skin_sim_lab.oracles import reference as ref
+from skin_sim_lab.perf.bench_model import scene_path
 from skin_sim_node.model import FLAG_OFF_SHEET, SkinModel
 from skin_sim_node.model import grid as gk
 from skin_sim_node.model import modal_kernels as mk
-from skin_sim_node.model import reference as ref
 from skin_sim_node.model.modal import REFERENCE_MODES, level_for, shape_coefficients
-from skin_sim_node.perf.bench_model import scene_path
 from skin_sim_node.server.display import _moved
 
 ALL_OFF = {"lod.adaptive_modes": False, "lod.affected_layers": False, "lod.patch_only": False, "lod.idle": False}
@@ -198,7 +198,7 @@ def test_node_idle_does_no_kernel_work_and_heartbeats(tmp_path, ros_domain):
     from skin_sim_node.scenes import Scene
 
     domain = ros_domain
-    from skin_sim_node.perf.monitor import Monitor
+    from skin_sim_node.bags.monitor import Monitor
 
     with Scene(tmp_path / "logs", domain_id=domain) as scene:
         # a reader 1000 deep: a node stalled by the machine's load still sees every pose (the counts below are its)

@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 from scipy.sparse.linalg import spsolve
 
 from msgs_schema.tissue import TOOL_RADIUS_M
-from skin_sim_node.model import DEGENERATE_RETURN_S, SkinModel, classify, config_from_flat, physics, preset
+from skin_sim_lab.oracles import physics
+from skin_sim_node.model import DEGENERATE_RETURN_S, SkinModel, classify, config_from_flat, preset
 from skin_sim_node.model.calibration import PAPER_MODULI_PA, WALL_STRAIN, flat_punch_stiffness_n_per_m
 from skin_sim_node.model.config import ConfigError, default_flat
 from skin_sim_node.model.layered_law import DT_FLOOR_S, compression_law

@@ -9,12 +9,12 @@ import math
 import numpy as np
 import pytest
 
+from skin_sim_lab.oracles.needle_reference import NumpyNeedleModel
 from skin_sim_node.model import layout as lay
 from skin_sim_node.model import needle as needle_mod
 from skin_sim_node.model import needle_kernels as nk
 from skin_sim_node.model.config import preset
 from skin_sim_node.model.needle import NeedleModel, NeedleParams, warm_up
-from skin_sim_node.model.needle_reference import NumpyNeedleModel
 
 KERNELS = ("dimple_force", "needle_law_kernel", "needle_step_kernel", "reset_track", "rupture_insertion", "start_track")
 TICK_FIELDS = ("axial_n", "dimple_n", "cutting_n", "friction_n", "dimple_m", "insertion_m")

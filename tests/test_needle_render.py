@@ -1,5 +1,5 @@
 """The needle law at the device (issue 22, "At the device"): skin_sim_node/device/render.py's NeedleRender inside the
-renderer's safety chain, and the offline insertion of skin_sim_node/perf/needle_device.py (no scheduler, no clock)."""
+renderer's safety chain, and the offline insertion of skin_sim_lab/perf/needle_device.py (no scheduler, no clock)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from msgs_schema.contact_model import LocalModel, NeedleLaw
+from skin_sim_lab.perf import needle_device as nd
 from skin_sim_node.cli import COMMANDS
 from skin_sim_node.device.render import ContactRenderer, NeedleRender
-from skin_sim_node.perf import needle_device as nd
 
 U = (0.0, 0.0, -1.0)
 
@@ -161,4 +161,4 @@ def test_offline_force_scale_scales_the_vector_before_the_clamp():
 
 
 def test_the_cli_registers_needle_device():
-    assert COMMANDS["needle-device"][0] == "skin_sim_node.perf.needle_device"
+    assert COMMANDS["needle-device"][0] == "skin_sim_lab.perf.needle_device"

@@ -133,7 +133,7 @@ def test_contact_model_message_carries_the_needle_law():
 
 
 def test_needle_check_passes_its_data_checks(capsys):
-    from skin_sim_node.validation import needle_check
+    from skin_sim_lab.validation import needle_check
 
     assert needle_check.main([]) == 0
     out = capsys.readouterr().out

@@ -69,7 +69,7 @@ def test_server_modules_import_without_the_lab_extra(tmp_path):
 
 def test_the_blocker_blocks(tmp_path):
     """The same subprocess fails for a module that needs the lab extra at import (the FEM reference)."""
-    r = _run(_BLOCKER.format(blocked=LAB_ONLY, modules=("skin_sim_node.validation.fem",)), tmp_path, ROOT)
+    r = _run(_BLOCKER.format(blocked=LAB_ONLY, modules=("skin_sim_lab.validation.fem",)), tmp_path, ROOT)
     assert r.returncode != 0 and "skfem is blocked" in r.stderr, r.stderr[-3000:]
 
 
@@ -79,7 +79,7 @@ def test_a_non_editable_install_finds_the_presets(tmp_path):
     src.mkdir()
     for name in ("pyproject.toml", "README.md"):
         shutil.copy(ROOT / name, src / name)
-    for pkg in ("skin_sim_node", "msgs_schema"):
+    for pkg in ("skin_sim_node", "msgs_schema", "skin_sim_lab"):
         shutil.copytree(ROOT / pkg, src / pkg, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc"))
     target = tmp_path / "site"
     pip = [
@@ -98,6 +98,7 @@ def test_a_non_editable_install_finds_the_presets(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     shipped = sorted(p.name for p in (target / "skin_sim_node" / "config").glob("*.yaml"))
     assert shipped == ["default.yaml", "isotropic.yaml", "needle.yaml", "paper.yaml"]
+    assert (target / "skin_sim_lab" / "perf" / "bench_model.py").is_file()  # the lab ships beside the runtime
     code = (
         "import skin_sim_node, skin_sim_node.scenes as sc\n"
         "from skin_sim_node.model import preset\n"

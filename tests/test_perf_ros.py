@@ -19,8 +19,8 @@ import pytest
 rclpy = pytest.importorskip("rclpy")
 
 from msgs_schema.qos import subscription  # noqa: E402
-from skin_sim_node.perf.bench_node import period_stats  # noqa: E402
-from skin_sim_node.perf.soak import GapCounter, growth_pct, run_soak  # noqa: E402
+from skin_sim_lab.perf.bench_node import period_stats  # noqa: E402
+from skin_sim_lab.perf.soak import GapCounter, growth_pct, run_soak  # noqa: E402
 from skin_sim_node.ros_util import LoopTiming, PeriodicLoop, set_realtime  # noqa: E402
 from skin_sim_node.scenes import DEFAULT_PARAMS, REPO, Scene  # noqa: E402
 
@@ -88,7 +88,7 @@ def _fifo_threads(pid: int) -> int:
 @pytest.mark.skipif(shutil.which("setpriv") is None, reason="needs setpriv (util-linux) to drop CAP_SYS_NICE")
 def test_node_rt_priority_is_opt_in_and_degrades_with_a_warning(tmp_path):
     """Two nodes ask for SCHED_FIFO: one may (root here), one runs without CAP_SYS_NICE. Both serve forces."""
-    from skin_sim_node.perf.monitor import Monitor
+    from skin_sim_node.bags.monitor import Monitor
 
     with Scene(tmp_path, domain_id=int(os.environ["ROS_DOMAIN_ID"])) as scene:
         base = [
@@ -182,7 +182,7 @@ def test_dds_across_network_namespaces():
 def test_bench_timer_case_reports_periods_and_node_counts(tmp_path):
     """One short ``skin-sim bench`` jitter case end to end: its figures are those of the stamps it recorded and of
     the node's own diagnostics (recomputed here), whatever the machine's load made of them."""
-    from skin_sim_node.perf.bench_node import diag_counts, run_case
+    from skin_sim_lab.perf.bench_node import diag_counts, run_case
 
     r = run_case("node-timer", 2.0, 1000.0, tmp_path, ("-p", "display_rate_hz:=0.0"), settle_s=1.0, keep_stamps=True)
     assert r["samples"] > 100 and r["wrenches"] == len(r["stamps_ns"])
@@ -194,7 +194,7 @@ def test_bench_timer_case_reports_periods_and_node_counts(tmp_path):
 
 
 def test_diag_counts_sums_the_windows_after_the_first():
-    from skin_sim_node.perf.bench_node import diag_counts
+    from skin_sim_lab.perf.bench_node import diag_counts
 
     def d(total, missed, late, hz):
         return {
@@ -214,7 +214,7 @@ def test_diag_counts_sums_the_windows_after_the_first():
 
 def test_scale_one_session_in_its_namespace(tmp_path):
     """``skin-sim scale`` with one namespaced session: its diagnostics arrive (under its namespace) and count ticks."""
-    from skin_sim_node.perf.scale import run_scale
+    from skin_sim_lab.perf.scale import run_scale
 
     rows = run_scale(1, 3.0, 1000.0, "timer", ["display_rate_hz:=0.0"], tmp_path)
     s = rows[0]["per_session"][0]
@@ -222,7 +222,7 @@ def test_scale_one_session_in_its_namespace(tmp_path):
 
 
 def test_progress_prints_a_line_per_stage_with_the_remaining_estimate(capsys):
-    from skin_sim_node.perf.bench_node import Progress
+    from skin_sim_lab.perf.bench_node import Progress
 
     p = Progress([30.0, 60.0, 30.0], "test")
     for name, est in (("a", 30.0), ("b", 60.0), ("c", 30.0)):

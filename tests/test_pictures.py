@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from skin_sim_lab.viz.figures import press
 from skin_sim_node.bags.inputs import InputOptions, read_inputs
 from skin_sim_node.bags.offline import replay
+from skin_sim_node.bags.plots import punch_face_gap_m
 from skin_sim_node.bags.report import _shaded_ms, depth_layer
 from skin_sim_node.model import SkinModel, preset
-from skin_sim_node.viz.figures import press
-from skin_sim_node.viz.plots import punch_face_gap_m
 
 DATA = Path(__file__).parent / "data"
 

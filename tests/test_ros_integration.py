@@ -35,7 +35,7 @@ def scene(tmp_path):
 
 @pytest.fixture
 def monitor():
-    from skin_sim_node.perf.monitor import Monitor
+    from skin_sim_node.bags.monitor import Monitor
 
     m = Monitor(name=f"test_monitor_{os.getpid()}")
     yield m
@@ -223,7 +223,7 @@ def test_mesh_keeps_coming_while_the_tissue_moves(scene, motion):
     """tissue/mesh keeps coming while the tissue changes, under a circle drag and a slow press (which changes the
     grid only about 20 times a second). The rate itself is scheduling, not logic: :func:`mesh_due` is tested on a
     clock of its own (tests/test_display.py) and the measured rate is printed here."""
-    from skin_sim_node.perf.monitor import Monitor
+    from skin_sim_node.bags.monitor import Monitor
 
     start_node(scene, "mesh_rate_hz:=5.0")
     mon = Monitor(name=f"test_mesh_{os.getpid()}", mesh=True)

@@ -5,8 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from skin_sim_node.model import preset
-from skin_sim_node.solvers import (
+from skin_sim_lab.solvers import (
     ImplicitSolver,
     LeapfrogSolver,
     MassSpringSolver,
@@ -18,8 +17,9 @@ from skin_sim_node.solvers import (
     membrane_from_layer,
     static_indentation,
 )
-from skin_sim_node.solvers import kernels as sk
-from skin_sim_node.solvers import reference as ref
+from skin_sim_lab.solvers import kernels as sk
+from skin_sim_lab.solvers import reference as ref
+from skin_sim_node.model import preset
 from tests.conftest import kernel
 
 MEM = Membrane(0.06, 0.05, 1.2, 3.0, damping_n_s_per_m3=40.0, foundation_n_per_m3=500.0)
@@ -131,7 +131,7 @@ def test_modal_solver_single_mode_matches_closed_form():
 def test_modal_solver_static_load_matches_the_discrete_static_solve_and_truncates():
     import scipy.sparse.linalg as spla
 
-    from skin_sim_node.solvers.membrane import stiffness_per_area
+    from skin_sim_lab.solvers.membrane import stiffness_per_area
 
     nx = ny = 31
     g = grid_spec(MEM, nx, ny)

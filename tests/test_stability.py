@@ -11,8 +11,18 @@ import numpy as np
 import pytest
 
 from msgs_schema.tissue import TOOL_RADIUS_M
+from skin_sim_lab.oracles import physics
+from skin_sim_lab.stability.haptic_loop import (
+    Wall,
+    colgate_k_max,
+    hold_path,
+    linear_k_max,
+    rendered_stiffness,
+    run_loop,
+    wall_point,
+)
 from skin_sim_node.device.passivity import PassivityController
-from skin_sim_node.model import SkinModel, physics, preset
+from skin_sim_node.model import SkinModel, preset
 from skin_sim_node.model.calibration import PAPER_MODULI_PA, flat_punch_stiffness_n_per_m
 from skin_sim_node.session import (
     CONTACT_SEPARATED,
@@ -27,15 +37,6 @@ from skin_sim_node.session import (
     TOOL_OFF_SHEET,
     HapticSession,
     SessionParams,
-)
-from skin_sim_node.stability.haptic_loop import (
-    Wall,
-    colgate_k_max,
-    hold_path,
-    linear_k_max,
-    rendered_stiffness,
-    run_loop,
-    wall_point,
 )
 from skin_sim_node.tools import make_tool
 
@@ -302,8 +303,8 @@ def test_stabilised_loop_device_energy_is_bounded_where_naive_grows():
 
 
 # --- numerical limits (shared solvers) ------------------------------------------------------------
-from skin_sim_node.solvers import Membrane, ModalSolver, membrane_from_layer  # noqa: E402
-from skin_sim_node.stability.numerics import (  # noqa: E402
+from skin_sim_lab.solvers import Membrane, ModalSolver, membrane_from_layer  # noqa: E402
+from skin_sim_lab.stability.numerics import (  # noqa: E402
     dermis_membrane,
     dt_limit_s,
     energy_growth,
@@ -354,7 +355,7 @@ def test_modal_integrator_bounded_and_energy_non_increasing_1e5_steps(default_cf
 # cores) compares real processes over DDS with these in-process verdicts. CI checks the verdicts themselves, with
 # the session, the simulated Touch and the passivity controller stepped in lock-step, and the benchmark's judging.
 def test_dds_points_in_process_verdicts_bracket_the_naive_limit_and_passivity_holds():
-    from skin_sim_node.stability.dds_confirm import DELAYS, POINTS, expected_kinds
+    from skin_sim_lab.stability.dds_confirm import DELAYS, POINTS, expected_kinds
 
     got = {p: expected_kinds(*p) for p in POINTS}
     for (rate, k, stab), stable in got.items():
@@ -365,8 +366,8 @@ def test_dds_points_in_process_verdicts_bracket_the_naive_limit_and_passivity_ho
 
 
 def test_dds_judge_agrees_mismatches_or_is_inconclusive():
-    from skin_sim_node.stability.dds_confirm import judge
-    from skin_sim_node.stability.haptic_loop import Verdict
+    from skin_sim_lab.stability.dds_confirm import judge
+    from skin_sim_lab.stability.haptic_loop import Verdict
 
     settled = Verdict(True, "settled", 0.01, 0.0, 0.7, float("nan"))
     cycling = Verdict(False, "limit cycle", 0.8, 1.1, 0.7, float("nan"))
@@ -379,9 +380,9 @@ def test_dds_judge_agrees_mismatches_or_is_inconclusive():
 
 
 # --- stiffening tissue: tangent at depth vs loop limits (issue 11 item 6) ---------------------------------------------
+from skin_sim_lab.stability import stiffening  # noqa: E402
+from skin_sim_lab.validation.methods import static_force_n  # noqa: E402
 from skin_sim_node.session import SessionParams  # noqa: E402
-from skin_sim_node.stability import stiffening  # noqa: E402
-from skin_sim_node.validation.methods import static_force_n  # noqa: E402
 
 
 @pytest.mark.parametrize("form", ["default", "paper"])
@@ -429,9 +430,9 @@ def test_pressing_the_tissue_deep_is_stable_with_passivity_and_the_rate_limit_ho
 def test_default_press_hold_settles_in_lock_step(default_cfg, delay_ticks):
     """The default tissue under the simulated Touch at 1 kHz, the device stepped by the test with one and two
     ticks of delay (what the DDS closed-loop test sees, without the scheduler): the hold settles within 2 %."""
+    from skin_sim_lab.stability.dds_confirm import classify_press
+    from skin_sim_lab.stability.haptic_loop import TissueEnv
     from skin_sim_node.device.trajectories import TRAJECTORIES
-    from skin_sim_node.stability.dds_confirm import classify_press
-    from skin_sim_node.stability.haptic_loop import TissueEnv
 
     tr = run_loop(TissueEnv(default_cfg), 1000.0, TRAJECTORIES["press_hold_release"], "none", delay_ticks)
     v = classify_press(tr.t_s, tr.force_n)

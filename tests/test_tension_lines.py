@@ -15,12 +15,12 @@ import yaml
 from conftest import kernel
 
 from msgs_schema.tissue import ANISOTROPY_RATIO
+from skin_sim_lab.oracles import reference as ref
+from skin_sim_lab.validation import tension_lines as tl
 from skin_sim_node.model import SkinModel, preset
 from skin_sim_node.model import grid as gk
 from skin_sim_node.model import modal_kernels as mk
-from skin_sim_node.model import reference as ref
 from skin_sim_node.model.modal import membrane_wavenumber2, modal_basis, shape_coefficients
-from skin_sim_node.validation import tension_lines as tl
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = yaml.safe_load((ROOT / "docs" / "data" / "tension_lines.yaml").read_text())

@@ -82,7 +82,7 @@ def test_irregular_timing_never_exceeds_the_instantaneous_force_at_the_deepest_p
     published force stays within 1.2 x the instantaneous elastic force at the deepest pose so far + 0.05 N: the
     static force with every layer at its unrelaxed modulus G(0) = 1 + g1 + g2 (viscoelastic arms unrelaxed: the most
     any press rate can give; a dt = 0 rigid damper gave 9 N where this bound is 2.6 N)."""
-    from skin_sim_node.validation.methods import static_force_n
+    from skin_sim_lab.validation.methods import static_force_n
 
     rng = np.random.default_rng(7)
     ve = default_cfg.viscoelastic

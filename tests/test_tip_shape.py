@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from skin_sim_lab.validation import sphere as sph
+from skin_sim_lab.validation.tip_check import flat_layers, model_curve
 from skin_sim_node.model import layered_contact as lkc
 from skin_sim_node.model import preset
-from skin_sim_node.validation import sphere as sph
-from skin_sim_node.validation.tip_check import flat_layers, model_curve
 
 
 @pytest.fixture(params=["compiled", "py_func"])
@@ -21,7 +21,7 @@ def geometry(request):
 def _cached(setup):
     path = sph.CACHE_DIR / f"sphere-{setup.key()}.npz"
     if not path.exists():
-        pytest.skip(f"sphere reference not cached ({path.name}): python -m skin_sim_node.validation.sphere")
+        pytest.skip(f"sphere reference not cached ({path.name}): python -m skin_sim_lab.validation.sphere")
     return sph.reference(setup, progress=False)
 
 
@@ -102,9 +102,9 @@ def test_model_sphere_is_softer_than_the_punch_and_monotone():
 def test_flat_punch_stiffness_follows_the_reference():
     """Issue 20 item 3a: the default's quasi-static dF/dd within 10 % of the punch reference over 0.5-3 mm, its
     small-strain stiffness within 5 % of the reference's linear-law stiffness, its force within 5 % (origin)."""
-    from skin_sim_node.validation.fit_law import curve_slope
-    from skin_sim_node.validation.references import axisym
-    from skin_sim_node.validation.tip_check import SMALL_STRAIN_DEPTH_M
+    from skin_sim_lab.validation.fit_law import curve_slope
+    from skin_sim_lab.validation.references import axisym
+    from skin_sim_lab.validation.tip_check import SMALL_STRAIN_DEPTH_M
 
     ref = axisym(None, progress=False)
     lin = axisym(None, law="linear", progress=False)
@@ -120,8 +120,8 @@ def test_flat_punch_stiffness_follows_the_reference():
 def test_fit_law_reproduces_the_defaults():
     """The committed fit script's chain at the schema defaults gives the same force as the model (same law, same
     thicknesses), so its printed fit is the source of the defaults."""
+    from skin_sim_lab.validation.fit_law import Chain
     from skin_sim_node.model import calibration as schema
-    from skin_sim_node.validation.fit_law import Chain
 
     ch = Chain()
     s = [schema.LOAD_SPREADING[la.name] for la in ch.cfg.layers]

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from skin_sim_lab.validation import calibrate, fem, metrics
+from skin_sim_lab.validation.scenarios import SUITE, paper_ramp_n
+from skin_sim_lab.validation.stats import ROWS, table_ii, table_markdown
 from skin_sim_node.model import preset
-from skin_sim_node.validation import calibrate, fem, metrics
-from skin_sim_node.validation.scenarios import SUITE, paper_ramp_n
-from skin_sim_node.validation.stats import ROWS, table_ii, table_markdown
 
 
 def test_fem_layered_column_matches_series_springs():

@@ -110,7 +110,7 @@ def _soak_figures(growth=0.05, gaps=0, stale=0):
 
 
 def test_soak_verdict_names_the_missed_aim():
-    from skin_sim_node.perf.soak import soak_checks
+    from skin_sim_lab.perf.soak import soak_checks
 
     good = soak_checks(_soak_figures())
     assert exit_code(good) == 0 and verdict_line("soak", good).startswith("soak PASS: node memory growth +0.050 %")
@@ -127,7 +127,7 @@ def _scale_row(n, missed):
 
 
 def test_scale_verdict_says_which_session_missed_how_much():
-    from skin_sim_node.perf.scale import scale_checks, sessions_held
+    from skin_sim_lab.perf.scale import scale_checks, sessions_held
 
     rows = [_scale_row(1, [0.05]), _scale_row(2, [0.02, 7.8])]
     assert sessions_held(rows) == 1
@@ -146,7 +146,7 @@ def test_scale_verdict_says_which_session_missed_how_much():
 def test_scale_progress_moves_within_a_stage_and_ends_at_its_total():
     import time
 
-    from skin_sim_node.perf.scale import WaitingProgress
+    from skin_sim_lab.perf.scale import WaitingProgress
 
     p = WaitingProgress([5.0, 5.0], "test")
     try:

@@ -7,12 +7,13 @@ import numpy as np
 import pytest
 from conftest import kernel
 
-from skin_sim_node.model import SkinModel, physics
+from skin_sim_lab.oracles import physics
+from skin_sim_lab.validation import viscoelastic as ve
+from skin_sim_node.model import SkinModel
 from skin_sim_node.model import layered_law as lkl
 from skin_sim_node.model import layout as lo
 from skin_sim_node.model.calibration import WALL_STRAIN
 from skin_sim_node.model.config import preset
-from skin_sim_node.validation import viscoelastic as ve
 
 
 @pytest.fixture(scope="module")

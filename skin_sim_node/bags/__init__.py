@@ -5,6 +5,8 @@
 - :mod:`.compare`: ``skin-sim compare``, diff two output bags with tolerances.
 - :mod:`.golden`: the golden bags under ``tests/data``.
 - :mod:`.io`, :mod:`.inputs`, :mod:`.offline`, :mod:`.report`, :mod:`.recorder`, :mod:`.live`: the parts.
+- :mod:`.monitor` (the in-process observer of a node) and :mod:`.plots` (cross-section figures): the demo and the
+  report use them, so they are runtime, not lab (issue 28).
 
 See ``docs/bags.md``.
 """

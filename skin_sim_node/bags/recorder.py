@@ -1,6 +1,6 @@
 """An in-process rclpy recorder: raw (CDR) subscriptions written to a bag, as ``ros2 bag record`` does.
 
-It owns its own rclpy context (like :class:`skin_sim_node.perf.monitor.Monitor`) and spins it in a
+It owns its own rclpy context (like :class:`skin_sim_node.bags.monitor.Monitor`) and spins it in a
 thread. Subscriptions are ``raw=True``: the callback gets the CDR bytes, which go to the bag
 unchanged with the local ROS-clock receive time as bag timestamp. A writer thread drains a
 queue into the :class:`BagWriter`, so callbacks never wait on the disk.

@@ -13,7 +13,7 @@ from .offline import ReplayResult
 def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
     """Write ``out_dir/report.png`` and ``out_dir/summary.json``; return the summary.
 
-    matplotlib (and :mod:`skin_sim_node.viz.plots`) is imported here, not at module level, so that
+    matplotlib (and :mod:`skin_sim_node.bags.plots`) is imported here, not at module level, so that
     :mod:`skin_sim_node.bags.replay` imports without it.
     """
     import matplotlib
@@ -21,7 +21,7 @@ def write_report(res: ReplayResult, out_dir: Path, title: str = "") -> dict:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..viz.plots import LAYER_COLOURS, cross_section_legend, draw_cross_section, draw_surface
+    from .plots import LAYER_COLOURS, cross_section_legend, draw_cross_section, draw_surface
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -12,7 +12,7 @@ Positions are reported in the device frame (frame_id ``device_base``).
 
 Pure: no ROS. The node that publishes it like a device driver is :mod:`skin_sim_node.device.sim_device`;
 there the bridge renders the force (and runs the passivity controller) and the device just applies it.
-The ``stabiliser`` option here serves the in-process loop sweep (:mod:`skin_sim_node.stability.haptic_loop`).
+The ``stabiliser`` option here serves the in-process loop sweep (:mod:`skin_sim_lab.stability.haptic_loop`).
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ class DeviceParams:
         application (0 or 1; a real servo loop applies a command from its next tick).
     substep_s : float
         Longest integration step inside one tick (s); 0 integrates each tick in one step. The
-        stability sweep (:mod:`skin_sim_node.stability.haptic_loop`) sets 50 us so that the stylus
+        stability sweep (:mod:`skin_sim_lab.stability.haptic_loop`) sets 50 us so that the stylus
         and hand behave as continuous-time physics and only the loop is sampled.
     stabiliser : str
         ``"none"`` or ``"passivity"``: the device-side passivity observer and controller of

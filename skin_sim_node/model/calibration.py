@@ -40,14 +40,14 @@ FITTED_STIFFENING_EXPONENT = STIFFENING_EXPONENT
 """``n`` of the compression law ``phi = ((1 - eps)^-n - 1) / n`` for every layer (the contract's literal default of
 ``layers.*.stiffening``): fitted, with :data:`LOAD_SPREADING` and :data:`WALL_STRAIN`, to the force *and* its slope
 ``dF/dd`` of the axisymmetric compressible neo-Hookean flat-punch reference (mesh level 3, default moduli, 0.1-3 mm) and
-its small-strain (linear-law) stiffness 326.3 N/m: ``python -m skin_sim_node.validation.fit_law --wall`` prints
+its small-strain (linear-law) stiffness 326.3 N/m: ``python -m skin_sim_lab.validation.fit_law --wall`` prints
 n = 1.2971 (issue 20; docs/validation.md, "Stiffness the hand feels"). The fit is of the chain's equilibrium elastic law
 (dampers relaxed)."""
 LOAD_SPREADING = {"epidermis": 1.0, "dermis": 2.514, "fat": 4.319}
 """Layered form: each layer's spring is ``s_i E_i A / h_i``, the column stiffness times this factor. The column
 ``E A / h`` ignores that the material round the punch confines the column and carries load sideways. Dermis and fat
 factors: fitted with :data:`FITTED_STIFFENING_EXPONENT` and :data:`WALL_STRAIN` to the flat-punch neo-Hookean
-reference's force and slope (``python -m skin_sim_node.validation.fit_law --wall``: 2.514 and 4.319; small-strain
+reference's force and slope (``python -m skin_sim_lab.validation.fit_law --wall``: 2.514 and 4.319; small-strain
 stiffness 327.6 N/m against the reference's 326.3, force within 2.0 % and ``dF/dd`` within 4.2 % over 0.1-3 mm, no layer
 strained beyond 0.9 at 3 mm). Both lie between a free column (1) and a laterally confined one (the constrained modulus
 ``(1 - nu) / ((1 + nu)(1 - 2 nu)) E = 8.8 E`` at ``nu = 0.48``), as a partly confined layer must. Force data fix the

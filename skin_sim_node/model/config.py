@@ -149,6 +149,15 @@ class TissueConfig:
         return config_from_flat(flat)
 
 
+def equilibrium(cfg: TissueConfig) -> TissueConfig:
+    """``cfg`` without the viscoelastic arms (``viscoelastic.g1 = g2 = 0``): its equilibrium (fully relaxed) law,
+    the one the hyperelastic references check.
+
+    In the runtime (not with the lab's checks in ``skin_sim_lab.oracles.physics``, which re-export it): the needle's
+    dimple chain (:mod:`.needle`) is built on it."""
+    return cfg.replace(**{"viscoelastic.g1": 0.0, "viscoelastic.g2": 0.0})
+
+
 def default_flat() -> dict[str, Any]:
     """Every tissue parameter at its default (:func:`msgs_schema.tissue.tissue_defaults`).
 

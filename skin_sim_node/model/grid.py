@@ -2,7 +2,7 @@
 
 Section II.D.4, step 6: the display grid is built only when asked for (:meth:`SkinModel.build_grid`),
 never on the force path. Kernel style as :mod:`.modal_kernels`; each is tested compiled and as
-``.py_func`` against :mod:`skin_sim_node.model.reference`. Rows are y, columns x; heights are z up.
+``.py_func`` against :mod:`skin_sim_lab.oracles.reference`. Rows are y, columns x; heights are z up.
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ the Prony arms) is :mod:`.layered_law`, the contact (the disk-averaged bounds, t
 Jacobians) :mod:`.layered_contact`; this module holds the tick (:func:`layered_step_kernel`, the recovery out of
 contact) that composes them with the membranes of :mod:`.modal_kernels`, and :class:`LayeredForm`, which binds it to
 one model's arrays. The kernels are ``@njit(cache=True, nogil=True)``, allocate nothing and are tested compiled and
-as ``.py_func`` against the NumPy/SciPy reference in :mod:`skin_sim_node.model.reference`.
+as ``.py_func`` against the NumPy/SciPy reference in :mod:`skin_sim_lab.oracles.reference`.
 """
 
 from __future__ import annotations

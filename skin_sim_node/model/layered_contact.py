@@ -138,7 +138,7 @@ half-space; on the default stack the neo-Hookean sphere reference over the flat-
 0.55-0.61 of Hertz's ratio at every depth from 0.05 to 3 mm (docs/validation.md, "Tip shapes"): the stiff epidermis
 shrinks the contact below ``sqrt(R d)`` at small depth (0.6 of it at 0.05 mm), the sphere's lower strains stiffen it
 less than the punch at large depth. Fitted to the model's own chain force against the sphere reference
-(least squares in ``log F`` at the check depths; ``python -m skin_sim_node.validation.tip_check --fit-sphere``)."""
+(least squares in ``log F`` at the check depths; ``python -m skin_sim_lab.validation.tip_check --fit-sphere``)."""
 
 
 @njit(cache=True, nogil=True)

@@ -10,7 +10,7 @@ the series Kelvin-Voigt chain solved by backward Euler, with the Prony arms of i
 
 Split out of :mod:`.layered` by job (the step kernel there composes this chain with the contact of
 :mod:`.layered_contact` and the membranes of :mod:`.modal_kernels`). ``@njit(cache=True, nogil=True)``, allocation free;
-tested compiled and as ``.py_func`` against :mod:`skin_sim_node.model.reference`.
+tested compiled and as ``.py_func`` against :mod:`skin_sim_lab.oracles.reference`.
 """
 
 from __future__ import annotations

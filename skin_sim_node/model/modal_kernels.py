@@ -7,7 +7,7 @@ Also the opening of a haptic tick, which both forms' tick kernels share (:func:`
 
 Kernel style as emg3d's ``core.py``: ``@njit(cache=True, nogil=True)``, plain arrays and scalars,
 outputs preallocated by the caller, so a haptic tick allocates nothing. Each kernel is tested compiled
-and as ``.py_func`` against :mod:`skin_sim_node.model.reference`. The grouped arrays (``sp``,
+and as ``.py_func`` against :mod:`skin_sim_lab.oracles.reference`. The grouped arrays (``sp``,
 ``bmodes``, ``mstate``, ...) are described in :mod:`.layout`.
 """
 

@@ -54,7 +54,7 @@ from msgs_schema.contact_model import NeedleLaw
 from msgs_schema.tissue import LAYER_NAMES
 
 from .calibration import CALIBRATED_TOOL_RADIUS_M, WALL_STRAIN, youngs_moduli_pa
-from .config import TissueConfig
+from .config import TissueConfig, equilibrium
 from .layout import (
     LP_EA,
     LP_N,
@@ -113,7 +113,6 @@ from .layout import (
     pack_layers,
 )
 from .needle_kernels import dimple_force, needle_law_kernel, needle_step_kernel, reset_track, rupture_insertion, start_track
-from .physics import equilibrium
 
 GAUGE_OUTER_DIAMETER_M = {18: 1.270e-3, 21: 0.819e-3, 25: 0.514e-3, 27: 0.413e-3, 30: 0.311e-3}
 """Nominal outer diameters of normal-wall hypodermic tubing (ISO 9626:2016, table 1, nominal OD)."""

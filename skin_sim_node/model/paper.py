@@ -4,7 +4,7 @@ Layers the tool reaches (Fig 3) share the depth by the iso-stress (Reuss) split 
 elements with one common velocity (eqs 4-8, Table I, with the typos corrected: docs/model.md);
 each engaged layer's membrane takes the indentation shape of its compression (eq 3), the others
 return freely (eq 2, eq 9). Kernels in the style of :mod:`.modal_kernels`, each tested compiled and
-as ``.py_func`` against :mod:`skin_sim_node.model.reference`; :class:`PaperForm` binds them to one
+as ``.py_func`` against :mod:`skin_sim_lab.oracles.reference`; :class:`PaperForm` binds them to one
 model's arrays.
 """
 

@@ -2,7 +2,7 @@
 
 One node and one mock tool (looping ``press_all_layers``) run throughout. Phases alternate:
 view closed; the ``skin-sim view`` process alone (subscribed, no page); view open (the process plus
-a headless Chromium showing the page), ``--cycles`` times. An observer (``perf.bench_node.StreamObserver``, newest sample only, as
+a headless Chromium showing the page), ``--cycles`` times. An observer (``bags.monitor.StreamObserver``, newest sample only, as
 a device sees it) takes pose-to-force latency from each wrench: its stamp is the stamp of the pose
 it answers (input loop mode), so ``arrival - stamp`` is the pose-to-force latency at a device.
 Printed: per phase and pooled, median and p99 latency, the node's missed slots and rate (its
@@ -43,7 +43,7 @@ def _latency(records, t_from_ns: int) -> np.ndarray:
 
 
 def run(duration_s: float, cycles: int, out: Path, rate_hz: float) -> dict:
-    from ..perf.bench_node import StreamObserver
+    from ..bags.monitor import StreamObserver
     from .browser import Browser
 
     phases = []
