@@ -62,7 +62,7 @@ def test_a_solve_missing_from_a_tracked_cache_is_stored_under_out(tmp_path, monk
     --docs (``WRITE_DOCS``)."""
     import numpy as np
 
-    from skin_sim_node.validation import cache
+    from skin_sim_lab.validation import cache
 
     monkeypatch.chdir(tmp_path)
     tracked = cache.DOCS / "validation" / "fem_cache" / "issue29-not-a-real-setup.npz"
@@ -94,7 +94,7 @@ def test_prune_cache_without_docs_is_refused(tmp_path):
 def test_long_chart_says_its_stages_and_expected_duration(tmp_path, capsys):
     """Issue 29 item 4: chart validation ran past 7 minutes with no expected duration. Its stages print as they start;
     the expected duration is this machine's last complete run (none on a first run, and it says so)."""
-    from skin_sim_node.validation.charts import Progress, duration
+    from skin_sim_lab.validation.charts import Progress, duration
 
     record = tmp_path / "times" / "all.json"
     first = Progress("chart validation", 2, record)

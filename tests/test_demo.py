@@ -97,7 +97,7 @@ def test_picture_interfaces_never_above_the_deformed_layer_above():
     """Issue 29 item 7: each interface is drawn clipped to the deformed layer above it and the stack's bottom."""
     import numpy as np
 
-    from skin_sim_node.viz.plots import clipped_layer_tops
+    from skin_sim_node.bags.plots import clipped_layer_tops
 
     surface = np.array([-2.6e-3, -1.0e-3, 0.0])
     dermis_top = np.array([-2.0e-3, -1.1e-3, -75e-6])  # above the surface under the punch: a negative epidermis
@@ -122,8 +122,8 @@ def test_drawn_cross_section_keeps_every_interface_below_the_surface(tmp_path):
 
     from skin_sim_node.bags.inputs import InputOptions, read_inputs
     from skin_sim_node.bags.offline import replay
+    from skin_sim_node.bags.plots import draw_cross_section
     from skin_sim_node.scenes import DEFAULT_PARAMS
-    from skin_sim_node.viz.plots import draw_cross_section
 
     inputs = read_inputs(Path(__file__).parent / "data" / "press_hold_release" / "input", InputOptions())
     res = replay(inputs, DEFAULT_PARAMS, None, 0.0)
