@@ -404,7 +404,9 @@ def budget_figures(ph: dict, res: dict) -> None:
         changes = int(ne.get("rate_changes_total", 0)) - int(ns.get("rate_changes_total", 0)) if ne else 0
         p["rate_changes"] = changes if changes >= 0 else int(ne.get("rate_changes_total", 0))  # a live set restarts it
         rate = min(p["node_answers_per_s"], 1000.0)
-        p["messages_per_tick"] = device_tick_messages(max(rate, 0.0), in_process=res.get("with_node", False))
+        bd = end.get("bridge", {})
+        twist = int(bd.get("twists_total", 1)) > 0  # the bridge reads measured_cv only when a model needs it
+        p["messages_per_tick"] = device_tick_messages(max(rate, 0.0), device_twist=twist, in_process=res.get("with_node", False))
     ph["steady"]["echo_pct"] = res["echo_pct"]
 
 

@@ -208,11 +208,17 @@ class BridgeNode(DeviceNode):
         )
         self._servo_subs: list[tuple] = []
         cf_key = MEASURED_FORCE[p.convention]
-        readers = ((twist_key, self._on_device_twist), (cf_key, self._on_device_force), (pose_key, self._on_device_pose))
-        for key, handler in readers:
+        # the device's velocity only when the rendered law needs it (read_velocity auto: a model with a damping term
+        # or the velocity friction law; the presliding friction and the passivity controller work from positions)
+        self._velocity_reader = (twist_key, dev(twist_key) if twist_key else "", depth)
+        self._reading_velocity = False
+        read_now = bool(twist_key) and (p.read_velocity == "always" or p.forward_twist)
+        readers = ((twist_key if read_now else None, self._on_device_twist), (cf_key, self._on_device_force))
+        for key, handler in (*readers, (pose_key, self._on_device_pose)):
             if key:
                 sub = subscription(self._servo_node, key, _never_called, name=dev(key), depth=depth, raw=True)
                 self._servo_subs.append((sub, handler))
+        self._reading_velocity = read_now
         self._twists: dict[int, tuple] = {}
         self._forces: dict[int, np.ndarray] = {}
         self._forward = AnswerThrottle(math.inf)  # the node's announced answer period (every pose until it says)
@@ -324,18 +330,18 @@ class BridgeNode(DeviceNode):
         prio = self.p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0
         if prio > 0:
             set_realtime(prio)
-        subs = self._servo_subs
-        pose_sub = subs[-1][0]  # the tick: a device pose (its velocity and applied force are taken with it)
+        pose_sub = self._servo_subs[-1][0]  # the tick: a device pose (its velocity and applied force are taken with it)
+        pose_handle, wake_handle = pose_sub.handle, self._servo_wake.handle  # once: rclpy's properties cost per call
         ws = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self.context.handle)
         next_check = time.monotonic_ns() + self._watchdog_period_ns
         failed: set[str] = set()
         while not self._servo_stop.is_set() and self.context.ok():
             try:
                 ws.clear_entities()
-                ws.add_subscription(pose_sub.handle)
-                ws.add_guard_condition(self._servo_wake.handle)
+                ws.add_subscription(pose_handle)
+                ws.add_guard_condition(wake_handle)
                 ws.wait(max(next_check - time.monotonic_ns(), 0))
-                for sub, handler in subs:
+                for sub, handler in self._servo_subs:  # read each tick: a velocity reader may join (read_velocity auto)
                     while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
                         handler(taken[0])
                 if time.monotonic_ns() >= next_check:
@@ -467,6 +473,8 @@ class BridgeNode(DeviceNode):
                 if why is None and m.answer_period_s * 1e9 != self._forward.period_ns:
                     self._forward.set_period_s(m.answer_period_s)  # the node's rate now: forward poses this often
         if why is None and m is not None:
+            if not self._reading_velocity and self.p.read_velocity == "auto" and _needs_velocity(m):
+                self._read_velocity(m)
             self._check_needle_peak(m)
             self.counts["models"] += 1
             self._win["models"] += 1
@@ -478,6 +486,17 @@ class BridgeNode(DeviceNode):
         if kind not in self._rejected_logged:
             self._rejected_logged.add(kind)
             self.get_logger().warning(f"contact model dropped: {why} (logged once per kind)")
+
+    def _read_velocity(self, m: LocalModel) -> None:
+        """Start reading the device's velocity (the first model whose law needs it; one line in the log)."""
+        key, name, depth = self._velocity_reader
+        self._reading_velocity = True
+        if not key:
+            return
+        sub = subscription(self._servo_node, key, _never_called, name=name, depth=depth, raw=True)
+        self._servo_subs = [(sub, self._on_device_twist), *self._servo_subs]  # before the poses it belongs to
+        law = "a damping term" if m.damping_n_s_per_m.any() else "the velocity friction law"
+        self.get_logger().info(f"the contact model renders {law}: reading the device's velocity ({name}) from now on")
 
     def _check_needle_peak(self, m: LocalModel) -> None:
         """Say once when a needle's puncture peak ahead, times the force scale, is above the device clamp: the clamp
@@ -618,6 +637,12 @@ class BridgeNode(DeviceNode):
             f"{c['zeros']} watchdog zero commands, {c['non_finite_pose']} non-finite poses; force scale {self.p.force_scale:g}, "
             f"{self.renderer.counts_clamped} ticks clamped at {self.p.max_force_n:g} N"
         )
+
+
+def _needs_velocity(m: LocalModel) -> bool:
+    """Whether rendering ``m`` needs the device's velocity: a ``D`` term, or the velocity friction law (a friction
+    coefficient without the presliding stiffness). The default layered model's presliding friction needs none."""
+    return bool(m.damping_n_s_per_m.any()) or (m.friction_coefficient > 0.0 and m.tangential_stiffness_n_per_m <= 0.0)
 
 
 def _remember(memory: dict, stamp_ns: int, value) -> None:

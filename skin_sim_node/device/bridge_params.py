@@ -84,6 +84,15 @@ BRIDGE_PARAMS: tuple[Param, ...] = (
         1.0,
     ),
     Param(
+        "read_velocity",
+        "auto",
+        "read the driver's measured velocity (CRTK measured_cv, one more message per device tick): auto, from the first "
+        "contact model whose law needs it (a damping term, or the velocity friction law: the paper form, a "
+        "legacy server); the default layered model's presliding friction and the passivity controller work from "
+        "positions. always; never",
+        choices=("auto", "always", "never"),
+    ),
+    Param(
         "node_ns",
         DEFAULTS["node_ns"],
         "namespace of the node's topics (tool/pose, tool/twist, tool/contact_model, tool/wrench), e.g. /skin1; "

@@ -100,12 +100,13 @@ class ServerLink:
         next_ns = time.monotonic_ns() + period_ns  # the first after one period: the bridge finishes its start first
         ws = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self.ctx.handle)
         sub = self._sub
+        sub_handle, wake_handle = sub.handle, self._wake.handle  # once: rclpy's properties cost per call
         while not self._stop.is_set() and self.ctx.ok():
             timeout = max(next_ns - time.monotonic_ns(), 0) if period_ns else 50_000_000
             try:
                 ws.clear_entities()
-                ws.add_subscription(sub.handle)
-                ws.add_guard_condition(self._wake.handle)
+                ws.add_subscription(sub_handle)
+                ws.add_guard_condition(wake_handle)
                 ws.wait(timeout)
                 while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
                     self._on_model(taken[0])

@@ -239,6 +239,8 @@ class _Slot:
 def cap_spectral_norm(A: np.ndarray, limit: float) -> np.ndarray:
     """``A`` scaled down as a whole so that its spectral norm (its largest gain, in any direction) is at most
     ``limit``; its direction structure is kept."""
+    if float(np.sqrt(np.sum(A * A))) <= limit:  # the Frobenius norm bounds the spectral one: no SVD needed
+        return A.copy()
     s = float(np.linalg.norm(A, 2))
     return A * (limit / s) if s > limit else A.copy()
 
