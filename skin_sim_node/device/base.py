@@ -23,7 +23,7 @@ from rclpy.parameter import Parameter
 
 from msgs_schema.spec import ConfigError, ParamSpec, check_names
 
-from ..ros_util import PeriodicLoop, run_nodes
+from ..ros_util import LoopTiming, PeriodicLoop, run_nodes
 from .mapping import parse_vec3
 
 HOUSEKEEPING_PERIOD_S = 0.05
@@ -238,10 +238,13 @@ class ScriptedNode(DeviceNode):
             o["exit_when_done"] = False
         return o
 
-    def start_loop(self, period_ns: int, tick, name: str) -> None:
-        """Run ``tick`` every ``period_ns`` on a :class:`~skin_sim_node.ros_util.PeriodicLoop` thread; start housekeeping."""
+    def start_loop(self, period_ns: int, tick, name: str, rt_priority: int = 0) -> None:
+        """Run ``tick`` every ``period_ns`` on a :class:`~skin_sim_node.ros_util.PeriodicLoop` thread (at SCHED_FIFO
+        ``rt_priority`` where allowed: one warning line when refused); start housekeeping."""
         self.finished = False
-        self._loop = PeriodicLoop(period_ns, tick, name=name)
+        self._loop = PeriodicLoop(
+            period_ns, tick, name=name, timing=LoopTiming(rt_priority=rt_priority), on_warning=self.get_logger().warning
+        )
         self.create_timer(HOUSEKEEPING_PERIOD_S, self._housekeeping)
         self._loop.start()
 

@@ -75,6 +75,15 @@ class SimDeviceNode(ScriptedNode):
         Param("hand_damping_n_s_per_m", DeviceParams.hand_damping_n_s_per_m, "hand damper (N*s/m)", cli=""),
         Param("max_force_n", DeviceParams.max_force_n, "force saturation (N): Touch peak 3.3 N", cli=""),
         Param("substep_s", DeviceParams.substep_s, "longest stylus integration substep (s); 0: one per tick"),
+        Param(
+            "rt_priority",
+            90,
+            "SCHED_FIFO priority of the simulated Touch's servo loop, 1-99 (0: normal scheduling): a driver's servo "
+            "thread runs real-time (OpenHaptics' scheduler, sawSensablePhantom), above the bridge's 80; refused "
+            "without root/CAP_SYS_NICE (one warning, then normal priority)",
+            0,
+            99,
+        ),
     )
 
     TRANSPORT_NOTE = ""
@@ -125,7 +134,7 @@ class SimDeviceNode(ScriptedNode):
         )
         if self.TRANSPORT_NOTE:
             self.get_logger().info(f"transports: {self.TRANSPORT_NOTE}")
-        self.start_loop(self._period_ns, self._tick, name="sim-device")
+        self.start_loop(self._period_ns, self._tick, name="sim-device", rt_priority=self.p.rt_priority)
 
     def housekeeping(self) -> None:
         """Timer callback: warn once when no force command has arrived well after the start delay."""
