@@ -11,6 +11,7 @@ command line and runs the node with :func:`skin_sim_node.ros_util.run_nodes`.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from dataclasses import dataclass, field
 from types import SimpleNamespace
@@ -23,7 +24,7 @@ from rclpy.parameter import Parameter
 
 from msgs_schema.spec import ConfigError, ParamSpec, check_names
 
-from ..ros_util import LoopTiming, PeriodicLoop, run_nodes
+from ..ros_util import LoopTiming, PeriodicLoop, run_nodes, set_pid_realtime
 from .mapping import parse_vec3
 
 HOUSEKEEPING_PERIOD_S = 0.05
@@ -242,6 +243,11 @@ class ScriptedNode(DeviceNode):
         """Run ``tick`` every ``period_ns`` on a :class:`~skin_sim_node.ros_util.PeriodicLoop` thread (at SCHED_FIFO
         ``rt_priority`` where allowed: one warning line when refused); start housekeeping."""
         self.finished = False
+        if rt_priority > 1:  # every thread now (DDS, the executor) one below the loop: no priority inversion through
+            # the GIL (a normal-priority thread holding it, preempted by a busy process, would hold the loop up)
+            why = set_pid_realtime(os.getpid(), rt_priority - 1)
+            if why:
+                self.get_logger().warning(why)
         self._loop = PeriodicLoop(
             period_ns, tick, name=name, timing=LoopTiming(rt_priority=rt_priority), on_warning=self.get_logger().warning
         )
