@@ -135,6 +135,9 @@ def test_server_rate_steps_down_on_recorded_stamps_and_announces_the_period():
     first = stamps[stamps < stamps[0] + 1.01e9]  # two windows: the recording is at 1 kHz, not at the next rung
     msgs = [m for s in first if (m := rate.answered(int(s), int(s), int(s)))]
     assert len(msgs) == 1 and msgs[0].startswith("server rate 1000 -> 500 Hz") and rate.answer_period_s == 0.002
+    t = int(first[-1])
+    assert rate.due(t + 1_000_000, t) and rate.due(t + 2_000_000, t)  # announced at once, not yet applied: no skip
+    assert rate.due(t + 60_000_000, t + 60_000_000) and not rate.due(t + 61_000_000, t + 61_000_000)  # applied
     assert rate.diagnostics()["server_rate_hz"] == f"{rate.rate_hz:.1f}"
     for policy, depth in (("fixed", 1), ("follow", 500)):
         q = SimpleNamespace(**{**vars(p), "rate_policy": policy, "input_queue_depth": depth})

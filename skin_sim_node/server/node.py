@@ -292,7 +292,7 @@ class SkinSimNode(Node):
         with self._lock:
             rx = time.perf_counter_ns()
             rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx, quat=quat)
-            if rejected is None and self.params.loop_mode == "input" and self._rate.due(stamp):
+            if rejected is None and self.params.loop_mode == "input" and self._rate.due(stamp, rx):
                 self._tick(rx, pose_driven=True)
 
     def _on_twist(self, data: bytes) -> None:
