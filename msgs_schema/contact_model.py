@@ -258,7 +258,7 @@ def fill_contact_model_from_tick(
     the friction's ``F_n0 = n . f0`` and ``grad F_n = K^T n`` come from the same published tangent, with its anchor,
     stiffness (scaled) and slip level ``mu F_n0``, so the law gives ``f0`` at ``x0`` and its linearisation there is
     ``K``. A stale tick (no
-    valid tool input; the session reports the tool lifted 1 m away) sends a zero model valid anywhere
+    valid tool input for ``watchdog_s``; the tissue keeps its state, issue 31) sends a zero model valid anywhere
     (:data:`STALE_RADIUS_M`): the node says "no force" and the bridge renders that, fresh, rather than fading.
     """
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)

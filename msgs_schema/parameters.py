@@ -34,8 +34,16 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         "watchdog_s", float, 0.05, "s",
-        "input age after which force goes to zero and the tissue is released: 50 ticks at 1 kHz, "
-        "well past DDS jitter yet shorter than a hand can react to (~0.1 s)", min=0.001, max=10.0,
+        "input age after which the published force goes to zero (the tissue keeps its state, stall_hold_s): 50 ticks "
+        "at 1 kHz, well past DDS jitter yet shorter than a hand can react to (~0.1 s)", min=0.001, max=10.0,
+    ),
+    ParamSpec(
+        "stall_hold_s", float, 2.0, "s",
+        "how long a stall in the tool input keeps the tissue's state (a needle's track and ruptures, viscoelastic "
+        "arms, friction anchor, patch) with the tool held at its last pose; past it the tool is taken as gone, the "
+        "tissue is released and the next pose restarts contact (0: at the watchdog). 2 s: 10 x the longest stall "
+        "measured over DDS on 2 cores (189 ms, issue 31), and 7 time constants of the slow viscoelastic arm "
+        "(0.28 s), which a held tissue has relaxed by then", min=0.0, max=3600.0, min_exclusive=False,
     ),
     ParamSpec(
         "max_stamp_age_s", float, 1.0, "s",
@@ -189,7 +197,7 @@ SESSION_ONLY_PARAMETERS: tuple[ParamSpec, ...] = (
 """Session limits that are not node parameters (the session's own; see :class:`SessionParams`)."""
 
 SESSION_KEYS = (
-    "tissue_frame", "watchdog_s", "max_stamp_age_s", "max_force_n", "teleport_distance_m", "workspace_radius_m",
+    "tissue_frame", "watchdog_s", "stall_hold_s", "max_stamp_age_s", "max_force_n", "teleport_distance_m", "workspace_radius_m",
     "max_tool_speed_m_s",
     "twist_max_skew_s", "max_force_rate_n_per_s",
 )  # fmt: skip
@@ -217,6 +225,7 @@ class NodeParamsFields:
     rate_hz: float
     display_rate_hz: float
     watchdog_s: float
+    stall_hold_s: float
     max_stamp_age_s: float
     max_force_n: float
     max_force_rate_n_per_s: float
@@ -250,6 +259,7 @@ class SessionParamsFields:
     the specs): what mypy sees, the class made from the specs at run time is what runs."""
 
     watchdog_s: float
+    stall_hold_s: float
     max_stamp_age_s: float
     max_force_n: float
     max_force_rate_n_per_s: float

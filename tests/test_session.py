@@ -13,6 +13,8 @@ from skin_sim_node.session import (
     NON_FINITE,
     RATE_ALLOWANCE_S,
     STALE_STAMP,
+    STALL_RELEASED,
+    STALL_RESUMED,
     STAMP_BACKWARDS,
     STAMP_DUPLICATE,
     STAMP_RESYNC,
@@ -81,13 +83,21 @@ def test_new_time_line_is_followed_after_resync(session):
     assert session.counts[STAMP_RESYNC] == 1 and res[-1][0] is None and res[-1][1] > 0
 
 
-def test_watchdog_zeroes_force_and_releases(session):
+def test_watchdog_zeroes_force_and_holds_the_tissue_then_releases_past_stall_hold(session):
+    """Issue 31: a stall is not a restart. The watchdog zeroes the published force at once, the tissue stays pressed
+    by the tool held at its last pose; only a stall past stall_hold_s takes the tool as gone and releases it."""
     res = feed(session, [(T0 + i * MS, -2e-3) for i in range(20)])
     assert res[-1][1] > 0
     now = T0 + 19 * MS
     for k in range(1, 80):
-        f = session.tick(now + k * MS, MS).force_z_n
-    assert f == 0.0 and session.stale and session.counts[WATCHDOG] == 1
+        r = session.tick(now + k * MS, MS)
+    assert r.force_z_n == 0.0 and r.stale and session.counts[WATCHDOG] == 1
+    assert session.model.driven.any() and r.x0_m == (0.0, 0.0, -2e-3)  # still pressed, where the tool was
+    assert session.model.force_vector_n[2] > 0.5 * res[-1][1]  # the tissue's own force: held, relaxing
+    hold_ms = int(session.params.stall_hold_s * 1e3)
+    for k in range(80, hold_ms + 80):
+        r = session.tick(now + k * MS, MS)
+    assert r.stale and r.x0_m[2] == 1.0 and session.counts[STALL_RELEASED] == 1
     assert not session.model.driven.any()
 
 
@@ -302,7 +312,7 @@ def _policy(**params):
 def test_input_policy_alone_decides_what_a_tick_runs_at():
     """No model: accepted poses are answered once, at the stamps' interval; a pose-less tick holds the pose."""
     pol, events = _policy()
-    assert pol.take(T0, MS)[:6] == (False, True, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0), 1e-3, True)  # no pose yet: stale, release
+    assert pol.take(T0, MS)[:6] == (False, True, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0), 1e-3, False)  # no pose yet: stale, lifted
     assert pol.on_pose(T0, "tissue", (0.0, 0.0, -1e-3), now_ns=T0, rx_ns=T0) is None
     first = pol.take(T0, MS)
     # the first pose restarts contact from the quasi-static state: one max_dt_s step, no rigid damper
@@ -318,20 +328,35 @@ def test_input_policy_alone_decides_what_a_tick_runs_at():
     assert pol.answered_stamp_ns == T0 + 4 * MS and events.take() == ()
 
 
-def test_input_policy_alone_watchdog_teleport_and_interval_clamp():
-    pol, events = _policy(watchdog_s=0.01, max_dt_s=0.005)
+def test_input_policy_alone_watchdog_stall_teleport_and_interval_parts():
+    pol, events = _policy(watchdog_s=0.01, max_dt_s=0.005, stall_hold_s=0.1)
     pol.on_pose(T0, "tissue", (0.0, 0.0, -1e-3), now_ns=T0, rx_ns=T0)
     pol.take(T0, MS)
-    stale = pol.take(T0 + 20 * MS, 20 * MS)  # past the watchdog: lifted off, released, relaxing in clamped steps
-    assert stale.stale and stale.release and stale.pos == (0.0, 0.0, 1.0) and stale.dt_s == 0.005
-    assert events.take() == (WATCHDOG,)  # a released tissue's clamped relaxation is no event
-    pol.on_pose(T0 + 21 * MS, "tissue", (0.05, 0.0, -1e-3), now_ns=T0 + 21 * MS, rx_ns=T0 + 21 * MS)  # 50 mm jump
-    jumped = pol.take(T0 + 21 * MS, MS)
-    assert jumped.answered and jumped.release and jumped.velocity == (0.0, 0.0, 0.0)
-    assert events.take() == (TELEPORT,) and events.counts == {WATCHDOG: 1, TELEPORT: 1}
-    pol.on_pose(T0 + 40 * MS, "tissue", (0.05, 0.0, -1e-3), now_ns=T0 + 40 * MS, rx_ns=T0 + 40 * MS)
-    gap = pol.take(T0 + 40 * MS, MS)  # an answered pose 19 ms after the last: clamped, and that is an event
-    assert gap.answered and gap.dt_s == 0.005 and events.take() == (TICK_CLAMPED,)
+    stale = pol.take(T0 + 20 * MS, 20 * MS)  # past the watchdog: force zero, the tool held where it was, no release
+    assert stale.stale and not stale.release and not stale.restart and stale.pos == (0.0, 0.0, -1e-3)
+    assert stale.dt_s == 0.005 and events.take() == (WATCHDOG,)  # the held tissue relaxes in clamped steps, no event
+    pol.on_pose(T0 + 30 * MS, "tissue", (0.0, 0.0, -1.2e-3), now_ns=T0 + 30 * MS, rx_ns=T0 + 30 * MS)
+    resumed = pol.take(T0 + 30 * MS, MS)  # the 30 ms gap less the 5 ms the held tick advanced, from the held pose
+    assert resumed.answered and not resumed.restart and not resumed.release and resumed.from_pos == (0.0, 0.0, -1e-3)
+    assert resumed.dt_s == pytest.approx(0.025) and resumed.rate_dt_ns == 30 * MS
+    assert events.take() == (STALL_RESUMED, TICK_CLAMPED)  # 25 ms is stepped in parts of max_dt_s
+    gone = pol.take(T0 + 131 * MS, MS)  # 101 ms without a pose (caller's clock): past stall_hold_s, the tool is gone
+    assert gone.stale and gone.release and gone.pos == (0.0, 0.0, 1.0) and events.take() == (WATCHDOG, STALL_RELEASED)
+    pol.on_pose(T0 + 140 * MS, "tissue", (0.0, 0.0, -1e-3), now_ns=T0 + 140 * MS, rx_ns=T0 + 140 * MS)
+    back = pol.take(T0 + 140 * MS, MS)  # the next pose restarts contact
+    assert back.restart and back.from_pos is None and back.dt_s == 0.005
+    pol.on_pose(T0 + 141 * MS, "tissue", (0.05, 0.0, -1e-3), now_ns=T0 + 141 * MS, rx_ns=T0 + 141 * MS)  # 50 mm jump
+    jumped = pol.take(T0 + 141 * MS, MS)
+    assert jumped.answered and jumped.release and jumped.restart and jumped.velocity == (0.0, 0.0, 0.0)
+    assert events.take() == (TELEPORT,)
+    pol.on_pose(T0 + 160 * MS, "tissue", (0.05, 0.0, -1e-3), now_ns=T0 + 160 * MS, rx_ns=T0 + 160 * MS)
+    gap = pol.take(T0 + 160 * MS, MS)  # an answered pose 19 ms after the last: stepped in parts, and that is an event
+    assert gap.answered and gap.dt_s == pytest.approx(0.019) and gap.from_pos == (0.05, 0.0, -1e-3)
+    assert events.take() == (TICK_CLAMPED,)
+    pol.on_pose(T0 + 300 * MS, "tissue", (0.05, 0.0, -1e-3))  # offline (no clock): a stamp gap past stall_hold_s
+    offline = pol.take(T0 + 300 * MS, MS)
+    assert offline.restart and offline.release and events.take() == (STALL_RELEASED,)
+    assert events.counts == {WATCHDOG: 2, STALL_RESUMED: 1, TICK_CLAMPED: 2, STALL_RELEASED: 2, TELEPORT: 1}
 
 
 def test_velocity_estimate_alone():

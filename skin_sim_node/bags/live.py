@@ -7,8 +7,9 @@ gets ``-p max_stamp_age_s:=0.0``; an ``--attach``-ed node must have been started
 The inputs are published by a process of its own (:mod:`.live_source`); this process records.
 Before the first recorded pose a discovery handshake publishes lifted poses (at the first
 pose's x, y, stamped 5 s before the bag) until the node answers one, then waits past the
-watchdog so the node has released the tissue: a lifted tool leaves the model at rest, the
-state the offline replay starts from. Within one stamp the twist is published first, so the
+watchdog: a lifted tool leaves the model at rest, the state the offline replay starts from, and
+the first recorded pose, 5 s of stamps later (past ``stall_hold_s``), restarts contact as the
+offline replay's first pose does. Within one stamp the twist is published first, so the
 node's tick uses it, as the offline tick does.
 """
 

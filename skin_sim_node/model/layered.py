@@ -206,7 +206,7 @@ def layered_step_kernel(
     tool_vx, tool_vy, tool_vz : float
         Tool velocity (m/s): unused (kept in the signature of the forms' tick kernels).
     restart : bool
-        Contact restarts (the first pose, after a stale spell or a teleport): the Prony arms are relaxed.
+        Contact restarts (the first pose, after a stall past ``stall_hold_s`` or a teleport): the Prony arms are relaxed.
     tool_x, tool_y, tool_z, dt, lp, sp, bmodes, bvec, blev, bk, mstate, lstate, istate, aux, sbuf, out
         As :func:`~.paper.paper_step_kernel`, which also returns the step flags.
     """

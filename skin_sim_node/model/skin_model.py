@@ -231,8 +231,8 @@ class SkinModel:
         along :attr:`contact_normal` in the layered form, whose full vector with friction is
         :attr:`force_vector_n`). ``dt`` (s) is the time since the previous tick; the release dynamics
         are exact for any ``dt >= 0`` and the layered form's chain is implicit (passive for any ``dt``).
-        ``restart``: contact restarts after an unknown time (a first pose, a stale spell, a teleport), so the layered
-        form's viscoelastic arms start relaxed.
+        ``restart``: contact restarts after an unknown time (a first pose, a stall past ``stall_hold_s``, a
+        teleport), so the layered form's viscoelastic arms start relaxed.
         """
         x, y, z = tool_xyz
         if self._idle_ok and z >= 0.0 and self._out[OUT_SETTLED]:

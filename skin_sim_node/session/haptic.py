@@ -37,7 +37,7 @@ from .events import (
     TOOL_OFF_SHEET,
     EventLog,
 )
-from .inputs import InputPolicy
+from .inputs import InputPolicy, TickInput
 from .limits import ForceLimits
 
 NO_CONTACT = normal_tangent(0.0, 0.0, 0.0, 0.0)
@@ -47,6 +47,30 @@ anew on each call (8 us of a 1 ms tick), so a tool builds its tangent only while
 STATE_CHECK_TICKS = 64
 """Every this many ticks the force limits also ask whether the model's energy is finite (a NaN can hide in
 a layer that does not touch the force)."""
+
+
+MAX_SUBSTEPS = 64
+"""Most parts one tick steps a long interval in (:func:`substeps`): 6.4 s at the default ``max_dt_s``, past the default
+``stall_hold_s`` (2 s, 20 parts); a longer interval (a raised ``stall_hold_s``) takes longer parts, which the
+backward-Euler chain and the modal membranes integrate stably (a stated bound on one tick's work: 64 steps of the
+costliest tool are about 2 ms)."""
+
+
+def substeps(dt_s: float, max_dt_s: float) -> int:
+    """How many parts an interval ``dt_s`` is stepped in: each at most ``max_dt_s``, at most :data:`MAX_SUBSTEPS`.
+
+    Parameters
+    ----------
+    dt_s, max_dt_s : float
+        The interval and the longest part (s); ``max_dt_s`` 0 steps in one.
+
+    Returns
+    -------
+    int
+    """
+    if max_dt_s <= 0.0 or dt_s <= max_dt_s:
+        return 1
+    return min(math.ceil(dt_s / max_dt_s - 1e-9), MAX_SUBSTEPS)
 
 
 @dataclass(frozen=True)
@@ -65,7 +89,8 @@ class TickResult:
     answered : bool
         This tick consumed a newly accepted pose (it answers that pose).
     x0_m : tuple of 3 float
-        Tool position the model ran at (tissue frame, m); ``z = 1 m`` (lifted off) when stale.
+        Tool position the model ran at (tissue frame, m): when stale the last pose, held through a stall, or lifted
+        to ``z = 1 m`` once the stall outlasted ``stall_hold_s``.
     velocity_m_s : tuple of 3 float
         Tool velocity the model ran at (m/s).
     force_n : tuple of 3 float
@@ -84,7 +109,8 @@ class TickResult:
     events : tuple of str
         Rejection, safety and regime event kinds raised since the previous tick (each occurrence).
     stale : bool
-        The input watchdog fired: the force is zero and the tissue released.
+        The input watchdog fired: the published force is zero (the tissue keeps its state through a stall of up to
+        ``stall_hold_s``, the tool held at its last pose).
     idle : bool
         The model skipped the kernel (tissue at rest, tool off it).
     tangent : ContactTangent
@@ -187,7 +213,7 @@ class HapticSession:
     counts = _part("_event", "counts", "Occurrences of each rejection and safety event (``collections.Counter``).")
     regime_counts = _part("_event", "regime_counts", "Occurrences of each model-regime event (:data:`REGIME_EVENTS`).")
     force_n = _part("limits", "force_n", "The magnitude of the last published force (N).")
-    stale = _part("inputs", "stale", "The input watchdog fired at the last tick (force zero, tissue released).")
+    stale = _part("inputs", "stale", "The input watchdog fired at the last tick (published force zero).")
     pose_rx_ns = _part("inputs", "pose_rx_ns", "Caller-clock arrival time of the last accepted pose (None before any).")
     pose_stamp_ns = _part("inputs", "pose_stamp_ns", "Stamp of the last accepted pose (None before any).")
     pose = _part("inputs", "pose", "The last accepted tool position (m).")
@@ -278,7 +304,7 @@ class HapticSession:
         self.velocity = ti.velocity
         if ti.release:
             tool.release()
-        step = tool.step(ToolPose(ti.pos, ti.velocity, ti.axis, ti.dt_s, ti.restart))
+        step = self._step(tool, ti)
         self._ticks += 1
         self._regime_events(ti.pos, step.flags)
         # the whole vector (normal along the deformed surface plus friction): the limits act on its magnitude and
@@ -291,6 +317,22 @@ class HapticSession:
             tool.reset()
             step = tool.at_rest(step)
         return self._result(step, ti.answered, ti.pos, ti.velocity, *self._published_vector(raw, magnitude, published), ti.stale)
+
+    def _step(self, tool: Tool, ti: TickInput) -> ToolStep:
+        """The tool's step over ``ti``: one step, or, for an interval over ``max_dt_s`` that continues contact (a gap
+        in the poses, or the rest of a stall), :func:`substeps` of it along the line from where the model last ran
+        the tool (:attr:`TickInput.from_pos`) to the new pose, each at most ``max_dt_s`` (the model continues as if
+        stepped over the gap; the record is the last part's)."""
+        a = ti.from_pos
+        n = substeps(ti.dt_s, self._params.max_dt_s) if a is not None else 1
+        if a is None or n == 1:
+            return tool.step(ToolPose(ti.pos, ti.velocity, ti.axis, ti.dt_s, ti.restart))
+        b, dt = ti.pos, ti.dt_s / n
+        for k in range(1, n):
+            s = k / n
+            pos = (a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]))
+            tool.step(ToolPose(pos, ti.velocity, ti.axis, dt, False))
+        return tool.step(ToolPose(ti.pos, ti.velocity, ti.axis, dt, False))
 
     def _published_vector(self, raw: np.ndarray, magnitude: float, published: float) -> tuple[np.ndarray, float]:
         """The published force vector of magnitude ``published`` and the scale it applies to the model's ``raw``.

@@ -21,6 +21,10 @@ LIFTED = (0.0, 0.0, 1.0)
 
 AT_REST = (0.0, 0.0, 0.0)
 
+SERVO_PERIOD_NS = 1_000_000
+"""One 1 kHz servo period (ns): the least a pose resumed after a stall advances the model (its own stamp interval if
+shorter), so that the held ticks' time never leaves a step of dt = 0 (a rigid Kelvin-Voigt damper)."""
+
 DOWN = (0.0, 0.0, -1.0)
 """The tool axis of an identity orientation: straight down into the tissue (``tool_pose`` in msgs_schema/topics.py)."""
 QUATERNION_NORM_TOLERANCE = 1e-3
@@ -45,13 +49,15 @@ class TickInput(NamedTuple):
     stale : bool
         The input watchdog fired: no valid pose for ``watchdog_s``.
     pos : tuple of 3 float
-        Tool position (tissue frame, m); the last pose lifted to ``z = 1 m`` when stale.
+        Tool position (tissue frame, m). When stale: the last pose, held (a stall keeps the tissue's state), or that
+        pose lifted to ``z = 1 m`` once the stall is past ``stall_hold_s`` (the tool taken as gone).
     velocity : tuple of 3 float
         Tool velocity (m/s): the estimate for an answered pose, zero otherwise.
     dt_s : float
-        Interval the model advances (s), at most ``max_dt_s``.
+        Interval the model advances (s): at most ``max_dt_s`` but for an answered pose with :attr:`from_pos`, whose
+        interval the session steps in parts.
     release : bool
-        End contact before the step: the tool teleported, or the input went stale.
+        End contact before the step: the tool teleported, or a stall outlasted ``stall_hold_s`` (the tool is gone).
     hold : bool
         No new pose and the input is not stale: the model is not stepped and the force is held (``dt_s`` is 0).
         Model time follows the pose stamps; a pose-less tick does not advance it.
@@ -59,11 +65,15 @@ class TickInput(NamedTuple):
         The interval the force-rate bound allows a change over (ns): the stamp interval of an answered pose,
         the caller's interval otherwise.
     restart : bool
-        Contact restarts (the first pose after a start, a resync or a stale spell, or a teleport): the tool has been
-        where it is for an unknown time, so the model starts from the quasi-static state (dampers and viscoelastic
+        Contact restarts (the first pose after a start, a resync, a stall past ``stall_hold_s``, or a teleport): the
+        tool has been where it is for an unknown time, so the model starts from the quasi-static state (dampers and viscoelastic
         arms relaxed).
     axis : tuple of 3 float
         The tool's unit axis toward its tip, from the pose's orientation (:func:`quaternion_axis`; for a tool that declares it).
+    from_pos : tuple of 3 float or None
+        Where the model's previous step ran (an answered pose that continues contact): an interval ``dt_s`` over
+        ``max_dt_s`` is stepped in parts along the line from it to ``pos`` (a gap in the poses, or the rest of a
+        stall); None: one step.
     """
 
     answered: bool
@@ -76,6 +86,7 @@ class TickInput(NamedTuple):
     rate_dt_ns: int = 0
     restart: bool = False
     axis: tuple[float, float, float] = DOWN
+    from_pos: tuple[float, float, float] | None = None
 
 
 def velocity_estimate(
@@ -151,6 +162,8 @@ class InputPolicy:
         self._teleported = False
         self._backwards_run = 0
         self._last_used_stamp_ns: int | None = None  # stamp of the pose the last tick used (model time)
+        self._model_pos = LIFTED  # where the model's last step ran the tool
+        self._held_ns = 0  # model time the held ticks of a stall advanced since the last answered pose
         self._pending = False  # a pose arrived that no tick has consumed
         self.stale = True
         self.answered_stamp_ns = 0
@@ -265,12 +278,19 @@ class InputPolicy:
         """What the next tick runs at; consumes the pending pose.
 
         The stamps define the model's time. A new pose advances the model by its stamp's difference to the pose
-        the previous step used (several poses per tick lose no time). A tick without a new pose holds the model
-        and the force while the input is fresh, so it neither eats the next pose's time (a step of dt = 0, where
-        the Kelvin-Voigt chain is a rigid damper) nor changes the answer to any pose: the live node answers a
-        pose stream as the offline replay of it does, however the poses arrived. Once the watchdog fires the
-        tissue is released and relaxes on the caller's clock (``elapsed_ns``), lifted off; the next pose then
-        starts model time afresh.
+        the previous step used (several poses per tick lose no time; an interval over ``max_dt_s`` is stepped in
+        parts, :attr:`TickInput.from_pos`). A tick without a new pose holds the model and the force while the input
+        is fresh, so it neither eats the next pose's time (a step of dt = 0, where the Kelvin-Voigt chain is a rigid
+        damper) nor changes the answer to any pose: the live node answers a pose stream as the offline replay of it
+        does, however the poses arrived.
+
+        A stall is not a restart (issue 31). Once the watchdog fires the published force is zero, and the tissue
+        keeps its state with the tool held at its last pose, relaxing on the caller's clock (``elapsed_ns``): what the
+        tool holds (a track cut through the layers), the viscoelastic arms, the friction anchor and the patch persist. When poses
+        resume the model continues from there over the rest of the stamp gap, from the held pose to the new one. A
+        stall longer than ``stall_hold_s`` (on the caller's clock live, on the stamps offline) is the tool gone: the
+        tissue is released, relaxing lifted off, and the next pose restarts contact. So are a teleport and a resync
+        (a new time line): the restarts are explicit events.
 
         Parameters
         ----------
@@ -284,49 +304,88 @@ class InputPolicy:
         TickInput
         """
         p = self.params
-        stale = self.pose_rx_ns is None or (now_ns - self.pose_rx_ns) * 1e-9 > p.watchdog_s
+        waited = None if self.pose_rx_ns is None else (now_ns - self.pose_rx_ns) * 1e-9
+        stale = waited is None or waited > p.watchdog_s
         if stale and not self.stale:
-            self._event(ev.WATCHDOG, f"no valid tool pose for {p.watchdog_s * 1e3:.0f} ms: force set to zero, tissue released")
+            self._event(
+                ev.WATCHDOG,
+                f"no valid tool pose for {p.watchdog_s * 1e3:.0f} ms: force set to zero; the tissue keeps its state "
+                f"for stall_hold_s = {p.stall_hold_s:g} s",
+            )
         self.stale = stale
         answered = self._pending and not stale
         if not answered and not stale:
             return TickInput(False, False, self.pose, AT_REST, 0.0, False, hold=True, rate_dt_ns=0)
-        release = False
-        if answered:
-            self._pending = False
-            # from the pose the previous step used (model time); contact restarts (the first pose after a start, a
-            # resync or a stale spell, and a teleport) step by max_dt_s: the tool has been where it is for an unknown
-            # time, so contact starts from the quasi-static state (dampers relaxed) and not through a rigid damper
-            # (a 1 mm restart in 1 ms raised 200 N before the force clamp)
-            stamp = self.pose_stamp_ns
-            assert stamp is not None  # a pending pose has a stamp
-            last = self._last_used_stamp_ns
-            restart = last is None or self._teleported
-            dt_ns = int(p.max_dt_s * 1e9) if restart or last is None else stamp - last
-            rate_dt_ns = elapsed_ns if last is None else stamp - last
-            self._last_used_stamp_ns = stamp
-            if self._teleported:
-                release = True
-                self._teleported = False
-                v = AT_REST
-            else:
-                v = velocity_estimate(
-                    p, stamp, self.pose, self._prev_pose_stamp_ns, self._prev_pose, self.twist_stamp_ns, self.twist
-                )
-            pos = self.pose
-            self.answered_stamp_ns = stamp
-        else:  # stale: the tool is unknown, treated as lifted off; the tissue relaxes on the caller's clock
-            restart = False
-            dt_ns = rate_dt_ns = elapsed_ns
-            self._last_used_stamp_ns = None
+        if not answered:
+            return self._stalled(waited, elapsed_ns)
+        self._pending = False
+        stamp = self.pose_stamp_ns
+        assert stamp is not None  # a pending pose has a stamp
+        last = self._last_used_stamp_ns
+        gap_ns = 0 if last is None else stamp - last
+        held_ns, self._held_ns = self._held_ns, 0
+        gone = last is not None and not self._teleported and gap_ns * 1e-9 > max(p.stall_hold_s, p.watchdog_s)
+        if gone:
+            self._event(
+                ev.STALL_RELEASED,
+                f"no tool pose for {gap_ns * 1e-9:.3g} s of stamps (stall_hold_s = {p.stall_hold_s:g} s): the tool was "
+                "taken as gone, contact restarted",
+            )
+        # contact restarts (the first pose after a start, a resync, a stall past stall_hold_s, and a teleport) step
+        # by max_dt_s: the tool has been where it is for an unknown time, so contact starts from the quasi-static
+        # state (dampers relaxed) and not through a rigid damper (a 1 mm restart in 1 ms raised 200 N before the
+        # force clamp)
+        restart = last is None or self._teleported or gone
+        release = self._teleported or gone
+        self._teleported = False
+        self._last_used_stamp_ns = stamp
+        self.answered_stamp_ns = stamp
+        from_pos: tuple[float, float, float] | None = self._model_pos
+        self._model_pos = self.pose
+        if restart:
+            dt_ns = int(p.max_dt_s * 1e9)
+            rate_dt_ns = elapsed_ns if last is None else gap_ns
             v = AT_REST
-            pos = (self.pose[0], self.pose[1], 1.0)
-            release = True
-        dt = max(dt_ns, 0) * 1e-9
-        if dt > p.max_dt_s:
-            if answered and not restart:  # a released tissue relaxing, or a restart, in steps of max_dt_s is no event
-                self._event(ev.TICK_CLAMPED, f"tick interval {dt * 1e3:.1f} ms advanced as max_dt_s = {p.max_dt_s * 1e3:.0f} ms")
-            dt = p.max_dt_s
+            from_pos = None
+        else:
+            rate_dt_ns = gap_ns
+            dt_ns = gap_ns
+            if held_ns > 0:  # the held stall ticks advanced part of the gap already; at least the pose's own interval
+                dt_ns = max(gap_ns - held_ns, min(gap_ns, SERVO_PERIOD_NS))
+                self._event(
+                    ev.STALL_RESUMED,
+                    f"tool poses resumed after {gap_ns * 1e-6:.0f} ms: the tissue continued from its held state (a "
+                    "stall is not a restart)",
+                )
+            v = velocity_estimate(p, stamp, self.pose, self._prev_pose_stamp_ns, self._prev_pose, self.twist_stamp_ns, self.twist)
+            if dt_ns * 1e-9 > p.max_dt_s:
+                self._event(
+                    ev.TICK_CLAMPED,
+                    f"tick interval {dt_ns * 1e-6:.1f} ms stepped in parts of at most max_dt_s = {p.max_dt_s * 1e3:.0f} ms",
+                )
         return TickInput(
-            answered, stale, pos, v, dt, release, hold=False, rate_dt_ns=max(rate_dt_ns, 0), restart=restart, axis=self.axis
-        )
+            True, False, self.pose, v, max(dt_ns, 0) * 1e-9, release, hold=False, rate_dt_ns=max(rate_dt_ns, 0),
+            restart=restart, axis=self.axis, from_pos=from_pos,
+        )  # fmt: skip
+
+    def _stalled(self, waited: float | None, elapsed_ns: int) -> TickInput:
+        """A tick of a stale input (:meth:`take`): the tool held at its last pose while the stall is shorter than
+        ``stall_hold_s``; after that (or before any pose) lifted off, the tissue released and relaxing."""
+        p = self.params
+        dt = min(max(elapsed_ns, 0) * 1e-9, p.max_dt_s)  # the caller's own stall does not jump the tissue ahead
+        if waited is not None and waited <= max(p.stall_hold_s, p.watchdog_s) and self._last_used_stamp_ns is not None:
+            self._held_ns += int(round(dt * 1e9))
+            held = self._model_pos  # where the model last ran the tool
+            return TickInput(False, True, held, AT_REST, dt, False, rate_dt_ns=max(elapsed_ns, 0), axis=self.axis)
+        release = self._last_used_stamp_ns is not None
+        if release and waited is not None:
+            self._event(
+                ev.STALL_RELEASED,
+                f"no tool pose for {waited:.3g} s (stall_hold_s = {p.stall_hold_s:g} s): the tool was taken as gone, the "
+                "tissue released",
+            )
+        self._last_used_stamp_ns = None
+        self._held_ns = 0
+        self._model_pos = LIFTED
+        lifted = (self.pose[0], self.pose[1], 1.0)
+        return TickInput(False, True, lifted, AT_REST, dt, release, rate_dt_ns=max(elapsed_ns, 0), axis=self.axis)

@@ -81,6 +81,10 @@ class ForceLimits:
             The model's force or state was non-finite: the caller resets it to rest.
         """
         p = self.params
+        if stale:  # a safety stop: 0 at once, not rate limited (and the held tissue's force is no rate event)
+            self.force_n = 0.0
+            self._rate_budget_n = 0.0
+            return 0.0, False
         reset = not math.isfinite(force) or (state_finite is not None and not state_finite())
         if reset:
             self._event(FORCE_NON_FINITE, f"model state became non-finite (force {force}): published 0, tissue reset to rest")
@@ -102,7 +106,5 @@ class ForceLimits:
             change = max(force - self.force_n, 0.0) if rises_only else abs(force - self.force_n)
             self._rate_budget_n = budget - change
             force = min(force, p.max_force_n)  # the clamp is the hard limit, also right after a live lowering
-        if stale:
-            force = 0.0  # a safety stop is not rate limited
         self.force_n = force
         return force, reset

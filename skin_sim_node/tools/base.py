@@ -40,7 +40,7 @@ class ToolPose:
     dt_s : float
         Time since the previous step (s).
     restart : bool
-        Contact restarts after an unknown time (a first pose, a stale spell, a teleport).
+        Contact restarts after an unknown time (a first pose, a stall past ``stall_hold_s``, a teleport).
     """
 
     position_m: tuple[float, float, float]
@@ -185,7 +185,7 @@ class Tool:
         raise NotImplementedError
 
     def release(self) -> None:
-        """End contact now (a teleport or a stale input): the tissue relaxes freely."""
+        """End contact now (a teleport, or a stall past ``stall_hold_s``): the tissue relaxes freely."""
         self.tissue.release()
 
     def reset(self) -> None:

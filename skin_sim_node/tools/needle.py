@@ -85,7 +85,8 @@ class NeedleTool(Tool):
         self._prev_z, self._surface = None, False
 
     def release(self) -> None:
-        """End contact now (a teleport or a stale input): the tissue relaxes and the track is forgotten."""
+        """End contact now (a teleport, or a stall past ``stall_hold_s``: the tool is gone): the tissue relaxes and the
+        track is forgotten. A shorter stall calls nothing: the track and its ruptures persist (issue 31)."""
         super().release()
         self.needle.reset()
         self.last_needle = NeedleTick(np.zeros(3))
