@@ -111,6 +111,7 @@ def chart(rest: list[str]) -> int:
         return 2
     module = importlib.import_module(CHART_TARGETS[target][0])
     if docs:
+        assert module.__file__ is not None  # a chart module is a file of skin_sim_lab
         out = Path(module.__file__).resolve().parents[2] / "docs" / CHART_DOCS[target]
         args += ["--out", str(out)]
     elif given:

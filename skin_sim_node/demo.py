@@ -15,6 +15,7 @@ import re
 import subprocess
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -102,7 +103,7 @@ def summarize(monitor, wall_s: float, poses: list) -> dict:
     diags = [d for _, d, _, _ in monitor.diagnostics]
     node_d = [d for d in diags if "achieved_rate_hz" in d]
     bridge_d = [d for d in diags if "render_rate_hz" in d]
-    out = {"wrenches": len(f), "wall_s": wall_s, "poses_seen": len(poses)}
+    out: dict[str, Any] = {"wrenches": len(f), "wall_s": wall_s, "poses_seen": len(poses)}
     out["peak_force_n"] = float(f[:, 2].max()) if len(f) else 0.0
     out["layers_reached"] = int(max((np.count_nonzero(c[3] > 0) for c in contact), default=0))
     live = [d for d in node_d if d.get("input_stale") == "False"]

@@ -119,5 +119,7 @@ def install_option_suggestions() -> None:
             message += "".join(suggest(w, opts) for w in words)
         self.exit(2, f"{self.prog}: error: {message}; {self.prog} --help shows the usage\n")
 
-    error._suggests = True
-    argparse.ArgumentParser.error = error
+    # a deliberate patch of the class (every parser of the process), marked so that it is made once: mypy types
+    # neither a function's own attribute nor an assignment to a method
+    error._suggests = True  # type: ignore[attr-defined]
+    argparse.ArgumentParser.error = error  # type: ignore[method-assign]

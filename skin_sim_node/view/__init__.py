@@ -15,6 +15,11 @@ import signal
 import sys
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # main imports the one source it runs
+    from .bag import BagSource
+    from .live import LiveSource
 
 DISPLAY_RATE_HZ = 30.0
 """Frames per second to the page: half a 60 Hz screen refresh; enough for a hand-speed press
@@ -84,6 +89,7 @@ def main(argv=None) -> int:
     ap.add_argument("--compare-libs", action="store_true", help="library comparison (mesh rate, CPU, install size)")
     args = ap.parse_args(argv)
     hint = None
+    source: BagSource | LiveSource
     if args.bags:
         from ..bags.io import BagError
         from .bag import BagSource

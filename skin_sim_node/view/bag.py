@@ -12,6 +12,7 @@ import json
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -117,7 +118,7 @@ class BagData:
         return int(np.searchsorted(ts, t_s, side="right")) - 1
 
     def header_at(self, t_s: float) -> dict:
-        h = {"t_s": t_s, "duration_s": self.duration_s}
+        h: dict[str, Any] = {"t_s": t_s, "duration_s": self.duration_s}
         i = self.index_at(self.pose_t, t_s)
         if i >= 0:
             h["tool"] = self.pose[i].tolist()
@@ -166,7 +167,8 @@ class BagSource:
         self.playing = False
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self._sent = (None, None, None)  # (t_s, grid index, diag index) last broadcast
+        # (t_s, grid index, diag index) last broadcast
+        self._sent: tuple[float | None, int | None, int | None] = (None, None, None)
         self.frames = 0
         self.server = None
 

@@ -17,6 +17,7 @@ import json
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import psutil
@@ -75,7 +76,7 @@ def run(duration_s: float, cycles: int, out: Path, rate_hz: float) -> dict:
                         browser = Browser(url)
                         browser.wait_for("window.skinView && window.skinView.gridFrames > 0", 60, "a grid on the page")
                     time.sleep(1.0)
-                    if kind == "open":
+                    if browser is not None:
                         f0 = browser.evaluate("[window.skinView.frames, window.skinView.gridFrames]")
                 vpid = [view.popen.pid] if view else []
                 pids = vpid + (browser.pids if browser else [])
@@ -116,7 +117,7 @@ def run(duration_s: float, cycles: int, out: Path, rate_hz: float) -> dict:
 
 
 def summarize(res: dict) -> dict:
-    out = {}
+    out: dict[str, Any] = {}
     for kind in ("closed", "view", "open"):
         ph = [p for p in res["phases"] if p["view"] == kind]
         lat = np.concatenate([np.array(p["latency_ms"]) for p in ph]) if ph else np.zeros(0)

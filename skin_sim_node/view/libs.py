@@ -19,8 +19,13 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .browser import Browser
+    from .ws import WebSocket
 
 N = 120  # grid.nx = grid.ny default (msgs_schema/tissue.py)
 SHEET_MM = 120.0
@@ -125,7 +130,9 @@ def _worker(lib: str, port: int, rate_hz: float, duration_s: float) -> None:  # 
 
         state = {"subs": 0}
 
-        class Listener(foxglove.ServerListener if hasattr(foxglove, "ServerListener") else object):
+        listener_base: Any = foxglove.ServerListener if hasattr(foxglove, "ServerListener") else object
+
+        class Listener(listener_base):
             def on_subscribe(self, client, channel):
                 state["subs"] += 1
 
@@ -189,7 +196,7 @@ def _reader(ws, on_text=None) -> dict:
     return stats
 
 
-def _count_client(url: str):
+def _count_client(url: str) -> tuple[WebSocket, dict]:
     """Read the own server's stream with :mod:`.ws` and count bytes (no rendering)."""
     from .ws import connect
 
@@ -197,7 +204,7 @@ def _count_client(url: str):
     return c, _reader(c)
 
 
-def _foxglove_client(url: str):
+def _foxglove_client(url: str) -> tuple[WebSocket, dict]:
     """Subscribe every advertised channel (Foxglove WebSocket protocol), as a viewer would."""
     import base64
     import socket
@@ -206,6 +213,7 @@ def _foxglove_client(url: str):
     from .ws import WebSocket
 
     u = urlparse(url)
+    assert u.port is not None  # the worker prints ws://127.0.0.1:PORT
     sock = socket.create_connection((u.hostname, u.port), timeout=10)
     key = base64.b64encode(os.urandom(16)).decode()
     sock.sendall(
@@ -241,8 +249,9 @@ def measure(lib: str, lib_dir: Path, rate_hz: float, duration_s: float, port: in
         env["PYTHONPATH"] = str(lib_dir / lib) + os.pathsep + env.get("PYTHONPATH", "")
     code = f"from skin_sim_node.view.libs import _worker; _worker({worker!r}, {port}, {rate_hz}, {duration_s})"
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
-    client = None
+    client: Browser | tuple[WebSocket, dict] | None = None  # a page, or a WebSocket reader and its byte counts
     out = {"lib": lib, "target_hz": rate_hz}
+    assert proc.stdout is not None  # started with stdout=PIPE
     try:
         lines = []
         for line in proc.stdout:
@@ -263,6 +272,7 @@ def measure(lib: str, lib_dir: Path, rate_hz: float, duration_s: float, port: in
                 if isinstance(client, Browser):
                     out["client_bytes_per_s"] = client.network_bytes(window) / window
                 else:
+                    assert client is not None  # made at the URL line, which comes first
                     n0 = client[1]["bytes"]
                     time.sleep(window)
                     out["client_bytes_per_s"] = (client[1]["bytes"] - n0) / window

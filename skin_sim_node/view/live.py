@@ -14,6 +14,7 @@ import json
 import re
 import threading
 import time
+from typing import Any
 
 import numpy as np
 
@@ -88,7 +89,7 @@ class LiveSource:
         self.grid = None
         self.grid_new = False
         self.grid_count = 0
-        self.diag = None
+        self.diag: dict | None = None
         self._diag_new = False
         subscription(self.node, "tool_pose", lambda m: setattr(self, "pose", m))
         subscription(self.node, "tool_wrench", self._on_wrench)
@@ -114,7 +115,7 @@ class LiveSource:
         self.tool_radius_m = SPEC_BY_NAME["tissue.tool.radius_m"].default
         self.tool_shape = SPEC_BY_NAME["tissue.tool.shape"].default
         self.thickness_m = default_thickness_m()
-        self.form = None  # the node's tissue.form once known: "layered" engages every layer from first contact
+        self.form: str | None = None  # the node's tissue.form once known: "layered" engages every layer from first contact
         self._stop = threading.Event()
         self.frames = 0
 
@@ -290,6 +291,7 @@ class LiveSource:
 
     def _after_geometry_change(self) -> None:
         self.refresh_geometry()
+        assert self.server is not None  # a parameter is set from the page: the display loop runs
         self.server.broadcast_text(self.info())
 
     # --- page ---------------------------------------------------------------------------
@@ -317,7 +319,7 @@ class LiveSource:
         return msgs
 
     def header(self) -> dict:
-        h = {"t": time.time(), "seq": self.frames}
+        h: dict[str, Any] = {"t": time.time(), "seq": self.frames}
         if self.pose is not None:
             _, _, xyz = cv.read_pose(self.pose)
             h["tool"] = list(xyz)
