@@ -21,6 +21,7 @@ instead of stepping copies of the model.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from numba import njit
 
@@ -35,9 +36,9 @@ from .layout import (
     NB_BOUNDS,
     NB_C,
     NB_G,
+    NL_CUT_M,
     NL_FP,
     NL_H,
-    NL_CUT_M,
     NL_MODULUS,
     NL_ZERO,
     NO_AXIAL,
@@ -103,7 +104,7 @@ from .layout import (
 )
 from .paper import layer_bounds
 
-JIT_OPTIONS = {"cache": True, "nogil": True}
+JIT_OPTIONS: dict[str, Any] = {"cache": True, "nogil": True}
 """The numba options of every needle kernel (one place: cached compilation, the GIL released)."""
 
 SCAN_STEP_M = 2e-6
@@ -361,9 +362,9 @@ def axial_at(ins, k, front, slip, t0, lp, npar, nlp, nstate, ntrack, nbuf):
     Layer ``k`` ruptures when its dimple's axial resistance (:func:`dimple_force`, eq T3: the tent's normal reaction
     and friction projected on the axis) reaches ``F_p,k`` (eq P); the rupture releases the dimple and the next layer is
     tested at the same insertion (a cascade) as a new contact (``xi = 0``; layer ``k`` uses the state's ``xi``).
-    Cutting ``beta F_p,j`` in the ruptured layer ``j`` the tip is in, on a ramp over ``x_c,j`` behind the front, while ``j`` is not yet cut through to the next layer's top (a front at or past
-    it leaves nothing to cut in ``j``: backing out of a dimple into the cut layer above meets no cutting force, so
-    nothing switches on at the crossing).
+    Cutting ``beta F_p,j`` in the ruptured layer ``j`` the tip is in, on a ramp over ``x_c,j`` behind the front, while
+    ``j`` is not yet cut through to the next layer's top (a front at or past it leaves nothing to cut in ``j``:
+    backing out of a dimple into the cut layer above meets no cutting force, so nothing switches on at the crossing).
 
     Parameters
     ----------
