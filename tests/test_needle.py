@@ -238,3 +238,12 @@ def test_the_render_stiffness_is_the_devices():
     from skin_sim_node.device.mapping import TOUCH_MAX_STIFFNESS_N_PER_M
 
     assert RENDER_STIFFNESS_N_PER_M == TOUCH_MAX_STIFFNESS_N_PER_M
+
+
+def test_needle_angle_command_prints_its_tables_and_passes(capsys):
+    """``skin-sim needle-angle``: the angle table, the withdrawal table and the tip-travel band, every check met."""
+    from skin_sim_lab.validation import needle_angle
+
+    assert needle_angle.main([]) == 0
+    out = capsys.readouterr().out
+    assert "needle_angle PASS" in out and "force to axis" in out and "Energy per insert-withdraw cycle" in out
