@@ -36,6 +36,10 @@ COMMANDS = {
         "skin_sim_lab.perf.friction_path",
         "offline: presliding friction figures: tremor vs today's law, drag at 1/10/30 mm/s, reversal loop (~20 s)",
     ),
+    "needle-angle": (
+        "skin_sim_lab.validation.needle_angle",
+        "offline: the needle at 90-15 deg (puncture, tip travel, force angle, skate) and its withdrawal (~10 s)",
+    ),
     "needle-device": (
         "skin_sim_lab.perf.needle_device",
         "offline: needle insertion rendered at 1 kHz from a 250 Hz server vs truth and hold-last (~10 s)",

@@ -1,4 +1,5 @@
-"""The needle's pure-Python/NumPy reference (issue 22's first cut of :mod:`.needle`, kept as it was written).
+"""The needle's pure-Python/NumPy reference (issue 22's first cut of :mod:`.needle`; issue 31: the tented skin's
+normal reaction and friction before a rupture, the tip skating, and each layer's cutting fade).
 
 :class:`NumpyNeedleModel` steps the physics of :mod:`.needle` (its module docstring) with NumPy and Python loops: the
 interface crossings by a 2 um scan and bisection, the rupture insertion by bisection on the dimple law, the law's
@@ -40,6 +41,7 @@ class NumpyNeedleModel:
     def reset(self) -> None:
         """Needle out of the tissue: no track."""
         nl = len(self._h)
+        self.slip_m = 0.0  # xi: how far the tent's stuck point slid along the axis (a skating tip)
         self.inserted = False
         self.entry = np.zeros(3)
         self.axis = np.array([0.0, 0.0, -1.0])
@@ -93,8 +95,16 @@ class NumpyNeedleModel:
         return True
 
     # --- laws ---------------------------------------------------------------------------------
-    def dimple_force_n(self, layer: int, w_m: float) -> float:
-        """Axial force (N) of the stack below ``layer``'s top pressed ``w_m`` along the axis by the needle's tip."""
+    def _ratio(self, w_m: float, slip_m: float) -> float:
+        """The tent's tangential over normal reaction ``c``: ``kappa cot(theta) (w - xi) / w`` within ``+-mu``."""
+        if w_m <= 0.0:
+            return 0.0
+        pr = self.params
+        c = pr.tent_shear_ratio * math.hypot(self.axis[0], self.axis[1]) / -self.axis[2] * (w_m - slip_m) / w_m
+        return min(max(c, -pr.tip_friction), pr.tip_friction)
+
+    def _normal_n(self, layer: int, w_m: float) -> float:
+        """The tent's normal reaction ``N = scale T(w sin(theta))`` (N)."""
         if w_m <= 0.0:
             return 0.0
         down = -self.axis[2]
@@ -105,6 +115,14 @@ class NumpyNeedleModel:
                         np.zeros(n), self._h[sub].copy(), WALL_STRAIN, np.zeros(n), c, g)  # fmt: skip
         return self._scale * max(t, 0.0)
 
+    def dimple_force_n(self, layer: int, w_m: float, slip_m: float = 0.0) -> float:
+        """Axial resistance (N) of the tented stack below ``layer``'s top pressed ``w_m`` along the axis by the tip:
+        ``N (sin(theta) + c cos(theta))``."""
+        if w_m <= 0.0:
+            return 0.0
+        c = self._ratio(w_m, slip_m)
+        return self._normal_n(layer, w_m) * (-self.axis[2] + c * math.hypot(self.axis[0], self.axis[1]))
+
     def rupture_insertion_m(self) -> float:
         """Insertion ``L`` (m) at which the next intact layer ruptures: its dimple force reaches ``F_p`` (bisection
         on the monotone dimple law); inf when every layer is ruptured or the dimple never reaches it."""
@@ -112,15 +130,16 @@ class NumpyNeedleModel:
         if not self.inserted or k >= len(self._h):
             return math.inf
         fp = self.params.puncture_force_n(k)
+        xi = self.slip_m
         hi = 1e-4
-        while self.dimple_force_n(k, hi) < fp:
+        while self.dimple_force_n(k, hi, xi) < fp:
             hi *= 2.0
             if hi > 1.0:
                 return math.inf
         lo = 0.0
-        for _ in range(48):
+        for _ in range(60):
             mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if self.dimple_force_n(k, mid) < fp else (lo, mid)
+            lo, hi = (mid, hi) if self.dimple_force_n(k, mid, xi) < fp else (lo, mid)
         return float(self.crossings[k] + hi)
 
     def copy(self) -> NumpyNeedleModel:
@@ -200,13 +219,28 @@ class NumpyNeedleModel:
         dimple = 0.0
         while self.ruptured < nl:
             w = ins - self.crossings[self.ruptured]
-            dimple = self.dimple_force_n(self.ruptured, w)
+            dimple = self.dimple_force_n(self.ruptured, w, self.slip_m)
             if dimple < pr.puncture_force_n(self.ruptured):
                 break
             punctured.append(self.ruptured)
             self.ruptured += 1
+            self.slip_m = 0.0  # the next layer's tent is a new contact
             dimple = 0.0
         w_dimple = max(ins - self.crossings[self.ruptured], 0.0) if self.ruptured < nl else 0.0
+        # the tent: N along +z, c N along the surface against the tip's advance; then the stuck point slides (skate)
+        normal = self._normal_n(self.ruptured, w_dimple) if self.ruptured < nl else 0.0
+        c = self._ratio(w_dimple, self.slip_m) if normal > 0.0 else 0.0
+        horizontal = math.hypot(self.axis[0], self.axis[1])
+        t_hat = np.array([self.axis[0], self.axis[1], 0.0]) / horizontal if horizontal > 0.0 else np.zeros(3)
+        f_tent = normal * np.array([0.0, 0.0, 1.0]) - c * normal * t_hat
+        tent_lateral = f_tent + dimple * self.axis
+        kc = pr.tent_shear_ratio * horizontal / -self.axis[2]
+        if w_dimple <= 0.0 or self.ruptured >= nl or kc <= 0.0:
+            self.slip_m = 0.0
+        elif kc * (w_dimple - self.slip_m) / w_dimple > pr.tip_friction:
+            self.slip_m = w_dimple * (1.0 - pr.tip_friction / kc)
+        elif kc * (w_dimple - self.slip_m) / w_dimple < -pr.tip_friction:
+            self.slip_m = w_dimple * (1.0 + pr.tip_friction / kc)
         lam = pr.lubrication_factor
         # cutting at the crack front, inside the ruptured part of the track
         cut = 0.0
@@ -215,7 +249,8 @@ class NumpyNeedleModel:
             j = int(np.searchsorted(self.crossings[: self.ruptured + 1], ins, side="right")) - 1
             j = min(max(j, 0), self.ruptured - 1)
             if j == nl - 1 or self.front_m < self.crossings[j + 1]:  # a layer cut through has nothing left to cut
-                ramp = min(max((ins - self.front_m + pr.cut_presliding_m) / pr.cut_presliding_m, 0.0), 1.0)
+                xc = pr.cut_fade_m(j)
+                ramp = min(max((ins - self.front_m + xc) / xc, 0.0), 1.0)
                 cut = pr.cutting_ratio * pr.puncture_force_n(j) * ramp
         if inside:
             self.front_m = max(self.front_m, ins)
@@ -240,5 +275,6 @@ class NumpyNeedleModel:
         bed = 0.25 * lateral_dk * float(deviation @ deviation)  # the bed's axial part: gradient of k(L) |delta|^2 / 4
         axial = dimple + cut + fric + bed
         lateral = -0.5 * lateral_k * deviation
-        force = -axial * self.axis + lateral
-        return NeedleTick(force, axial, dimple, cut, fric, lateral, w_dimple, ins, self.ruptured, tuple(punctured), bed)
+        force = -axial * self.axis + lateral + tent_lateral
+        return NeedleTick(force, axial, dimple, cut, fric, lateral, w_dimple, ins, self.ruptured, tuple(punctured), bed,
+                          0.0, normal, c * normal, tent_lateral)  # fmt: skip

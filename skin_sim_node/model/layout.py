@@ -277,7 +277,9 @@ NP_WALL = 5
 NP_LATERAL = 6
 NP_BOTTOM = 7
 NP_MIN_SIN = 8
-NP_SIZE = 9
+NP_MU = 9
+NP_KAPPA = 10
+NP_SIZE = 11
 """Slots of ``npar``, shape (NP_SIZE,), float64: the needle's scalar parameters (constant over a run).
 
 =================  ======  ======================================================================================
@@ -287,11 +289,13 @@ NP_SCALE           -       dimple force scale: the needle's radius over the cali
 NP_FRICTION        N/m     Dahl friction level per inserted length, ``lambda tau pi d``
 NP_CUT_RATIO       -       ``beta``: cutting force over the puncture threshold
 NP_DAHL_M          m       Dahl presliding length ``x_0``
-NP_CUT_M           m       ``x_c``: the cutting force fades over this distance behind the crack front
+NP_CUT_M           m       longest cutting fade ``x_c,max`` (each layer's own ``x_c,j`` is ``NL_CUT_M``)
 NP_WALL            -       the compression law's wall strain (the chain of the dimple)
 NP_LATERAL         -       ``k_l``: Winkler modulus per length over the layer's Young's modulus
 NP_BOTTOM          m       depth of the tissue bottom (the last crossing's surface)
 NP_MIN_SIN         -       sine of the shallowest angle below the surface that starts a track
+NP_MU              -       ``mu``: Coulomb friction coefficient of the tip on the tented skin (before a rupture)
+NP_KAPPA           -       ``kappa``: the tent's tangential over normal stiffness (Mindlin's ratio, stick)
 =================  ======  ======================================================================================
 """
 
@@ -299,7 +303,8 @@ NL_FP = 0
 NL_H = 1
 NL_MODULUS = 2
 NL_ZERO = 3
-NL_SIZE = 4
+NL_CUT_M = 4
+NL_SIZE = 5
 """Rows of ``nlp``, shape (NL_SIZE, L), float64: the needle's per-layer parameters.
 
 ==========  =====  ===========================================================================================
@@ -309,6 +314,7 @@ NL_FP       N      puncture threshold ``F_p = lambda Gamma d`` of each layer
 NL_H        m      mean thickness of each layer (the dimple's chain)
 NL_MODULUS  Pa     Young's modulus of each layer (the lateral bed)
 NL_ZERO     -      zeros: the dimple chain's dampers, old compressions and Prony offsets (its equilibrium law)
+NL_CUT_M    m      ``x_c,j``: the layer's cutting force fades over this distance behind the crack front
 ==========  =====  ===========================================================================================
 """
 
@@ -328,7 +334,9 @@ NS_LAW_FRONT = 12
 NS_LAW_RUPTURE = 13
 NS_LAW_POST = 14
 NS_LAW_POST_GRADIENT = 15
-NS_SIZE = 16
+NS_SLIP = 16
+NS_LAW_SLIP = 17
+NS_SIZE = 18
 """Slots of ``nstate``, shape (NS_SIZE,), float64: the needle's track, carried between ticks.
 
 ======================  ======  ===========================================================================================
@@ -346,6 +354,8 @@ NS_LAW_FRONT            m       ... and this crack front (the line past the rupt
 NS_LAW_RUPTURE          m       cached insertion of the next rupture (inf: none)
 NS_LAW_POST             N       cached ``R_e`` just past it
 NS_LAW_POST_GRADIENT    N/m     cached slope there
+NS_SLIP                 m       ``xi``: how far (along the axis) the tent's stuck point has slid with a skating tip
+NS_LAW_SLIP             m       ... and this ``xi`` (the rupture ahead of a stuck tip depends on it)
 ======================  ======  ===========================================================================================
 """
 
@@ -393,7 +403,12 @@ NO_RUPTURED = 12
 NO_FIRST = 13
 NO_BED = 14
 NO_LATERAL_K = 15
-NO_SIZE = 16
+NO_NORMAL = 16
+NO_TANGENTIAL = 17
+NO_TX = 18
+NO_TY = 19
+NO_TZ = 20
+NO_SIZE = 21
 """Slots of ``nout``, shape (NO_SIZE,), float64: what the needle's step kernel writes (``NeedleTick``).
 
 ==================  ====  =========================================================================================
@@ -411,6 +426,9 @@ NO_RUPTURED         -     layers ruptured after the tick
 NO_FIRST            -     layers ruptured before it: layers ``NO_FIRST .. NO_RUPTURED - 1`` ruptured this tick
 NO_BED              N     the bed's axial part ``k'(L) |delta|^2 / 4`` (the lateral bed is the gradient of a potential)
 NO_LATERAL_K        N/m   the bed's ``k = sum_i k_l E_i l_i`` (its sideways stiffness at the tip is ``k / 2``)
+NO_NORMAL           N     the tent's normal reaction ``N`` (along the surface normal +z; 0 with no dimple)
+NO_TANGENTIAL       N     its tangential reaction along the surface, ``c N`` (> 0 against the tip's advance)
+NO_TX .. NO_TZ      N     the tent's reaction off the axis, ``F_tent - (F_tent . u) u`` (in the force, not the bed)
 ==================  ====  =========================================================================================
 """
 

@@ -59,6 +59,7 @@ from .layout import (
     LP_EA,
     LP_N,
     NB_SIZE,
+    NL_CUT_M,
     NL_FP,
     NL_H,
     NL_MODULUS,
@@ -76,15 +77,21 @@ from .layout import (
     NO_LATERAL_K,
     NO_LX,
     NO_LZ,
+    NO_NORMAL,
     NO_RUPTURED,
     NO_SIZE,
+    NO_TANGENTIAL,
+    NO_TX,
+    NO_TZ,
     NP_BOTTOM,
     NP_CUT_M,
     NP_CUT_RATIO,
     NP_DAHL_M,
     NP_FRICTION,
+    NP_KAPPA,
     NP_LATERAL,
     NP_MIN_SIN,
+    NP_MU,
     NP_SCALE,
     NP_SIZE,
     NP_WALL,
@@ -95,6 +102,7 @@ from .layout import (
     NS_LAW_K,
     NS_RUPTURED,
     NS_SIZE,
+    NS_SLIP,
     NS_UX,
     NS_UZ,
     NT_CROSS,
@@ -131,15 +139,35 @@ is 0.73; Barnett et al. 2015: cutting dominates the steady force)."""
 SHAFT_SHEAR_PA = 6.0e3
 """``tau``: friction per shaft area (Pa), between Barnett's 21 % friction share (4.3 kPa at full depth) and the
 cadaver overall slope 0.035-0.059 N/mm over an 18 G perimeter (8.8-14.8 kPa, an upper bound)."""
-DAHL_LENGTH_M = 1.0e-3
-"""Dahl presliding length ``x_0`` (design: stick stiffness at full 18 G depth 130 N/m, under the Touch's 1.02 N/mm;
-Kim & Lee 2016 fit a Dahl law to needle friction in porcine tissue, number not read)."""
+RENDER_STIFFNESS_N_PER_M = 1020.0
+"""Stiffest slope (N/m) a Touch renders stably: its Z-axis figure (3D Systems' spec sheet, "stiffness ... Z > 1.02 N/mm",
+the device side's ``TOUCH_MAX_STIFFNESS_N_PER_M``; repeated here because the model core imports nothing of the device
+side, and tests/test_needle.py checks they agree). The withdrawal's fades are as short as this allows (below)."""
+DAHL_LENGTH_M = 0.25e-3
+"""Dahl presliding length ``x_0`` (issue 31; 1 mm before). Design bounded by the device: a reversal's stick stiffness
+``2 F_c / x_0`` is 1.04 N/mm at 18 G lubricated and full depth (``F_c`` 0.13 N), the Touch's cap (a longer ``x_0``
+only prolongs the outward push at a withdrawal's start; a shorter one the renderer would lengthen to its cap anyway).
+Kim & Lee 2016 fit a Dahl law to needle friction in porcine tissue ("increases gradually ... due to deformation of
+surrounding tissue"): a presliding length exists; their number was not read."""
 CUT_PRESLIDING_M = 0.5e-3
-"""``x_c``: the cutting force fades over this distance when the tip backs off the crack front (a position law instead
-of a switch at zero speed). Design: the fade's slope ``beta F_p / x_c`` is a stiffness the device renders; at 0.5 mm it
-is 1.0 N/mm for a dry 18 G needle in fat and less for every thinner or lubricated one, within a Touch's 1.02 N/mm
-(``device.render``'s stiffness cap would otherwise lag the fade: ``skin-sim needle-device`` counted commands above the
-true force after a reversal at 0.1 mm). No measurement of the fade length was found."""
+"""``x_c,max``: the longest fade of the cutting force when the tip backs off the crack front (a position law instead
+of a switch at zero speed). Each layer's own fade is ``x_c,j = min(x_c,max, beta F_p,j / K_render)``
+(:data:`RENDER_STIFFNESS_N_PER_M`): the steepest the device renders without lagging the truth (``skin-sim needle-device``
+counted commands above the true force after a reversal with a 0.1 mm fade). Physically the fade is far shorter: the
+cutting force is carried by the crack front's cohesive zone, whose opening at peak traction is 2 MPa over
+5000 MPa/mm = 0.4 um (Mohammadi et al. 2021's fitted cohesive law for human skin); no measured fade was found. 21 G
+lubricated in fat: 0.16 mm (0.5 mm before)."""
+TIP_FRICTION_COEFFICIENT = 0.5
+"""``mu``: Coulomb friction of the needle's tip on the tented skin before a rupture. Derler & Gerhardt 2012 (Tribol
+Lett 45:1-27, review of human skin friction): dry skin "relatively low and pressure-independent friction coefficients
+(greater than 0.2 and typically around 0.5)"; moist or wet skin "typically >1". The typical dry value; a moist skin
+(mu > 0.75 here) would hold a needle without skating down to 41 degrees."""
+POISSON_RATIO = 0.5
+"""Tissue taken incompressible (the layered form's and the 3D reference's assumption)."""
+TENT_SHEAR_RATIO = 2.0 * (1.0 - POISSON_RATIO) / (2.0 - POISSON_RATIO)
+"""``kappa``: tangential over normal stiffness of an elastic contact, ``2 (1 - nu) / (2 - nu)`` (Mindlin 1949; Johnson,
+Contact Mechanics, 1985, section 7.2): 2/3 for incompressible tissue. A stuck tip shears the tent sideways by what it
+travels along the surface: with ``mu`` it sets the steepest skating angle, ``atan(kappa / mu)`` = 53.1 degrees."""
 LATERAL_FACTOR = 2.0
 """``k_l``: Winkler modulus of a shaft in an elastic medium per unit length over the medium's Young's modulus
 (order 2 for a rigid cylinder; stated choice)."""
@@ -161,6 +189,9 @@ class NeedleParams:
     shaft_shear_pa: float = SHAFT_SHEAR_PA
     dahl_length_m: float = DAHL_LENGTH_M
     cut_presliding_m: float = CUT_PRESLIDING_M
+    tip_friction: float = TIP_FRICTION_COEFFICIENT
+    tent_shear_ratio: float = TENT_SHEAR_RATIO
+    render_stiffness_n_per_m: float = RENDER_STIFFNESS_N_PER_M
 
     @classmethod
     def gauge(cls, g: int, **kw) -> NeedleParams:
@@ -177,6 +208,15 @@ class NeedleParams:
     def puncture_force_n(self, layer: int) -> float:
         """``F_p = lambda Gamma d`` of ``layer`` (N)."""
         return self.lubrication_factor * self.toughness_j_per_m2[layer] * self.outer_diameter_m
+
+    def cut_fade_m(self, layer: int) -> float:
+        """``x_c,j = min(x_c,max, beta F_p,j / K_render)`` (m): the cutting force's fade behind the front
+        (:data:`CUT_PRESLIDING_M`)."""
+        return min(self.cut_presliding_m, self.cutting_ratio * self.puncture_force_n(layer) / self.render_stiffness_n_per_m)
+
+    def skate_angle_rad(self) -> float:
+        """Steepest axis angle to the surface at which an advancing tip skates: ``atan(kappa / mu)`` (eq T2)."""
+        return math.atan2(self.tent_shear_ratio, self.tip_friction)
 
 
 @dataclass
@@ -195,6 +235,9 @@ class NeedleTick:
     punctured: tuple[int, ...] = ()
     bed_n: float = 0.0
     lateral_k_n_per_m: float = 0.0  # the bed's k = sum_i k_l E_i l_i (sideways stiffness at the tip: k / 2)
+    normal_n: float = 0.0  # the tent's normal reaction N (along +z)
+    tangential_n: float = 0.0  # the tent's reaction along the surface, c N (> 0 against the tip's advance)
+    tent_lateral_n: np.ndarray = field(default_factory=lambda: np.zeros(3))  # the tent's reaction off the axis
 
 
 def pack_needle(cfg: TissueConfig, params: NeedleParams) -> tuple[np.ndarray, np.ndarray]:
@@ -207,6 +250,8 @@ def pack_needle(cfg: TissueConfig, params: NeedleParams) -> tuple[np.ndarray, np
     npar[NP_CUT_RATIO] = params.cutting_ratio
     npar[NP_DAHL_M] = params.dahl_length_m
     npar[NP_CUT_M] = params.cut_presliding_m
+    npar[NP_MU] = params.tip_friction
+    npar[NP_KAPPA] = params.tent_shear_ratio
     npar[NP_WALL] = WALL_STRAIN
     npar[NP_LATERAL] = LATERAL_FACTOR
     npar[NP_BOTTOM] = cfg.total_thickness_m
@@ -215,6 +260,7 @@ def pack_needle(cfg: TissueConfig, params: NeedleParams) -> tuple[np.ndarray, np
     nlp[NL_FP] = [params.puncture_force_n(i) for i in range(nl)]
     nlp[NL_H] = [la.thickness_m for la in cfg.layers]
     nlp[NL_MODULUS] = youngs_moduli_pa(cfg)  # the live layers' (a stiffness change moves the bed with the dimple)
+    nlp[NL_CUT_M] = [params.cut_fade_m(i) for i in range(nl)]
     return npar, nlp
 
 
@@ -311,12 +357,17 @@ class NeedleModel:
         x, y, z = _vec3(tip, "tip")
         return bool(start_track(x, y, z, *_vec3(axis, "axis"), self.lp, self.npar, self.nstate, self.ntrack, self.nbuf))
 
-    def dimple_force_n(self, layer: int, w_m: float) -> float:
-        """Axial force (N) of the stack below ``layer``'s top pressed ``w_m`` along the axis by the needle's tip: the
-        column along the needle, its layers ``h / |u_z|`` long, strained as the normal compression ``w |u_z|`` strains
-        the stack, so the force at puncture does not depend on the angle (Schneider 1978: "relatively insensitive to
-        penetration velocity or angle")."""
-        return float(dimple_force(layer, float(w_m), 0.0, self.lp, self.npar, self.nlp, self.nstate, self.nbuf)[0])
+    def dimple_force_n(self, layer: int, w_m: float, slip_m: float = 0.0) -> float:
+        """Axial resistance (N) of the tented stack below ``layer``'s top pressed ``w_m`` along the axis by the tip
+        (eq T3): the normal reaction ``N`` at the normal depth ``w sin(theta)`` and the tangential ``c N`` along the
+        surface, projected on the axis; ``slip_m`` is ``xi`` (0: a tip stuck since the contact)."""
+        args = (self.lp, self.npar, self.nlp, self.nstate, self.nbuf)
+        return float(dimple_force(layer, float(w_m), float(slip_m), 0.0, *args)[0])
+
+    @property
+    def slip_m(self) -> float:
+        """``xi``: how far the tent's stuck point has slid along the axis (a skating tip; m)."""
+        return float(self.nstate[NS_SLIP])
 
     def rupture_insertion_m(self) -> float:
         """Insertion ``L`` (m) at which the next intact layer ruptures: its dimple force reaches ``F_p`` (the series
@@ -379,6 +430,9 @@ class NeedleModel:
             punctured=tuple(range(k0, k)),
             bed_n=o[NO_BED],
             lateral_k_n_per_m=o[NO_LATERAL_K],
+            normal_n=o[NO_NORMAL],
+            tangential_n=o[NO_TANGENTIAL],
+            tent_lateral_n=np.array(o[NO_TX : NO_TZ + 1]),
         )
 
 

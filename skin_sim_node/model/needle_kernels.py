@@ -6,7 +6,8 @@ cascade and a latched track, a cutting ramp behind the crack front, Dahl shaft f
 Winkler bed sideways. The crossings of the axis with the egg-carton interfaces (section II.C) use the point depths of
 :func:`~.paper.layer_bounds`.
 
-Kernel style of :mod:`.modal_kernels`: ``@njit(cache=True, nogil=True)``, plain arrays and scalars, outputs
+Kernel style of :mod:`.modal_kernels`: ``@njit(**JIT_OPTIONS)`` (``cache=True, nogil=True``, defined once here), plain
+arrays and scalars, outputs
 preallocated by the caller (a tick allocates nothing). The arrays (``lp`` of the tissue, ``npar``, ``nlp``,
 ``nstate``, ``ntrack``, ``nbuf``, ``nout``, ``nlaw``) are described in :mod:`.layout`; :class:`.needle.NeedleModel`
 packs and binds them. Each kernel is tested compiled and as ``.py_func`` against the pure-NumPy reference
@@ -20,6 +21,7 @@ instead of stepping copies of the model.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from numba import njit
 
@@ -34,6 +36,7 @@ from .layout import (
     NB_BOUNDS,
     NB_C,
     NB_G,
+    NL_CUT_M,
     NL_FP,
     NL_H,
     NL_MODULUS,
@@ -53,14 +56,20 @@ from .layout import (
     NO_LX,
     NO_LY,
     NO_LZ,
+    NO_NORMAL,
     NO_RUPTURED,
+    NO_TANGENTIAL,
+    NO_TX,
+    NO_TY,
+    NO_TZ,
     NP_BOTTOM,
-    NP_CUT_M,
     NP_CUT_RATIO,
     NP_DAHL_M,
     NP_FRICTION,
+    NP_KAPPA,
     NP_LATERAL,
     NP_MIN_SIN,
+    NP_MU,
     NP_SCALE,
     NP_WALL,
     NS_EX,
@@ -74,7 +83,9 @@ from .layout import (
     NS_LAW_POST,
     NS_LAW_POST_GRADIENT,
     NS_LAW_RUPTURE,
+    NS_LAW_SLIP,
     NS_RUPTURED,
+    NS_SLIP,
     NS_T,
     NS_UX,
     NS_UY,
@@ -93,6 +104,9 @@ from .layout import (
 )
 from .paper import layer_bounds
 
+JIT_OPTIONS: dict[str, Any] = {"cache": True, "nogil": True}
+"""The numba options of every needle kernel (one place: cached compilation, the GIL released)."""
+
 SCAN_STEP_M = 2e-6
 """Smallest depth step (m) of the march along the axis to an interface: two crossings closer than this may be taken
 as none (the reference's scan grid; a hundredth of the epidermis-dermis interface's 200 um wavelength)."""
@@ -106,7 +120,7 @@ MAX_DIMPLE_M = 1.0
 """Largest axial dimple (m) searched for a rupture: beyond it the layer is taken never to rupture (inf)."""
 
 
-@njit(cache=True, nogil=True)
+@njit(**JIT_OPTIONS)
 def reset_track(nstate, ntrack):
     """Clear the track: the needle is out of the tissue (``nstate``, ``ntrack`` as after packing).
 
@@ -122,7 +136,7 @@ def reset_track(nstate, ntrack):
     ntrack[:, :] = 0.0
 
 
-@njit(cache=True, nogil=True)
+@njit(**JIT_OPTIONS)
 def axis_gap(s, j, lp, npar, nstate, nbuf):
     """Depth below layer ``j``'s top of the axis point at length ``s`` from the entry (m; < 0 above it).
 
@@ -158,7 +172,7 @@ def axis_gap(s, j, lp, npar, nstate, nbuf):
     return -z - bounds[j]
 
 
-@njit(cache=True, nogil=True)
+@njit(**JIT_OPTIONS)
 def axis_crossing(j, lp, npar, nstate, nbuf):
     """Axis length from the entry to the first point where the axis meets layer ``j``'s top (m).
 
@@ -210,7 +224,7 @@ def axis_crossing(j, lp, npar, nstate, nbuf):
     return 0.5 * (lo + hi)
 
 
-@njit(cache=True, nogil=True)
+@njit(**JIT_OPTIONS)
 def start_track(px, py, pz, ux, uy, uz, lp, npar, nstate, ntrack, nbuf):
     """Start a track at the tip ``p`` with the unit axis ``u`` when the tip is below the surface and the needle is
     steeper than ``NP_MIN_SIN``: the entry where the axis met the rest surface, and every crossing ``t_j``.
@@ -245,13 +259,51 @@ def start_track(px, py, pz, ux, uy, uz, lp, npar, nstate, ntrack, nbuf):
     return True
 
 
-@njit(cache=True, nogil=True)
-def dimple_force(layer, w, t0, lp, npar, nlp, nstate, nbuf):
-    """Axial force (N) of the stack below ``layer``'s top pressed ``w`` along the axis by the tip, and its chain force.
+@njit(**JIT_OPTIONS)
+def tent_ratio(w, slip, npar, nstate):
+    """Tangential over normal reaction ``c`` of the tented skin on the tip (eq T2 of :mod:`.needle`).
 
-    The layered form's equilibrium series chain of layers ``layer..L-1`` (:func:`~.layered_law.chain_solve`, eq 4 with
-    the fitted compression law) at the normal compression ``w |u_z|``, scaled by ``NP_SCALE`` and acting along the
-    axis (the column along the needle, strained as the normal compression strains the stack): ``F = scale T(w |u_z|)``.
+    The tip has advanced ``w`` along the axis past the pressed layer's top: ``w sin(theta)`` into it and
+    ``w cos(theta)`` along it (``theta`` the axis' angle to the surface). Stuck, the tent is sheared along the
+    surface by ``(w - xi) cos(theta)`` (``xi`` how far its stuck point has slid along the axis) over a depth
+    ``w sin(theta)``, so ``c = kappa (w - xi) cot(theta) / w`` (``kappa`` Mindlin's tangential over normal stiffness of a
+    contact); Coulomb caps it at ``|c| <= mu`` (the tip skates). ``c > 0`` resists the tip's advance.
+
+    Parameters
+    ----------
+    w : float
+        Axial dimple (m); ``<= 0``: 0 returned.
+    slip : float
+        ``xi`` (m).
+    npar : ndarray, shape (NP_SIZE,)
+        ``NP_MU``, ``NP_KAPPA``.
+    nstate : ndarray, shape (NS_SIZE,)
+        The track's axis.
+
+    Returns
+    -------
+    float
+        ``c`` in ``[-mu, mu]``.
+    """
+    if w <= 0.0:
+        return 0.0
+    sn = -nstate[NS_UZ]
+    cs = math.sqrt(nstate[NS_UX] * nstate[NS_UX] + nstate[NS_UY] * nstate[NS_UY])
+    mu = npar[NP_MU]
+    c = npar[NP_KAPPA] * cs / sn * (w - slip) / w
+    return min(max(c, -mu), mu)
+
+
+@njit(**JIT_OPTIONS)
+def dimple_force(layer, w, slip, t0, lp, npar, nlp, nstate, nbuf):
+    """Axial resistance (N) of the tented stack below ``layer``'s top pressed ``w`` along the axis by the tip, its chain
+    force and its tangential ratio (eqs T1-T3 of :mod:`.needle`).
+
+    The normal reaction is the layered form's equilibrium series chain of layers ``layer..L-1``
+    (:func:`~.layered_law.chain_solve`, eq 4 with the fitted compression law) at the normal depth ``w sin(theta)``,
+    scaled to the tent by ``NP_SCALE``: ``N = scale T(w sin(theta))`` (T1), along the surface normal (+z). Along the
+    surface the tent answers ``c N`` against the tip's advance (:func:`tent_ratio`, T2). Their component along the axis
+    ``u`` resists insertion: ``F = N (sin(theta) + c cos(theta))`` (T3); at 90 degrees ``F = N``.
 
     Parameters
     ----------
@@ -259,6 +311,8 @@ def dimple_force(layer, w, t0, lp, npar, nlp, nstate, nbuf):
         The intact layer pressed, ``0..L-1``.
     w : float
         Axial dimple (m); ``<= 0``: no force.
+    slip : float
+        ``xi`` (m): how far the tent's stuck point has slid along the axis (0: stuck since the contact).
     t0 : float
         Newton start of the chain force ``T`` (N, a previous tick's; 0: cold).
     lp, npar, nlp, nstate : ndarray
@@ -269,12 +323,14 @@ def dimple_force(layer, w, t0, lp, npar, nlp, nstate, nbuf):
     Returns
     -------
     force : float
-        ``F`` (N, >= 0).
+        ``F`` (N; < 0 only when a tent sheared backwards pulls the tip in).
     t : float
-        ``T`` (N; 0 with no dimple).
+        ``T`` (N; 0 with no dimple); ``N = scale T``.
+    c : float
+        The tangential ratio ``c``.
     """
     if w <= 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, 0.0
     nl = lp.shape[1]
     down = -nstate[NS_UZ]
     z = nlp[NL_ZERO, layer:]
@@ -293,19 +349,22 @@ def dimple_force(layer, w, t0, lp, npar, nlp, nstate, nbuf):
         nbuf[NB_G, layer:nl],
     )
     t = max(t, 0.0)
-    return npar[NP_SCALE] * t, t
+    c = tent_ratio(w, slip, npar, nstate)
+    cs = math.sqrt(nstate[NS_UX] * nstate[NS_UX] + nstate[NS_UY] * nstate[NS_UY])
+    return npar[NP_SCALE] * t * (down + c * cs), t, c
 
 
-@njit(cache=True, nogil=True)
-def axial_at(ins, k, front, t0, lp, npar, nlp, nstate, ntrack, nbuf):
+@njit(**JIT_OPTIONS)
+def axial_at(ins, k, front, slip, t0, lp, npar, nlp, nstate, ntrack, nbuf):
     """The axial resistance's dimple and cutting parts at the insertion ``ins`` from ``k`` ruptured layers and the crack
     front ``front``: a pure function of the state (the step and the law's look-ahead share it).
 
-    Layer ``k`` ruptures when its dimple force reaches ``F_p,k``; the rupture releases the dimple and the next layer is
-    tested at the same insertion (a cascade). Cutting ``beta F_p,j`` in the ruptured layer ``j`` the tip is in, on a
-    ramp over ``x_c`` behind the front, while ``j`` is not yet cut through to the next layer's top (a front at or past
-    it leaves nothing to cut in ``j``: backing out of a dimple into the cut layer above meets no cutting force, so
-    nothing switches on at the crossing).
+    Layer ``k`` ruptures when its dimple's axial resistance (:func:`dimple_force`, eq T3: the tent's normal reaction
+    and friction projected on the axis) reaches ``F_p,k`` (eq P); the rupture releases the dimple and the next layer is
+    tested at the same insertion (a cascade) as a new contact (``xi = 0``; layer ``k`` uses the state's ``xi``).
+    Cutting ``beta F_p,j`` in the ruptured layer ``j`` the tip is in, on a ramp over ``x_c,j`` behind the front, while
+    ``j`` is not yet cut through to the next layer's top (a front at or past it leaves nothing to cut in ``j``:
+    backing out of a dimple into the cut layer above meets no cutting force, so nothing switches on at the crossing).
 
     Parameters
     ----------
@@ -315,6 +374,8 @@ def axial_at(ins, k, front, t0, lp, npar, nlp, nstate, ntrack, nbuf):
         Layers ruptured before.
     front : float
         Crack front (m).
+    slip : float
+        ``xi`` of layer ``k``'s tent (m).
     t0 : float
         Newton start of layer ``k``'s chain force (N).
     lp, npar, nlp, nstate, ntrack, nbuf : ndarray
@@ -330,20 +391,25 @@ def axial_at(ins, k, front, t0, lp, npar, nlp, nstate, ntrack, nbuf):
         Axial dimple of the next intact layer (m, >= 0).
     t : float
         Chain force of that dimple (N; 0 with none), the next Newton start.
+    c : float
+        The tent's tangential ratio of that dimple (:func:`tent_ratio`; 0 with none).
     """
     nl = lp.shape[1]
     cross = ntrack[NT_CROSS]
     dimple = 0.0
     t = 0.0
+    c = 0.0
     start = t0
     while k < nl:
-        dimple, t = dimple_force(k, ins - cross[k], start, lp, npar, nlp, nstate, nbuf)
+        dimple, t, c = dimple_force(k, ins - cross[k], slip, start, lp, npar, nlp, nstate, nbuf)
         if dimple < nlp[NL_FP, k]:
             break
         k += 1
         dimple = 0.0
         start = t  # the next chain is stiffer: its force is near the ruptured one's (a right start only costs a step)
         t = 0.0
+        c = 0.0
+        slip = 0.0  # the next layer's tent is a new contact
     w_dimple = max(ins - cross[k], 0.0) if k < nl else 0.0
     cut = 0.0
     if k > 0 and (k == nl or ins < cross[k]):
@@ -353,13 +419,13 @@ def axial_at(ins, k, front, t0, lp, npar, nlp, nstate, ntrack, nbuf):
                 j = i
         j = min(max(j, 0), k - 1)
         if j == nl - 1 or front < cross[j + 1]:  # a layer cut through to the next one's top has nothing left to cut
-            xc = npar[NP_CUT_M]
+            xc = nlp[NL_CUT_M, j]
             ramp = min(max((ins - front + xc) / xc, 0.0), 1.0)
             cut = npar[NP_CUT_RATIO] * nlp[NL_FP, j] * ramp
-    return k, dimple, cut, w_dimple, t
+    return k, dimple, cut, w_dimple, t, c
 
 
-@njit(cache=True, nogil=True)
+@njit(**JIT_OPTIONS)
 def advance_front(ins, k, front, ntrack):
     """The crack front after a tick at ``ins`` with ``k`` ruptured layers: the deepest cut insertion.
 
@@ -391,12 +457,51 @@ def advance_front(ins, k, front, ntrack):
     return front
 
 
-@njit(cache=True, nogil=True)
+@njit(**JIT_OPTIONS)
+def tent_slip(w, slip, npar, nstate):
+    """``xi`` after a tick with the axial dimple ``w`` (eq T2 of :mod:`.needle`): the tent's stuck point slides (the tip
+    skates) just enough to keep ``|c| <= mu``; no dimple (``w <= 0``), no contact: ``xi = 0``.
+
+    Stuck, ``c = kappa cot(theta) (w - xi) / w``; past ``+mu`` (advancing) ``xi = w (1 - mu / (kappa cot(theta)))``,
+    past ``-mu`` (backing out) ``xi = w (1 + mu / (kappa cot(theta)))``. A needle steeper than ``atan(kappa / mu)`` to
+    the surface never skates while it advances.
+
+    Parameters
+    ----------
+    w : float
+        Axial dimple of the next intact layer (m).
+    slip : float
+        ``xi`` before (m; 0 for a new contact).
+    npar, nstate : ndarray
+        ``NP_MU``, ``NP_KAPPA`` and the track's axis.
+
+    Returns
+    -------
+    float
+        ``xi`` (m).
+    """
+    if w <= 0.0:
+        return 0.0
+    kc = npar[NP_KAPPA] * math.sqrt(nstate[NS_UX] * nstate[NS_UX] + nstate[NS_UY] * nstate[NS_UY]) / -nstate[NS_UZ]
+    if kc <= 0.0:
+        return 0.0
+    mu = npar[NP_MU]
+    q = kc * (w - slip) / w
+    if q > mu:
+        return w * (1.0 - mu / kc)
+    if q < -mu:
+        return w * (1.0 + mu / kc)
+    return slip
+
+
+@njit(**JIT_OPTIONS)
 def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nbuf, nout):
     """One tick of the needle at the tip ``p`` with the axis ``u`` (unit, toward the tip): force and state.
 
     Starts a track when there is none (:func:`start_track`); forgets it when the insertion ``L = (p - e) . u_e``
-    is ``<= 0``. Then the dimple, ruptures and cutting (:func:`axial_at`), the front (:func:`advance_front`),
+    is ``<= 0``. Then the dimple, ruptures and cutting (:func:`axial_at`), the front (:func:`advance_front`), the
+    tent's slip (:func:`tent_slip`) and its reaction ``N e_z - c N t`` (``t`` the axis' direction along the surface;
+    its axial part is the dimple, the rest is added off the axis),
     Dahl friction ``lambda tau pi d l_i s_i`` per ruptured layer with
     ``s_i <- sigma + (s_i - sigma) exp(-|dL| / x_0)``, and the lateral bed, the gradient of
     ``U = k(L) |delta|^2 / 4``, ``k = sum_i k_l E_i l_i``: ``-0.5 k delta`` sideways and ``k'(L) |delta|^2 / 4`` added
@@ -441,10 +546,17 @@ def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nb
         return False
     k0 = int(nstate[NS_RUPTURED])
     front = nstate[NS_FRONT]
-    k, dimple, cut, w_dimple, t = axial_at(ins, k0, front, nstate[NS_T], lp, npar, nlp, nstate, ntrack, nbuf)
+    k, dimple, cut, w_dimple, t, c = axial_at(ins, k0, front, nstate[NS_SLIP], nstate[NS_T], lp, npar, nlp, nstate, ntrack, nbuf)
     nstate[NS_RUPTURED] = k
     nstate[NS_FRONT] = advance_front(ins, k, front, ntrack)
     nstate[NS_T] = t
+    nstate[NS_SLIP] = tent_slip(w_dimple, nstate[NS_SLIP] if k == k0 else 0.0, npar, nstate)
+    # the tent's reaction: N along the surface normal (+z), c N along the surface against the tip's advance (T1-T2)
+    normal = npar[NP_SCALE] * t
+    cs = math.sqrt(vx * vx + vy * vy)
+    tx, ty = (vx / cs, vy / cs) if cs > 0.0 else (0.0, 0.0)
+    ftx, fty, ftz = -c * normal * tx, -c * normal * ty, normal
+    px_, py_, pz_ = ftx + dimple * vx, fty + dimple * vy, ftz + dimple * vz  # its part off the axis (dimple = -F_t . u)
     cross = ntrack[NT_CROSS]
     dahl = ntrack[NT_DAHL]
     step = ins - nstate[NS_LAST]
@@ -467,23 +579,42 @@ def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nb
     # the bed is the gradient of U = lateral_k(L) |delta|^2 / 4: its axial part, so a closed path does no net work
     bed = 0.25 * lateral_dk * ((dx - ins * vx) ** 2 + (dy - ins * vy) ** 2 + (dz - ins * vz) ** 2)
     axial = dimple + cut + fric + bed
-    nout[NO_FX], nout[NO_FY], nout[NO_FZ] = -axial * vx + lx, -axial * vy + ly, -axial * vz + lz
+    nout[NO_FX], nout[NO_FY], nout[NO_FZ] = -axial * vx + lx + px_, -axial * vy + ly + py_, -axial * vz + lz + pz_
     nout[NO_AXIAL], nout[NO_DIMPLE], nout[NO_CUT], nout[NO_FRICTION] = axial, dimple, cut, fric
     nout[NO_LX], nout[NO_LY], nout[NO_LZ] = lx, ly, lz
     nout[NO_DIMPLE_M], nout[NO_INSERTION_M] = w_dimple, ins
     nout[NO_RUPTURED], nout[NO_FIRST] = k, k0
     nout[NO_BED] = bed
     nout[NO_LATERAL_K] = lateral_k
+    nout[NO_NORMAL], nout[NO_TANGENTIAL] = normal, c * normal
+    nout[NO_TX], nout[NO_TY], nout[NO_TZ] = px_, py_, pz_
     return True
 
 
-@njit(cache=True, nogil=True)
-def rupture_insertion(lp, npar, nlp, nstate, ntrack, nbuf):
-    """Insertion ``L`` (m) at which the next intact layer ``k`` ruptures; inf when none is left or it never does.
+@njit(**JIT_OPTIONS)
+def _chain_dimple(target, k, lp, npar, nlp, nbuf):
+    """Total normal compression (m) of layers ``k..L-1`` carrying the chain force ``target`` (N): each layer's own
+    monotone law solved (:func:`~.layered_law.layer_compression`, Newton); ``NB_C`` written."""
+    nl = lp.shape[1]
+    total = 0.0
+    for i in range(k, nl):
+        c, _ = layer_compression(target, lp[LP_EA, i], lp[LP_N, i], 0.0, 0.0, nlp[NL_H, i], npar[NP_WALL], 0.0)
+        nbuf[NB_C, i] = c
+        total += c
+    return total
 
-    The dimple law is the series chain's, so it inverts in closed form: the chain force at the threshold is
-    ``T* = F_p,k / (scale |u_z|)``, each layer's compression at ``T*`` solves its own monotone law
-    (:func:`~.layered_law.layer_compression`, Newton), and ``L = t_k + sum_i c_i(T*) / |u_z|``. No search on the dimple.
+
+@njit(**JIT_OPTIONS)
+def rupture_insertion(lp, npar, nlp, nstate, ntrack, nbuf):
+    """Insertion ``L`` (m) at which the next intact layer ``k`` ruptures, the tip advancing from the state as it is
+    (its ``xi``); inf when none is left or it never does.
+
+    The dimple's axial resistance is ``scale T(w sin(theta)) (sin(theta) + c(w) cos(theta))`` (eq T3) with the series
+    chain's ``T``, so it inverts in closed form while ``c`` is constant at the threshold: skating (``c = mu``) or stuck
+    since the contact (``xi = 0``, ``c = kappa cot(theta)``): the chain force there is
+    ``T* = F_p,k / (scale (sin(theta) + c cos(theta)))``, each layer's compression at ``T*`` solves its own monotone law
+    (:func:`~.layered_law.layer_compression`) and ``L = t_k + sum_i c_i(T*) / sin(theta)``. A tip stuck after having
+    skated (``xi != 0``, backed off and advancing again) bisects the monotone law instead (to adjacent floats).
 
     Parameters
     ----------
@@ -502,26 +633,43 @@ def rupture_insertion(lp, npar, nlp, nstate, ntrack, nbuf):
     if nstate[NS_INSERTED] == 0.0 or k >= nl:
         return math.inf
     down = -nstate[NS_UZ]
-    target = nlp[NL_FP, k] / npar[NP_SCALE]
-    total = 0.0
-    for i in range(k, nl):
-        c, _ = layer_compression(target, lp[LP_EA, i], lp[LP_N, i], 0.0, 0.0, nlp[NL_H, i], npar[NP_WALL], 0.0)
-        nbuf[NB_C, i] = c
-        total += c
-    w = total / down
+    cs = math.sqrt(nstate[NS_UX] * nstate[NS_UX] + nstate[NS_UY] * nstate[NS_UY])
+    kc = npar[NP_KAPPA] * cs / down
+    mu = npar[NP_MU]
+    slip = nstate[NS_SLIP]
+    fp = nlp[NL_FP, k]
+    w = _chain_dimple(fp / (npar[NP_SCALE] * (down + mu * cs)), k, lp, npar, nlp, nbuf) / down  # skating there
+    if not kc * (w - slip) >= mu * w:
+        if slip == 0.0:  # stuck since the contact: c = kappa cot(theta) < mu
+            w = _chain_dimple(fp / (npar[NP_SCALE] * (down + kc * cs)), k, lp, npar, nlp, nbuf) / down
+        else:  # stuck after a skate: c grows with w, bisect the monotone law
+            lo, hi = 0.0, max(w, 1e-6)
+            while dimple_force(k, hi, slip, 0.0, lp, npar, nlp, nstate, nbuf)[0] < fp:
+                lo, hi = hi, 2.0 * hi
+                if hi > MAX_DIMPLE_M:
+                    return math.inf
+            for _ in range(200):
+                mid = 0.5 * (lo + hi)
+                if mid <= lo or mid >= hi:
+                    break
+                if dimple_force(k, mid, slip, 0.0, lp, npar, nlp, nstate, nbuf)[0] < fp:
+                    lo = mid
+                else:
+                    hi = mid
+            w = hi
     if not w <= MAX_DIMPLE_M:
         return math.inf
     return ntrack[NT_CROSS, k] + w
 
 
-@njit(cache=True, nogil=True)
+@njit(**JIT_OPTIONS)
 def _insertion(px, py, pz, a, nstate):
     """Insertion along the track of the point ``p + a u_e`` (m)."""
     vx, vy, vz = nstate[NS_UX], nstate[NS_UY], nstate[NS_UZ]
     return (px + a * vx - nstate[NS_EX]) * vx + (py + a * vy - nstate[NS_EY]) * vy + (pz + a * vz - nstate[NS_EZ]) * vz
 
 
-@njit(cache=True, nogil=True)
+@njit(**JIT_OPTIONS)
 def needle_law_kernel(px, py, pz, ins, re0, fric, k_tick, lp, npar, nlp, nstate, ntrack, nbuf, nlaw):
     """The axial law at the tip ``p`` after a tick, for the local contact model (``NeedleLaw``).
 
@@ -559,16 +707,17 @@ def needle_law_kernel(px, py, pz, ins, re0, fric, k_tick, lp, npar, nlp, nstate,
     ins1 = _insertion(px, py, pz, h, nstate)
     k1, v1 = 0, 0.0
     if ins1 > 0.0:
-        k1, d1, c1, _, _ = axial_at(ins1, k, front, t0, lp, npar, nlp, nstate, ntrack, nbuf)
+        k1, d1, c1, _, _, _ = axial_at(ins1, k, front, nstate[NS_SLIP], t0, lp, npar, nlp, nstate, ntrack, nbuf)
         v1 = d1 + c1
     slope = (v1 - re0) / h if k1 == k_tick else 0.0
     ins_b = _insertion(px, py, pz, -h, nstate)  # behind: the cutting ramp fades (a pure look-up: the front stays)
     slope_behind = slope
     if ins_b > 0.0:
-        kb, db, cb, _, _ = axial_at(ins_b, k, front, t0, lp, npar, nlp, nstate, ntrack, nbuf)
+        kb, db, cb, _, _, _ = axial_at(ins_b, k, front, nstate[NS_SLIP], t0, lp, npar, nlp, nstate, ntrack, nbuf)
         if kb == k_tick:
             slope_behind = (re0 - (db + cb)) / h
-    cached = nstate[NS_LAW_K] == k + 1 and nstate[NS_LAW_FRONT] == front
+    slip = nstate[NS_SLIP]
+    cached = nstate[NS_LAW_K] == k + 1 and nstate[NS_LAW_FRONT] == front and nstate[NS_LAW_SLIP] == slip
     lr = nstate[NS_LAW_RUPTURE] if cached else rupture_insertion(lp, npar, nlp, nstate, ntrack, nbuf)
     dist = 0.0
     post = 0.0
@@ -583,16 +732,18 @@ def needle_law_kernel(px, py, pz, ins, re0, fric, k_tick, lp, npar, nlp, nstate,
             ins_b = _insertion(px + h * nstate[NS_UX], py + h * nstate[NS_UY], pz + h * nstate[NS_UZ], a, nstate)
             if ins_a > 0.0 and ins_b > 0.0:
                 t_rupture = nlp[NL_FP, k] / npar[NP_SCALE]  # the chain force at the threshold
-                ka, da, ca, _, ta = axial_at(ins_a, k, front, t_rupture, lp, npar, nlp, nstate, ntrack, nbuf)
+                ka, da, ca, wa, ta, _ = axial_at(ins_a, k, front, slip, t_rupture, lp, npar, nlp, nstate, ntrack, nbuf)
                 front_a = advance_front(ins_a, ka, front, ntrack)
-                _, db, cb, _, _ = axial_at(ins_b, ka, front_a, ta, lp, npar, nlp, nstate, ntrack, nbuf)
+                slip_a = tent_slip(wa, slip if ka == k else 0.0, npar, nstate)  # as the step there leaves it
+                _, db, cb, _, _, _ = axial_at(ins_b, ka, front_a, slip_a, ta, lp, npar, nlp, nstate, ntrack, nbuf)
                 post = da + ca
                 post_slope = (db + cb - post) / h
             if ins < lr:
-                nstate[NS_LAW_K], nstate[NS_LAW_FRONT] = k + 1, front
+                nstate[NS_LAW_K], nstate[NS_LAW_FRONT], nstate[NS_LAW_SLIP] = k + 1, front, slip
                 nstate[NS_LAW_RUPTURE], nstate[NS_LAW_POST], nstate[NS_LAW_POST_GRADIENT] = lr, post, post_slope
     elif not cached:
         nstate[NS_LAW_K], nstate[NS_LAW_FRONT], nstate[NS_LAW_RUPTURE] = k + 1, front, lr
+        nstate[NS_LAW_SLIP] = slip
     cross = ntrack[NT_CROSS]
     cap = 0.0
     grows = 0.0
