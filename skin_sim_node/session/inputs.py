@@ -342,10 +342,10 @@ class InputPolicy:
         self.answered_stamp_ns = stamp
         from_pos: tuple[float, float, float] | None = self._model_pos
         self._model_pos = self.pose
+        v = AT_REST if release else self._velocity(stamp)  # a jump (teleport, a tool gone and back) has no velocity
         if restart:
             dt_ns = int(p.max_dt_s * 1e9)
             rate_dt_ns = elapsed_ns if last is None else gap_ns
-            v = AT_REST
             from_pos = None
         else:
             rate_dt_ns = gap_ns
@@ -357,7 +357,6 @@ class InputPolicy:
                     f"tool poses resumed after {gap_ns * 1e-6:.0f} ms: the tissue continued from its held state (a "
                     "stall is not a restart)",
                 )
-            v = velocity_estimate(p, stamp, self.pose, self._prev_pose_stamp_ns, self._prev_pose, self.twist_stamp_ns, self.twist)
             if dt_ns * 1e-9 > p.max_dt_s:
                 self._event(
                     ev.TICK_CLAMPED,
@@ -367,6 +366,12 @@ class InputPolicy:
             True, False, self.pose, v, max(dt_ns, 0) * 1e-9, release, hold=False, rate_dt_ns=max(rate_dt_ns, 0),
             restart=restart, axis=self.axis, from_pos=from_pos,
         )  # fmt: skip
+
+    def _velocity(self, stamp: int) -> tuple[float, float, float]:
+        """:func:`velocity_estimate` at the pending pose (stamped ``stamp``)."""
+        return velocity_estimate(
+            self.params, stamp, self.pose, self._prev_pose_stamp_ns, self._prev_pose, self.twist_stamp_ns, self.twist
+        )
 
     def _stalled(self, waited: float | None, elapsed_ns: int) -> TickInput:
         """A tick of a stale input (:meth:`take`): the tool held at its last pose while the stall is shorter than
