@@ -149,3 +149,29 @@ def test_the_tissue_keeps_its_arms_anchor_and_patch_through_a_stall(default_cfg)
 def test_a_long_interval_is_stepped_in_parts():
     assert substeps(0.05, 0.1) == 1 and substeps(0.1, 0.1) == 1 and substeps(0.25, 0.1) == 3
     assert substeps(100.0, 0.1) == MAX_SUBSTEPS and substeps(5.0, 0.0) == 1
+
+
+@pytest.mark.parametrize("shape", ["needle", "flat"])
+def test_a_stalled_live_session_answers_as_the_offline_replay_of_its_poses(default_cfg, shape):
+    """The live session held the tissue unstepped through the stall and stepped the whole gap when poses resumed, as the
+    offline replay (no clock: it never sees a stall) steps the same stamps: the same forces, bit for bit."""
+    cfg = default_cfg.replace(**{"tool.shape": shape})
+    live = HapticSession(make_tool(cfg), SessionParams(max_stamp_age_s=0.0))
+    offline = HapticSession(make_tool(cfg), SessionParams(max_stamp_age_s=0.0))
+    now, prev, a, b = T0, None, [], []
+    for k in range(900):
+        stamp = T0 + k * MS + (300 * MS if k >= 400 else 0)  # the hand holds still for 300 ms at 3.5 mm
+        if k == 400:
+            for _ in range(300):
+                now += MS
+                assert live.tick(now, MS).stale or _ < 50
+        now += MS
+        xyz = (0.0, 0.0, START_M - 1e-5 * min(k, 400) + 1e-5 * max(k - 400, 0))
+        live.on_pose(stamp, "tissue", xyz, now_ns=now, quat=(0.0, 0.0, 0.0, 1.0))
+        a.append(live.tick(now, MS).force_n)
+        offline.on_pose(stamp, "tissue", xyz, quat=(0.0, 0.0, 0.0, 1.0))
+        b.append(offline.tick(stamp, 0 if prev is None else stamp - prev).force_n)
+        prev = stamp
+    assert live.counts[STALL_RESUMED] == 1 and offline.counts[STALL_RESUMED] == 0
+    assert np.abs(np.array(b)[:, 2]).max() > 0.3
+    np.testing.assert_array_equal(np.array(a), np.array(b))

@@ -299,7 +299,16 @@ class HapticSession:
         ti = self.inputs.take(now_ns, elapsed_ns)
         if ti.hold and self.last is not None:  # no new pose: model, force and local model held (model time = stamps)
             self._seq += 1
-            self.last = replace(self.last, seq=self._seq, answered=False, events=self._event.take())
+            if ti.stale:  # a stall: the tissue keeps its state, unstepped; the published force is zero, at once
+                self.limits.apply(0.0, ti.rate_dt_ns, True)
+                zero = (0.0, 0.0, 0.0)
+                self.velocity = zero
+                self.last = replace(
+                    self.last, seq=self._seq, answered=False, events=self._event.take(), force_n=zero, velocity_m_s=zero,
+                    stale=True, tangent=NO_CONTACT,
+                )  # fmt: skip
+            else:
+                self.last = replace(self.last, seq=self._seq, answered=False, events=self._event.take())
             return self.last
         self.velocity = ti.velocity
         if ti.release:

@@ -21,10 +21,6 @@ LIFTED = (0.0, 0.0, 1.0)
 
 AT_REST = (0.0, 0.0, 0.0)
 
-SERVO_PERIOD_NS = 1_000_000
-"""One 1 kHz servo period (ns): the least a pose resumed after a stall advances the model (its own stamp interval if
-shorter), so that the held ticks' time never leaves a step of dt = 0 (a rigid Kelvin-Voigt damper)."""
-
 DOWN = (0.0, 0.0, -1.0)
 """The tool axis of an identity orientation: straight down into the tissue (``tool_pose`` in msgs_schema/topics.py)."""
 QUATERNION_NORM_TOLERANCE = 1e-3
@@ -59,8 +55,9 @@ class TickInput(NamedTuple):
     release : bool
         End contact before the step: the tool teleported, or a stall outlasted ``stall_hold_s`` (the tool is gone).
     hold : bool
-        No new pose and the input is not stale: the model is not stepped and the force is held (``dt_s`` is 0).
-        Model time follows the pose stamps; a pose-less tick does not advance it.
+        No new pose: the model is not stepped (``dt_s`` is 0) and, while the input is fresh, the force is held; in a
+        stall (``stale`` too, shorter than ``stall_hold_s``) the published force is zero and the tissue keeps its
+        state. Model time follows the pose stamps; a pose-less tick does not advance it.
     rate_dt_ns : int
         The interval the force-rate bound allows a change over (ns): the stamp interval of an answered pose,
         the caller's interval otherwise.
@@ -163,7 +160,7 @@ class InputPolicy:
         self._backwards_run = 0
         self._last_used_stamp_ns: int | None = None  # stamp of the pose the last tick used (model time)
         self._model_pos = LIFTED  # where the model's last step ran the tool
-        self._held_ns = 0  # model time the held ticks of a stall advanced since the last answered pose
+        self._held = False  # a stall held the tissue since the last answered pose
         self._pending = False  # a pose arrived that no tick has consumed
         self.stale = True
         self.answered_stamp_ns = 0
@@ -285,9 +282,10 @@ class InputPolicy:
         does, however the poses arrived.
 
         A stall is not a restart (issue 31). Once the watchdog fires the published force is zero, and the tissue
-        keeps its state with the tool held at its last pose, relaxing on the caller's clock (``elapsed_ns``): what the
-        tool holds (a track cut through the layers), the viscoelastic arms, the friction anchor and the patch persist. When poses
-        resume the model continues from there over the rest of the stamp gap, from the held pose to the new one. A
+        keeps its state, unstepped, with the tool held at its last pose: what the tool holds (a track cut through the
+        layers), the viscoelastic arms, the friction anchor and the patch persist. When poses resume the model
+        continues over the whole stamp gap, in parts along the line from the held pose to the new one (relaxing as
+        under a hand that held still, then moved), exactly as the offline replay of the same poses steps it. A
         stall longer than ``stall_hold_s`` (on the caller's clock live, on the stamps offline) is the tool gone: the
         tissue is released, relaxing lifted off, and the next pose restarts contact. So are a teleport and a resync
         (a new time line): the restarts are explicit events.
@@ -323,7 +321,7 @@ class InputPolicy:
         assert stamp is not None  # a pending pose has a stamp
         last = self._last_used_stamp_ns
         gap_ns = 0 if last is None else stamp - last
-        held_ns, self._held_ns = self._held_ns, 0
+        held, self._held = self._held, False
         gone = last is not None and not self._teleported and gap_ns * 1e-9 > max(p.stall_hold_s, p.watchdog_s)
         if gone:
             self._event(
@@ -348,10 +346,8 @@ class InputPolicy:
             rate_dt_ns = elapsed_ns if last is None else gap_ns
             from_pos = None
         else:
-            rate_dt_ns = gap_ns
-            dt_ns = gap_ns
-            if held_ns > 0:  # the held stall ticks advanced part of the gap already; at least the pose's own interval
-                dt_ns = max(gap_ns - held_ns, min(gap_ns, SERVO_PERIOD_NS))
+            rate_dt_ns = dt_ns = gap_ns
+            if held:
                 self._event(
                     ev.STALL_RESUMED,
                     f"tool poses resumed after {gap_ns * 1e-6:.0f} ms: the tissue continued from its held state (a "
@@ -379,9 +375,11 @@ class InputPolicy:
         p = self.params
         dt = min(max(elapsed_ns, 0) * 1e-9, p.max_dt_s)  # the caller's own stall does not jump the tissue ahead
         if waited is not None and waited <= max(p.stall_hold_s, p.watchdog_s) and self._last_used_stamp_ns is not None:
-            self._held_ns += int(round(dt * 1e9))
+            # held: the model is not stepped (the resumed pose steps it over the whole gap, as the offline replay does,
+            # and a stalled machine spends nothing on a tissue nobody touches); the published force is zero
+            self._held = True
             held = self._model_pos  # where the model last ran the tool
-            return TickInput(False, True, held, AT_REST, dt, False, rate_dt_ns=max(elapsed_ns, 0), axis=self.axis)
+            return TickInput(False, True, held, AT_REST, 0.0, False, hold=True, rate_dt_ns=max(elapsed_ns, 0), axis=self.axis)
         release = self._last_used_stamp_ns is not None
         if release and waited is not None:
             self._event(
@@ -390,7 +388,7 @@ class InputPolicy:
                 "tissue released",
             )
         self._last_used_stamp_ns = None
-        self._held_ns = 0
+        self._held = False
         self._model_pos = LIFTED
         lifted = (self.pose[0], self.pose[1], 1.0)
         return TickInput(False, True, lifted, AT_REST, dt, release, rate_dt_ns=max(elapsed_ns, 0), axis=self.axis)
