@@ -40,6 +40,10 @@ COMMANDS = {
         "skin_sim_lab.validation.needle_angle",
         "offline: the needle at 90-15 deg (puncture, tip travel, force angle, skate) and its withdrawal (~10 s)",
     ),
+    "stall": (
+        "skin_sim_lab.validation.stall",
+        "offline: a needle stalled 60/150/500 ms at each phase against the unpaused path (issue 31, ~10 s)",
+    ),
     "needle-device": (
         "skin_sim_lab.perf.needle_device",
         "offline: needle insertion rendered at 1 kHz from a 250 Hz server vs truth and hold-last (~10 s)",

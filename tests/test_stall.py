@@ -10,7 +10,8 @@ After the pause the force is within 1.2 x the unpaused path's + 0.05 N at the sa
 punctured twice, and the track keeps its entry. Where the hand reversed inside a dropped pause the path in between is
 unknown to any server (the model takes the straight line): those cases are left out, and said so. With
 ``stall_hold_s`` 0 (a stall released at the watchdog, as before issue 31) the same check fails: the test can fail.
-The same over DDS with the bridge: tests/test_stall_ros.py.
+The path and the runs are :mod:`skin_sim_lab.validation.stall` (``skin-sim stall`` prints the table); the same over DDS
+with the bridge: tests/test_stall_ros.py.
 """
 
 from __future__ import annotations
@@ -19,63 +20,20 @@ import numpy as np
 import pytest
 
 from msgs_schema.parameters import SessionParams
-from skin_sim_node.model import preset
-from skin_sim_node.model.needle import GAUGE_OUTER_DIAMETER_M
+from skin_sim_lab.validation.stall import (
+    MS,
+    PAUSES_MS,
+    PHASES_S,
+    START_M,
+    T0,
+    skipped,
+)
+from skin_sim_lab.validation.stall import excess_after as _excess_after
+from skin_sim_lab.validation.stall import punctures as _punctures
+from skin_sim_lab.validation.stall import run as _run
 from skin_sim_node.session import STALL_RESUMED, WATCHDOG, HapticSession
 from skin_sim_node.session.haptic import MAX_SUBSTEPS, substeps
 from skin_sim_node.tools import make_tool
-
-MS = 1_000_000
-T0 = 10**12
-DEPTH_M, SPEED_M_S, START_M = 5e-3, 10e-3, 0.5e-3
-T_IN_S = (DEPTH_M + START_M) / SPEED_M_S  # the turn, s
-PHASES_S = {"before the puncture": 0.20, "just after it": 0.39, "deep": 0.52, "withdrawing": 0.80}
-PAUSES_MS = (60, 150, 500)
-
-
-def _z(t: float) -> float:
-    return START_M - SPEED_M_S * t if t < T_IN_S else min(-DEPTH_M + SPEED_M_S * (t - T_IN_S), START_M)
-
-
-def _run(gauge: int, pause_at: float | None = None, pause_ms: int = 0, mode: str = "held", **params):
-    """Ticks at 1 kHz on the session's clock; returns rows (path time s, force z N, layers ruptured, entry) and the session."""
-    cfg = preset("default").replace(**{"tool.shape": "needle", "needle.outer_diameter_m": GAUGE_OUTER_DIAMETER_M[gauge]})
-    s = HapticSession(make_tool(cfg), SessionParams(max_stamp_age_s=0.0, **params))
-    rows, now, shift, k, paused = [], T0, 0, 0, False
-    n = int(2 * T_IN_S * 1e3)
-    while k <= n:
-        if pause_at is not None and not paused and k * 1e-3 >= pause_at:
-            paused = True
-            for _ in range(pause_ms):  # the session keeps ticking on its own clock, no pose comes
-                now += MS
-                s.tick(now, MS)
-            if mode == "held":
-                shift += pause_ms * MS
-            else:
-                k += pause_ms
-        now += MS
-        stamp = T0 + (k + 1) * MS + shift
-        t = k * 1e-3
-        assert s.on_pose(stamp, "tissue", (0.0, 0.0, _z(t)), now_ns=now, quat=(0.0, 0.0, 0.0, 1.0)) is None
-        r = s.tick(now, MS)
-        nd = s.tool.needle
-        rows.append((t, r.force_n[2], nd.ruptured, tuple(nd.entry.tolist()) if nd.inserted else None))
-        k += 1
-    return rows, s
-
-
-def _punctures(rows) -> int:
-    return int(sum(max(b[2] - a[2], 0) for a, b in zip(rows, rows[1:])))
-
-
-def _excess_after(rows, base, t0: float) -> float:
-    """Largest ``|F| - (1.2 |F_unpaused| + 0.05 N)`` from path time ``t0`` on (N)."""
-    at = {round(r[0], 3): r[1] for r in base}
-    return max(abs(f) - (1.2 * abs(at[round(t, 3)]) + 0.05) for t, f, _, _ in rows if t >= t0 and round(t, 3) in at)
-
-
-def _reverses_inside(pause_at: float, pause_ms: int) -> bool:
-    return pause_at < T_IN_S < pause_at + pause_ms * 1e-3
 
 
 @pytest.fixture(scope="module", params=[21, 18])
@@ -90,7 +48,7 @@ def test_a_stall_keeps_the_track_and_the_force_continues(needle_base, mode):
     checked = 0
     for phase, at in PHASES_S.items():
         for pause in PAUSES_MS:
-            if mode == "dropped" and (_reverses_inside(at, pause) or at + pause * 1e-3 >= 2 * T_IN_S - 0.05):
+            if skipped(mode, at, pause):
                 continue  # the hand turned inside the gap, or the path ended there
             rows, s = _run(gauge, at, pause, mode)
             assert s.counts[WATCHDOG] == 1 and s.counts[STALL_RESUMED] == 1, (phase, pause, dict(s.counts))

@@ -236,6 +236,15 @@ def _build() -> dict[str, Trajectory]:
             "its axis to 5.2 mm below the surface (10.4 mm of track), hold, withdraw, lift",
         ),
         _needle(
+            "needle_oblique_15",
+            15.0,
+            5e-3,
+            (NEEDLE_DEPTH_M,),
+            "needle at 15 deg to the skin surface (an intravenous angle), along +x, entering at the origin: the tip "
+            "skates on the tented skin before it punctures (docs/needle.md, oblique insertion); to 5.2 mm deep at 5 mm/s "
+            "mean along its axis (20.1 mm of track), hold, withdraw, lift",
+        ),
+        _needle(
             "needle_oblique_60",
             60.0,
             5e-3,

@@ -2,6 +2,8 @@
 
     python -m skin_sim_node.view.needle_shot out/needle_view_30deg.png                       # the scripted needle
     python -m skin_sim_node.view.needle_shot out/needle_view_30deg.png --source node --trajectory NAME
+    python -m skin_sim_node.view.needle_shot out/needle_view_15deg.png --source node --trajectory needle_oblique_15 \
+        --min-punctured 0 --max-punctured 0 --min-force-n 0.8      # the tented skin before the puncture
 
 ``--source fake`` (default) drives :mod:`skin_sim_node.view.needle_fake` (a scripted NeedleState, not the model) at
 ``--angle-deg`` from vertical. ``--source node`` runs ``skin_sim_node`` with ``tissue.tool.shape:=needle`` and the
@@ -44,6 +46,7 @@ def main(argv=None) -> int:
     ap.add_argument("--trajectory", help="node: the mock tool's oblique needle trajectory")
     ap.add_argument("--params", type=Path, help="node: parameter file (default: the scenes' default.yaml)")
     ap.add_argument("--min-punctured", type=int, default=2, help="wait for at least this many punctured layers")
+    ap.add_argument("--max-punctured", type=int, help="and at most this many (0: the tented skin before the puncture)")
     ap.add_argument("--min-force-n", type=float, default=0.05, help="and a force above this (the needle advancing)")
     ap.add_argument("--zscale", type=float, default=1.0, help="the page's z x (1: true angle)")
     ap.add_argument("--timeout-s", type=float, default=120.0)
@@ -75,6 +78,8 @@ def main(argv=None) -> int:
             b.evaluate(f"(() => {{ const z = document.getElementById('zscale'); z.value = '{args.zscale:g}'; "
                        "z.dispatchEvent(new Event('change')); return true; })()")  # fmt: skip
             cond = f"window.skinView.needle && window.skinView.needle.segments.length >= {args.min_punctured}"
+            if args.max_punctured is not None:
+                cond += f" && window.skinView.needle.segments.length <= {args.max_punctured}"
             b.wait_for(cond, args.timeout_s, f"a needle with {args.min_punctured} punctured layers")
             pressing = f"{cond} && window.skinView.force > {args.min_force_n}"
             b.hold_when(pressing, args.timeout_s, f"a punctured frame with a force above {args.min_force_n} N")
