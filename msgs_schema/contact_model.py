@@ -259,7 +259,8 @@ def fill_contact_model_from_tick(
     stiffness (scaled) and slip level ``mu F_n0``, so the law gives ``f0`` at ``x0`` and its linearisation there is
     ``K``. A stale tick (no
     valid tool input for ``watchdog_s``; the tissue keeps its state, issue 31) sends a zero model valid anywhere
-    (:data:`STALE_RADIUS_M`): the node says "no force" and the bridge renders that, fresh, rather than fading.
+    (:data:`STALE_RADIUS_M`): the node says "no force"; the bridge blends into it, and out of it when poses resume, over
+    its longest crossfade (20 ms, issue 31), so a stall is felt as a fade, never a step.
     """
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
     msg.header.frame_id = frame

@@ -169,3 +169,21 @@ def test_passivity_damping_fades_with_the_model():
     out = np.array(out)
     assert active > 0
     assert np.all(out[round((0.1 + FADE_S) / DT) + 1 :] == 0.0)  # TTL 100 ms + fade 50 ms: nothing after
+
+
+def test_a_stall_fades_out_and_back_in_over_the_longest_crossfade():
+    """Issue 31: the node's stale zero model (its watchdog fired) and the first model after the stall are each blended
+    over the longest crossfade, not one tick: the hand feels a fade out and a fade back in, never a step."""
+    from msgs_schema.contact_model import STALE_RADIUS_M
+    from skin_sim_node.device.render import CROSSFADE_MAX_S
+
+    r = ContactRenderer()
+    stale = LocalModel(3, 0, "tissue", (0.0, 0.0, -1e-3), (0, 0, 0), (0, 0, 0), np.zeros((3, 3)), np.zeros((3, 3)), Z,
+                       STALE_RADIUS_M, 10.0)  # fmt: skip
+    x = (0.0, 0.0, -1e-3)
+    models = {0: model(1, ttl=10.0), 10: model(2, ttl=10.0), 100: stale, 300: model(4, ttl=10.0)}  # f0 1 N, held
+    f = run(r, [x] * 400, models)[:, 2]
+    assert f[99] == pytest.approx(1.0)
+    steps = np.abs(np.diff(f[99:]))
+    assert steps.max() <= 1.0 * DT / CROSSFADE_MAX_S + 1e-9  # out and back in, at most one blend's slope per tick
+    assert f[100 + int(CROSSFADE_MAX_S / DT) + 1] == 0.0 and f[399] == pytest.approx(1.0)

@@ -338,7 +338,7 @@ def test_input_policy_alone_watchdog_stall_teleport_and_interval_parts():
     pol.on_pose(T0 + 30 * MS, "tissue", (0.0, 0.0, -1.2e-3), now_ns=T0 + 30 * MS, rx_ns=T0 + 30 * MS)
     resumed = pol.take(T0 + 30 * MS, MS)  # the whole 30 ms gap, from the held pose: as the offline replay steps it
     assert resumed.answered and not resumed.restart and not resumed.release and resumed.from_pos == (0.0, 0.0, -1e-3)
-    assert resumed.dt_s == pytest.approx(0.030) and resumed.rate_dt_ns == 30 * MS
+    assert resumed.dt_s == pytest.approx(0.030) and resumed.rate_dt_ns == MS  # the force returns at the rate bound
     assert events.take() == (STALL_RESUMED, TICK_CLAMPED)  # 30 ms is stepped in parts of max_dt_s
     gone = pol.take(T0 + 131 * MS, MS)  # 101 ms without a pose (caller's clock): past stall_hold_s, the tool is gone
     assert gone.stale and gone.release and gone.pos == (0.0, 0.0, 1.0) and events.take() == (WATCHDOG, STALL_RELEASED)

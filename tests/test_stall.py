@@ -6,7 +6,8 @@ A needle (21 G and 18 G) goes in 5 mm at 10 mm/s and back out. The poses stop fo
 - **held**: the hand holds still through the pause (the stamps resume where they stopped, later);
 - **dropped**: the hand goes on and its poses in the pause are lost (the first pose after it is where the hand is).
 
-After the pause the force is within 1.2 x the unpaused path's + 0.05 N at the same point of the path, no layer is
+After the pause the force is within 0.2 x the unpaused path's + 0.05 N of it at the same point of the path (the issue's
+"within 1.2 x + 0.05 N", both ways: a force that collapsed fails too), no layer is
 punctured twice, and the track keeps its entry. Where the hand reversed inside a dropped pause the path in between is
 unknown to any server (the model takes the straight line): those cases are left out, and said so. With
 ``stall_hold_s`` 0 (a stall released at the watchdog, as before issue 31) the same check fails: the test can fail.
@@ -53,7 +54,7 @@ def test_a_stall_keeps_the_track_and_the_force_continues(needle_base, mode):
             rows, s = _run(gauge, at, pause, mode)
             assert s.counts[WATCHDOG] == 1 and s.counts[STALL_RESUMED] == 1, (phase, pause, dict(s.counts))
             excess = _excess_after(rows, base, at)
-            assert excess <= 0.0, f"{gauge} G, {phase}, {pause} ms {mode}: {excess:+.3f} N above 1.2 x unpaused + 0.05 N"
+            assert excess <= 0.0, f"{gauge} G, {phase}, {pause} ms {mode}: {excess:+.3f} N off 0.2 x unpaused + 0.05 N"
             assert _punctures(rows) == _punctures(base), (phase, pause)  # no second puncture, none missed
             entries = {e for _, _, _, e in rows if e is not None}
             assert len(entries) == 1, (phase, pause, entries)  # one track: the stall did not start another
@@ -112,7 +113,9 @@ def test_a_long_interval_is_stepped_in_parts():
 @pytest.mark.parametrize("shape", ["needle", "flat"])
 def test_a_stalled_live_session_answers_as_the_offline_replay_of_its_poses(default_cfg, shape):
     """The live session held the tissue unstepped through the stall and stepped the whole gap when poses resumed, as the
-    offline replay (no clock: it never sees a stall) steps the same stamps: the same forces, bit for bit."""
+    offline replay (no clock: it never sees a stall) steps the same stamps: the same forces, bit for bit, once the
+    published force has come back from the stall's zero at the rate bound (never a step; below the offline force
+    meanwhile)."""
     cfg = default_cfg.replace(**{"tool.shape": shape})
     live = HapticSession(make_tool(cfg), SessionParams(max_stamp_age_s=0.0))
     offline = HapticSession(make_tool(cfg), SessionParams(max_stamp_age_s=0.0))
@@ -131,5 +134,10 @@ def test_a_stalled_live_session_answers_as_the_offline_replay_of_its_poses(defau
         b.append(offline.tick(stamp, 0 if prev is None else stamp - prev).force_n)
         prev = stamp
     assert live.counts[STALL_RESUMED] == 1 and offline.counts[STALL_RESUMED] == 0
-    assert np.abs(np.array(b)[:, 2]).max() > 0.3
-    np.testing.assert_array_equal(np.array(a), np.array(b))
+    a, b = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+    assert b.max() > 0.3 and b[400] > 0.1
+    rate = live.params.max_force_rate_n_per_s * 1e-3  # N per 1 ms tick
+    back = 400 + int(np.ceil(b[400] / rate)) + 1  # the ticks the force takes to come back at the rate bound
+    assert np.all(np.diff(a[399:back]) <= rate + 1e-12) and np.all(a[400:back] <= b[400:back])
+    np.testing.assert_array_equal(a[:400], b[:400])
+    np.testing.assert_array_equal(a[back:], b[back:])

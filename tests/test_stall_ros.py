@@ -139,13 +139,13 @@ def test_a_stalled_node_keeps_the_needles_track_and_resumes_without_a_jolt(scene
         prev = s
     t_live = np.array([np.linalg.norm(obs.wrench[s]) for s in stamps])
     t_off = np.array([np.linalg.norm(truth[s]) for s in stamps])
-    excess = t_live - (1.2 * t_off + 0.05)
+    excess = np.abs(t_live - t_off) - (0.2 * t_off + 0.05)  # both ways: a force that collapsed fails too
     # the node saw the gap: as a stall (its watchdog fired first) or as a long stamp interval stepped in parts
     log = node.log()
     assert "poses resumed after" in log or "stepped in parts" in log, log[-2000:]
     print(f"answered {len(stamps)} poses (as recorded); max live - offline {np.max(t_live - t_off):+.4f} N")
     assert len(stamps) > 100 and t_off.max() > 0.3
-    assert excess.max() <= 0.0, f"a published force {excess.max():.3f} N above 1.2 x the offline answer + 0.05 N"
+    assert excess.max() <= 0.0, f"a published force {excess.max():.3f} N off the offline answer (0.2 x + 0.05 N)"
     # the device's commands in the 200 ms after the resume (the first answer after the longest in-contact gap), against
     # the truth of the answered poses around each command's stamp (+-20 ms): no jolt from a restart
     s_arr = np.array(stamps, dtype=float)

@@ -49,7 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from msgs_schema.contact_model import LocalModel
+from msgs_schema.contact_model import STALE_RADIUS_M, LocalModel
 from msgs_schema.tissue import FRICTION_COEFFICIENT
 
 from .laws import NeedleRender, PreslidingRender, friction_law_force, presliding_update  # noqa: F401 (re-exported)
@@ -470,8 +470,11 @@ class ContactRenderer:
             slot = _Slot(m, rx, K, D, fn0, max(ratio0, self.cone_floor))
         # model to model: one servo tick (the models are linearisations of one force; a longer blend lags the new
         # one by half its length: at 250 Hz it made the rendered force worse than hold-last's, p99 7.6 against 4.8 %
-        # of peak, at friction reversals the capped D cannot predict); from zero or a fade: cf_max
-        blend = self.cf_min if cur is not None and self._fade_t0 is None else self.cf_max
+        # of peak, at friction reversals the capped D cannot predict); from zero or a fade: cf_max; into and out of the
+        # node's stale zero model too (issue 31: the node's watchdog fired, or poses resumed after a stall): the force
+        # fades out and back in over cf_max, never a step at the hand
+        stale_edge = m.validity_radius_m >= STALE_RADIUS_M or (cur is not None and cur.m.validity_radius_m >= STALE_RADIUS_M)
+        blend = self.cf_min if cur is not None and self._fade_t0 is None and not stale_edge else self.cf_max
         self._begin_blend(smooth_now, blend, keep_from=self._fade_t0 is None)
         self._model = slot
         self.counts["models"] += 1

@@ -161,6 +161,7 @@ class InputPolicy:
         self._last_used_stamp_ns: int | None = None  # stamp of the pose the last tick used (model time)
         self._model_pos = LIFTED  # where the model's last step ran the tool
         self._held = False  # a stall held the tissue since the last answered pose
+        self._released = False  # a stall outlasted stall_hold_s on the caller's clock since the last answered pose
         self._pending = False  # a pose arrived that no tick has consumed
         self.stale = True
         self.answered_stamp_ns = 0
@@ -340,14 +341,16 @@ class InputPolicy:
         self.answered_stamp_ns = stamp
         from_pos: tuple[float, float, float] | None = self._model_pos
         self._model_pos = self.pose
-        v = AT_REST if release else self._velocity(stamp)  # a jump (teleport, a tool gone and back) has no velocity
+        gone_and_back, self._released = self._released, False
+        v = AT_REST if release or gone_and_back else self._velocity(stamp)  # a jump (teleport, tool gone and back): none
         if restart:
             dt_ns = int(p.max_dt_s * 1e9)
             rate_dt_ns = elapsed_ns if last is None else gap_ns
             from_pos = None
         else:
             rate_dt_ns = dt_ns = gap_ns
-            if held:
+            if held:  # the force was zero through the stall: it comes back at the rate bound, from this tick's interval
+                rate_dt_ns = max(elapsed_ns, 0)
                 self._event(
                     ev.STALL_RESUMED,
                     f"tool poses resumed after {gap_ns * 1e-6:.0f} ms: the tissue continued from its held state (a "
@@ -381,6 +384,7 @@ class InputPolicy:
             held = self._model_pos  # where the model last ran the tool
             return TickInput(False, True, held, AT_REST, 0.0, False, hold=True, rate_dt_ns=max(elapsed_ns, 0), axis=self.axis)
         release = self._last_used_stamp_ns is not None
+        self._released = self._released or release  # the next pose: a tool gone and back (no velocity)
         if release and waited is not None:
             self._event(
                 ev.STALL_RELEASED,
