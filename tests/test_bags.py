@@ -371,9 +371,9 @@ def test_replay_takes_the_preset_the_bag_was_recorded_with(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "needle.yaml (recorded with the bag)" in printed
     peak = float(printed.split("peak force ", 1)[1].split(" N", 1)[0])
-    # the 21 G needle's skin peak, not a flat punch's: at 30 deg the tip skates, the axial 1.80 N is the tent's
-    # N (sin 30 + mu cos 30) with c = mu = 0.5 (issue 31), so |F| = 1.80 / (0.5 + 0.5 cos 30) * sqrt(1 + 0.25) = 2.16 N
-    assert peak == pytest.approx(1.80 / (0.5 + 0.5 * math.cos(math.radians(30.0))) * math.hypot(1.0, 0.5), abs=0.01)
+    # the 21 G needle's skin peak, not a flat punch's: the skin ruptures when the tent's normal reaction N reaches
+    # 1.80 N (issue 31's review); at 30 deg the tip's friction on the tent adds at most mu N = 0.9 N along the surface
+    assert 1.80 - 0.01 <= peak <= 1.80 * math.hypot(1.0, 0.5) + 0.01
 
 
 def _params_at(tmp_path, **node):

@@ -11,7 +11,15 @@ from skin_sim_node.device.trajectories import LIFT_Z_M, TRAJECTORIES, ScriptCloc
 from skin_sim_node.model import SkinModel, classify, interface_depths_m
 
 NAMES = ["press_hold_release", "press_all_layers", "drag", "edge_press", "fast_stab", "lift_during_relax", "light_touch"]
-NAMES += ["needle_straight", "needle_oblique_30", "needle_oblique_60", "needle_reinsert", "needle_slow", "needle_fast"]
+NAMES += [
+    "needle_straight",
+    "needle_oblique_15",
+    "needle_oblique_30",
+    "needle_oblique_60",
+    "needle_reinsert",
+    "needle_slow",
+    "needle_fast",
+]
 
 
 def samples(traj, dt=1e-3):

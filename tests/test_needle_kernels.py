@@ -196,7 +196,7 @@ def test_axial_at_is_pure_and_advance_front_matches(cfg):
         m.step((0.0, 0.0, z), u)
     state, track = m.nstate.copy(), m.ntrack.copy()
     for ins in (1e-3, 5.0e-3, 5.3e-3, 6.0e-3):
-        args = (ins, m.ruptured, m.front_m, m.slip_m, 0.0, *m._args)
+        args = (ins, 1e-6, 0.0, -1e-6, m.ruptured, m.front_m, 0.0, 0.0, 0.0, 0.0, *m._args)
         assert nk.axial_at(*args) == pytest.approx(nk.axial_at.py_func(*args), rel=1e-12)
         for k in range(4):
             assert nk.advance_front(ins, k, 1e-3, m.ntrack) == nk.advance_front.py_func(ins, k, 1e-3, m.ntrack)

@@ -1,8 +1,11 @@
 """The needle's pure-Python/NumPy reference (issue 22's first cut of :mod:`.needle`; issue 31: the tented skin's
-normal reaction and friction before a rupture, the tip skating, and each layer's cutting fade).
+normal reaction and friction before a rupture, the tip skating, and each layer's cutting fade; issue 31 review: the
+tent's friction is the presliding anchor of :mod:`~skin_sim_node.model.friction`, the puncture criterion its normal
+reaction).
 
 :class:`NumpyNeedleModel` steps the physics of :mod:`.needle` (its module docstring) with NumPy and Python loops: the
-interface crossings by a 2 um scan and bisection, the rupture insertion by bisection on the dimple law, the law's
+interface crossings by a 2 um scan and bisection, the rupture insertion by bisection on the normal law, the tent's friction by
+:func:`~skin_sim_node.model.friction.presliding_reference`, the law's
 look-ahead by stepping copies of the model. Far too slow for a haptic tick (a track start takes tens of milliseconds);
 :mod:`.needle_kernels` are tested against it compiled and as ``.py_func`` (tests/test_needle_kernels.py), as the
 tissue's kernels are against :mod:`.reference`.
@@ -17,6 +20,7 @@ import numpy as np
 from msgs_schema.contact_model import NeedleLaw
 from skin_sim_node.model.calibration import CALIBRATED_TOOL_RADIUS_M, WALL_STRAIN, youngs_moduli_pa
 from skin_sim_node.model.config import TissueConfig, equilibrium
+from skin_sim_node.model.friction import presliding_reference
 from skin_sim_node.model.interfaces import interface_depths_m
 from skin_sim_node.model.layered_law import chain_solve
 from skin_sim_node.model.layout import LP_EA, LP_N, pack_layers
@@ -36,12 +40,27 @@ class NumpyNeedleModel:
         self._h = np.array([la.thickness_m for la in self.cfg.layers])
         self._moduli = np.array(youngs_moduli_pa(self.cfg))
         self._scale = (0.5 * self.params.outer_diameter_m + self.cfg.foundation_length_m) / CALIBRATED_TOOL_RADIUS_M  # the tent
+        # the tent's stick stiffness: kappa F_p / w*, w* the normal depth where N reaches F_p (bisection)
+        self._tent_k = np.zeros(len(self._h))
+        for i in range(len(self._h)):
+            fp = self.params.puncture_force_n(i)
+            lo, hi = 0.0, 1e-4
+            while self._normal_at(i, hi) < fp:
+                hi *= 2.0
+            for _ in range(200):
+                mid = 0.5 * (lo + hi)
+                if mid <= lo or mid >= hi:
+                    break
+                lo, hi = (mid, hi) if self._normal_at(i, mid) < fp else (lo, mid)
+            self._tent_k[i] = self.params.tent_shear_ratio * fp / (0.5 * (lo + hi))
         self.reset()
 
-    def reset(self) -> None:
-        """Needle out of the tissue: no track."""
+    def reset(self, keep_tent: bool = False) -> None:
+        """Needle out of the tissue: no track (``keep_tent``: the tent's anchor kept for the next track)."""
         nl = len(self._h)
-        self.slip_m = 0.0  # xi: how far the tent's stuck point slid along the axis (a skating tip)
+        if not keep_tent:
+            self.anchor: np.ndarray | None = None  # the tent's stuck point (x, y) on the surface plane; None: no tent
+        self.dev_z = 0.0  # the tip's height off the axis at the last step
         self.inserted = False
         self.entry = np.zeros(3)
         self.axis = np.array([0.0, 0.0, -1.0])
@@ -86,7 +105,7 @@ class NumpyNeedleModel:
     def _start_track(self, tip: np.ndarray, axis: np.ndarray) -> bool:
         if axis[2] > -math.sin(MIN_ANGLE_RAD) or tip[2] >= 0.0:
             return False
-        self.reset()
+        self.reset(keep_tent=True)
         self.inserted = True
         self.axis = axis.copy()
         self.entry = tip - (tip[2] / axis[2]) * axis
@@ -95,52 +114,41 @@ class NumpyNeedleModel:
         return True
 
     # --- laws ---------------------------------------------------------------------------------
-    def _ratio(self, w_m: float, slip_m: float) -> float:
-        """The tent's tangential over normal reaction ``c``: ``kappa cot(theta) (w - xi) / w`` within ``+-mu``."""
-        if w_m <= 0.0:
+    def _normal_at(self, layer: int, wn: float) -> float:
+        """The tent's normal reaction ``N = scale T(w_n)`` (N) at the normal depth ``w_n``."""
+        if wn <= 0.0:
             return 0.0
-        pr = self.params
-        c = pr.tent_shear_ratio * math.hypot(self.axis[0], self.axis[1]) / -self.axis[2] * (w_m - slip_m) / w_m
-        return min(max(c, -pr.tip_friction), pr.tip_friction)
-
-    def _normal_n(self, layer: int, w_m: float) -> float:
-        """The tent's normal reaction ``N = scale T(w sin(theta))`` (N)."""
-        if w_m <= 0.0:
-            return 0.0
-        down = -self.axis[2]
         sub = slice(layer, len(self._h))
         n = self._h[sub].size
         c, g = np.zeros(n), np.zeros(n)
-        t = chain_solve(w_m * down, 0.0, self._ea[sub].copy(), self._n[sub].copy(), np.zeros(n), 1.0,
+        t = chain_solve(wn, 0.0, self._ea[sub].copy(), self._n[sub].copy(), np.zeros(n), 1.0,
                         np.zeros(n), self._h[sub].copy(), WALL_STRAIN, np.zeros(n), c, g)  # fmt: skip
         return self._scale * max(t, 0.0)
 
-    def dimple_force_n(self, layer: int, w_m: float, slip_m: float = 0.0) -> float:
-        """Axial resistance (N) of the tented stack below ``layer``'s top pressed ``w_m`` along the axis by the tip:
-        ``N (sin(theta) + c cos(theta))``."""
-        if w_m <= 0.0:
-            return 0.0
-        c = self._ratio(w_m, slip_m)
-        return self._normal_n(layer, w_m) * (-self.axis[2] + c * math.hypot(self.axis[0], self.axis[1]))
+    def dimple_force_n(self, layer: int, w_m: float) -> float:
+        """The tent's normal reaction ``N`` (N) below ``layer``'s top pressed ``w_m`` along the axis (on the axis)."""
+        return self._normal_at(layer, w_m * -self.axis[2])
 
     def rupture_insertion_m(self) -> float:
-        """Insertion ``L`` (m) at which the next intact layer ruptures: its dimple force reaches ``F_p`` (bisection
-        on the monotone dimple law); inf when every layer is ruptured or the dimple never reaches it."""
+        """Insertion ``L`` (m) at which the next intact layer ruptures, the tip advancing along the axis at its height
+        off it: ``N`` reaches ``F_p`` (bisection on the monotone normal law); inf when every layer is ruptured or the
+        dimple never reaches it."""
         k = self.ruptured
         if not self.inserted or k >= len(self._h):
             return math.inf
         fp = self.params.puncture_force_n(k)
-        xi = self.slip_m
         hi = 1e-4
-        while self.dimple_force_n(k, hi, xi) < fp:
+        while self._normal_at(k, hi) < fp:
             hi *= 2.0
             if hi > 1.0:
                 return math.inf
         lo = 0.0
-        for _ in range(60):
+        for _ in range(200):
             mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if self.dimple_force_n(k, mid, xi) < fp else (lo, mid)
-        return float(self.crossings[k] + hi)
+            if mid <= lo or mid >= hi:
+                break
+            lo, hi = (mid, hi) if self._normal_at(k, mid) < fp else (lo, mid)
+        return float(self.crossings[k] + (hi + self.dev_z) / -self.axis[2])
 
     def copy(self) -> NumpyNeedleModel:
         """An independent copy (state arrays included) for look-ahead."""
@@ -148,6 +156,7 @@ class NumpyNeedleModel:
         c.__dict__.update(self.__dict__)
         for name in ("entry", "axis", "crossings", "dahl"):
             setattr(c, name, getattr(self, name).copy())
+        c.anchor = None if self.anchor is None else self.anchor.copy()
         return c
 
     def law(self, tick: NeedleTick, tip_m) -> NeedleLaw | None:
@@ -209,6 +218,7 @@ class NumpyNeedleModel:
         u = u / np.linalg.norm(u)
         pr = self.params
         if not self.inserted and not self._start_track(p, u):
+            self.anchor = None  # no track: no tent either
             return NeedleTick(np.zeros(3))
         ins = float((p - self.entry) @ self.axis)
         if ins <= 0.0:  # withdrawn: the track is forgotten
@@ -216,31 +226,34 @@ class NumpyNeedleModel:
             return NeedleTick(np.zeros(3))
         nl = len(self._h)
         punctured = []
-        dimple = 0.0
-        while self.ruptured < nl:
-            w = ins - self.crossings[self.ruptured]
-            dimple = self.dimple_force_n(self.ruptured, w, self.slip_m)
-            if dimple < pr.puncture_force_n(self.ruptured):
+        deviation = (p - self.entry) - ins * self.axis
+        down = -self.axis[2]
+        self.dev_z = float(deviation[2])
+        normal = 0.0
+        while self.ruptured < nl:  # the criterion: the tent's normal reaction at the tip's normal depth reaches F_p
+            wn = (ins - self.crossings[self.ruptured]) * down - deviation[2]
+            normal = self._normal_at(self.ruptured, wn)
+            if normal < pr.puncture_force_n(self.ruptured):
                 break
             punctured.append(self.ruptured)
             self.ruptured += 1
-            self.slip_m = 0.0  # the next layer's tent is a new contact
-            dimple = 0.0
-        w_dimple = max(ins - self.crossings[self.ruptured], 0.0) if self.ruptured < nl else 0.0
-        # the tent: N along +z, c N along the surface against the tip's advance; then the stuck point slides (skate)
-        normal = self._normal_n(self.ruptured, w_dimple) if self.ruptured < nl else 0.0
-        c = self._ratio(w_dimple, self.slip_m) if normal > 0.0 else 0.0
-        horizontal = math.hypot(self.axis[0], self.axis[1])
-        t_hat = np.array([self.axis[0], self.axis[1], 0.0]) / horizontal if horizontal > 0.0 else np.zeros(3)
-        f_tent = normal * np.array([0.0, 0.0, 1.0]) - c * normal * t_hat
+            self.anchor = None  # the next layer's tent is a new contact
+            normal = 0.0
+        # the tent: N along +z and the presliding friction of the tip on it (friction.presliding_reference)
+        f_tent = np.zeros(3)
+        dimple = w_dimple = 0.0
+        if self.ruptured < nl and normal > 0.0:
+            tip_plane = np.array([p[0], p[1], 0.0])
+            z0 = tip_plane if self.anchor is None else np.array([self.anchor[0], self.anchor[1], 0.0])
+            z_new, f_t, _ = presliding_reference(tip_plane, (0.0, 0.0, 1.0), z0, self._tent_k[self.ruptured],
+                                                 pr.tip_friction * normal)  # fmt: skip
+            self.anchor = z_new[:2].copy()
+            f_tent = f_t + normal * np.array([0.0, 0.0, 1.0])
+            dimple = -float(f_tent @ self.axis)
+            w_dimple = wn / down
+        else:
+            self.anchor = None
         tent_lateral = f_tent + dimple * self.axis
-        kc = pr.tent_shear_ratio * horizontal / -self.axis[2]
-        if w_dimple <= 0.0 or self.ruptured >= nl or kc <= 0.0:
-            self.slip_m = 0.0
-        elif kc * (w_dimple - self.slip_m) / w_dimple > pr.tip_friction:
-            self.slip_m = w_dimple * (1.0 - pr.tip_friction / kc)
-        elif kc * (w_dimple - self.slip_m) / w_dimple < -pr.tip_friction:
-            self.slip_m = w_dimple * (1.0 + pr.tip_friction / kc)
         lam = pr.lubrication_factor
         # cutting at the crack front, inside the ruptured part of the track
         cut = 0.0
@@ -271,10 +284,9 @@ class NumpyNeedleModel:
                 self.dahl[i] = sigma + (self.dahl[i] - sigma) * math.exp(-abs(step) / pr.dahl_length_m)
             fric += lam * pr.shaft_shear_pa * math.pi * pr.outer_diameter_m * length * self.dahl[i]
             lateral_k += LATERAL_FACTOR * self._moduli[i] * length
-        deviation = (p - self.entry) - ins * self.axis
         bed = 0.25 * lateral_dk * float(deviation @ deviation)  # the bed's axial part: gradient of k(L) |delta|^2 / 4
         axial = dimple + cut + fric + bed
         lateral = -0.5 * lateral_k * deviation
         force = -axial * self.axis + lateral + tent_lateral
         return NeedleTick(force, axial, dimple, cut, fric, lateral, w_dimple, ins, self.ruptured, tuple(punctured), bed,
-                          0.0, normal, c * normal, tent_lateral)  # fmt: skip
+                          0.0, normal, float(np.hypot(f_tent[0], f_tent[1])), tent_lateral)  # fmt: skip

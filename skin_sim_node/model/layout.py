@@ -304,7 +304,8 @@ NL_H = 1
 NL_MODULUS = 2
 NL_ZERO = 3
 NL_CUT_M = 4
-NL_SIZE = 5
+NL_TENT_K = 5
+NL_SIZE = 6
 """Rows of ``nlp``, shape (NL_SIZE, L), float64: the needle's per-layer parameters.
 
 ==========  =====  ===========================================================================================
@@ -315,6 +316,7 @@ NL_H        m      mean thickness of each layer (the dimple's chain)
 NL_MODULUS  Pa     Young's modulus of each layer (the lateral bed)
 NL_ZERO     -      zeros: the dimple chain's dampers, old compressions and Prony offsets (its equilibrium law)
 NL_CUT_M    m      ``x_c,j``: the layer's cutting force fades over this distance behind the crack front
+NL_TENT_K   N/m    ``k_t,j = kappa F_p,j / w*_j``: the tangential (stick) stiffness of layer ``j``'s tent
 ==========  =====  ===========================================================================================
 """
 
@@ -334,9 +336,12 @@ NS_LAW_FRONT = 12
 NS_LAW_RUPTURE = 13
 NS_LAW_POST = 14
 NS_LAW_POST_GRADIENT = 15
-NS_SLIP = 16
-NS_LAW_SLIP = 17
-NS_SIZE = 18
+NS_AX = 16
+NS_AY = 17
+NS_TENT = 18
+NS_DEVZ = 19
+NS_LAW_DEV = 20
+NS_SIZE = 21
 """Slots of ``nstate``, shape (NS_SIZE,), float64: the needle's track, carried between ticks.
 
 ======================  ======  ===========================================================================================
@@ -354,8 +359,10 @@ NS_LAW_FRONT            m       ... and this crack front (the line past the rupt
 NS_LAW_RUPTURE          m       cached insertion of the next rupture (inf: none)
 NS_LAW_POST             N       cached ``R_e`` just past it
 NS_LAW_POST_GRADIENT    N/m     cached slope there
-NS_SLIP                 m       ``xi``: how far (along the axis) the tent's stuck point has slid with a skating tip
-NS_LAW_SLIP             m       ... and this ``xi`` (the rupture ahead of a stuck tip depends on it)
+NS_AX, NS_AY            m       the tent's stuck point (anchor) on the surface plane: the tip's friction is ``-k_t (p - a)``
+NS_TENT                 -       1.0: the anchor holds a tent (a dimple is pressed); 0.0: none (the next contact sets it)
+NS_DEVZ                 m       the tip's height off the axis at the last tick, ``delta_z`` (the normal depth's offset)
+NS_LAW_DEV              m       ... and this ``delta_z`` (the rupture ahead depends on it)
 ======================  ======  ===========================================================================================
 """
 

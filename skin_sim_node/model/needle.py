@@ -13,19 +13,24 @@ point values: the needle is thin), so the crossing depth varies with the entry p
 
 Per tick the axial resistance ``R`` (N, along ``u_e``, positive against insertion) is the sum of:
 
-- **dimple** (before the next layer ``k`` ruptures): the tip presses layer ``k``'s top ``w = L - t_k`` ahead of
-  it; the stack below, layers ``k..L-1``, answers with the layered form's equilibrium series chain (its fitted
-  law, :func:`~.layered_law.chain_solve`) at the normal compression ``w |u_z|``, acting along the axis (the column along
-  the needle, strained as the normal compression strains the stack), scaled from the calibrated 2.5 mm
+- **dimple** (before the next layer ``k`` ruptures): the tip presses layer ``k``'s top, ``w_n`` deep normal to it
+  (on the axis ``w_n = (L - t_k) |u_z|``); the stack below, layers ``k..L-1``, answers with its normal reaction
+  ``N``, the layered form's equilibrium series chain (its fitted law, :func:`~.layered_law.chain_solve`) at ``w_n``
+  (a function of the tip's depth: a potential's gradient), and with the tip's friction on it, the presliding law of
+  :mod:`.friction` (a spring ``k_t`` from a stuck anchor on the surface plane, capped at ``mu N``, the anchor dragged
+  beyond: passive; the anchor is kept across the tool's track restarts); the dimple is their axial part. ``N`` is
+  scaled from the calibrated 2.5 mm
   punch to the *tent's* radius ``a + l_f`` as a half-space is (Sneddon: force proportional to the contact radius),
   and projected on the axis. ``a`` is the needle's radius and ``l_f`` the layers' own spread length
   (``patch.foundation_length_m``, 1.63 mm, fitted to the 3D reference's dent: how far a load spreads from the tool):
   the stiff skin carries the tip's load over a tent wider than the needle. For 18-25 G the tent's radius (1.9-2.3 mm)
   is within 25 % of the punch the law was fitted with, so the law is used near its calibrated regime. (Scaling to
   ``a`` alone left the skin unruptured until the 5.3 mm stack was pressed onto its bottom.)
-- **puncture**: layer ``k`` ruptures when the axial dimple force reaches ``F_p,k = lambda Gamma_k d``
+- **puncture**: layer ``k`` ruptures when the tent's normal reaction ``N`` reaches ``F_p,k = lambda Gamma_k d``
+  (docs/needle.md, "Oblique insertion": the friction is carried or dissipated at the interface, not counted as
+  driving the crack; at 90 degrees ``N`` is the axial force)
   (``Gamma_k`` an effective toughness, ``lambda`` 1 lubricated / 2 dry): a force threshold whose value is a
-  toughness times the diameter, rate- and angle-independent (Schneider 1978). The track is latched: no second
+  toughness times the diameter, rate-independent (Schneider 1978). The track is latched: no second
   puncture of a layer until the needle leaves the tissue. A rupture releases the dimple at once; if the tip is then
   past the next layer's top, that layer's dimple is tested in the same tick (a cascade);
 - **cutting**: while the tip advances into new material of a ruptured layer ``j`` (at the crack front, the
@@ -64,6 +69,7 @@ from .layout import (
     NL_H,
     NL_MODULUS,
     NL_SIZE,
+    NL_TENT_K,
     NO_AXIAL,
     NO_BED,
     NO_CUT,
@@ -95,6 +101,8 @@ from .layout import (
     NP_SCALE,
     NP_SIZE,
     NP_WALL,
+    NS_AX,
+    NS_AY,
     NS_EX,
     NS_FRONT,
     NS_INSERTED,
@@ -102,7 +110,7 @@ from .layout import (
     NS_LAW_K,
     NS_RUPTURED,
     NS_SIZE,
-    NS_SLIP,
+    NS_TENT,
     NS_UX,
     NS_UZ,
     NT_CROSS,
@@ -120,7 +128,15 @@ from .layout import (
     NW_STATE,
     pack_layers,
 )
-from .needle_kernels import dimple_force, needle_law_kernel, needle_step_kernel, reset_track, rupture_insertion, start_track
+from .needle_kernels import (
+    _chain_dimple,
+    dimple_force,
+    needle_law_kernel,
+    needle_step_kernel,
+    reset_track,
+    rupture_insertion,
+    start_track,
+)
 
 GAUGE_OUTER_DIAMETER_M = {18: 1.270e-3, 21: 0.819e-3, 25: 0.514e-3, 27: 0.413e-3, 30: 0.311e-3}
 """Nominal outer diameters of normal-wall hypodermic tubing (ISO 9626:2016, table 1, nominal OD)."""
@@ -160,14 +176,14 @@ lubricated in fat: 0.16 mm (0.5 mm before)."""
 TIP_FRICTION_COEFFICIENT = 0.5
 """``mu``: Coulomb friction of the needle's tip on the tented skin before a rupture. Derler & Gerhardt 2012 (Tribol
 Lett 45:1-27, review of human skin friction): dry skin "relatively low and pressure-independent friction coefficients
-(greater than 0.2 and typically around 0.5)"; moist or wet skin "typically >1". The typical dry value; a moist skin
-(mu > 0.75 here) would hold a needle without skating down to 41 degrees."""
+(greater than 0.2 and typically around 0.5)"; moist or wet skin "typically >1". The typical dry value."""
 POISSON_RATIO = 0.5
 """Tissue taken incompressible (the layered form's and the 3D reference's assumption)."""
 TENT_SHEAR_RATIO = 2.0 * (1.0 - POISSON_RATIO) / (2.0 - POISSON_RATIO)
 """``kappa``: tangential over normal stiffness of an elastic contact, ``2 (1 - nu) / (2 - nu)`` (Mindlin 1949; Johnson,
 Contact Mechanics, 1985, section 7.2): 2/3 for incompressible tissue. A stuck tip shears the tent sideways by what it
-travels along the surface: with ``mu`` it sets the steepest skating angle, ``atan(kappa / mu)`` = 53.1 degrees."""
+travels along the surface. The tent's stick stiffness is ``kappa`` times its normal secant stiffness at the rupture,
+``k_t = kappa F_p / w_n*`` (a stated choice: a constant keeps the stuck tent a spring with a potential)."""
 LATERAL_FACTOR = 2.0
 """``k_l``: Winkler modulus of a shaft in an elastic medium per unit length over the medium's Young's modulus
 (order 2 for a rigid cylinder; stated choice)."""
@@ -215,7 +231,8 @@ class NeedleParams:
         return min(self.cut_presliding_m, self.cutting_ratio * self.puncture_force_n(layer) / self.render_stiffness_n_per_m)
 
     def skate_angle_rad(self) -> float:
-        """Steepest axis angle to the surface at which an advancing tip skates: ``atan(kappa / mu)`` (eq T2)."""
+        """``atan(kappa / mu)``: the steepest axis angle at which an advancing tip skates on a *linear* tent (the stuck
+        friction ``kappa N cot(theta)``); the layered tent stiffens, so the tip slips earlier and may stick again."""
         return math.atan2(self.tent_shear_ratio, self.tip_friction)
 
 
@@ -236,7 +253,7 @@ class NeedleTick:
     bed_n: float = 0.0
     lateral_k_n_per_m: float = 0.0  # the bed's k = sum_i k_l E_i l_i (sideways stiffness at the tip: k / 2)
     normal_n: float = 0.0  # the tent's normal reaction N (along +z)
-    tangential_n: float = 0.0  # the tent's reaction along the surface, c N (> 0 against the tip's advance)
+    tangential_n: float = 0.0  # the size of the tip's friction on the tent along the surface, |f_t| <= mu N
     tent_lateral_n: np.ndarray = field(default_factory=lambda: np.zeros(3))  # the tent's reaction off the axis
 
 
@@ -261,6 +278,12 @@ def pack_needle(cfg: TissueConfig, params: NeedleParams) -> tuple[np.ndarray, np
     nlp[NL_H] = [la.thickness_m for la in cfg.layers]
     nlp[NL_MODULUS] = youngs_moduli_pa(cfg)  # the live layers' (a stiffness change moves the bed with the dimple)
     nlp[NL_CUT_M] = [params.cut_fade_m(i) for i in range(nl)]
+    # the tent's stick stiffness along the surface: kappa times the normal secant stiffness at the layer's rupture
+    lp = pack_layers(cfg)
+    nbuf = np.zeros((NB_SIZE, nl + 1))
+    for i in range(nl):
+        wn = _chain_dimple(nlp[NL_FP, i] / npar[NP_SCALE], i, lp, npar, nlp, nbuf)
+        nlp[NL_TENT_K, i] = params.tent_shear_ratio * nlp[NL_FP, i] / wn if wn > 0.0 else 0.0
     return npar, nlp
 
 
@@ -337,9 +360,14 @@ class NeedleModel:
         self._crossings = self.ntrack[NT_CROSS]
         self._dahl = self.ntrack[NT_DAHL, :nl]
 
-    def reset(self) -> None:
-        """Needle out of the tissue: no track."""
+    def reset(self, keep_tent: bool = False) -> None:
+        """Needle out of the tissue: no track. ``keep_tent``: the tent's anchor is kept for the next track's start (a
+        track restarted under a tip that still presses the same tent: its friction's stuck point is the skin's, not
+        the track's)."""
+        a = self.nstate[NS_AX : NS_TENT + 1].copy()
         reset_track(self.nstate, self.ntrack)
+        if keep_tent:
+            self.nstate[NS_AX : NS_TENT + 1] = a
 
     # --- the state, as the reference's attributes (read and write the state arrays) ---------------
     inserted = _Slot(NS_INSERTED, bool, "A track exists (the tip passed the surface).")
@@ -357,17 +385,17 @@ class NeedleModel:
         x, y, z = _vec3(tip, "tip")
         return bool(start_track(x, y, z, *_vec3(axis, "axis"), self.lp, self.npar, self.nstate, self.ntrack, self.nbuf))
 
-    def dimple_force_n(self, layer: int, w_m: float, slip_m: float = 0.0) -> float:
-        """Axial resistance (N) of the tented stack below ``layer``'s top pressed ``w_m`` along the axis by the tip
-        (eq T3): the normal reaction ``N`` at the normal depth ``w sin(theta)`` and the tangential ``c N`` along the
-        surface, projected on the axis; ``slip_m`` is ``xi`` (0: a tip stuck since the contact)."""
-        args = (self.lp, self.npar, self.nlp, self.nstate, self.nbuf)
-        return float(dimple_force(layer, float(w_m), float(slip_m), 0.0, *args)[0])
+    def dimple_force_n(self, layer: int, w_m: float) -> float:
+        """Normal reaction ``N`` (N) of the tented stack below ``layer``'s top pressed ``w_m`` along the axis by a tip
+        on it (eq T1): the chain at the normal depth ``w sin(theta)``; the puncture criterion is ``N = F_p``."""
+        return float(
+            dimple_force(layer, float(w_m) * -float(self.nstate[NS_UZ]), 0.0, self.lp, self.npar, self.nlp, self.nbuf)[0]
+        )
 
     @property
-    def slip_m(self) -> float:
-        """``xi``: how far the tent's stuck point has slid along the axis (a skating tip; m)."""
-        return float(self.nstate[NS_SLIP])
+    def anchor(self) -> np.ndarray | None:
+        """The tent's stuck point on the surface plane ``(x, y)`` (m), or None with no tent."""
+        return self.nstate[NS_AX : NS_AY + 1].copy() if self.nstate[NS_TENT] else None
 
     def rupture_insertion_m(self) -> float:
         """Insertion ``L`` (m) at which the next intact layer ruptures: its dimple force reaches ``F_p`` (the series

@@ -25,6 +25,7 @@ from typing import Any
 
 from numba import njit
 
+from .friction import presliding_step
 from .layered_law import chain_solve, layer_compression
 from .layout import (
     LP_EA,
@@ -40,6 +41,7 @@ from .layout import (
     NL_FP,
     NL_H,
     NL_MODULUS,
+    NL_TENT_K,
     NL_ZERO,
     NO_AXIAL,
     NO_BED,
@@ -66,27 +68,29 @@ from .layout import (
     NP_CUT_RATIO,
     NP_DAHL_M,
     NP_FRICTION,
-    NP_KAPPA,
     NP_LATERAL,
     NP_MIN_SIN,
     NP_MU,
     NP_SCALE,
     NP_WALL,
+    NS_AX,
+    NS_AY,
+    NS_DEVZ,
     NS_EX,
     NS_EY,
     NS_EZ,
     NS_FRONT,
     NS_INSERTED,
     NS_LAST,
+    NS_LAW_DEV,
     NS_LAW_FRONT,
     NS_LAW_K,
     NS_LAW_POST,
     NS_LAW_POST_GRADIENT,
     NS_LAW_RUPTURE,
-    NS_LAW_SLIP,
     NS_RUPTURED,
-    NS_SLIP,
     NS_T,
+    NS_TENT,
     NS_UX,
     NS_UY,
     NS_UZ,
@@ -238,7 +242,8 @@ def start_track(px, py, pz, ux, uy, uz, lp, npar, nstate, ntrack, nbuf):
     lp, npar : ndarray
         The tissue's ``lp`` and the needle's ``npar``.
     nstate, ntrack : ndarray
-        The track: reset and written when a track starts, untouched otherwise.
+        The track: reset and written when a track starts (the tent's anchor ``NS_AX``, ``NS_AY``, ``NS_TENT`` kept:
+        cleared by :func:`reset_track` unless the caller restored it), untouched otherwise.
     nbuf : ndarray, shape (NB_SIZE, L + 1)
         Scratch.
 
@@ -249,7 +254,9 @@ def start_track(px, py, pz, ux, uy, uz, lp, npar, nstate, ntrack, nbuf):
     """
     if uz > -npar[NP_MIN_SIN] or pz >= 0.0:
         return False
+    ax, ay, tent = nstate[NS_AX], nstate[NS_AY], nstate[NS_TENT]
     reset_track(nstate, ntrack)
+    nstate[NS_AX], nstate[NS_AY], nstate[NS_TENT] = ax, ay, tent  # a tent kept across a restart (needle.reset(True))
     nstate[NS_INSERTED] = 1.0
     nstate[NS_UX], nstate[NS_UY], nstate[NS_UZ] = ux, uy, uz
     f = pz / uz
@@ -260,82 +267,40 @@ def start_track(px, py, pz, ux, uy, uz, lp, npar, nstate, ntrack, nbuf):
 
 
 @njit(**JIT_OPTIONS)
-def tent_ratio(w, slip, npar, nstate):
-    """Tangential over normal reaction ``c`` of the tented skin on the tip (eq T2 of :mod:`.needle`).
+def dimple_force(layer, wn, t0, lp, npar, nlp, nbuf):
+    """The tent's normal reaction (N) on a tip ``wn`` below ``layer``'s top, along the surface normal (eq T1 of
+    :mod:`.needle`).
 
-    The tip has advanced ``w`` along the axis past the pressed layer's top: ``w sin(theta)`` into it and
-    ``w cos(theta)`` along it (``theta`` the axis' angle to the surface). Stuck, the tent is sheared along the
-    surface by ``(w - xi) cos(theta)`` (``xi`` how far its stuck point has slid along the axis) over a depth
-    ``w sin(theta)``, so ``c = kappa (w - xi) cot(theta) / w`` (``kappa`` Mindlin's tangential over normal stiffness of a
-    contact); Coulomb caps it at ``|c| <= mu`` (the tip skates). ``c > 0`` resists the tip's advance.
-
-    Parameters
-    ----------
-    w : float
-        Axial dimple (m); ``<= 0``: 0 returned.
-    slip : float
-        ``xi`` (m).
-    npar : ndarray, shape (NP_SIZE,)
-        ``NP_MU``, ``NP_KAPPA``.
-    nstate : ndarray, shape (NS_SIZE,)
-        The track's axis.
-
-    Returns
-    -------
-    float
-        ``c`` in ``[-mu, mu]``.
-    """
-    if w <= 0.0:
-        return 0.0
-    sn = -nstate[NS_UZ]
-    cs = math.sqrt(nstate[NS_UX] * nstate[NS_UX] + nstate[NS_UY] * nstate[NS_UY])
-    mu = npar[NP_MU]
-    c = npar[NP_KAPPA] * cs / sn * (w - slip) / w
-    return min(max(c, -mu), mu)
-
-
-@njit(**JIT_OPTIONS)
-def dimple_force(layer, w, slip, t0, lp, npar, nlp, nstate, nbuf):
-    """Axial resistance (N) of the tented stack below ``layer``'s top pressed ``w`` along the axis by the tip, its chain
-    force and its tangential ratio (eqs T1-T3 of :mod:`.needle`).
-
-    The normal reaction is the layered form's equilibrium series chain of layers ``layer..L-1``
-    (:func:`~.layered_law.chain_solve`, eq 4 with the fitted compression law) at the normal depth ``w sin(theta)``,
-    scaled to the tent by ``NP_SCALE``: ``N = scale T(w sin(theta))`` (T1), along the surface normal (+z). Along the
-    surface the tent answers ``c N`` against the tip's advance (:func:`tent_ratio`, T2). Their component along the axis
-    ``u`` resists insertion: ``F = N (sin(theta) + c cos(theta))`` (T3); at 90 degrees ``F = N``.
+    The layered form's equilibrium series chain of layers ``layer..L-1`` (:func:`~.layered_law.chain_solve`, eq 4 with
+    the fitted compression law) at the normal depth ``wn``, scaled to the tent by ``NP_SCALE``: ``N = scale T(wn)``. A
+    function of the tip's depth only: the normal reaction is the gradient of a potential.
 
     Parameters
     ----------
     layer : int
         The intact layer pressed, ``0..L-1``.
-    w : float
-        Axial dimple (m); ``<= 0``: no force.
-    slip : float
-        ``xi`` (m): how far the tent's stuck point has slid along the axis (0: stuck since the contact).
+    wn : float
+        Normal depth of the tip below the layer's top where the axis crosses it (m); ``<= 0``: no force.
     t0 : float
         Newton start of the chain force ``T`` (N, a previous tick's; 0: cold).
-    lp, npar, nlp, nstate : ndarray
-        Tissue, needle parameters and track (axis).
+    lp, npar, nlp : ndarray
+        Tissue and needle parameters.
     nbuf : ndarray, shape (NB_SIZE, L + 1)
         Scratch (``NB_C``, ``NB_G`` written).
 
     Returns
     -------
-    force : float
-        ``F`` (N; < 0 only when a tent sheared backwards pulls the tip in).
+    normal : float
+        ``N`` (N, >= 0).
     t : float
-        ``T`` (N; 0 with no dimple); ``N = scale T``.
-    c : float
-        The tangential ratio ``c``.
+        ``T`` (N; 0 with no dimple).
     """
-    if w <= 0.0:
-        return 0.0, 0.0, 0.0
+    if wn <= 0.0:
+        return 0.0, 0.0
     nl = lp.shape[1]
-    down = -nstate[NS_UZ]
     z = nlp[NL_ZERO, layer:]
     t = chain_solve(
-        w * down,
+        wn,
         t0,
         lp[LP_EA, layer:],
         lp[LP_N, layer:],
@@ -349,33 +314,39 @@ def dimple_force(layer, w, slip, t0, lp, npar, nlp, nstate, nbuf):
         nbuf[NB_G, layer:nl],
     )
     t = max(t, 0.0)
-    c = tent_ratio(w, slip, npar, nstate)
-    cs = math.sqrt(nstate[NS_UX] * nstate[NS_UX] + nstate[NS_UY] * nstate[NS_UY])
-    return npar[NP_SCALE] * t * (down + c * cs), t, c
+    return npar[NP_SCALE] * t, t
 
 
 @njit(**JIT_OPTIONS)
-def axial_at(ins, k, front, slip, t0, lp, npar, nlp, nstate, ntrack, nbuf):
-    """The axial resistance's dimple and cutting parts at the insertion ``ins`` from ``k`` ruptured layers and the crack
-    front ``front``: a pure function of the state (the step and the law's look-ahead share it).
+def axial_at(ins, dvx, dvy, dvz, k, front, ax, ay, tent, t0, lp, npar, nlp, nstate, ntrack, nbuf):
+    """The axial resistance's dimple and cutting parts with the tip at the insertion ``ins`` plus the deviation ``dv``
+    from the axis, ``k`` ruptured layers, the crack front ``front`` and the tent's anchor ``a``: a pure function of
+    the state (the step and the law's look-ahead share it).
 
-    Layer ``k`` ruptures when its dimple's axial resistance (:func:`dimple_force`, eq T3: the tent's normal reaction
-    and friction projected on the axis) reaches ``F_p,k`` (eq P); the rupture releases the dimple and the next layer is
-    tested at the same insertion (a cascade) as a new contact (``xi = 0``; layer ``k`` uses the state's ``xi``).
-    Cutting ``beta F_p,j`` in the ruptured layer ``j`` the tip is in, on a ramp over ``x_c,j`` behind the front, while
-    ``j`` is not yet cut through to the next layer's top (a front at or past it leaves nothing to cut in ``j``:
-    backing out of a dimple into the cut layer above meets no cutting force, so nothing switches on at the crossing).
+    The tent of the next intact layer ``k`` answers the tip with its normal reaction ``N`` at the tip's normal depth
+    ``w_n`` below the layer's top where the axis crosses it (:func:`dimple_force`, T1) and its friction on the
+    surface, the presliding law of :mod:`.friction` (:func:`~.friction.presliding_step`: a spring ``k_t,k`` from the
+    anchor ``a`` to the tip, capped at ``mu N``, the anchor dragged beyond; T2). Layer ``k`` ruptures when ``N``
+    reaches ``F_p,k`` (eq P); the rupture releases the tent and the next layer is tested at the same tip (a cascade)
+    as a new contact (its anchor at the tip). The dimple is the tent's force projected on the axis,
+    ``N sin(theta) - f_t . u`` (T3). Cutting ``beta F_p,j`` in the ruptured layer ``j`` the tip is in, on a ramp over
+    ``x_c,j`` behind the front, while ``j`` is not yet cut through to the next layer's top (a front at or past it leaves
+    nothing to cut in ``j``: backing out of a dimple into the cut layer above meets no cutting force).
 
     Parameters
     ----------
     ins : float
         Insertion ``L`` along the track (m, > 0).
+    dvx, dvy, dvz : float
+        The tip's deviation from the axis, ``(p - e) - L u_e`` (m).
     k : int
         Layers ruptured before.
     front : float
         Crack front (m).
-    slip : float
-        ``xi`` of layer ``k``'s tent (m).
+    ax, ay : float
+        The tent's anchor on the surface plane (m), used when ``tent`` is 1.
+    tent : float
+        1.0: the anchor holds layer ``k``'s tent; 0.0: none (a new contact: the anchor is set at the tip).
     t0 : float
         Newton start of layer ``k``'s chain force (N).
     lp, npar, nlp, nstate, ntrack, nbuf : ndarray
@@ -386,31 +357,51 @@ def axial_at(ins, k, front, slip, t0, lp, npar, nlp, nstate, ntrack, nbuf):
     k : int
         Layers ruptured after.
     dimple, cut : float
-        Dimple and cutting forces (N).
+        Dimple (axial part of the tent's force) and cutting forces (N).
     w_dimple : float
-        Axial dimple of the next intact layer (m, >= 0).
+        The next intact layer's normal depth over ``sin(theta)``: its axial dimple (m, >= 0).
     t : float
-        Chain force of that dimple (N; 0 with none), the next Newton start.
-    c : float
-        The tent's tangential ratio of that dimple (:func:`tent_ratio`; 0 with none).
+        Chain force of that dimple (N; 0 with none), the next Newton start; ``N = scale t``.
+    ax, ay, tent : float
+        The anchor after the tick and whether it holds a tent (with none: the tip's position and 0).
+    ftx, fty : float
+        The tent's friction on the tip (N), along the surface.
     """
     nl = lp.shape[1]
     cross = ntrack[NT_CROSS]
-    dimple = 0.0
+    down = -nstate[NS_UZ]
+    vx, vy = nstate[NS_UX], nstate[NS_UY]
+    tipx = nstate[NS_EX] + ins * vx + dvx
+    tipy = nstate[NS_EY] + ins * vy + dvy
     t = 0.0
-    c = 0.0
+    normal = 0.0
     start = t0
+    wn = 0.0
     while k < nl:
-        dimple, t, c = dimple_force(k, ins - cross[k], slip, start, lp, npar, nlp, nstate, nbuf)
-        if dimple < nlp[NL_FP, k]:
+        wn = (ins - cross[k]) * down - dvz
+        normal, t = dimple_force(k, wn, start, lp, npar, nlp, nbuf)
+        if normal < nlp[NL_FP, k]:
             break
         k += 1
-        dimple = 0.0
         start = t  # the next chain is stiffer: its force is near the ruptured one's (a right start only costs a step)
+        normal = 0.0
         t = 0.0
-        c = 0.0
-        slip = 0.0  # the next layer's tent is a new contact
-    w_dimple = max(ins - cross[k], 0.0) if k < nl else 0.0
+        tent = 0.0  # the next layer's tent is a new contact
+    dimple = 0.0
+    w_dimple = 0.0
+    ftx = 0.0
+    fty = 0.0
+    if k < nl and normal > 0.0:
+        if tent == 0.0:
+            ax, ay = tipx, tipy
+        ax, ay, _, ftx, fty, _, _ = presliding_step(
+            tipx, tipy, 0.0, 0.0, 0.0, 1.0, ax, ay, 0.0, nlp[NL_TENT_K, k], npar[NP_MU] * normal
+        )
+        tent = 1.0
+        dimple = normal * down - (ftx * vx + fty * vy)
+        w_dimple = wn / down
+    else:
+        ax, ay, tent = tipx, tipy, 0.0
     cut = 0.0
     if k > 0 and (k == nl or ins < cross[k]):
         j = -1
@@ -422,7 +413,7 @@ def axial_at(ins, k, front, slip, t0, lp, npar, nlp, nstate, ntrack, nbuf):
             xc = nlp[NL_CUT_M, j]
             ramp = min(max((ins - front + xc) / xc, 0.0), 1.0)
             cut = npar[NP_CUT_RATIO] * nlp[NL_FP, j] * ramp
-    return k, dimple, cut, w_dimple, t, c
+    return k, dimple, cut, w_dimple, t, ax, ay, tent, ftx, fty
 
 
 @njit(**JIT_OPTIONS)
@@ -458,50 +449,12 @@ def advance_front(ins, k, front, ntrack):
 
 
 @njit(**JIT_OPTIONS)
-def tent_slip(w, slip, npar, nstate):
-    """``xi`` after a tick with the axial dimple ``w`` (eq T2 of :mod:`.needle`): the tent's stuck point slides (the tip
-    skates) just enough to keep ``|c| <= mu``; no dimple (``w <= 0``), no contact: ``xi = 0``.
-
-    Stuck, ``c = kappa cot(theta) (w - xi) / w``; past ``+mu`` (advancing) ``xi = w (1 - mu / (kappa cot(theta)))``,
-    past ``-mu`` (backing out) ``xi = w (1 + mu / (kappa cot(theta)))``. A needle steeper than ``atan(kappa / mu)`` to
-    the surface never skates while it advances.
-
-    Parameters
-    ----------
-    w : float
-        Axial dimple of the next intact layer (m).
-    slip : float
-        ``xi`` before (m; 0 for a new contact).
-    npar, nstate : ndarray
-        ``NP_MU``, ``NP_KAPPA`` and the track's axis.
-
-    Returns
-    -------
-    float
-        ``xi`` (m).
-    """
-    if w <= 0.0:
-        return 0.0
-    kc = npar[NP_KAPPA] * math.sqrt(nstate[NS_UX] * nstate[NS_UX] + nstate[NS_UY] * nstate[NS_UY]) / -nstate[NS_UZ]
-    if kc <= 0.0:
-        return 0.0
-    mu = npar[NP_MU]
-    q = kc * (w - slip) / w
-    if q > mu:
-        return w * (1.0 - mu / kc)
-    if q < -mu:
-        return w * (1.0 + mu / kc)
-    return slip
-
-
-@njit(**JIT_OPTIONS)
 def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nbuf, nout):
     """One tick of the needle at the tip ``p`` with the axis ``u`` (unit, toward the tip): force and state.
 
     Starts a track when there is none (:func:`start_track`); forgets it when the insertion ``L = (p - e) . u_e``
     is ``<= 0``. Then the dimple, ruptures and cutting (:func:`axial_at`), the front (:func:`advance_front`), the
-    tent's slip (:func:`tent_slip`) and its reaction ``N e_z - c N t`` (``t`` the axis' direction along the surface;
-    its axial part is the dimple, the rest is added off the axis),
+    tent's anchor and its reaction ``N e_z + f_t`` (its axial part is the dimple, the rest is added off the axis),
     Dahl friction ``lambda tau pi d l_i s_i`` per ruptured layer with
     ``s_i <- sigma + (s_i - sigma) exp(-|dL| / x_0)``, and the lateral bed, the gradient of
     ``U = k(L) |delta|^2 / 4``, ``k = sum_i k_l E_i l_i``: ``-0.5 k delta`` sideways and ``k'(L) |delta|^2 / 4`` added
@@ -536,6 +489,7 @@ def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nb
         if not (norm > 0.0 and math.isfinite(norm)):
             return False
         if not start_track(px, py, pz, ux / norm, uy / norm, uz / norm, lp, npar, nstate, ntrack, nbuf):
+            nstate[NS_TENT] = 0.0  # no track: no tent either
             return False
     ex, ey, ez = nstate[NS_EX], nstate[NS_EY], nstate[NS_EZ]
     vx, vy, vz = nstate[NS_UX], nstate[NS_UY], nstate[NS_UZ]
@@ -546,17 +500,32 @@ def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nb
         return False
     k0 = int(nstate[NS_RUPTURED])
     front = nstate[NS_FRONT]
-    k, dimple, cut, w_dimple, t, c = axial_at(ins, k0, front, nstate[NS_SLIP], nstate[NS_T], lp, npar, nlp, nstate, ntrack, nbuf)
+    dvx, dvy, dvz = dx - ins * vx, dy - ins * vy, dz - ins * vz  # the tip off the axis
+    k, dimple, cut, w_dimple, t, ax, ay, tent, ftx, fty = axial_at(
+        ins,
+        dvx,
+        dvy,
+        dvz,
+        k0,
+        front,
+        nstate[NS_AX],
+        nstate[NS_AY],
+        nstate[NS_TENT],
+        nstate[NS_T],
+        lp,
+        npar,
+        nlp,
+        nstate,
+        ntrack,
+        nbuf,
+    )
     nstate[NS_RUPTURED] = k
     nstate[NS_FRONT] = advance_front(ins, k, front, ntrack)
     nstate[NS_T] = t
-    nstate[NS_SLIP] = tent_slip(w_dimple, nstate[NS_SLIP] if k == k0 else 0.0, npar, nstate)
-    # the tent's reaction: N along the surface normal (+z), c N along the surface against the tip's advance (T1-T2)
+    nstate[NS_AX], nstate[NS_AY], nstate[NS_TENT], nstate[NS_DEVZ] = ax, ay, tent, dvz
+    # the tent's reaction: N along the surface normal (+z), the presliding friction f_t along the surface (T1-T2)
     normal = npar[NP_SCALE] * t
-    cs = math.sqrt(vx * vx + vy * vy)
-    tx, ty = (vx / cs, vy / cs) if cs > 0.0 else (0.0, 0.0)
-    ftx, fty, ftz = -c * normal * tx, -c * normal * ty, normal
-    px_, py_, pz_ = ftx + dimple * vx, fty + dimple * vy, ftz + dimple * vz  # its part off the axis (dimple = -F_t . u)
+    px_, py_, pz_ = ftx + dimple * vx, fty + dimple * vy, normal + dimple * vz  # its part off the axis (dimple = -F_t . u)
     cross = ntrack[NT_CROSS]
     dahl = ntrack[NT_DAHL]
     step = ins - nstate[NS_LAST]
@@ -575,9 +544,9 @@ def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nb
         if cross[i] < ins < cross[i + 1]:
             lateral_dk += npar[NP_LATERAL] * nlp[NL_MODULUS, i]
     half = -0.5 * lateral_k
-    lx, ly, lz = half * (dx - ins * vx), half * (dy - ins * vy), half * (dz - ins * vz)
+    lx, ly, lz = half * dvx, half * dvy, half * dvz
     # the bed is the gradient of U = lateral_k(L) |delta|^2 / 4: its axial part, so a closed path does no net work
-    bed = 0.25 * lateral_dk * ((dx - ins * vx) ** 2 + (dy - ins * vy) ** 2 + (dz - ins * vz) ** 2)
+    bed = 0.25 * lateral_dk * (dvx * dvx + dvy * dvy + dvz * dvz)
     axial = dimple + cut + fric + bed
     nout[NO_FX], nout[NO_FY], nout[NO_FZ] = -axial * vx + lx + px_, -axial * vy + ly + py_, -axial * vz + lz + pz_
     nout[NO_AXIAL], nout[NO_DIMPLE], nout[NO_CUT], nout[NO_FRICTION] = axial, dimple, cut, fric
@@ -586,7 +555,7 @@ def needle_step_kernel(px, py, pz, ux, uy, uz, lp, npar, nlp, nstate, ntrack, nb
     nout[NO_RUPTURED], nout[NO_FIRST] = k, k0
     nout[NO_BED] = bed
     nout[NO_LATERAL_K] = lateral_k
-    nout[NO_NORMAL], nout[NO_TANGENTIAL] = normal, c * normal
+    nout[NO_NORMAL], nout[NO_TANGENTIAL] = normal, math.sqrt(ftx * ftx + fty * fty)
     nout[NO_TX], nout[NO_TY], nout[NO_TZ] = px_, py_, pz_
     return True
 
@@ -606,22 +575,20 @@ def _chain_dimple(target, k, lp, npar, nlp, nbuf):
 
 @njit(**JIT_OPTIONS)
 def rupture_insertion(lp, npar, nlp, nstate, ntrack, nbuf):
-    """Insertion ``L`` (m) at which the next intact layer ``k`` ruptures, the tip advancing from the state as it is
-    (its ``xi``); inf when none is left or it never does.
+    """Insertion ``L`` (m) at which the next intact layer ``k`` ruptures, the tip advancing along the axis from the
+    state as it is (its height off the axis, ``NS_DEVZ``); inf when none is left or it never does.
 
-    The dimple's axial resistance is ``scale T(w sin(theta)) (sin(theta) + c(w) cos(theta))`` (eq T3) with the series
-    chain's ``T``, so it inverts in closed form while ``c`` is constant at the threshold: skating (``c = mu``) or stuck
-    since the contact (``xi = 0``, ``c = kappa cot(theta)``): the chain force there is
-    ``T* = F_p,k / (scale (sin(theta) + c cos(theta)))``, each layer's compression at ``T*`` solves its own monotone law
-    (:func:`~.layered_law.layer_compression`) and ``L = t_k + sum_i c_i(T*) / sin(theta)``. A tip stuck after having
-    skated (``xi != 0``, backed off and advancing again) bisects the monotone law instead (to adjacent floats).
+    The criterion is on the tent's normal reaction, ``N = scale T(w_n) = F_p,k`` (eq P), and ``N`` depends on the
+    normal depth only: the chain force there is ``T* = F_p,k / scale``, each layer's compression at ``T*`` solves its
+    own monotone law (:func:`~.layered_law.layer_compression`), ``w_n* = sum_i c_i(T*)`` and
+    ``L = t_k + (w_n* + delta_z) / sin(theta)``. The friction's history (the anchor) does not enter.
 
     Parameters
     ----------
     lp, npar, nlp, nstate, ntrack : ndarray
         Tissue, needle parameters, track and crossings.
     nbuf : ndarray, shape (NB_SIZE, L + 1)
-        Scratch (``NB_C`` holds the Newton starts and is written).
+        Scratch (``NB_C`` written).
 
     Returns
     -------
@@ -632,34 +599,10 @@ def rupture_insertion(lp, npar, nlp, nstate, ntrack, nbuf):
     k = int(nstate[NS_RUPTURED])
     if nstate[NS_INSERTED] == 0.0 or k >= nl:
         return math.inf
-    down = -nstate[NS_UZ]
-    cs = math.sqrt(nstate[NS_UX] * nstate[NS_UX] + nstate[NS_UY] * nstate[NS_UY])
-    kc = npar[NP_KAPPA] * cs / down
-    mu = npar[NP_MU]
-    slip = nstate[NS_SLIP]
-    fp = nlp[NL_FP, k]
-    w = _chain_dimple(fp / (npar[NP_SCALE] * (down + mu * cs)), k, lp, npar, nlp, nbuf) / down  # skating there
-    if not kc * (w - slip) >= mu * w:
-        if slip == 0.0:  # stuck since the contact: c = kappa cot(theta) < mu
-            w = _chain_dimple(fp / (npar[NP_SCALE] * (down + kc * cs)), k, lp, npar, nlp, nbuf) / down
-        else:  # stuck after a skate: c grows with w, bisect the monotone law
-            lo, hi = 0.0, max(w, 1e-6)
-            while dimple_force(k, hi, slip, 0.0, lp, npar, nlp, nstate, nbuf)[0] < fp:
-                lo, hi = hi, 2.0 * hi
-                if hi > MAX_DIMPLE_M:
-                    return math.inf
-            for _ in range(200):
-                mid = 0.5 * (lo + hi)
-                if mid <= lo or mid >= hi:
-                    break
-                if dimple_force(k, mid, slip, 0.0, lp, npar, nlp, nstate, nbuf)[0] < fp:
-                    lo = mid
-                else:
-                    hi = mid
-            w = hi
-    if not w <= MAX_DIMPLE_M:
+    wn = _chain_dimple(nlp[NL_FP, k] / npar[NP_SCALE], k, lp, npar, nlp, nbuf)
+    if not wn <= MAX_DIMPLE_M:
         return math.inf
-    return ntrack[NT_CROSS, k] + w
+    return ntrack[NT_CROSS, k] + (wn + nstate[NS_DEVZ]) / -nstate[NS_UZ]
 
 
 @njit(**JIT_OPTIONS)
@@ -704,20 +647,29 @@ def needle_law_kernel(px, py, pz, ins, re0, fric, k_tick, lp, npar, nlp, nstate,
     front = nstate[NS_FRONT]
     t0 = nstate[NS_T]
     h = LAW_STEP_M
+    ax, ay, tent = nstate[NS_AX], nstate[NS_AY], nstate[NS_TENT]
+    vx, vy, vz = nstate[NS_UX], nstate[NS_UY], nstate[NS_UZ]
+    dvx = px - nstate[NS_EX] - ins * vx  # the tip off the axis (a step along the axis keeps it)
+    dvy = py - nstate[NS_EY] - ins * vy
+    dvz = pz - nstate[NS_EZ] - ins * vz
     ins1 = _insertion(px, py, pz, h, nstate)
     k1, v1 = 0, 0.0
     if ins1 > 0.0:
-        k1, d1, c1, _, _, _ = axial_at(ins1, k, front, nstate[NS_SLIP], t0, lp, npar, nlp, nstate, ntrack, nbuf)
+        k1, d1, c1, _, _, _, _, _, _, _ = axial_at(
+            ins1, dvx, dvy, dvz, k, front, ax, ay, tent, t0, lp, npar, nlp, nstate, ntrack, nbuf
+        )
         v1 = d1 + c1
     slope = (v1 - re0) / h if k1 == k_tick else 0.0
     ins_b = _insertion(px, py, pz, -h, nstate)  # behind: the cutting ramp fades (a pure look-up: the front stays)
     slope_behind = slope
     if ins_b > 0.0:
-        kb, db, cb, _, _, _ = axial_at(ins_b, k, front, nstate[NS_SLIP], t0, lp, npar, nlp, nstate, ntrack, nbuf)
+        kb, db, cb, _, _, _, _, _, _, _ = axial_at(
+            ins_b, dvx, dvy, dvz, k, front, ax, ay, tent, t0, lp, npar, nlp, nstate, ntrack, nbuf
+        )
         if kb == k_tick:
             slope_behind = (re0 - (db + cb)) / h
-    slip = nstate[NS_SLIP]
-    cached = nstate[NS_LAW_K] == k + 1 and nstate[NS_LAW_FRONT] == front and nstate[NS_LAW_SLIP] == slip
+    dev = nstate[NS_DEVZ]
+    cached = nstate[NS_LAW_K] == k + 1 and nstate[NS_LAW_FRONT] == front and nstate[NS_LAW_DEV] == dev
     lr = nstate[NS_LAW_RUPTURE] if cached else rupture_insertion(lp, npar, nlp, nstate, ntrack, nbuf)
     dist = 0.0
     post = 0.0
@@ -732,18 +684,21 @@ def needle_law_kernel(px, py, pz, ins, re0, fric, k_tick, lp, npar, nlp, nstate,
             ins_b = _insertion(px + h * nstate[NS_UX], py + h * nstate[NS_UY], pz + h * nstate[NS_UZ], a, nstate)
             if ins_a > 0.0 and ins_b > 0.0:
                 t_rupture = nlp[NL_FP, k] / npar[NP_SCALE]  # the chain force at the threshold
-                ka, da, ca, wa, ta, _ = axial_at(ins_a, k, front, slip, t_rupture, lp, npar, nlp, nstate, ntrack, nbuf)
-                front_a = advance_front(ins_a, ka, front, ntrack)
-                slip_a = tent_slip(wa, slip if ka == k else 0.0, npar, nstate)  # as the step there leaves it
-                _, db, cb, _, _, _ = axial_at(ins_b, ka, front_a, slip_a, ta, lp, npar, nlp, nstate, ntrack, nbuf)
+                ka, da, ca, _, ta, axa, aya, tenta, _, _ = axial_at(
+                    ins_a, dvx, dvy, dvz, k, front, ax, ay, tent, t_rupture, lp, npar, nlp, nstate, ntrack, nbuf
+                )
+                front_a = advance_front(ins_a, ka, front, ntrack)  # the anchor and front as the step there leaves them
+                _, db, cb, _, _, _, _, _, _, _ = axial_at(
+                    ins_b, dvx, dvy, dvz, ka, front_a, axa, aya, tenta, ta, lp, npar, nlp, nstate, ntrack, nbuf
+                )
                 post = da + ca
                 post_slope = (db + cb - post) / h
             if ins < lr:
-                nstate[NS_LAW_K], nstate[NS_LAW_FRONT], nstate[NS_LAW_SLIP] = k + 1, front, slip
+                nstate[NS_LAW_K], nstate[NS_LAW_FRONT], nstate[NS_LAW_DEV] = k + 1, front, dev
                 nstate[NS_LAW_RUPTURE], nstate[NS_LAW_POST], nstate[NS_LAW_POST_GRADIENT] = lr, post, post_slope
     elif not cached:
         nstate[NS_LAW_K], nstate[NS_LAW_FRONT], nstate[NS_LAW_RUPTURE] = k + 1, front, lr
-        nstate[NS_LAW_SLIP] = slip
+        nstate[NS_LAW_DEV] = dev
     cross = ntrack[NT_CROSS]
     cap = 0.0
     grows = 0.0

@@ -5,8 +5,9 @@ friction, lateral bed along the track). A track starts where the tip enters thro
 than 10 degrees (or at a contact restart); a tip below the surface without one (too flat a needle, or one steepened
 after it got there; off the sheet) is a surface contact: the layered form's indentation and friction of a punch of the
 needle's radius. A needle pushed sideways harder than cutting a slot through the inserted layers takes
-(``sum_i lambda Gamma_i l_i``) tears: its track starts again where it is. Before the first rupture the tent slides with
-the tip (frictionless): the track follows the needle's position and angle.
+(``sum_i lambda Gamma_i l_i``) tears: its track starts again where it is. Before the first rupture the track follows
+the needle's position and angle; the tent's friction anchor (the skin's stuck point under the tip) is kept across
+those restarts, so the tent's force is a potential's plus a dissipative friction (passive on any closed path).
 
 With a track, the tissue's layered kernel (:class:`~skin_sim_node.model.SkinModel`, pressed by an
 :class:`~skin_sim_node.model.Indenter` of the needle's radius) still runs, for the deformation only: it is driven at
@@ -115,9 +116,9 @@ class NeedleTool(Tool):
             nd.reset()
             t = nd.step(tip, axis)
         if nd.inserted and t.ruptured == 0 and self._off_track(tip, axis, t.insertion_m):
-            # nothing is cut yet: the tent slides with the tip (a frictionless tip on the skin), so the track is
-            # where the needle is now, not where it first touched
-            nd.reset()
+            # nothing is cut yet: the track is where the needle is now, not where it first touched; the tent's
+            # friction anchor is the skin's and is kept (a reset would re-stick it under the tip: energy from nowhere)
+            nd.reset(keep_tent=True)
             t = nd.step(tip, axis)
         self.last_needle = t
         tissue = self.tissue
