@@ -263,17 +263,20 @@ def main(argv=None) -> int:
 
     lo, hi = FLYNN_STIFFNESS_N_PER_MM
     print(f"\n4. tip travel at the skin's puncture, vertical, against F_p / k for in-vivo skin k = {lo}-{hi} N/mm (Flynn 2011)")
+    print("   Flynn's probe is wider than a needle's tent, and a contact's stiffness grows with its radius: the needle's")
+    print("   secant may lie below the band (travel past its long end) but not above it. Checked: travel >= F_p / k_max.")
     print("   gauge  F_p (N)  travel (mm)  band (mm)   secant F_p / travel (N/mm)")
     for g in (18, 21, 25, 27):
         r = puncture(cfg, 90.0, g)
         band = (r["fp_n"] / hi, r["fp_n"] / lo)
-        inside = band[0] <= r["travel_m"] * 1e3 <= band[1]
+        travel_mm = r["travel_m"] * 1e3
+        where = "in the band" if band[0] <= travel_mm <= band[1] else ("past its long end" if travel_mm > band[1] else "SHORT")
         print(
-            f"   {g:5d}  {r['fp_n']:7.3f}  {r['travel_m'] * 1e3:11.2f}  {band[0]:.2f}-{band[1]:.2f}"
-            f"   {r['fp_n'] / (r['travel_m'] * 1e3):.2f}{'' if inside else '  (outside)'}"
+            f"   {g:5d}  {r['fp_n']:7.3f}  {travel_mm:11.2f}  {band[0]:.2f}-{band[1]:.2f}"
+            f"   {r['fp_n'] / travel_mm:.2f}  ({where})"
         )
-        if not inside and g != 27:  # 27 G lands 0.08 mm past the band's end: reported, not failed (docs/needle.md)
-            fails.append(f"{g} G: tip travel outside the band")
+        if travel_mm < band[0]:  # stiffer than in-vivo skin under a wider probe: not a tent of this tissue
+            fails.append(f"{g} G: tip travel {travel_mm:.2f} mm below F_p / k_max = {band[0]:.2f} mm")
     for f in fails:
         print(f"FAIL {f}")
     print(f"needle_angle FAIL: {len(fails)} checks failed" if fails else "needle_angle PASS")
