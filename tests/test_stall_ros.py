@@ -32,6 +32,9 @@ from skin_sim_node.tools import make_tool  # noqa: E402
 pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
 NEEDLE_PARAMS = REPO / "config" / "needle.yaml"
 STALL_S = 0.15
+RAMP_S = 0.1
+"""Pose time after the resume in which the published force may still be below the offline answer (s): its return at
+the rate bound (1 N per ms of the node's clock) from the stall's zero."""
 
 
 class Observer:
@@ -139,18 +142,26 @@ def test_a_stalled_node_keeps_the_needles_track_and_resumes_without_a_jolt(scene
         prev = s
     t_live = np.array([np.linalg.norm(obs.wrench[s]) for s in stamps])
     t_off = np.array([np.linalg.norm(truth[s]) for s in stamps])
-    excess = np.abs(t_live - t_off) - (0.2 * t_off + 0.05)  # both ways: a force that collapsed fails too
+    s_arr = np.array(stamps, dtype=float)
+    gaps = np.diff(s_arr) * ((t_off[:-1] > 0.05) | (t_off[1:] > 0.05))
+    resume = s_arr[int(np.argmax(gaps)) + 1]  # the first answer after the longest in-contact gap: the stall's end
+    # both ways (a force that collapsed fails too), except for RAMP_S after the resume: the force, zero through the
+    # stall, comes back at the rate bound on the node's clock, and the poses answered in a burst after SIGCONT are
+    # close on it (above the offline answer it may never be)
+    ramp = (s_arr >= resume) & (s_arr < resume + RAMP_S * 1e9)
+    excess = np.where(ramp, t_live - t_off, np.abs(t_live - t_off)) - (0.2 * t_off + 0.05)
     # the node saw the gap: as a stall (its watchdog fired first) or as a long stamp interval stepped in parts
     log = node.log()
     assert "poses resumed after" in log or "stepped in parts" in log, log[-2000:]
     print(f"answered {len(stamps)} poses (as recorded); max live - offline {np.max(t_live - t_off):+.4f} N")
     assert len(stamps) > 100 and t_off.max() > 0.3
-    assert excess.max() <= 0.0, f"a published force {excess.max():.3f} N off the offline answer (0.2 x + 0.05 N)"
+    w = int(np.argmax(excess))
+    assert excess.max() <= 0.0, (
+        f"a published force {excess.max():.3f} N off the offline answer (0.2 x + 0.05 N): live {t_live[w]:.4f} N, "
+        f"offline {t_off[w]:.4f} N, {(s_arr[w] - resume) * 1e-6:+.1f} ms from the resume"
+    )
     # the device's commands in the 200 ms after the resume (the first answer after the longest in-contact gap), against
     # the truth of the answered poses around each command's stamp (+-20 ms): no jolt from a restart
-    s_arr = np.array(stamps, dtype=float)
-    gaps = np.diff(s_arr) * ((t_off[:-1] > 0.05) | (t_off[1:] > 0.05))
-    resume = s_arr[int(np.argmax(gaps)) + 1]
     c = np.array(obs.commands, dtype=float)
     c = c[(c[:, 0] >= resume) & (c[:, 0] < resume + 0.2e9)]
     worst = -np.inf
