@@ -439,7 +439,17 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
                         scroll: document.documentElement.scrollWidth - w,
                         side: document.getElementById('side').scrollWidth - document.getElementById('side').clientWidth}; })()""")
             assert inside["n"] >= 5 and inside["out"] == 0 and inside["scroll"] <= 0 and inside["side"] <= 0, inside
-            r = b.evaluate("window.skinViewSetParam('tissue.layers.dermis.stiffness_n_per_m', '-5')")
+
+            def set_param(name: str, value: str) -> dict:
+                """The page's set; a node starved beside Chromium may miss the view's 3 s parameter call (a full-suite
+                run, 2026-12-03): asked again then, at most three times. The node's answer is what is checked."""
+                for _ in range(3):
+                    res = b.evaluate(f"window.skinViewSetParam('{name}', '{value}')")
+                    if "no answer from" not in str(res.get("reason", "")):
+                        break
+                return res
+
+            r = set_param("tissue.layers.dermis.stiffness_n_per_m", "-5")
             assert r["ok"] is False
             shown = b.evaluate("document.getElementById('param-result').textContent")
             assert "rejected" in shown and "must be > 0" in shown, shown
@@ -448,10 +458,10 @@ def test_live_page_shows_tissue_force_and_rejection(ros_domain, tmp_path):
                 const r = document.getElementById('param-result').getBoundingClientRect();
                 return r.top >= 0 && r.bottom <= window.innerHeight && r.height > 0; })()""")
             assert seen is True
-            r = b.evaluate("window.skinViewSetParam('tissue.layers.dermis.damping_n_s_per_m', 'soft')")
+            r = set_param("tissue.layers.dermis.damping_n_s_per_m", "soft")
             # the schema's reason, as at start-up (issue 29; it was rclpy's "wrong parameter type")
             assert r["ok"] is False and r["reason"] == "tissue.layers.dermis.damping_n_s_per_m: expected a number, got 'soft'", r
-            r = b.evaluate("window.skinViewSetParam('tissue.lod.tolerance_m', '2e-5')")
+            r = set_param("tissue.lod.tolerance_m", "2e-5")
             assert r["ok"] is True, r
         assert "parameter change rejected" in node.log()
 
