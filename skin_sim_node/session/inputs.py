@@ -323,7 +323,7 @@ class InputPolicy:
         last = self._last_used_stamp_ns
         gap_ns = 0 if last is None else stamp - last
         held, self._held = self._held, False
-        gone = last is not None and not self._teleported and gap_ns * 1e-9 > max(p.stall_hold_s, p.watchdog_s)
+        gone = last is not None and not self._teleported and gap_ns * 1e-9 > self._hold_s()
         if gone:
             self._event(
                 ev.STALL_RELEASED,
@@ -366,6 +366,11 @@ class InputPolicy:
             restart=restart, axis=self.axis, from_pos=from_pos,
         )  # fmt: skip
 
+    def _hold_s(self) -> float:
+        """How long a stall keeps the tissue's state (s): ``stall_hold_s``, at least the watchdog's delay (so 0
+        releases at the watchdog); the live caller's clock and the offline stamps use the one bound."""
+        return max(self.params.stall_hold_s, self.params.watchdog_s)
+
     def _velocity(self, stamp: int) -> tuple[float, float, float]:
         """:func:`velocity_estimate` at the pending pose (stamped ``stamp``)."""
         return velocity_estimate(
@@ -377,7 +382,7 @@ class InputPolicy:
         ``stall_hold_s``; after that (or before any pose) lifted off, the tissue released and relaxing."""
         p = self.params
         dt = min(max(elapsed_ns, 0) * 1e-9, p.max_dt_s)  # the caller's own stall does not jump the tissue ahead
-        if waited is not None and waited <= max(p.stall_hold_s, p.watchdog_s) and self._last_used_stamp_ns is not None:
+        if waited is not None and waited <= self._hold_s() and self._last_used_stamp_ns is not None:
             # held: the model is not stepped (the resumed pose steps it over the whole gap, as the offline replay does,
             # and a stalled machine spends nothing on a tissue nobody touches); the published force is zero
             self._held = True
