@@ -33,8 +33,8 @@ pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
 NEEDLE_PARAMS = REPO / "config" / "needle.yaml"
 STALL_S = 0.15
 RAMP_S = 0.1
-"""Pose time after the resume in which the published force may still be below the offline answer (s): its return at
-the rate bound (1 N per ms of the node's clock) from the stall's zero."""
+"""Pose time in which a published force below the offline answer must have come back to it (s): its return at the rate
+bound (1 N per ms of the node's clock) from a stall's zero, with the poses the node answers in a burst after it."""
 
 
 class Observer:
@@ -145,20 +145,41 @@ def test_a_stalled_node_keeps_the_needles_track_and_resumes_without_a_jolt(scene
     s_arr = np.array(stamps, dtype=float)
     gaps = np.diff(s_arr) * ((t_off[:-1] > 0.05) | (t_off[1:] > 0.05))
     resume = s_arr[int(np.argmax(gaps)) + 1]  # the first answer after the longest in-contact gap: the stall's end
-    # both ways (a force that collapsed fails too), except for RAMP_S after the resume: the force, zero through the
-    # stall, comes back at the rate bound on the node's clock, and the poses answered in a burst after SIGCONT are
-    # close on it (above the offline answer it may never be)
-    ramp = (s_arr >= resume) & (s_arr < resume + RAMP_S * 1e9)
-    excess = np.where(ramp, t_live - t_off, np.abs(t_live - t_off)) - (0.2 * t_off + 0.05)
+    # never above the offline answer (a restart's jolt); below it only in dips that end within RAMP_S of pose time (a
+    # force that collapsed, or a track erased, fails). A dip is the force's return at the rate bound on the node's clock
+    # from a stall's zero: after the SIGSTOP, and after any other stall the node's watchdog saw on its own clock (a CI
+    # run, 2026-12-03: a second one 214 ms after the resume, its first answer 4.8 us after the last, so 0.0048 N),
+    # which the offline session, stepping on stamps, does not see
+    tol = 0.2 * t_off + 0.05
+    above = t_live - t_off - tol
+    below = (t_off - t_live - tol) > 0.0
+    dips, start = [], None
+    for i in range(len(s_arr)):
+        if below[i] and start is None:
+            start = i
+        elif not below[i] and start is not None:
+            dips.append((start, i))
+            start = None
+    if start is not None:
+        dips.append((start, len(s_arr)))  # never recovered
+    long = [(a, b) for a, b in dips if b == len(s_arr) or s_arr[b] - s_arr[a] >= RAMP_S * 1e9]
     # the node saw the gap: as a stall (its watchdog fired first) or as a long stamp interval stepped in parts
     log = node.log()
     assert "poses resumed after" in log or "stepped in parts" in log, log[-2000:]
-    print(f"answered {len(stamps)} poses (as recorded); max live - offline {np.max(t_live - t_off):+.4f} N")
+    print(
+        f"answered {len(stamps)} poses (as recorded); max live - offline {np.max(t_live - t_off):+.4f} N; "
+        f"{len(dips)} dips below the offline answer, the longest "
+        f"{max(((s_arr[min(b, len(s_arr) - 1)] - s_arr[a]) * 1e-6 for a, b in dips), default=0.0):.1f} ms"
+    )
     assert len(stamps) > 100 and t_off.max() > 0.3
-    w = int(np.argmax(excess))
-    assert excess.max() <= 0.0, (
-        f"a published force {excess.max():.3f} N off the offline answer (0.2 x + 0.05 N): live {t_live[w]:.4f} N, "
+    w = int(np.argmax(above))
+    assert above.max() <= 0.0, (
+        f"a published force {above.max():.3f} N above the offline answer (0.2 x + 0.05 N): live {t_live[w]:.4f} N, "
         f"offline {t_off[w]:.4f} N, {(s_arr[w] - resume) * 1e-6:+.1f} ms from the resume"
+    )
+    assert not long, "the force stayed below the offline answer (0.2 x + 0.05 N) for RAMP_S or more: " + ", ".join(
+        f"live {t_live[a]:.4f} N, offline {t_off[a]:.4f} N from {(s_arr[a] - resume) * 1e-6:+.1f} ms after the resume"
+        for a, _ in long[:3]
     )
     # the device's commands in the 200 ms after the resume (the first answer after the longest in-contact gap), against
     # the truth of the answered poses around each command's stamp (+-20 ms): no jolt from a restart
