@@ -44,6 +44,14 @@ COMMANDS = {
         "skin_sim_lab.validation.stall",
         "offline: a needle stalled 60/150/500 ms at each phase against the unpaused path (issue 31, ~10 s)",
     ),
+    "two-punch": (
+        "skin_sim_lab.validation.two_punch",
+        "offline: two flat punches 4-20 mm apart on one tissue vs the 3D neo-Hookean FEM (issue 32; cached solves)",
+    ),
+    "two-hands": (
+        "skin_sim_lab.validation.two_hands",
+        "offline: a needle with an anchoring finger, two-hand passivity and the coupling's cross term (issue 32, ~20 s)",
+    ),
     "needle-device": (
         "skin_sim_lab.perf.needle_device",
         "offline: needle insertion rendered at 1 kHz from a 250 Hz server vs truth and hold-last (~10 s)",

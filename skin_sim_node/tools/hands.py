@@ -1,0 +1,161 @@
+"""Two hands on one skin (issue 32): N tools pressing one tissue, each through its own series chain. No rclpy.
+
+The tissue's membranes are linear (eq 2: the wave equation of each layer, with its foundation), so the deformation under
+several contacts is the sum of each contact's own modal field. Each tool keeps the modal field it drives (its own
+:class:`~skin_sim_node.model.SkinModel`, centred where it presses, with its chain, friction anchor, viscoelastic arms,
+edge footprint, anisotropic patch and, for a needle, its track), and the sum of the fields is the one tissue
+(:meth:`SharedSkin.surface_displacement_at`, :meth:`SharedSkin.grids`).
+
+The coupling: each tool's chain (eq 6) acts at a surface that includes the others' deflection. Tool ``i`` at depth
+``d_i`` below the rest surface, where the others have lowered the surface by ``w_i = sum_{j != i} u_j(x_i, y_i)``,
+presses its own field to ``d_i - w_i``: its step runs at ``z_i + w_i`` (:class:`CoupledTool`). A finger pressing 3 mm
+from a needle's entry lowers the skin there, so the needle's dimple starts lower and its puncture comes later along the
+needle's travel, as with a real finger (``skin-sim two-hands``, docs/two_hands.md).
+
+Order: the tools step one after another (each tick of each hand, when its pose arrives), each reading the others'
+fields as they stand (the Gauss-Seidel order of a partitioned solve). The loop gain of the coupling is
+``g_ij g_ji``, ``g_ij = u_j(x_i) / u_j(x_j)`` (the other's dimple at this tool over its own, <= 1 and 0.22 at 4 mm for
+2.5 mm punches), so the iteration contracts at every distance above 0. Overlap rule: none is needed. The coupling is the
+same continuous superposition at every centre distance, so nothing switches when two contact disks start to overlap and
+the force has no jolt (tests/test_hands.py sweeps the distance through ``r_1 + r_2``). At distance 0, two coincident
+flat punches at one depth share the force of one punch (``w_i`` is the other's whole share of the depth).
+
+The local contact model a device renders (:class:`~skin_sim_node.model.ContactTangent`) is this tool's, with positions
+in the tissue frame (the friction anchor lowered back by ``w_i``); the other tool's motion reaches it at the server rate
+through ``f0`` (the cross term ``dF_i / dx_j = K_i,zz g_ij`` is not in the local model: its size at the devices is
+measured in docs/two_hands.md).
+
+Limit: :data:`MAX_HANDS` tools.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from ..model import SkinModel
+from ..model.grid import assemble_heights
+from .base import Tool, ToolPose, ToolStep
+
+MAX_HANDS = 2
+"""Most tools one tissue takes. Two hands is the clinical scene (a hand anchoring or palpating beside a tool in the
+other, issue 32). The bound is the machine's, not the model's: each hand's device path costs about half a core at
+1 kHz with rclpy here (docs/performance.md: a bare echo alone is 56 % of a core), so two hands fill a 2-core machine;
+the coupling itself costs one point evaluation of each other tool's field per tick (about 8 us, tests/test_hands.py's
+cost row)."""
+
+
+class SharedSkin:
+    """One tissue pressed by several tools: the sum of their modal fields (module docstring).
+
+    Parameters
+    ----------
+    tools : sequence of Tool
+        The tools, each with its own tissue (:func:`~skin_sim_node.tools.make_tool` of its configuration); the
+        configurations share the tissue (layers, sheet, patch) and differ in the tool (``tool.*``, ``needle.*``).
+
+    Attributes
+    ----------
+    hands : tuple of CoupledTool
+        Each tool behind the seam, coupled to the others: give ``hands[i]`` to hand ``i``'s session.
+    """
+
+    def __init__(self, tools: Sequence[Tool]):
+        if not 1 <= len(tools) <= MAX_HANDS:
+            raise ValueError(f"a tissue takes 1 to {MAX_HANDS} tools, got {len(tools)}")
+        first = tools[0].cfg
+        for t in tools[1:]:
+            if t.cfg.sheet_size_m != first.sheet_size_m or len(t.cfg.layers) != len(first.layers):
+                raise ValueError("the tools of one tissue need the same sheet and layers")
+        self.hands = tuple(CoupledTool(t, self, i) for i, t in enumerate(tools))
+
+    @property
+    def tissues(self) -> tuple[SkinModel, ...]:
+        """Each tool's own modal field (its :class:`~skin_sim_node.model.SkinModel`)."""
+        return tuple(h.tissue for h in self.hands)
+
+    def others_displacement_at(self, i: int, x: float, y: float) -> float:
+        """Downward surface displacement (m) at ``(x, y)`` of every field but tool ``i``'s: ``w_i`` (module docstring).
+
+        A field at rest (no active layer) adds nothing and costs nothing.
+        """
+        w = 0.0
+        for j, h in enumerate(self.hands):
+            if j != i and h.tissue.active.any():
+                w += h.tissue.surface_displacement_at(x, y)
+        return w
+
+    def surface_displacement_at(self, x: float, y: float) -> float:
+        """Downward surface displacement (m) of the one tissue at ``(x, y)``: every tool's field."""
+        return sum(h.tissue.surface_displacement_at(x, y) for h in self.hands if h.tissue.active.any())
+
+    def heights_m(self) -> np.ndarray:
+        """Heights (m, z up) of the surface and each layer top on the sheet's grid, shape ``(L, ny, nx)``: every
+        field's layer displacements summed (linear membranes), assembled as one tissue's (section II.D.4, step 6)."""
+        base = self.hands[0].tissue
+        disp = np.zeros_like(base.build_grid().displacement_m)
+        for h in self.hands:
+            disp += h.tissue.build_grid().displacement_m
+        out = np.empty_like(disp)
+        assemble_heights(disp, base._rest_tops, out)  # the rest heights every field shares
+        return out
+
+
+class CoupledTool(Tool):
+    """A tool of a :class:`SharedSkin`: its own step at a surface lowered by the other tools' fields.
+
+    Parameters
+    ----------
+    inner : Tool
+        The tool (its physics and its own field).
+    skin : SharedSkin
+    index : int
+        Its place in ``skin.hands``.
+    """
+
+    def __init__(self, inner: Tool, skin: SharedSkin, index: int):  # no Tool.__init__: the inner tool has the tissue
+        self.inner = inner
+        self.cfg = inner.cfg
+        self.tissue = inner.tissue
+        self.needs = inner.needs
+        self.skin = skin
+        self.index = index
+        self.shift_m = 0.0
+        """The others' deflection ``w_i`` at the last step (m, downward)."""
+
+    def step(self, pose: ToolPose) -> ToolStep:
+        """The inner tool's step at ``z + w_i``; its record, with positions back in the tissue frame."""
+        x, y, z = pose.position_m
+        w = self.skin.others_displacement_at(self.index, x, y)
+        self.shift_m = w
+        if w == 0.0:
+            return self.inner.step(pose)
+        s = self.inner.step(replace(pose, position_m=(x, y, z + w)))
+        t = s.tangent
+        if t is not None and t.friction_anchor_m is not None:
+            anchor = np.asarray(t.friction_anchor_m, dtype=float).copy()
+            anchor[2] -= w
+            s = replace(s, tangent=replace(t, friction_anchor_m=anchor))
+        return s
+
+    def release(self) -> None:
+        self.inner.release()
+
+    def reset(self) -> None:
+        self.inner.reset()
+        self.shift_m = 0.0
+
+    def at_rest(self, step: ToolStep) -> ToolStep:
+        return self.inner.at_rest(step)
+
+    def readout(self) -> dict | None:
+        return self.inner.readout()
+
+    def state(self) -> dict:
+        return self.inner.state()
+
+    def describe(self) -> str:
+        """One line: which tool this hand holds."""
+        return f"hand {self.index}: {self.cfg.tool_shape}"
