@@ -9,6 +9,7 @@ frozen :class:`NodeParams` and the checked tissue values (which
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import field, make_dataclass, replace
 from typing import TYPE_CHECKING, Any
@@ -163,6 +164,31 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
         "busy-wait this long before each haptic deadline instead of sleeping (0: sleep all the way)", min=0.0, max=1000.0,
         min_exclusive=False, read_only=True,
     ),
+    # hands (issue 32): a second tool on the same tissue, each hand's topics under its own namespace
+    ParamSpec(
+        "hand_ns", str, "", "-",
+        "namespace of the (first) hand's tool topics, relative to the node's: '' keeps the single-tool names "
+        "(tool/pose, tool/wrench, ...); 'right' gives right/tool/pose, ... (msgs_schema/topics.py: HAND_TOPICS)",
+        read_only=True,
+    ),
+    ParamSpec(
+        "second_hand_ns", str, "", "-",
+        "namespace of a second hand's tool topics ('' : no second hand). Its tool presses the same tissue: each tool's "
+        "chain acts at a surface lowered by the other's deflection (skin_sim_node/tools/hands.py); at most 2 hands",
+        read_only=True,
+    ),
+    ParamSpec(
+        "second_tool_shape", str, "flat", "-",
+        "the second hand's tool, as tissue.tool.shape: a finger is a 'flat' pad (the needle takes tissue.needle.*)",
+        choices=("flat", "sphere", "needle"), read_only=True,
+    ),
+    ParamSpec(
+        "second_tool_radius_m", float, 0.005, "m",
+        "the second hand's tool radius, as tissue.tool.radius_m. Default a fingertip pad pressed flat, 10 mm across "
+        "(stated choice: narrower than an adult index fingertip, about 15 mm wide, whose rounded pulp meets the skin "
+        "over less than its width at anchoring forces of about 1 N)",
+        min=0.0, max=0.03, read_only=True,
+    ),
     ParamSpec(
         "precise_sleep", bool, True, "-",
         "sleep to each deadline with clock_nanosleep(TIMER_ABSTIME), GIL released; false: time.sleep(remaining)", read_only=True,
@@ -249,6 +275,10 @@ class NodeParamsFields:
     rt_scope: str
     haptic_cpu: int
     spin_tail_us: float
+    hand_ns: str
+    second_hand_ns: str
+    second_tool_shape: str
+    second_tool_radius_m: float
     precise_sleep: bool
 
     def __init__(self, **values: Any) -> None: ...
@@ -365,7 +395,32 @@ def node_params_from_flat(flat: Mapping[str, Any]) -> NodeParams:
     for name, value in flat.items():
         if not name.startswith(TISSUE_PREFIX):
             values[name] = check_value(name, value)
+    check_hands(values["hand_ns"], values["second_hand_ns"])
     return NodeParams(**{s.name: values[s.name] for s in NODE_PARAMETERS})
+
+
+HAND_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+"""A hand's namespace: one ROS name token (a letter, then letters, digits, underscores), so ``<hand>/tool/pose`` is a
+valid relative topic name."""
+
+
+def check_hands(hand_ns: str, second_hand_ns: str) -> None:
+    """The hands' namespaces: each '' or one name token, and two hands named apart.
+
+    Parameters
+    ----------
+    hand_ns, second_hand_ns : str
+
+    Raises
+    ------
+    ConfigError
+        With the reason.
+    """
+    for name, ns in (("hand_ns", hand_ns), ("second_hand_ns", second_hand_ns)):
+        if ns and not HAND_NAME.fullmatch(ns):
+            raise ConfigError(f"{name} = {ns!r}: a hand's namespace is one name token (a letter, then letters, digits, _)")
+    if second_hand_ns and second_hand_ns == hand_ns:
+        raise ConfigError(f"second_hand_ns = {second_hand_ns!r}: the two hands need different namespaces (hand_ns is the same)")
 
 
 def tissue_part(flat: Mapping[str, Any], prefix: str = TISSUE_PREFIX) -> dict[str, Any]:

@@ -122,3 +122,27 @@ TOPICS = {
         "Force command in the omni_common family (AleBarte Geomagic_Touch_ROS2_Drivers: touch/force_feedback).",
     ),
 }  # fmt: skip
+
+
+HAND_TOPICS = ("tool_pose", "tool_twist", "tool_wrench", "contact", "contact_model", "needle")
+"""The topics each hand has its own of (issue 32): its tool's inputs, force, contact and local model, and its tool's
+read-out. The others (the tissue's grid, mesh and diagnostics) are the tissue's, one per node."""
+
+
+def hand_topic(key: str, hand_ns: str) -> str:
+    """The relative name of topic ``key`` for the hand in namespace ``hand_ns`` (the node's ``hand_ns`` /
+    ``second_hand_ns``): ``<hand_ns>/<name>`` for :data:`HAND_TOPICS`, the contract's name otherwise and for ''.
+
+    Parameters
+    ----------
+    key : str
+        Key of :data:`TOPICS`.
+    hand_ns : str
+        The hand's namespace ('' : the single-tool names).
+
+    Returns
+    -------
+    str
+    """
+    name = TOPICS[key].name
+    return f"{hand_ns}/{name}" if hand_ns and key in HAND_TOPICS else name

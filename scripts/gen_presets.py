@@ -1,4 +1,4 @@
-"""Regenerate config/default.yaml, config/paper.yaml, config/isotropic.yaml, config/needle.yaml and docs/parameters.md
+"""Regenerate config/default.yaml, paper.yaml, isotropic.yaml, needle.yaml, two_hands.yaml and docs/parameters.md
 from the schema.
 
 The presets are written twice: ``config/`` at the top, where the README and the command lines point, and
@@ -9,7 +9,8 @@ velocity), one mode, no damping, LOD levers off, the Sneddon flat-punch k of the
 and each layer's tension set so that c = 0.0032 * 0.06 / (pi sqrt 2) m/s, i.e. lambda_11 = 0.0032 rad/s
 as in eq 9; isotropic (the paper's own membrane too). isotropic: the default with no tension lines
 (``anisotropy.ratio = 1``), the model as calibrated against the isotropic neo-Hookean references. needle: the
-default under a 21 G needle (``tool.shape`` 'needle').
+default under a 21 G needle (``tool.shape`` 'needle'). two_hands: the needle preset with a second hand, a
+fingertip pad anchoring beside it (issue 32).
 """
 
 import math
@@ -64,7 +65,7 @@ def write_parameter_doc(path: Path = DOCS) -> None:
     path.write_text("\n".join(rows) + "\n")
 
 
-PRESETS = ("default.yaml", "paper.yaml", "isotropic.yaml", "needle.yaml")
+PRESETS = ("default.yaml", "paper.yaml", "isotropic.yaml", "needle.yaml", "two_hands.yaml")
 """The preset files written (``config/`` and the package copies)."""
 PRESET_KEY = "/**/" + NODE_NAME
 """The presets' top key: the node in any namespace (rcl's ``**`` wildcard). A bare ``skin_sim_node:`` matches only
@@ -109,6 +110,10 @@ def main(config_dir: Path = CONFIG, doc_path: Path = DOCS, package_config_dir: P
     needle[TISSUE_PREFIX + "tool.shape"] = "needle"  # the default tissue under a 21 G needle (issue 22)
     config_from_flat(tissue_part(needle, TISSUE_PREFIX))
     dump_yaml(needle, config_dir / "needle.yaml", PRESET_KEY)
+    # two hands (issue 32): the needle in the right hand, a fingertip (a flat pad, second_tool_radius_m) in the left
+    # anchoring beside the entry; each hand's topics under its namespace (right/tool/pose, left/tool/pose, ...)
+    two_hands = dict(needle) | {"hand_ns": "right", "second_hand_ns": "left", "second_tool_shape": "flat"}
+    dump_yaml(two_hands, config_dir / "two_hands.yaml", PRESET_KEY)
     package_config_dir.mkdir(parents=True, exist_ok=True)
     for name in PRESETS:
         (package_config_dir / name).write_text((config_dir / name).read_text())

@@ -120,7 +120,7 @@ def test_a_toy_tool_runs_through_the_node(monkeypatch):
         overrides = [Parameter("max_stamp_age_s", value=0.0), Parameter("watchdog_s", value=10.0)]
         node = SkinSimNode(context=ctx, parameter_overrides=overrides)
         node._loop.stop()  # no clock thread: only the poses below tick the session
-        assert type(node.session.tool) is RigidPlane and node._readouts == {}
+        assert type(node.session.tool) is RigidPlane and node.hands[0].readouts == {}
         pose = PoseStamped()
         base = time.time_ns() - 1_000_000_000  # stamps in the past: the stamp-age check is off (max_stamp_age_s 0)
 

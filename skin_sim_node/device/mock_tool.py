@@ -31,6 +31,8 @@ class MockToolNode(ScriptedNode):
         Param("start_delay_s", 1.0, "hold the start pose this long first (s), for DDS discovery", 0.0, 600.0),
         Param("exit_when_done", True, "after the last run and tail_s of lifted pose, shut down (exit 0)", cli=""),
         Param("tail_s", 0.2, "lifted pose time after the last run (s), so the node sees the tool leave", cli=""),
+        Param("offset_x_m", 0.0, "the trajectory shifted along x (m): a second hand beside the first (issue 32)", -0.06, 0.06),
+        Param("offset_y_m", 0.0, "the trajectory shifted along y (m)", -0.06, 0.06),
     )
 
     @classmethod
@@ -79,6 +81,8 @@ class MockToolNode(ScriptedNode):
             self._t0_ns = now_ns
         t = (now_ns - self._t0_ns) * 1e-9
         pos, vel = self.traj.sample(self.clock.trajectory_time(t))
+        if self.p.offset_x_m or self.p.offset_y_m:
+            pos = (pos[0] + self.p.offset_x_m, pos[1] + self.p.offset_y_m, pos[2])
         stamp = ros_now_ns(self)
         # twist first: a receiver that ticks on the pose then finds the twist of the same stamp
         if self._twist_pub is not None:

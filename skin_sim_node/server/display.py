@@ -1,7 +1,8 @@
 """Display worker: builds and publishes the height maps and the mesh in its own process.
 
-The haptic process only copies the modal state (a few kB) into shared memory at display
-rate; this process rebuilds the grid from it and publishes ``tissue/height_map``,
+The haptic process only copies the modal state (a few kB per hand) into shared memory at display
+rate; this process rebuilds the grid from it (with two hands, the sum of each tool's field: one tissue,
+:mod:`skin_sim_node.tools.hands`) and publishes ``tissue/height_map``,
 ``tissue/layer_heights`` and ``tissue/mesh``. Measured on 2 cores: with the display in the
 haptic process, its large publishes and the per-vertex Python work of the mesh held the
 GIL long enough to make 5-10 % of 1 kHz ticks late; in its own process they cost nothing.
@@ -23,6 +24,8 @@ import numpy as np
 from msgs_schema.tissue import LAYER_NAMES
 
 from ..model import SkinModel, TissueConfig
+from ..model.grid import assemble_heights
+from ..model.skin_model import Grid
 from ..tools import tissue
 
 MAX_LAYERS = len(LAYER_NAMES)
@@ -138,11 +141,35 @@ def mesh_due(now_s: float, last_mesh_s: float, mesh_rate_hz: float, joined: bool
     return mesh_rate_hz > 0 and (now_s - last_mesh_s >= 1.0 / mesh_rate_hz or joined)
 
 
-def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # pragma: no cover - child process
+def build_grid(models: list[SkinModel]) -> Grid:
+    """The grid of one tissue pressed by each model's tool: one model's own, or the sum of every model's layer
+    displacements (linear membranes, :mod:`skin_sim_node.tools.hands`) assembled into heights.
+
+    Parameters
+    ----------
+    models : list of SkinModel
+        Each hand's field (same sheet, grid and layers).
+
+    Returns
+    -------
+    Grid
+    """
+    if len(models) == 1:
+        return models[0].build_grid()
+    grids = [m.build_grid() for m in models]
+    disp = grids[0].displacement_m.copy()
+    for g in grids[1:]:
+        disp += g.displacement_m
+    heights = np.empty_like(grids[0].heights_m)
+    assemble_heights(disp, models[0]._rest_tops, heights)  # the rest heights every field shares
+    return Grid(grids[0].xs_m, grids[0].ys_m, disp, heights)
+
+
+def _worker(shm_names, cfgs, display, ros_args, namespace, conn, parent_pid):  # pragma: no cover - child process
     # start-up at normal priority: loading the numba kernels at niceness 19 beside a busy haptic process took the
     # worker over 15 s (no frame within the browser's and the tests' waits); the model and a first grid first
-    model = tissue(cfg)  # the config the node validated and built, pressed as the tool presses it
-    model.build_grid()
+    models = [tissue(c) for c in cfgs]  # the configs the node validated and built, pressed as each tool presses it
+    build_grid(models)
     lower_priority()  # then every thread, and all that rclpy and DDS start below, at DISPLAY_NICE
     import rclpy
     from geometry_msgs.msg import Point
@@ -158,12 +185,13 @@ def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # p
     node = rclpy.create_node("skin_sim_display", namespace=namespace)
     pubs = {k: publisher(node, k) for k in ("height_map", "layer_heights", "mesh")}
     image, layers_image, marker = Image(), Image(), Marker()
-    snap = SnapshotBuffer(shm_name)
+    snaps = [SnapshotBuffer(n) for n in shm_names]
     version = 0
     frame = FRAMES["tissue"]
-    last_seq, last_pub, last_mesh = -1, 0.0, -math.inf
+    last_seq: tuple[int, ...] = ()
+    last_pub, last_mesh = 0.0, -math.inf
     mesh_grid = None  # the newest grid not yet sent as a mesh (the mesh runs below the display rate)
-    last_q, last_centre, last_active = None, None, None
+    last: list[tuple | None] = [None] * len(models)  # each field's (q, centre, active) at the last build
     last_readers: dict[str, int] = {}
     try:
         while rclpy.ok() and os.getppid() == parent_pid:
@@ -173,8 +201,8 @@ def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # p
                     return
                 kind, payload = msg
                 if kind == "tissue":
-                    version, model = payload[0], tissue(payload[1])
-                    last_q = last_centre = last_active = None  # new rest heights: the next frame rebuilds
+                    version, models = payload[0], [tissue(c) for c in payload[1]]
+                    last = [None] * len(models)  # new rest heights: the next frame rebuilds
                     mesh_grid = None  # a pending mesh of the old tissue is not sent
                 elif kind == "display":
                     display = payload
@@ -187,19 +215,21 @@ def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # p
             joined = {k for k, n in readers.items() if n > last_readers.get(k, 0)}
             last_readers = readers
             if display["display_rate_hz"] > 0 and any(watched.values()):
-                seq, v, driven = snap.read(model.q, model.centre, model.level, model.active)
+                reads = [sn.read(m.q, m.centre, m.level, m.active) for sn, m in zip(snaps, models)]
+                seq = tuple(r[0] for r in reads)
+                current = all(r[1] == version for r in reads)
                 if joined:
-                    build = v == version
+                    build = current
                 elif display.get("on_change", True):
-                    # lod: rebuild only when the snapshot moved by more than the tolerance (or once a second)
-                    changed = v == version and seq != last_seq and _moved(model, last_q, last_centre, last_active)
-                    build = v == version and (changed or t0 - last_pub > 1.0)
+                    # lod: rebuild only when a snapshot moved by more than the tolerance (or once a second)
+                    moved = any(_moved(m, *(lst or (None, None, None))) for m, lst in zip(models, last))
+                    build = current and ((seq != last_seq and moved) or t0 - last_pub > 1.0)
                 else:
-                    build = v == version
+                    build = current
                 if build:
                     last_seq, last_pub = seq, t0
-                    last_q, last_centre, last_active = model.q.copy(), model.centre.copy(), model.active.copy()
-                    g = model.build_grid()
+                    last = [(m.q.copy(), m.centre.copy(), m.active.copy()) for m in models]
+                    g = build_grid(models)
                     stamp = node.get_clock().now().nanoseconds
                     if watched["height_map"]:
                         pubs["height_map"].publish(cv.fill_image(image, stamp, frame, g.heights_m[0]))
@@ -219,7 +249,8 @@ def _worker(shm_name, cfg, display, ros_args, namespace, conn, parent_pid):  # p
     except KeyboardInterrupt:
         pass
     finally:
-        snap.close()
+        for sn in snaps:
+            sn.close()
         node.destroy_node()
         rclpy.try_shutdown()
 
@@ -254,8 +285,8 @@ class DisplayProcess:
 
     Parameters
     ----------
-    cfg : TissueConfig
-        The tissue the worker starts with (pickled to it; it validates nothing).
+    cfgs : list of TissueConfig
+        The tissue the worker starts with, as each hand's tool presses it (pickled to it; it validates nothing).
     display : dict
         The display settings (``display_rate_hz``, ``mesh_rate_hz``, ``publish_mesh``, ``mesh_stride``, ``on_change``).
     ros_args : list of str
@@ -264,32 +295,33 @@ class DisplayProcess:
         The node's namespace.
     """
 
-    def __init__(self, cfg: TissueConfig, display: dict, ros_args: list[str], namespace: str):
-        self.snap = SnapshotBuffer()
+    def __init__(self, cfgs: list[TissueConfig], display: dict, ros_args: list[str], namespace: str):
+        self.snaps = [SnapshotBuffer() for _ in cfgs]
         ctx = mp.get_context("spawn")  # never fork a process that runs DDS threads
         self._conn, child = ctx.Pipe()
         self.version = 0
         self.proc = ctx.Process(
             target=_worker,
-            args=(self.snap.shm.name, cfg, display, ros_args, namespace, child, os.getpid()),
+            args=([sn.shm.name for sn in self.snaps], cfgs, display, ros_args, namespace, child, os.getpid()),
             name="skin_sim_display",
             daemon=True,
         )
         self.proc.start()
 
-    def write(self, state: dict) -> None:
-        """Copy the modal state (:meth:`HapticSession.display_state`) into shared memory."""
-        self.snap.write(state["q"], state["centre"], state["driven"], self.version, state["level"], state["active"])
+    def write(self, states: list[dict]) -> None:
+        """Copy each hand's modal state (:meth:`HapticSession.display_state`) into shared memory."""
+        for sn, st in zip(self.snaps, states):
+            sn.write(st["q"], st["centre"], st["driven"], self.version, st["level"], st["active"])
 
-    def set_tissue(self, cfg: TissueConfig) -> None:
-        """Send the worker a new tissue: the config the node validated and built (no validation here).
+    def set_tissue(self, cfgs: list[TissueConfig]) -> None:
+        """Send the worker a new tissue: the configs the node validated and built, one per hand (no validation here).
 
         Parameters
         ----------
-        cfg : TissueConfig
+        cfgs : list of TissueConfig
         """
         self.version += 1
-        self._conn.send(("tissue", (self.version, cfg)))
+        self._conn.send(("tissue", (self.version, cfgs)))
 
     def set_display(self, display: dict) -> None:
         """Send the worker new display settings (the dict :class:`DisplayProcess` takes)."""
@@ -307,4 +339,5 @@ class DisplayProcess:
         if self.proc.is_alive():
             self.proc.kill()  # SIGKILL: no handler to run
             self.proc.join(timeout=2.0)
-        self.snap.close(unlink=True)
+        for sn in self.snaps:
+            sn.close(unlink=True)

@@ -20,6 +20,7 @@ server rate and the display live in their own modules.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import sys
 import threading
@@ -31,7 +32,6 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import JointState
 from skin_sim_msgs.msg import ContactModel
 
 from msgs_schema import convert as cv
@@ -43,28 +43,22 @@ from msgs_schema.parameters import (
     NodeParams,
     check_overrides,
     check_value,
-    session_params,
 )
-from msgs_schema.qos import publisher, subscription
+from msgs_schema.qos import publisher
 from msgs_schema.spec import check_names
 from msgs_schema.tissue import TISSUE_PARAMETERS
 from msgs_schema.topics import FRAMES
 
 from ..configure import configure
 from ..model import ConfigError, TissueConfig
-from ..rate import ServerRate
 from ..ros_util import LoopTiming, PeriodicLoop, localhost_udp_env, run_nodes, set_process_realtime, set_realtime
 from ..session import WATCHDOG, HapticSession, TickResult
 from ..startup import start_line
-from ..tools import make_tool, warm_up
+from ..tools import make_tools, warm_up
 from .display import DisplayProcess
+from .hand import Hand
 
 STATS_LEN = 16384
-READERS_CHECK_NS = 100_000_000
-"""How often the tick asks DDS whether ``tissue/contact`` and ``tool/contact_model`` have readers (100 ms).
-Neither is published while nobody reads it, as image_transport's lazy publishers do: measured here, the two
-publishes were most of what a tick costs beyond the wrench. A reader that joins gets them from the next check on;
-``tool/wrench`` is always published."""
 
 
 def descriptor(spec) -> ParameterDescriptor:
@@ -144,16 +138,20 @@ class SkinSimNode(Node):
         self.params, cfg = validate(self._flat, self._flat)  # ConfigError: refuse to start, with the reason
         self.get_logger().info(start_line(self._flat, ros_args, self.get_fully_qualified_name()))  # form, preset, tool
         t0 = time.perf_counter()
-        warm_up(cfg)
+        cfgs = self._hand_configs(self._flat, cfg)
+        for c in cfgs:
+            warm_up(c)
         self._warmup_s = time.perf_counter() - t0
         self._lock = threading.Lock()
-        self.session = HapticSession(make_tool(cfg), session_params(self.params), log=self._log_event)
         self._frame = FRAMES["tissue"]
         self._sim_time = bool(self.get_parameter("use_sim_time").value)
-        # preallocated messages
-        self._wrench_cdr = cv.WrenchCdr(self._frame)
+        # the hands: each its session (a tool of the one tissue), server rate and topics (issue 32)
+        names = [self.params.hand_ns] + ([self.params.second_hand_ns] if self.params.second_hand_ns else [])
+        self.hands: list[Hand] = []
+        for i, (ns, tool) in enumerate(zip(names, make_tools(cfgs))):
+            log = functools.partial(self._log_event, hand=i)
+            self.hands.append(Hand(self, ns, tool, self.params, self._frame, self._sim_time, log))
         self._n_undecodable = 0
-        self._contact = JointState()
         self._diag = DiagnosticArray()
         # statistics (ring buffers, written under the lock)
         self._kernel_us = np.zeros(STATS_LEN)
@@ -161,26 +159,11 @@ class SkinSimNode(Node):
         self._n_ticks = 0
         self._n_pose_ticks = 0
         self._stats_from = 0
-        self._last_tick_ns = time.perf_counter_ns()
-        self._rate = ServerRate(self.params, self._last_tick_ns, pose_ages=not self._sim_time)
         self._cpu_last = (time.perf_counter_ns(), time.process_time())
         self._cpu_pct = float("nan")
-        self._last_diag_ns = self._last_tick_ns
-        self._last_pub_ns = 0  # last wrench publish (idle heartbeat)
-        self._last_pub_force = 0.0  # last published force (N): the idle heartbeat holds back only zeros
-        self._n_idle_skipped = 0
-        self._display_key: tuple[int, int] | None = None
-        self._last: TickResult | None = None
-        # I/O
-        self._pub_wrench = publisher(self, "tool_wrench")
-        self._pub_contact = publisher(self, "contact")
-        self._model_msg = ContactModel()
-        self._pub_model = publisher(self, "contact_model")
+        self._last_diag_ns = time.perf_counter_ns()
+        self._display_key: tuple | None = None
         self._pub_diag = publisher(self, "diagnostics")
-        self._readouts: dict = {}  # a tool's own read-out topic (ToolNeeds.readout): key -> (publisher, message)
-        self._add_readout()
-        self._readers_checked_ns = -READERS_CHECK_NS
-        self._contact_read = self._model_read = True
         self.local_model_sink: Callable[[ContactModel], None] | None = None
         """A composed bridge's hand-off: called with each contact model in the tick (no DDS hop, no copy kept)."""
         self._accepted: tuple[dict, dict, NodeParams, TissueConfig] | None = None  # on_set's validated set, for post_set
@@ -188,12 +171,12 @@ class SkinSimNode(Node):
         self.add_post_set_parameters_callback(self._post_set_parameters)  # apply the accepted set
         depth = self.params.input_queue_depth
         # serialized in, serialized out: no rclpy message objects on the 1 kHz path (msgs_schema/convert.py)
-        subscription(self, "tool_pose", self._on_pose, depth=depth, raw=True)
-        subscription(self, "tool_twist", self._on_twist, depth=depth, raw=True)
+        for i, hand in enumerate(self.hands):
+            hand.subscribe(functools.partial(self._on_pose, hand=i), functools.partial(self._on_twist, hand=i), depth=depth)
         self._diag_timer = self.create_timer(self.params.diagnostics_period_s, self._publish_diagnostics)
         # display work runs in its own process; this thread only copies the modal state to it
         args = [a for a in (ros_args or []) if "__node:=" not in a]
-        self._display = DisplayProcess(cfg, self._display_settings(), args, self.get_namespace())
+        self._display = DisplayProcess(cfgs, self._display_settings(), args, self.get_namespace())
         self._next_display_ns = 0  # the haptic tick copies the state for the display at display_rate_hz (no thread of its own)
         self._loop = PeriodicLoop(self._clock_period_ns(), self._on_clock, timing=self._haptic_timing(), on_warning=self._warn)
         self._apply_rt_scope()
@@ -203,7 +186,34 @@ class SkinSimNode(Node):
         self.get_logger().info(
             f"live: {self.params.loop_mode} loop at {self.params.rate_hz:.0f} Hz, grid {cfg.grid_shape[1]}x{cfg.grid_shape[0]}, "
             f"numba warm-up {self._warmup_s:.2f} s; {self.session.describe_modes()}"
+            + (f"; hands: {self._describe_hands()}" if len(self.hands) > 1 else "")
         )
+
+    # --- hands --------------------------------------------------------------------------
+    @property
+    def session(self) -> HapticSession:
+        """The first hand's session (the only one of a single-tool node)."""
+        return self.hands[0].session
+
+    @property
+    def _last(self) -> TickResult | None:
+        """The first hand's last tick."""
+        return self.hands[0].last
+
+    @staticmethod
+    def _hand_configs(flat: dict, cfg: TissueConfig) -> list[TissueConfig]:
+        """Each hand's tool configuration: ``cfg``, and with a second hand the same tissue with its tool
+        (``second_tool_shape``, ``second_tool_radius_m``), built the one way (:func:`validate`)."""
+        if not flat.get("second_hand_ns", ""):
+            return [cfg]
+        second = flat | {
+            TISSUE_PREFIX + "tool.shape": flat["second_tool_shape"],
+            TISSUE_PREFIX + "tool.radius_m": flat["second_tool_radius_m"],
+        }
+        return [cfg, validate(second)[1]]
+
+    def _describe_hands(self) -> str:
+        return ", ".join(f"{h.ns or '(unnamed)'}: {h.session.tool.cfg.tool_shape} ({h.topic('tool_pose')})" for h in self.hands)
 
     # --- lifecycle --------------------------------------------------------------------
     def stop(self) -> None:
@@ -268,97 +278,85 @@ class SkinSimNode(Node):
                 self._log_event("undecodable", f"{key}: {exc}")
             return None
 
-    def _log_event(self, kind: str, message: str) -> None:
+    def _log_event(self, kind: str, message: str, hand: int = 0) -> None:
         """Log a session event once: a warning, except the watchdog after a tool that had left the tissue (the
-        normal end of a session: the force was already zero)."""
-        text = f"[{kind}] {message} (logged once; counted in diagnostics)"
-        if kind == WATCHDOG and self.session.force_n == 0.0:  # rclpy: one severity per call site
+        normal end of a session: the force was already zero). A second hand's events name it."""
+        h = self.hands[hand] if hand < len(getattr(self, "hands", ())) else None
+        who = f"{h.ns}: " if h is not None and len(self.hands) > 1 else ""
+        text = f"[{kind}] {who}{message} (logged once; counted in diagnostics)"
+        if kind == WATCHDOG and h is not None and h.session.force_n == 0.0:  # rclpy: one severity per call site
             self.get_logger().info(text)
         else:
             self.get_logger().warning(text)
 
     # --- inputs -----------------------------------------------------------------------
-    def _on_pose(self, data: bytes) -> None:
+    def _on_pose(self, data: bytes, hand: int = 0) -> None:
         if (pose := self._decode("tool_pose", data)) is None:
             return
-        self.answer_pose(*pose)
+        stamp, frame, xyz, quat = pose
+        self.answer_pose(stamp, frame, xyz, quat, hand=hand)
 
-    def answer_pose(self, stamp: int, frame: str, xyz, quat) -> None:
-        """Take one tool pose and, in input mode when it is due, answer it at once (a tick, its publishes).
+    def answer_pose(self, stamp: int, frame: str, xyz, quat, hand: int = 0) -> None:
+        """Take one tool pose of hand ``hand`` and, in input mode when it is due, answer it at once (a tick, its
+        publishes).
 
         The pose callback's work; also the in-process entry of a composed bridge (``skin-sim bridge --with-node``),
         whose local model then arrives through :attr:`local_model_sink`.
         """
+        h = self.hands[hand]
         with self._lock:
             rx = time.perf_counter_ns()
-            rejected = self.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx, quat=quat)
-            if rejected is None and self.params.loop_mode == "input" and self._rate.due(stamp, rx):
-                self._tick(rx, pose_driven=True)
+            rejected = h.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx, quat=quat)
+            if rejected is None and self.params.loop_mode == "input" and h.rate.due(stamp, rx):
+                self._tick(h, rx, pose_driven=True)
 
-    def _on_twist(self, data: bytes) -> None:
+    def _on_twist(self, data: bytes, hand: int = 0) -> None:
         if (twist := self._decode("tool_twist", data)) is None:
             return
-        self.answer_twist(*twist)
+        stamp, frame, lin = twist[:3]
+        self.answer_twist(stamp, frame, lin, hand=hand)
 
-    def answer_twist(self, stamp: int, frame: str, lin) -> None:
-        """Take one tool twist (the twist callback's work; a composed bridge's in-process entry)."""
+    def answer_twist(self, stamp: int, frame: str, lin, hand: int = 0) -> None:
+        """Take one tool twist of hand ``hand`` (the twist callback's work; a composed bridge's in-process entry)."""
         with self._lock:
-            self.session.on_twist(stamp, frame, lin)
+            self.hands[hand].session.on_twist(stamp, frame, lin)
 
     def _on_clock(self, now_ns: int, _elapsed_ns: int) -> None:
         with self._lock:
-            if self.params.loop_mode == "input" and now_ns - self._last_tick_ns < 1.5 * self._clock_period_ns():
-                return
-            self._tick(now_ns, pose_driven=False)
+            for h in self.hands:  # each hand's fallback tick: its poses stopped (watchdog), or timer mode
+                if self.params.loop_mode == "input" and now_ns - h.last_tick_ns < 1.5 * self._clock_period_ns():
+                    continue
+                self._tick(h, now_ns, pose_driven=False)
 
     # --- the haptic tick (under the lock) ---------------------------------------------
-    def _tick(self, now_ns: int, pose_driven: bool) -> None:
-        s = self.session
-        elapsed = now_ns - self._last_tick_ns
+    def _tick(self, h: Hand, now_ns: int, pose_driven: bool) -> None:
+        s = h.session
+        elapsed = now_ns - h.last_tick_ns
         t0 = time.perf_counter_ns()
         r = s.tick(now_ns, elapsed)
         t1 = time.perf_counter_ns()
-        self._last = r
-        force = r.force_z_n
-        i = self._n_ticks % STATS_LEN
-        self._kernel_us[i] = (t1 - t0) * 1e-3
-        self._period_us[i] = elapsed * 1e-3
-        self._n_ticks += 1
-        self._n_pose_ticks += pose_driven
-        self._last_tick_ns = now_ns
-        if pose_driven and (msg := self._rate.answered(r.stamp_ns, now_ns, time.time_ns())) is not None:
+        h.last = r
+        h.n_ticks += 1
+        h.last_tick_ns = now_ns
+        if h is self.hands[0]:  # the loop statistics are the first hand's (each hand's rate: diagnostics)
+            i = self._n_ticks % STATS_LEN
+            self._kernel_us[i] = (t1 - t0) * 1e-3
+            self._period_us[i] = elapsed * 1e-3
+            self._n_ticks += 1
+            self._n_pose_ticks += pose_driven
+        if pose_driven and (msg := h.rate.answered(r.stamp_ns, now_ns, time.time_ns())) is not None:
             if "not held" in msg:  # rclpy: one severity per call site
                 self.get_logger().warning(msg)
             else:
                 self.get_logger().info(msg)
-        hb = self.params.idle_heartbeat_hz
-        quiet = force == 0.0 and self._last_pub_force == 0.0  # never hold back a force still ramping down
-        if hb > 0 and quiet and r.idle and not r.stale and now_ns - self._last_pub_ns < 1e9 / hb:
-            self._n_idle_skipped += 1  # lod idle: the tissue is at rest and untouched; heartbeat publishes only
-        else:
-            self._last_pub_ns = now_ns
-            self._last_pub_force = force
-            stamp = r.stamp_ns if pose_driven else self._ros_now_ns()
-            self._pub_wrench.publish(self._wrench_cdr.fill_from_tick(r, stamp))
-            if now_ns - self._readers_checked_ns >= READERS_CHECK_NS:
-                self._readers_checked_ns = now_ns
-                self._contact_read = self._pub_contact.get_subscription_count() > 0
-                self._model_read = self._pub_model.get_subscription_count() > 0
-            sink = self.local_model_sink
-            if self._model_read or sink is not None:  # the bridge renders it
-                msg = cv.fill_contact_model_from_tick(
-                    self._model_msg, r, stamp, self._frame, answer_period_s=self._rate.answer_period_s
-                )
-                if self._model_read:
-                    self._pub_model.publish(msg)
-                if sink is not None:
-                    sink(msg)
-            if self._contact_read:
-                self._pub_contact.publish(cv.fill_contact_from_tick(self._contact, r, stamp, self._frame))
+        stamp = r.stamp_ns if pose_driven else self._ros_now_ns()
+        h.publish(r, now_ns, stamp, self.params.idle_heartbeat_hz, self.local_model_sink if h is self.hands[0] else None)
         if now_ns >= self._next_display_ns and self.params.display_rate_hz > 0:
             self._next_display_ns = now_ns + self._display_period_ns()
             self._snapshot_display()  # after the publishes: the wrench never waits for it
-            self._publish_readout()
+            stamp_now = self._ros_now_ns()
+            for hand in self.hands:
+                hand.publish_readout(stamp_now)
 
     # --- display (built and published by the display worker process) -------------------
     def _display_settings(self) -> dict:
@@ -372,34 +370,16 @@ class SkinSimNode(Node):
         }
 
     def _snapshot_display(self) -> None:
-        """Copy the modal state (a few kB) for the display worker; called by the tick, under the lock.
+        """Copy the modal state (a few kB per hand) for the display worker; called by the tick, under the lock.
 
         Taken in the haptic thread rather than by a display clock thread of its own: such a thread
         woke 60 times a second to contend for the GIL and the lock with the pose callbacks.
         """
-        key = self.session.state_key
+        key = tuple(h.session.state_key for h in self.hands)
         if self.params.display_on_change and key == self._display_key:
             return  # lod: the model did not change since the last snapshot (idle)
         self._display_key = key
-        self._display.write(self.session.display_state())
-
-    def _add_readout(self) -> None:
-        """The publisher of the tool's own read-out topic (:attr:`ToolNeeds.readout`), if it declares one: created for
-        the first tool that needs it, kept across tool changes (ROS publishers are not destroyed under readers)."""
-        ro = self.session.tool.needs.readout
-        if ro is not None and ro.topic not in self._readouts:
-            pub = publisher(self, ro.topic)
-            self._readouts[ro.topic] = (pub, pub.msg_type())
-
-    def _publish_readout(self) -> None:
-        """The tool's read-out topic (``tissue/needle``) at the display rate, while read (a few us; under the lock)."""
-        ro = self.session.tool.needs.readout
-        if ro is None:
-            return
-        pub, msg = self._readouts[ro.topic]
-        if pub.get_subscription_count() == 0 or (state := self.session.readout()) is None:
-            return
-        pub.publish(ro.fill(msg, state, self._ros_now_ns(), self._frame))
+        self._display.write([h.session.display_state() for h in self.hands])
 
     # --- diagnostics ------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
@@ -419,6 +399,9 @@ class SkinSimNode(Node):
             kernel_calls, idle_ticks, modes = s.kernel_calls, s.idle_ticks, s.modes_per_axis
             pose_ticks = self._n_pose_ticks
             overruns = self._loop.overruns
+            rate_diag = self.hands[0].rate.diagnostics()
+            idle_skipped = self.hands[0].n_idle_skipped
+            others = [self._hand_values(h) for h in self.hands[1:]]
         now = time.perf_counter_ns()
         wall = (now - self._last_diag_ns) * 1e-9
         self._last_diag_ns = now
@@ -436,7 +419,7 @@ class SkinSimNode(Node):
         values = {
             "achieved_rate_hz": f"{n / wall:.1f}" if wall > 0 else "nan",
             "target_rate_hz": f"{self.params.rate_hz:.1f}",
-            **self._rate.diagnostics(),
+            **rate_diag,
             "cpu_pct": f"{cpu_pct:.1f}",
             "loop_mode": self.params.loop_mode,
             "ticks_total": str(self._n_ticks),
@@ -458,11 +441,13 @@ class SkinSimNode(Node):
             "kernel_calls_total": str(kernel_calls),
             "idle_ticks_total": str(idle_ticks),
             "modes_per_axis": ",".join(map(str, modes)),  # per layer, now (adaptive modes: each layer's level)
-            "idle_unpublished_total": str(self._n_idle_skipped),
+            "idle_unpublished_total": str(idle_skipped),
             "undecodable_inputs_total": str(self._n_undecodable),
         }
         values.update({f"count_{k}": str(v) for k, v in sorted(counts.items())})
         values.update({f"regime_{k}": str(v) for k, v in sorted(regime.items())})  # docs/stability.md
+        for other in others:  # a second hand's own (the loop statistics above are the first hand's)
+            values.update(other)
         st = DiagnosticStatus()
         st.name = f"{self.get_fully_qualified_name()}: haptic loop"
         st.hardware_id = "skin_sim"
@@ -476,6 +461,21 @@ class SkinSimNode(Node):
         cv.set_stamp(self._diag.header, self.get_clock().now().nanoseconds)
         self._diag.status = [st]
         self._pub_diag.publish(self._diag)
+
+    @staticmethod
+    def _hand_values(h: Hand) -> dict[str, str]:
+        """A second hand's diagnostics, keyed ``hand_<ns>_...`` (under the lock)."""
+        s, key = h.session, f"hand_{h.ns}_"
+        age_ms = (time.perf_counter_ns() - s.pose_rx_ns) * 1e-6 if s.pose_rx_ns else float("inf")
+        return {
+            key + "tool_shape": s.tool.cfg.tool_shape,
+            key + "ticks_total": str(h.n_ticks),
+            key + "rate_hz": f"{h.rate.rate_hz:.1f}",
+            key + "input_age_ms": f"{age_ms:.1f}",
+            key + "input_stale": str(s.stale),
+            key + "force_n": f"{s.force_n:.4f}",
+            **{key + f"count_{k}": str(v) for k, v in sorted(s.counts.items())},
+        }
 
     # --- live parameters: validated once in on_set, applied in post_set (as ros2/demos) -------------
     def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
@@ -544,23 +544,28 @@ class SkinSimNode(Node):
         if accepted is None or accepted[0] != changes:  # rclpy calls post_set right after on_set accepted this set
             accepted = (changes, self._flat | changes, *validate(self._flat | changes, changes))
         _, flat, node_params, cfg = accepted
-        new_tool = make_tool(cfg) if any(p.name.startswith(TISSUE_PREFIX) for p in ours) else None
+        tissue_set = any(p.name.startswith(TISSUE_PREFIX) for p in ours)
+        new_tools = make_tools(self._hand_configs(flat, cfg)) if tissue_set else None
         with self._lock:
-            if new_tool is not None:
-                self.session.set_tool(new_tool)
-                self._add_readout()
-                self._display.set_tissue(cfg)  # under the lock: snapshots carry the new version
-            self.session.params = session_params(node_params)
+            now = time.perf_counter_ns()
+            for i, h in enumerate(self.hands):
+                if new_tools is not None:
+                    h.session.set_tool(new_tools[i])
+                    h.add_readout()
+                h.set_params(node_params, now)
+            if new_tools is not None:
+                self._display.set_tissue(
+                    [h.session.tool.cfg for h in self.hands]
+                )  # under the lock: snapshots carry the new version
             self.params = node_params
             self._flat = flat
             self._loop.period_ns = self._clock_period_ns()
-            self._rate = ServerRate(node_params, time.perf_counter_ns(), pose_ages=not self._sim_time)
         self._next_display_ns = 0  # a new display rate applies at the next tick
         self._display.set_display(self._display_settings())
         self.get_logger().info(
             "parameters applied: "
             + ", ".join(f"{p.name}={p.value}" for p in ours)
-            + (" (tissue restarts at rest)" if new_tool else "")
+            + (" (tissue restarts at rest)" if new_tools else "")
         )
 
 

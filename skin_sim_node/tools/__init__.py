@@ -14,6 +14,7 @@ from ..model import SkinModel, TissueConfig
 from ..model.skin_model import warm_up as warm_up_tissue
 from .base import DOWN, Readout, Tool, ToolNeeds, ToolPose, ToolStep, tissue_step
 from .flat import FlatPunch
+from .hands import MAX_HANDS, CoupledTool, SharedSkin
 from .needle import NeedleTool
 from .sphere import SpherePunch
 
@@ -33,6 +34,23 @@ def make_tool(cfg: TissueConfig) -> Tool:
     Tool
     """
     return TOOLS[cfg.tool_shape](cfg)
+
+
+def make_tools(cfgs: list[TissueConfig]) -> list[Tool]:
+    """One tool per hand's configuration: a single tool as :func:`make_tool`; two press one tissue
+    (:class:`~.hands.SharedSkin`: each tool's chain at a surface lowered by the other's field).
+
+    Parameters
+    ----------
+    cfgs : list of TissueConfig
+        Each hand's configuration: the same tissue, each with its tool (``tool.*``).
+
+    Returns
+    -------
+    list of Tool
+    """
+    tools = [make_tool(c) for c in cfgs]
+    return tools if len(tools) == 1 else list(SharedSkin(tools).hands)
 
 
 def tissue(cfg: TissueConfig) -> SkinModel:
@@ -72,6 +90,9 @@ def warm_up(cfg: TissueConfig) -> None:
 
 __all__ = [
     "DOWN",
+    "MAX_HANDS",
+    "CoupledTool",
+    "SharedSkin",
     "TOOLS",
     "FlatPunch",
     "NeedleTool",
@@ -82,6 +103,7 @@ __all__ = [
     "ToolPose",
     "ToolStep",
     "make_tool",
+    "make_tools",
     "tissue",
     "tissue_step",
     "warm_up",

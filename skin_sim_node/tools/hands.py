@@ -119,7 +119,7 @@ class CoupledTool(Tool):
         self.inner = inner
         self.cfg = inner.cfg
         self.tissue = inner.tissue
-        self.needs = inner.needs
+        self.needs = inner.needs  # type: ignore[misc]  # the inner tool's declaration, on the instance
         self.skin = skin
         self.index = index
         self.shift_m = 0.0

@@ -1,0 +1,144 @@
+"""Two hands on one skin over real DDS (issue 32): one node, two tools, each hand's topics in its own namespace.
+
+Two mock tools press the default tissue 6 mm apart, each in its hand's namespace (``right``: the 2.5 mm punch of
+``tissue.tool.*``; ``left``: the second hand's 5 mm pad). The node answers both; each hand's published forces are the
+offline two-hand session's answers to the poses it answered (the same :func:`skin_sim_node.tools.make_tools`, stepped
+in stamp order), and the coupling is there: during the joint hold the right punch's force is below its force alone.
+The two-hand preset (``config/two_hands.yaml``: a needle and a finger) starts, and its needle's read-out is the right
+hand's.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+
+from msgs_schema.convert import read_wrench  # noqa: E402
+from msgs_schema.parameters import SessionParams  # noqa: E402
+from msgs_schema.qos import subscription  # noqa: E402
+from skin_sim_node.model.config import load_tissue_config  # noqa: E402
+from skin_sim_node.scenes import REPO, Scene  # noqa: E402
+from skin_sim_node.session import HapticSession  # noqa: E402
+from skin_sim_node.tools import make_tools  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
+HANDS = ("right", "left")
+OFFSET_M = 0.006
+"""The left hand's press, this far along +x from the right hand's (m): close enough to couple (its field lowers the
+surface under the right punch by about a tenth of its depth), apart enough that the disks (2.5 and 5 mm) do not meet."""
+
+
+class Recorder:
+    """Each hand's poses and wrenches, keyed by stamp."""
+
+    def __init__(self):
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx)
+        self.node = rclpy.create_node(f"two_hands_observer_{os.getpid()}", context=self.ctx)
+        self.poses: dict[str, dict[int, tuple]] = {h: {} for h in HANDS}
+        self.wrench: dict[str, dict[int, np.ndarray]] = {h: {} for h in HANDS}
+        self.needle: list = []
+        for h in HANDS:
+            subscription(self.node, "tool_pose", lambda m, h=h: self._on_pose(h, m), name=f"/{h}/tool/pose", depth=1000)
+            subscription(self.node, "tool_wrench", lambda m, h=h: self._on_wrench(h, m), name=f"/{h}/tool/wrench", depth=1000)
+        self.ex = rclpy.executors.SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        while not self._stop.is_set():
+            self.ex.spin_once(timeout_sec=0.05)
+
+    def _on_pose(self, hand, m):
+        s = m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
+        p, q = m.pose.position, m.pose.orientation
+        self.poses[hand][s] = ((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+
+    def _on_wrench(self, hand, m):
+        t, _, f = read_wrench(m)
+        self.wrench[hand].setdefault(t, np.asarray(f, dtype=float))
+
+    def close(self):
+        self._stop.set()
+        self.thread.join(timeout=2)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+def offline(answered: list[tuple[int, str]], poses: dict, cfgs) -> dict[tuple[str, int], np.ndarray]:
+    """The two-hand session's answer to each answered pose, stepped in stamp order (each hand its own session)."""
+    tools = make_tools(cfgs)
+    sessions = {h: HapticSession(t, SessionParams(max_stamp_age_s=0.0)) for h, t in zip(HANDS, tools)}
+    prev: dict[str, int | None] = dict.fromkeys(HANDS)
+    out = {}
+    for stamp, h in answered:
+        xyz, quat = poses[h][stamp]
+        s = sessions[h]
+        s.on_pose(stamp, "tissue", xyz, quat=quat)
+        out[h, stamp] = np.asarray(s.tick(stamp, 0 if prev[h] is None else stamp - prev[h]).force_n)
+        prev[h] = stamp
+    return out
+
+
+def test_two_hands_answer_in_their_namespaces_as_the_offline_two_hand_session(tmp_path):
+    rec = Recorder()
+    try:
+        with Scene(tmp_path / "logs", domain_id=int(os.environ["ROS_DOMAIN_ID"])) as scene:
+            node = scene.node("-p", "hand_ns:=right", "-p", "second_hand_ns:=left")
+            scene.wait_for_log(node, "live:", timeout_s=180)
+            assert "hands: right: flat (right/tool/pose), left: flat (left/tool/pose)" in node.log(), node.log()[-1500:]
+            tools = []
+            for h, dx in zip(HANDS, (0.0, OFFSET_M)):
+                tools.append(
+                    scene.start(
+                        f"mock_{h}", "mock-tool", "--trajectory", "press_hold_release", "--rate-hz", "500",
+                        "--start-delay-s", "3.0", "--repeat", "2", "--ros-args", "-r", f"__ns:=/{h}", "-p", f"offset_x_m:={dx}",
+                    )
+                )  # fmt: skip
+            for t in tools:
+                t.popen.wait(timeout=120)
+            time.sleep(0.5)
+    finally:
+        rec.close()
+    answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
+    assert all(sum(1 for _, h2 in answered if h2 == h) > 100 for h in HANDS), {h: len(rec.wrench[h]) for h in HANDS}
+    base = load_tissue_config(REPO / "config" / "default.yaml")
+    from dataclasses import replace
+
+    cfgs = [base, replace(base, tool_radius_m=0.005)]
+    truth = offline(answered, rec.poses, cfgs)
+    worst = max(
+        float(np.linalg.norm(rec.wrench[h][s] - truth[h, s]) - (0.05 * np.linalg.norm(truth[h, s]) + 0.01)) for s, h in answered
+    )
+    # the stamp order stands for the node's arrival order: one tick of the other hand's field apart at most
+    assert worst <= 0.0, f"a hand's force {worst:.4f} N off the offline two-hand answer (5 % + 0.01 N)"
+    # the coupling: in the joint hold the right punch feels less than alone (the left pad lowered the surface)
+    alone = offline([(s, h) for s, h in answered if h == "right"], rec.poses, [base])
+    left_stamps = np.array(sorted(rec.poses["left"]))
+
+    def left_pressed(s: int) -> bool:  # the left hand's newest pose at stamp s holds its full press
+        i = np.searchsorted(left_stamps, s, side="right") - 1
+        return i >= 0 and rec.poses["left"][int(left_stamps[i])][0][2] <= -2.49e-3
+
+    hold = [s for s, h in answered if h == "right" and rec.poses["right"][s][0][2] <= -2.49e-3 and left_pressed(s)]
+    assert len(hold) > 50, f"{len(hold)} answers of the right hand while both held (the two tools started apart?)"
+    ratio = np.median([truth["right", s][2] / alone["right", s][2] for s in hold])
+    live = np.median([rec.wrench["right"][s][2] / alone["right", s][2] for s in hold])
+    print(f"right punch in the joint hold: {live:.3f} x its force alone (offline two-hand {ratio:.3f})")
+    assert 0.5 < live < 0.98 and abs(live - ratio) < 0.02
+
+
+def test_two_hands_preset_starts_a_needle_and_a_finger(tmp_path):
+    with Scene(tmp_path / "logs", domain_id=int(os.environ["ROS_DOMAIN_ID"])) as scene:
+        node = scene.node(params=REPO / "config" / "two_hands.yaml")
+        scene.wait_for_log(node, "live:", timeout_s=180)
+        log = node.log()
+        assert "hands: right: needle (right/tool/pose), left: flat (left/tool/pose)" in log, log[-1500:]
