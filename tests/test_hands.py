@@ -1,0 +1,152 @@
+"""Two hands on one skin (issue 32), offline: the checks of ``skin-sim two-hands`` (studies 1-5; the cost, 6, is printed
+only). The runs are :mod:`skin_sim_lab.validation.two_hands`; docs/two_hands.md has the tables.
+
+Two checks are known to fail and are marked ``xfail(strict=True)`` with the measured cause (so a change that fixes
+them is seen): a finger resting exactly on the surface 6 mm from the needle touches the needle's field's truncation
+ripple for one tick, and the cross term at 10 mm, where the other's dimple is below ``lod.tolerance_m``, is 6 % off the
+superposition's prediction from the fields' totals.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from skin_sim_lab.validation import two_hands as th
+from skin_sim_node.model import preset
+from skin_sim_node.tools import make_tool
+from skin_sim_node.tools.hands import MAX_HANDS, SharedSkin
+
+
+@pytest.fixture(scope="module")
+def cfgs():
+    return preset("default"), preset("needle")
+
+
+@pytest.fixture(scope="module")
+def alone(cfgs):
+    fcfg, ncfg = cfgs
+    return th.insertion(ncfg, fcfg, None, 0.0)
+
+
+def test_a_tissue_takes_one_or_two_tools(cfgs):
+    fcfg, _ = cfgs
+    with pytest.raises(ValueError):
+        SharedSkin([])
+    with pytest.raises(ValueError):
+        SharedSkin([make_tool(fcfg)] * (MAX_HANDS + 1))
+
+
+@pytest.mark.parametrize("offset_m", th.FINGER_OFFSETS_M)
+def test_a_finger_lowers_the_entry_and_leaves_the_puncture_force(cfgs, alone, offset_m):
+    """The needle meets the surface where the finger's field lowered it (within one tick's travel), lower for a deeper
+    press; the puncture force (a force threshold) within 1 % of the needle alone's."""
+    fcfg, ncfg = cfgs
+    contacts = []
+    for depth in th.FINGER_DEPTHS_M[1:]:
+        r = th.insertion(ncfg, fcfg, offset_m, depth)
+        assert r.surface_m > 0.0 and r.finger_before_n > 0.0
+        assert abs(r.contact_m - r.surface_m) <= th.CONTACT_TOLERANCE_M + 1e-12
+        assert r.puncture_n == pytest.approx(alone.puncture_n, rel=th.PUNCTURE_FORCE_REL)
+        assert r.epidermis_n == pytest.approx(alone.epidermis_n, rel=th.PUNCTURE_FORCE_REL)
+        assert r.puncture_depth_m > alone.puncture_depth_m  # the tip goes deeper before the skin gives
+        contacts.append(r.contact_m)
+    assert alone.contact_m < contacts[0] < contacts[1]
+
+
+def test_a_closer_finger_lowers_the_entry_more(cfgs):
+    fcfg, ncfg = cfgs
+    near, far = (th.insertion(ncfg, fcfg, off, 1e-3).contact_m for off in th.FINGER_OFFSETS_M)
+    assert near > far > 0.0
+
+
+@pytest.mark.parametrize(
+    "offset_m",
+    [
+        th.FINGER_OFFSETS_M[0],
+        pytest.param(
+            th.FINGER_OFFSETS_M[1],
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="measured: the needle's deformation field early in the dimple (mode level 8 of 29) ripples 0.35 um"
+                " upward at 6 mm, within lod.tolerance_m (10 um); a finger resting exactly at the rest surface touches"
+                " it for one tick (0.36 mN) and the needle's force then differs by at most 0.09 mN",
+            ),
+        ),
+    ],
+)
+def test_a_finger_resting_on_the_surface_changes_nothing(cfgs, alone, offset_m):
+    fcfg, ncfg = cfgs
+    r = th.insertion(ncfg, fcfg, offset_m, 0.0)
+    np.testing.assert_array_equal(r.forces_n, alone.forces_n)
+
+
+@pytest.mark.parametrize("case", range(7))
+def test_two_tools_take_no_energy_from_the_tissue_over_closed_paths(cfgs, case):
+    fcfg, ncfg = cfgs
+    cases = th.passivity_cases(fcfg, ncfg)
+    assert len(cases) == 7
+    name, tool_cfgs, paths = cases[case]
+    forces, works = th.run_paths(SharedSkin([make_tool(c) for c in tool_cfgs]).hands, paths)
+    assert np.all(forces[0] == 0.0) and np.all(forces[-1] == 0.0), name  # the path starts and ends off the skin
+    assert sum(works) <= th.ENERGY_TOLERANCE_J, (name, works)
+
+
+def test_no_jolt_when_the_contact_disks_overlap(cfgs):
+    """The largest per-tick change of the sweep is below one punch's pressing in at the same speed; at d = r1 + r2 it is
+    the neighbourhood's rate (no step)."""
+    fcfg, _ = cfgs
+    vertical, _ = th.single_press_rate(fcfg)
+    sw = th.sweep(fcfg)
+    assert sw.distance_m[-1] == 0.0 and sw.forces_n[-1, :, 2].min() > 0.0
+    assert sw.step_n.max() <= vertical
+    for tool in (0, 1):
+        big, median = sw.crossing(2 * th.RADIUS_M, tool)
+        assert big <= th.STEP_RATIO * median
+
+
+@pytest.mark.parametrize("depth_m", [1e-3, 2e-3])
+def test_far_apart_each_punch_is_the_single_punch(cfgs, depth_m):
+    fcfg, _ = cfgs
+    coupled, alone = th.far_field(fcfg, depth_m)
+    np.testing.assert_allclose(coupled, alone, rtol=th.FAR_REL)
+
+
+@pytest.mark.parametrize("shape", ["flat", "needle"])
+def test_one_tool_in_a_shared_skin_is_the_tool_alone_bit_for_bit(cfgs, shape):
+    fcfg, ncfg = cfgs
+    if shape == "flat":
+        cfg, path = fcfg, th._press_return(0.0, 2e-3, 200)
+        path = np.concatenate([path[:500], th._ramp(path[499], path[499] + (2e-3, 0.0, 0.0), 5e-3), path[500:]])
+    else:
+        cfg, path = ncfg, th._ramp((0.0, 0.0, 0.5e-3), (0.0, 0.0, -4.5e-3), th.NEEDLE_SPEED_M_S)
+    assert th.one_tool_identical(cfg, path)
+
+
+@pytest.mark.parametrize(
+    "distance_m",
+    [
+        4e-3,
+        6e-3,
+        pytest.param(
+            10e-3,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="measured: -0.0117 N/mm against K_ii g_ij -0.0110 (6 %): the other's dimple there (6.8 um) is below"
+                " lod.tolerance_m; its increment (g 0.0073) differs from its total (g 0.0069) by the mode level's"
+                " truncation",
+            ),
+        ),
+    ],
+)
+def test_the_cross_term_is_the_superposition_first_order(cfgs, distance_m):
+    fcfg, _ = cfgs
+    c = th.cross_term(fcfg, distance_m)
+    assert np.all(c.cross < 0.0) and np.all(np.abs(c.cross) < c.own)
+    np.testing.assert_allclose(c.cross, -c.own * c.gain, rtol=th.CROSS_PREDICTION_REL)
+
+
+def test_the_cross_term_falls_with_distance(cfgs):
+    fcfg, _ = cfgs
+    ratios = [float(np.max(np.abs(c.cross) / c.own)) for c in (th.cross_term(fcfg, d) for d in th.CROSS_DISTANCES_M)]
+    assert ratios[0] > ratios[1] > ratios[2] > 0.0
