@@ -11,8 +11,9 @@ shortens the cost's run. Exits 1 when a check fails.
    Printed: where the tip meets the (lowered) surface, the puncture force (the axial peak before the skin's puncture,
    the dermis' rupture, as :func:`skin_sim_lab.validation.needle_angle.puncture` finds it; the epidermis' first
    rupture beside it), the tip's depth at the puncture and its vertical travel from contact to the puncture, against
-   the needle alone. Checked: a finger at 0 mm changes nothing (bit for bit); the needle meets the surface where the
-   finger's field has lowered it (within one tick's travel), lower for a deeper or closer finger; the puncture force
+   the needle alone. Checked: a finger at 0 mm changes the needle's force by at most RESTING_REL of its puncture;
+   the needle meets the surface where the finger's field has lowered it (within one tick's travel), lower for a
+   deeper or closer finger; the puncture force
    within 1 % of the needle alone's. The last is a **regression check of the law, not a validation**: the rupture is a
    force threshold (``F_p = lambda Gamma d``), so a finger can move it only by the sampling of the peak. No measured
    data of a puncture beside an anchoring finger is known to this project (docs/two_hands.md says what the model can
@@ -104,6 +105,17 @@ CROSS_HOLD_TICKS = 700
 """Ticks the press is held before the finite difference (0.7 s: past 2 tau_2)."""
 CROSS_DELTA_M = 10e-6
 """The finite difference's step (m): 1 % of the press; 1 um and 40 um give the same slope within 1 %."""
+RESTING_REL = 1e-3
+"""A finger resting on the rest surface (0 mm press) changes the needle's force by at most this fraction of the needle's
+puncture force. Not 0: the needle's own field early in its dimple ripples below ``lod.tolerance_m`` (measured 0.35 um
+upward at 6 mm, the adaptive mode level's truncation), which a finger exactly at the rest surface touches for a tick
+(0.36 mN on it; the needle's force then moves by at most 0.09 mN, 5e-5 of the puncture force). At 3 mm the field points
+down there and the needle's force is the needle alone's bit for bit."""
+CROSS_NEGLIGIBLE_REL = 0.01
+"""Where the other tool's dimple at this tool is below ``lod.tolerance_m`` (the model's stated displacement accuracy),
+the cross term is checked to be negligible (below this fraction of the own stiffness) rather than against the
+superposition's first order: the field's increment there differs from its total by the mode levels' truncation
+(measured at 10 mm: dimple 6.8 um, g 0.0069 from the total, 0.0073 from the increment, cross term 0.7 % of own)."""
 CROSS_PREDICTION_REL = 0.05
 """The measured cross term within 5 % of ``K_ii g_ij``: the superposition's first order (the other tool's dimple at this
 tool times this tool's stiffness); the rest is the chain's curvature over the step."""
@@ -301,8 +313,10 @@ def study_needle(ncfg, fcfg) -> list[str]:
             row(f"{off * 1e3:6.0f} {dep * 1e3:9.0f}   ", r)
             contacts[off, dep] = r.contact_m
             tag = f"finger {off * 1e3:g} mm, {dep * 1e3:g} mm"
-            if dep == 0.0 and not np.array_equal(r.forces_n, alone.forces_n):
-                fails.append(f"needle: {tag}: the needle's force differs from the needle alone's")
+            if dep == 0.0 and resting_change_n(r, alone) > RESTING_REL * alone.puncture_n:
+                fails.append(
+                    f"needle: {tag}: the needle's force differs from the needle alone's by {resting_change_n(r, alone):.2e} N"
+                )
             if abs(r.puncture_n / alone.puncture_n - 1.0) > PUNCTURE_FORCE_REL:
                 fails.append(f"needle: {tag}: puncture force {r.puncture_n:.4f} N off the needle alone's by > 1 %")
             if abs(r.contact_m - r.surface_m) > CONTACT_TOLERANCE_M + 1e-12:
@@ -314,11 +328,17 @@ def study_needle(ncfg, fcfg) -> list[str]:
         if not contacts[FINGER_OFFSETS_M[0], dep] > contacts[FINGER_OFFSETS_M[1], dep]:
             fails.append(f"needle: finger {dep * 1e3:g} mm: contact not lower for the closer finger")
     print(
-        "   checks: a finger at 0 mm changes nothing (bit for bit); contact at the finger's dimple within one tick"
+        f"   checks: a finger at 0 mm changes the needle's force by at most {RESTING_REL * 100:g} % of its puncture force;"
+        " contact at the finger's dimple within one tick"
         f" ({CONTACT_TOLERANCE_M * 1e6:g} um), lower for a deeper or closer finger; puncture force within"
         f" {PUNCTURE_FORCE_REL * 100:g} % of alone (a force threshold: a regression check of the law)"
     )
     return fails
+
+
+def resting_change_n(r, alone) -> float:
+    """The largest change (N) of the needle's force vector a finger made against the needle alone, over the run."""
+    return float(np.max(np.abs(np.asarray(r.forces_n) - np.asarray(alone.forces_n))))
 
 
 # --- 2. passivity --------------------------------------------------------------------------------------------------
@@ -623,6 +643,18 @@ def cross_term(fcfg, distance_m: float) -> Cross:
     )
 
 
+def cross_ok(c, i: int, tolerance_m: float) -> bool:
+    """Tool ``i``'s cross term meets its aim: within :data:`CROSS_PREDICTION_REL` of ``K_ii g_ij`` where the other's
+    dimple is at least ``tolerance_m`` (``lod.tolerance_m``), else below :data:`CROSS_NEGLIGIBLE_REL` of the own
+    stiffness; and always smaller than the own stiffness."""
+    pred = -c.own[i] * c.gain[i]
+    if c.other_m[i] >= tolerance_m:
+        near = abs(c.cross[i] / pred - 1.0) <= CROSS_PREDICTION_REL
+    else:
+        near = abs(c.cross[i]) <= CROSS_NEGLIGIBLE_REL * c.own[i]
+    return bool(near and abs(c.cross[i]) < c.own[i])
+
+
 def study_cross(fcfg) -> list[str]:
     """Print the cross term's tables; the failed checks."""
     fails = []
@@ -638,7 +670,7 @@ def study_cross(fcfg) -> list[str]:
         rows.append((d, c))
         for i in (0, 1):
             pred = -c.own[i] * c.gain[i]
-            ok = abs(c.cross[i] / pred - 1.0) <= CROSS_PREDICTION_REL and abs(c.cross[i]) < c.own[i]
+            ok = cross_ok(c, i, fcfg.lod.tolerance_m)
             print(
                 f"   {d * 1e3:13g}  {i:4d}  {c.force_n[i]:5.3f}  {c.own[i] * 1e-3:13.3f}  {c.cross[i] * 1e-3:15.4f}"
                 f"  {abs(c.cross[i]) / c.own[i]:9.3f}  {c.other_m[i] * 1e6:13.2f}  {c.gain[i]:6.4f}  {pred * 1e-3:9.4f}"
@@ -648,7 +680,8 @@ def study_cross(fcfg) -> list[str]:
                 fails.append(f"cross term {d * 1e3:g} mm tool {i}: {c.cross[i] * 1e-3:.4f} N/mm against {pred * 1e-3:.4f}")
     print(
         f"   aim: the cross term within {CROSS_PREDICTION_REL * 100:g} % of the superposition's K_ii g_ij (g_ij from the"
-        " fields' totals); a dimple u_j(x_i) below lod.tolerance_m (10 um) is within the mode levels' truncation"
+        " fields' totals) where the dimple u_j(x_i) is at least lod.tolerance_m (10 um); below it (the mode levels'"
+        f" truncation) the cross term is below {CROSS_NEGLIGIBLE_REL * 100:g} % of the own stiffness"
     )
     print(
         "   a device whose local model ignores the other hand's motion for one server period: error |dF_i/dd_j| v T"
