@@ -65,6 +65,7 @@ class SimDeviceNode(ScriptedNode):
         Param("device_ns", "device", "namespace of the device topics (relative; '' for none)"),
         Param("frame_id", "device_base", "frame_id of the device pose", cli=""),
         Param("offset_m", list(DeviceMapping().offset_m), "tissue position of the device origin (m), as the bridge's", cli=""),
+        Param("path_offset_m", [0.0, 0.0, 0.0], "the hand path shifted in the tissue frame (m): a second hand beside the first"),
         Param("start_delay_s", 1.0, "hold the start pose this long first (s), for DDS discovery", 0.0, 600.0),
         Param("repeat", 1, "hand path runs; 0 loops forever", 0, 1_000_000),
         Param("exit_when_done", True, "shut down after the last run and tail_s", cli=""),
@@ -107,7 +108,13 @@ class SimDeviceNode(ScriptedNode):
             substep_s=p.substep_s,
         )
         self.device = SimulatedDevice(
-            p.hand_path, params, DeviceMapping(offset_m=tuple(p.offset_m)), p.start_delay_s, p.repeat, p.tail_s
+            p.hand_path,
+            params,
+            DeviceMapping(offset_m=tuple(p.offset_m)),
+            p.start_delay_s,
+            p.repeat,
+            p.tail_s,
+            path_offset_m=tuple(p.path_offset_m),
         )
         ns = p.device_ns.strip("/")
 

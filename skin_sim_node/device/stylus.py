@@ -112,6 +112,8 @@ class SimulatedDevice:
     start_delay_s, repeat, tail_s : float, int, float
         As :class:`skin_sim_node.device.trajectories.ScriptClock`: hold the start pose first, run
         ``repeat`` times (``<= 0``: forever), hold the end pose ``tail_s`` before :attr:`done`.
+    path_offset_m : tuple of 3 float
+        The hand path shifted in the tissue frame (m): a second hand beside the first (issue 32).
 
     Notes
     -----
@@ -130,8 +132,10 @@ class SimulatedDevice:
         start_delay_s: float = 0.0,
         repeat: int = 1,
         tail_s: float = 0.0,
+        path_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
     ):
         self.hand_path = TRAJECTORIES[hand_path] if isinstance(hand_path, str) else hand_path
+        self.path_offset_m = tuple(float(c) for c in path_offset_m)
         self.params = params or DeviceParams()
         self.mapping = mapping or DeviceMapping()
         self.script = ScriptClock(self.hand_path, start_delay_s, repeat, tail_s)
@@ -149,7 +153,8 @@ class SimulatedDevice:
     def hand(self, t_s: float | None = None) -> tuple[Vec3, Vec3]:
         """Hand position (m) and velocity (m/s) in the device frame at ``t_s`` (default: now)."""
         p, v = self.hand_path.sample(self.script.trajectory_time(self.t_s if t_s is None else t_s))
-        return self.mapping.to_device(p), self.mapping.velocity_to_device(v)
+        o = self.path_offset_m
+        return self.mapping.to_device((p[0] + o[0], p[1] + o[1], p[2] + o[2])), self.mapping.velocity_to_device(v)
 
     @property
     def orientation(self) -> tuple[float, float, float, float]:
