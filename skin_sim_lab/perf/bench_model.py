@@ -176,6 +176,82 @@ def needle_rows(ticks: int, numpy_ticks: int, repeats: int = 3):
         yield {**row, "numpy_over_numba": speedup.get(name)}
 
 
+TWO_TOOL_DISTANCE_M = 4e-3
+"""The second tool's centre distance from the first in the two-tool rows (m): close enough that each reads a field the
+other has deformed (issue 32's nearest two-punch distance), so the coupling's point evaluation does its whole work."""
+
+
+def two_tool_rows(ticks: int, repeats: int = 3) -> list[dict]:
+    """One tool's step per tick against two tools on one tissue (:class:`skin_sim_node.tools.SharedSkin`), both stepping
+    each tick (issue 32): two flat punches, and the needle beside a fingertip pad. Interleaved, best of ``repeats``;
+    each two-tool row's ratio is its median over its one-tool row's median.
+
+    Parameters
+    ----------
+    ticks : int
+    repeats : int
+
+    Returns
+    -------
+    list of dict
+        ``case``, ``median_us``, ``p99_us``, ``ratio`` (None for a one-tool row).
+    """
+    from dataclasses import replace
+
+    from skin_sim_node.tools import DOWN, ToolPose, make_tool, make_tools
+
+    cfg = preset("default")
+    needle_cfg = preset("needle")
+    finger_cfg = replace(cfg, tool_radius_m=5e-3)
+    punch_path, _ = scripted_path(ticks)
+    tips, axis = needle_path(ticks, 90.0)
+    needle_tips = [(tip, (0.0, 0.0, 0.0)) for tip in tips]
+
+    def one(cfg_a, path_a, axis_a):
+        tool = make_tool(cfg_a)
+        times = np.empty(len(path_a))
+        clock = time.perf_counter_ns
+        for i, (p, v) in enumerate(path_a):
+            t0 = clock()
+            tool.step(ToolPose(p, v, axis_a, 1e-3, i == 0))
+            times[i] = clock() - t0
+        return times * 1e-3
+
+    def two(cfg_a, path_a, axis_a, cfg_b):
+        a, b = make_tools([cfg_a, cfg_b])
+        times = np.empty(len(path_a))
+        clock = time.perf_counter_ns
+        for i, (p, v) in enumerate(path_a):
+            q = (p[0] + TWO_TOOL_DISTANCE_M, p[1], min(p[2], 0.0) * 0.5)  # the other presses half as deep beside it
+            t0 = clock()
+            a.step(ToolPose(p, v, axis_a, 1e-3, i == 0))
+            b.step(ToolPose(q, v, DOWN, 1e-3, i == 0))
+            times[i] = clock() - t0
+        return times * 1e-3
+
+    cases = {
+        "flat punch alone": lambda: one(cfg, punch_path, DOWN),
+        f"two flat punches {TWO_TOOL_DISTANCE_M * 1e3:g} mm apart": lambda: two(cfg, punch_path, DOWN, cfg),
+        "needle alone": lambda: one(needle_cfg, needle_tips, axis),
+        f"needle + finger {TWO_TOOL_DISTANCE_M * 1e3:g} mm apart": lambda: two(needle_cfg, needle_tips, axis, finger_cfg),
+    }
+    for f in cases.values():  # compile / load every kernel first
+        f()
+    best: dict[str, np.ndarray] = {}
+    for _ in range(repeats):
+        for name, f in cases.items():
+            t = f()
+            if name not in best or np.median(t) < np.median(best[name]):
+                best[name] = t
+    rows, base = [], None
+    for name, t in best.items():
+        med, p99, _ = summarize(t)
+        if "alone" in name:
+            base = med
+        rows.append({"case": name, "median_us": med, "p99_us": p99, "ratio": None if "alone" in name else med / base})
+    return rows
+
+
 FIXED_MODES = {"lod.adaptive_modes": False, "lod.affected_layers": False, "lod.patch_only": False, "lod.idle": False}
 """Fixed-mode rows: every level-of-detail lever off, so the row's mode count is what runs."""
 
@@ -481,7 +557,15 @@ def main(argv=None) -> int:
             + (f"; NumPy / numba median on this path {r['numpy_over_numba']:.0f}x" if r["numpy_over_numba"] else ""),
             flush=True,
         )
-    print("3. fixed mode counts (every level-of-detail lever off), paper form; ratio = NumPy median / numba median:")
+    print(
+        "3. two tools on one tissue (issue 32), both stepping each tick, against one tool, best of 3 interleaved; "
+        "ratio = median / the same tool's alone:",
+        flush=True,
+    )
+    for r in two_tool_rows(args.ticks):
+        ratio = f", ratio {r['ratio']:5.2f}" if r["ratio"] is not None else ""
+        print(f"  {r['case']:>30}: median {r['median_us']:8.2f} us, p99 {r['p99_us']:8.2f} us{ratio}", flush=True)
+    print("4. fixed mode counts (every level-of-detail lever off), paper form; ratio = NumPy median / numba median:")
     hdr = f"{'modes':>6} {'active':>6} {'path':>10} | {'median':>8} {'p99':>8} {'max':>8} | "
     hdr += f"{'numpy med':>10} {'numpy p99':>10} | ratio"
     print(hdr)
