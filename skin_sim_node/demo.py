@@ -229,7 +229,20 @@ def main(argv=None) -> int:
         help="tool source waits this long for DDS discovery before its path starts (up to 1.6 s measured)",
     )
     ap.add_argument("--view", action="store_true", help="also open the browser view (skin-sim view); headless: a screenshot")
+    ap.add_argument(
+        "--hands",
+        type=int,
+        choices=(1, 2),
+        default=1,
+        help="2: the two-hand scene (a needle and an anchoring finger, config/two_hands.yaml; issue 32)",
+    )
     args = ap.parse_args(argv)
+    if args.hands == 2:
+        from .demo_hands import main as two_hands
+
+        if args.out == Path("out/demo"):
+            args.out = Path("out/demo_hands")
+        return two_hands(args)
     args.out.mkdir(parents=True, exist_ok=True)
     scene = Scene(args.out / "logs")
     os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]

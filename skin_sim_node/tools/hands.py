@@ -37,6 +37,7 @@ import numpy as np
 
 from ..model import SkinModel
 from ..model.grid import assemble_heights
+from ..model.interfaces import interface_depths_m
 from .base import Tool, ToolPose, ToolStep
 
 MAX_HANDS = 2
@@ -101,6 +102,18 @@ class SharedSkin:
         out = np.empty_like(disp)
         assemble_heights(disp, base._rest_tops, out)  # the rest heights every field shares
         return out
+
+    def cross_section(self, xs, y: float) -> np.ndarray:
+        """Heights (m, z up) of the surface and each layer top along ``xs`` at ``y``, shape ``(L, len(xs))``: every
+        field's layer displacements summed (as :meth:`SkinModel.cross_section` for one)."""
+        xs = np.asarray(xs, dtype=float)
+        base = self.hands[0].tissue
+        rest = np.concatenate([np.zeros((1, xs.size)), interface_depths_m(base.cfg, xs, np.full_like(xs, y))])
+        disp = np.zeros((rest.shape[0], xs.size))
+        for h in self.hands:
+            t = h.tissue
+            disp += np.array([[t.layer_displacement_at(li, x, y) for x in xs] for li in range(rest.shape[0])])
+        return -rest - np.cumsum(disp[::-1], axis=0)[::-1]
 
 
 class CoupledTool(Tool):

@@ -1,0 +1,234 @@
+"""``skin-sim demo --hands 2``: the two-hand demo scene (issue 32), end to end over real DDS.
+
+A nurse's two hands: the right holds a 21 G needle and inserts it vertically at the origin, the left anchors the skin
+with a fingertip pad (``second_tool_radius_m``, 5 mm) pressed beside the entry (centre :data:`FINGER_X_M`, its edge
+3 mm from the entry). One node with ``config/two_hands.yaml``, one bridge and one simulated Touch per hand, each in its
+hand's namespace (``/right``, ``/left``). It prints each hand's peak force and device ticks, checks each hand's
+published forces against the offline two-hand session on the same poses, and draws the tissue at the needle's deepest
+pose with both tools.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .scenes import REPO, Scene
+from .verdicts import exit_code, verdict_line
+
+PARAMS = REPO / "config" / "two_hands.yaml"
+HANDS = ("right", "left")
+PATHS = {"right": "needle_straight", "left": "press_hold_release"}
+"""Each hand's path (skin-sim mock-tool --list): the needle in and out at 5 mm/s; the finger pressed 2.5 mm and held."""
+FINGER_X_M = -8e-3
+"""The finger's centre (m, along x): its 5 mm pad's edge 3 mm from the needle's entry at the origin (issue 32's nearer
+anchoring distance)."""
+AGREE_REL, AGREE_ABS_N = 0.05, 0.01
+"""A published force agrees with the offline two-hand answer within 5 % + 0.01 N: the node steps the hands in arrival
+order, the offline session in stamp order, one tick of the other hand's field apart at most."""
+
+
+class _Recorder:
+    """Each hand's poses and wrenches (stamp-keyed), from a node of this process."""
+
+    def __init__(self):
+        import rclpy
+
+        from msgs_schema.convert import read_wrench, stamp_ns
+        from msgs_schema.qos import subscription
+
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx)
+        self.node = rclpy.create_node(f"demo_hands_recorder_{os.getpid()}", context=self.ctx)
+        self.poses: dict[str, dict[int, tuple]] = {h: {} for h in HANDS}
+        self.wrench: dict[str, dict[int, np.ndarray]] = {h: {} for h in HANDS}
+
+        def on_pose(h, m):
+            p, q = m.pose.position, m.pose.orientation
+            self.poses[h][stamp_ns(m.header)] = ((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+
+        def on_wrench(h, m):
+            stamp, _, f = read_wrench(m)
+            self.wrench[h].setdefault(stamp, np.asarray(f, dtype=float))
+
+        for h in HANDS:
+            subscription(self.node, "tool_pose", lambda m, h=h: on_pose(h, m), name=f"/{h}/tool/pose", depth=1000)
+            subscription(self.node, "tool_wrench", lambda m, h=h: on_wrench(h, m), name=f"/{h}/tool/wrench", depth=1000)
+        self.ex = rclpy.executors.SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        while not self._stop.is_set():
+            self.ex.spin_once(timeout_sec=0.05)
+
+    def close(self):
+        import rclpy
+
+        self._stop.set()
+        self.thread.join(timeout=2)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+def offline(rec: _Recorder, until_ns: int | None = None):
+    """The two-hand session stepped on every answered pose in stamp order (each hand its own session).
+
+    Returns ``({(hand, stamp): force}, tools)``: the answers, and the tools (their fields) after the last pose stepped
+    (up to ``until_ns`` if given).
+    """
+    from msgs_schema.parameters import SessionParams
+
+    from .model.config import load_tissue_config, load_yaml
+    from .session import HapticSession
+    from .tools import make_tools
+
+    cfg = load_tissue_config(PARAMS)
+    flat = load_yaml(PARAMS)
+    second = flat.get("second_tool_shape", "flat"), float(flat.get("second_tool_radius_m", 0.005))
+    from dataclasses import replace
+
+    tools = make_tools([cfg, replace(cfg, tool_shape=second[0], tool_radius_m=second[1])])
+    sessions = {h: HapticSession(t, SessionParams(max_stamp_age_s=0.0)) for h, t in zip(HANDS, tools)}
+    answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
+    prev: dict[str, int] = {}
+    out = {}
+    for stamp, h in answered:
+        if until_ns is not None and stamp > until_ns:
+            break
+        xyz, quat = rec.poses[h][stamp]
+        s = sessions[h]
+        s.on_pose(stamp, "tissue", xyz, quat=quat)
+        out[h, stamp] = np.asarray(s.tick(stamp, stamp - prev.get(h, stamp)).force_n)
+        prev[h] = stamp
+    return out, tools
+
+
+def figure(tools, needle_xyz, finger_xyz, path: Path, title: str) -> Path:
+    """Cross-section along x at y = 0 of the one tissue (both fields) at that instant, both tools drawn."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .bags.plots import LAYER_COLOURS, save_figure
+
+    skin = tools[0].skin
+    cfg = tools[0].cfg
+    xs = np.linspace(-20e-3, 8e-3, 700)
+    tops = list(skin.cross_section(xs, 0.0)) + [np.full_like(xs, -cfg.total_thickness_m)]
+    fig, ax = plt.subplots(figsize=(10, 4.2))
+    for li, layer in enumerate(cfg.layers):
+        ax.fill_between(xs * 1e3, tops[li + 1] * 1e3, tops[li] * 1e3, color=LAYER_COLOURS[li % 3], label=layer.name, lw=0)
+        ax.plot(xs * 1e3, tops[li] * 1e3, color="k", lw=0.5)
+    nx, _, nz = needle_xyz
+    ax.plot([nx * 1e3, nx * 1e3], [nz * 1e3, 2.5], color="0.2", lw=1.2, label="needle (21 G)")
+    fx, _, fz = finger_xyz
+    r = tools[1].cfg.tool_radius_m
+    ax.add_patch(plt.Rectangle(((fx - r) * 1e3, fz * 1e3), 2 * r * 1e3, 2.5 - fz * 1e3, fc="0.75", ec="k", label="finger pad"))
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("z (mm)")
+    ax.set_ylim(-cfg.total_thickness_m * 1e3 - 0.2, 2.5)
+    ax.legend(loc="lower right", fontsize=8)
+    return save_figure(fig, path, title)
+
+
+def main(args) -> int:
+    """Run the two-hand scene (``args`` from :func:`skin_sim_node.demo.main`: ``out``, ``timeout_s``, ``start_delay_s``)."""
+    args.out.mkdir(parents=True, exist_ok=True)
+    scene = Scene(args.out / "logs")
+    os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+    print(
+        f"skin-sim demo (two hands): ROS_DOMAIN_ID={scene.env['ROS_DOMAIN_ID']}, right: 21 G needle ({PATHS['right']}), "
+        f"left: fingertip pad at x = {FINGER_X_M * 1e3:g} mm ({PATHS['left']})",
+        flush=True,
+    )
+    rec = _Recorder()
+    checks: list = []
+    devices = {}
+    try:
+        node = scene.node(params=PARAMS)
+        scene.wait_for_log(node, "live:", timeout_s=180)
+        for h in HANDS:
+            scene.start(f"bridge_{h}", "bridge", "--ros-args", "-r", f"__ns:=/{h}")
+        for h in HANDS:
+            extra = [f"--path-offset-m={FINGER_X_M},0,0"] if h == "left" else []
+            # the finger first: it anchors before the needle comes (its path starts 0.5 s earlier)
+            delay = args.start_delay_s + (0.0 if h == "left" else 0.5)
+            devices[h] = scene.start(
+                f"device_{h}", "device", "--hand-path", PATHS[h], "--start-delay-s", f"{delay:g}", *extra,
+                "--ros-args", "-r", f"__ns:=/{h}",
+            )  # fmt: skip
+        try:
+            for d in devices.values():
+                d.popen.wait(timeout=args.timeout_s)
+            checks.append((True, "both hand paths finished"))
+        except subprocess.TimeoutExpired:
+            checks.append((False, f"a hand path did not finish within {args.timeout_s:g} s"))
+        time.sleep(0.5)
+    finally:
+        codes = scene.stop_all()
+        rec.close()
+    bad = {k: c for k, c in codes.items() if c != 0}
+    checks.append((not bad, "processes exited 0" if not bad else f"processes exited non-zero: {bad}"))
+    for h in HANDS:
+        m = re.search(r"(\d+) force commands received, (\d+) of them non-zero \(> 1 mN\), peak ([0-9.]+) N", devices[h].log())
+        ticks = re.search(r"sim device stopping: (\d+) ticks, (\d+) overruns", devices[h].log())
+        peak = float(m.group(3)) if m else 0.0
+        print(
+            f"  {h} device: peak {peak:.3f} N commanded"
+            + (f", {m.group(1)} commands ({m.group(2)} non-zero)" if m else "")
+            + (f", {ticks.group(1)} device ticks ({ticks.group(2)} overruns)" if ticks else "")
+        )
+        checks.append((peak > 0.0, f"{h} device felt a force (peak {peak:.3f} N)"))
+    truth, _ = offline(rec)
+    for h in HANDS:
+        stamps = [s for (hh, s) in truth if hh == h]
+        if not stamps:
+            checks.append((False, f"{h}: no published force answers a recorded pose"))
+            continue
+        diff = [float(np.linalg.norm(rec.wrench[h][s] - truth[h, s])) for s in stamps]
+        lim = [AGREE_REL * float(np.linalg.norm(truth[h, s])) + AGREE_ABS_N for s in stamps]
+        worst = max(d - b for d, b in zip(diff, lim))
+        peak = max(float(np.linalg.norm(rec.wrench[h][s])) for s in stamps)
+        w = int(np.argmax(np.array(diff) - np.array(lim)))
+        print(
+            f"  {h}: {len(stamps)} answered poses, peak published {peak:.3f} N, max |live - offline| {max(diff):.4f} N; "
+            f"worst at {(stamps[w] - stamps[0]) * 1e-9:.3f} s: live {np.round(rec.wrench[h][stamps[w]], 4).tolist()} N, "
+            f"offline {np.round(truth[h, stamps[w]], 4).tolist()} N"
+        )
+        checks.append(
+            (
+                worst <= 0.0,
+                f"{h}: published forces are the offline two-hand answer (5 % + 0.01 N)"
+                if worst <= 0.0
+                else f"{h}: published forces DISAGREE with the offline two-hand answer (max |dF| {max(diff):.3g} N)",
+            )
+        )
+    needle = [(s, rec.poses["right"][s][0]) for (hh, s) in truth if hh == "right"]
+    if needle:
+        s_deep, tip = min(needle, key=lambda p: p[1][2])
+        finger = [rec.poses["left"][s][0] for s in sorted(rec.poses["left"]) if s <= s_deep]
+        _, tools = offline(rec, until_ns=s_deep)
+        pic = figure(
+            tools,
+            tip,
+            finger[-1] if finger else (FINGER_X_M, 0.0, 0.01),
+            args.out / "two_hands_deepest.png",
+            f"two hands: the tissue at the needle's deepest pose (tip {-tip[2] * 1e3:.2f} mm), the finger "
+            f"{-(finger[-1][2] if finger else 0.0) * 1e3:.2f} mm pressed at x = {FINGER_X_M * 1e3:g} mm; offline state at "
+            "that pose's stamp",
+        )
+        print(f"  picture: {pic}")
+        checks.append((True, f"picture {pic}"))
+    print(verdict_line("demo", checks))
+    return exit_code(checks)
