@@ -22,6 +22,7 @@ rclpy = pytest.importorskip("rclpy")
 from msgs_schema.convert import read_wrench  # noqa: E402
 from msgs_schema.parameters import SessionParams  # noqa: E402
 from msgs_schema.qos import subscription  # noqa: E402
+from skin_sim_node.demo_hands import settled_stamps  # noqa: E402
 from skin_sim_node.model.config import load_tissue_config  # noqa: E402
 from skin_sim_node.scenes import REPO, Scene  # noqa: E402
 from skin_sim_node.session import HapticSession  # noqa: E402
@@ -115,8 +116,12 @@ def test_two_hands_answer_in_their_namespaces_as_the_offline_two_hand_session(tm
 
     cfgs = [base, replace(base, tool_radius_m=0.005)]
     truth = offline(answered, rec.poses, cfgs)
+    # compared where this reader saw every answer for the last second (demo_hands.settled_stamps: a reader that missed
+    # answers beside busy processes steps a different viscoelastic path offline)
+    usable = {(s, h) for h in HANDS for s in settled_stamps([s for s, hh in answered if hh == h])[0]}
+    assert all(sum(1 for _, h2 in usable if h2 == h) > 50 for h in HANDS), "this reader missed most answers"
     worst = max(
-        float(np.linalg.norm(rec.wrench[h][s] - truth[h, s]) - (0.05 * np.linalg.norm(truth[h, s]) + 0.01)) for s, h in answered
+        float(np.linalg.norm(rec.wrench[h][s] - truth[h, s]) - (0.05 * np.linalg.norm(truth[h, s]) + 0.01)) for s, h in usable
     )
     # the stamp order stands for the node's arrival order: one tick of the other hand's field apart at most
     assert worst <= 0.0, f"a hand's force {worst:.4f} N off the offline two-hand answer (5 % + 0.01 N)"
@@ -128,7 +133,7 @@ def test_two_hands_answer_in_their_namespaces_as_the_offline_two_hand_session(tm
         i = np.searchsorted(left_stamps, s, side="right") - 1
         return i >= 0 and rec.poses["left"][int(left_stamps[i])][0][2] <= -2.49e-3
 
-    hold = [s for s, h in answered if h == "right" and rec.poses["right"][s][0][2] <= -2.49e-3 and left_pressed(s)]
+    hold = [s for s, h in usable if h == "right" and rec.poses["right"][s][0][2] <= -2.49e-3 and left_pressed(s)]
     assert len(hold) > 50, f"{len(hold)} answers of the right hand while both held (the two tools started apart?)"
     ratio = np.median([truth["right", s][2] / alone["right", s][2] for s in hold])
     live = np.median([rec.wrench["right"][s][2] / alone["right", s][2] for s in hold])
