@@ -173,6 +173,80 @@ def build_mesh(setup: FemSetup) -> MeshHex:
     return MeshHex(p, mesh.t)
 
 
+def offset_axis_nodes(r0: float, n_tool: int, centre_m: float, extent: float, n_out: int, n_band: int = 3) -> np.ndarray:
+    """1D node positions from 0 to ``extent`` with a tool of radius ``r0`` centred at ``centre_m`` (>= 0).
+
+    To the right of the centre: :func:`axis_nodes` (uniform ``h = r0 / n_tool`` to ``r0 + n_band h``, then geometric).
+    To the left: the same uniform band down to 0 when it reaches there (a node closer to 0 than ``0.3 h`` is dropped,
+    so no sliver element sits on the symmetry plane), else the band and then geometric growth (elements about
+    ``2 h`` on average) to 0. The node at 0 is always there: the plane ``x = 0`` is a mesh plane.
+    """
+    if centre_m <= 0.0:
+        return axis_nodes(r0, n_tool, extent, n_out, n_band)
+    h = r0 / n_tool
+    right = centre_m + axis_nodes(r0, n_tool, extent - centre_m, n_out, n_band)
+    band = r0 + n_band * h
+    if centre_m >= band + 2 * h:
+        n_left = max(1, round((centre_m - band) / (2 * h)))
+        left = centre_m - axis_nodes(r0, n_tool, centre_m, n_left, n_band)[1:-1]
+    else:
+        left = centre_m - h * np.arange(1, int(np.floor(centre_m / h)) + 1)
+        left = left[left > 0.3 * h]
+    return np.concatenate([[0.0], np.sort(left), right])
+
+
+def build_offset_mesh(setup: FemSetup, centre_x_m: float, mirror: bool) -> MeshHex:
+    """The mapped hex mesh of a tool centred at ``(centre_x_m, 0)`` in the tissue frame (no local shift).
+
+    The block is ``0 <= x, y <= half_width_m`` (a quarter: symmetry planes ``x = 0`` and ``y = 0``), or with
+    ``mirror`` its reflection across ``x = 0`` added (``-half_width_m <= x``, a half model; the nodes at ``x < 0``
+    are the mirror images of those at ``x > 0``, so a solution even in ``x`` is the quarter model's). Along x the
+    nodes are :func:`offset_axis_nodes`, along y :func:`axis_nodes`, in z :func:`z_nodes`, as in :func:`build_mesh`.
+
+    The ring of nodes at max-norm distance ``r0`` from the tool centre lies on the circle ``r = r0`` (the contact
+    disk conforms), while the plane ``x = 0`` stays a plane:
+
+    - when the plane is beyond the tool (``centre_x_m > r0``), by the O-grid blend of :func:`build_mesh`, whose weight
+      also falls linearly to 0 between the ring and the plane;
+    - when it cuts the tool (``centre_x_m < r0``: two overlapping punches, the union of their disks in the quarter is
+      this disk), the columns left of the centre are stretched along y only (the ring node of column ``u`` goes to
+      ``y = sqrt(r0^2 - u^2)``, the band above is stretched to meet the unmapped grid), and the right side uses the
+      O-grid blend; both are the identity on the column through the centre.
+    """
+    r0 = setup.tissue[2]
+    n_band = 3
+    h = r0 / setup.n_tool
+    a = float(centre_x_m)
+    xs = offset_axis_nodes(r0, setup.n_tool, a, setup.half_width_m, setup.n_out, n_band)
+    ys = axis_nodes(r0, setup.n_tool, setup.half_width_m, setup.n_out, n_band)
+    zs = z_nodes(setup.tissue, setup.nz)
+    if mirror:
+        xs = np.concatenate([-xs[:0:-1], xs])
+    mesh = MeshHex.init_tensor(xs, ys, zs[::-1])
+    p = mesh.p.copy()
+    sign, ax = np.where(p[0] < 0, -1.0, 1.0), np.abs(p[0])  # the map of x >= 0, reflected onto x < 0
+    u, y = ax - a, p[1]
+    au = np.abs(u)
+    rho = np.maximum(au, y)
+    rad = np.hypot(au, y)
+    k_tool, k_band = r0, r0 + n_band * h
+    w = np.where(rho <= k_tool, rho / k_tool, np.clip((k_band - rho) / (k_band - k_tool), 0.0, 1.0))
+    if a > r0:
+        w = np.where(u < -r0, w * np.clip((u + a) / (a - r0), 0.0, 1.0), w)
+    scale = np.where(rad > 0, rho / np.where(rad > 0, rad, 1.0), 1.0)
+    blend = (1 - w) + w * scale
+    new_u, new_y = u * blend, y * blend
+    if a < r0:
+        left = u < 0
+        c = np.sqrt(np.maximum(r0**2 - u**2, 0.0))
+        y_str = np.where(y <= r0, y * c / r0, np.where(y <= k_band, c + (y - r0) * (k_band - c) / (k_band - r0), y))
+        new_u = np.where(left, u, new_u)
+        new_y = np.where(left, y_str, new_y)
+    new_x = np.where(ax < 1e-15, 0.0, new_u + a)  # the plane x = 0 exactly
+    p[0], p[1] = sign * new_x, new_y
+    return MeshHex(p, mesh.t)
+
+
 def _modulus_field(setup: FemSetup, x, y, z):
     """Young's modulus at global (x, y) and depth -z, by the egg-carton interfaces."""
     (_, ifaces, _) = setup.tissue

@@ -31,7 +31,7 @@ from tqdm import tqdm
 from skin_sim_node.model import TissueConfig, preset
 
 from .cache import cached
-from .fem import FemSetup, _geometry_key, _modulus_field, build_mesh, mesh_levels, sparse_solve
+from .fem import FemSetup, _geometry_key, _modulus_field, build_mesh, build_offset_mesh, mesh_levels, sparse_solve
 from .hyperelastic import CACHE_DIR, HYPER_VERSION, _lame, layer_moduli_pa, march
 
 N_STEPS_3D = 10  # load steps to the scenario's depth (the predictor and step halving do the rest)
@@ -60,16 +60,38 @@ def neo_hookean_3d(G, lam, mu):
 
 
 @dataclass(frozen=True)
+class PunchLayout:
+    """A punch off the block's centre, with or without a mirrored partner (issue 32, :mod:`.two_punch`).
+
+    The punch is centred at ``(centre_x_m, 0)`` in the frame of the mesh (the tissue frame shifted by the FEM setup's
+    ``contact_xy_m``). With ``partner`` a second, equal punch at ``(-centre_x_m, 0)`` presses to the same depth, and
+    the problem is the quarter ``x, y >= 0`` (symmetry planes ``x = 0`` and ``y = 0``); without it, the half ``y >= 0``
+    on the mirrored mesh (:func:`.fem.build_offset_mesh`), so the single punch and the pair share one mesh. The force
+    is one punch's: twice the quarter's reaction (the pair's total is four quarters, two per punch), or twice the
+    half's.
+    """
+
+    centre_x_m: float
+    partner: bool
+
+
+@dataclass(frozen=True)
 class Setup3D:
-    """The 3D neo-Hookean run: the FEM mesh and geometry, the deepest indentation and the number of load steps."""
+    """The 3D neo-Hookean run: the FEM mesh and geometry, the deepest indentation and the number of load steps;
+    ``layout`` places the punch off the block's centre (None: centred on the mesh, the setups of the scenarios)."""
 
     fem: FemSetup
     max_depth_m: float
     n_steps: int = N_STEPS_3D
+    layout: PunchLayout | None = None
 
     def key(self) -> str:
-        """Cache key: a hash of the setup and :data:`HYPER_VERSION`."""
-        blob = json.dumps({"v": HYPER_VERSION, "3d": 1, **asdict(self)}, sort_keys=True, default=str)
+        """Cache key: a hash of the setup and :data:`HYPER_VERSION` (a centred setup keeps its key from before
+        ``layout`` existed)."""
+        d = asdict(self)
+        if d["layout"] is None:
+            del d["layout"]
+        blob = json.dumps({"v": HYPER_VERSION, "3d": 1, **d}, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -81,11 +103,15 @@ def setup_for(sc, cfg: TissueConfig | None = None, level: int = -2) -> Setup3D:
 
 
 class Problem3D:
-    """Mesh, basis, BCs and assembly (9 gradient components per Gauss point)."""
+    """Mesh, basis, BCs and assembly (9 gradient components per Gauss point); ``layout``: :class:`PunchLayout`."""
 
-    def __init__(self, s: FemSetup):
+    def __init__(self, s: FemSetup, layout: PunchLayout | None = None):
         self.s = s
-        self.mesh = build_mesh(s)
+        self.layout = layout
+        if layout is None:
+            self.mesh = build_mesh(s)
+        else:
+            self.mesh = build_offset_mesh(s, layout.centre_x_m, mirror=not layout.partner)
         b = self.basis = Basis(self.mesh, ElementVector(ElementHexS2()), intorder=3)
         xc, yc = s.contact_xy_m
         x = np.asarray(b.global_coordinates())
@@ -105,17 +131,31 @@ class Problem3D:
         far = s.half_width_m * (1 - 1e-9)
         tol = 1e-12
         fixed = [b.get_dofs(lambda p: np.abs(p[2] - bottom) < tol).all(), b.get_dofs(lambda p: np.abs(p[1]) < tol).all("u^2")]
-        if s.edge_distance_m is None:
+        centres = [(0.0, 0.0)]
+        if layout is not None:
+            a = layout.centre_x_m
+            centres = [(a, 0.0), (-a, 0.0)] if layout.partner else [(a, 0.0)]
+            if layout.partner:
+                fixed.append(b.get_dofs(lambda p: np.abs(p[0]) < tol).all("u^1"))
+            fixed.append(b.get_dofs(lambda p: np.abs(p[0]) > far).all("u^1"))
+        elif s.edge_distance_m is None:
             fixed.append(b.get_dofs(lambda p: np.abs(p[0]) < tol).all("u^1"))
             fixed.append(b.get_dofs(lambda p: np.abs(p[0]) > far).all("u^1"))
         else:
             fixed.append(b.get_dofs(lambda p: p[0] < -far).all("u^1"))
         fixed.append(b.get_dofs(lambda p: p[1] > far).all("u^2"))
-        self.tool = b.get_dofs(lambda p: (np.abs(p[2]) < tol) & (np.hypot(p[0], p[1]) <= r0 * (1 + 1e-9))).all("u^3")
+
+        def on_tool(p):
+            inside = np.zeros(p.shape[1:], dtype=bool)
+            for cx, cy in centres:
+                inside |= np.hypot(p[0] - cx, p[1] - cy) <= r0 * (1 + 1e-9)
+            return (np.abs(p[2]) < tol) & inside
+
+        self.tool = b.get_dofs(on_tool).all("u^3")
         self.fixed = np.setdiff1d(np.unique(np.concatenate(fixed)), self.tool)
         self.free = np.setdiff1d(np.arange(b.N), np.concatenate([self.fixed, self.tool]))
         self.u = np.zeros(b.N)
-        self.sym = 4.0 if s.edge_distance_m is None else 2.0
+        self.sym = 2.0 if layout is not None or s.edge_distance_m is not None else 4.0
 
     def assemble(self, u, tangent: bool = True):
         """Internal force vector, tangent stiffness (None unless ``tangent``) and the smallest ``J`` at ``u``."""
@@ -159,7 +199,7 @@ def solve(s3: Setup3D, progress: bool = True, sample_step_m: float = 0.5e-3) -> 
     """Solve the 3D neo-Hookean indentation in load steps (Newton per step); surface sampled every ``sample_step_m``."""
     t0 = time.perf_counter()
     s = s3.fem
-    pb = Problem3D(s)
+    pb = Problem3D(s, s3.layout)
     stops = np.linspace(0, s3.max_depth_m, s3.n_steps + 1)[1:]
     depths, forces = [], []
     bar = tqdm(total=len(stops), desc=f"neo-Hookean 3D {s3.key()[:8]} ({pb.basis.N} dofs)", disable=not progress, leave=False)
@@ -177,8 +217,9 @@ def solve(s3: Setup3D, progress: bool = True, sample_step_m: float = 0.5e-3) -> 
         tqdm.write(f"neo-Hookean 3D {s3.key()[:8]}: stopped at {depths[-1] * 1e3:.2f} mm (deepest converged load step)")
     bar.close()
     # surface field at the deepest point, at deformed positions, onto the linear FEM's sample grid (local coords)
+    quarter = s.edge_distance_m is None and (s3.layout is None or s3.layout.partner)
     xmax = s.edge_distance_m or s.half_width_m
-    xlo = 0.0 if s.edge_distance_m is None else -s.half_width_m
+    xlo = 0.0 if quarter else -s.half_width_m
     sx = np.clip(np.arange(xlo, xmax + 1e-12, sample_step_m), -s.half_width_m * (1 - 1e-9), xmax * (1 - 1e-9))
     sy = np.clip(np.arange(0.0, s.half_width_m + 1e-12, sample_step_m), 0.0, s.half_width_m * (1 - 1e-9))
     top = pb.basis.get_dofs(lambda p: np.abs(p[2]) < 1e-12)  # surface nodes: the serendipity DOFs are nodal values
@@ -186,7 +227,7 @@ def solve(s3: Setup3D, progress: bool = True, sample_step_m: float = 0.5e-3) -> 
     X0, Y0 = pb.basis.doflocs[0, dz_], pb.basis.doflocs[1, dz_]
     ux, uy, uz = pb.u[dx_], pb.u[dy_], pb.u[dz_]
     cur = np.stack([X0 + ux, Y0 + uy], 1)
-    if s.edge_distance_m is None:  # mirror across the symmetry planes so the interpolation sees both sides
+    if quarter:  # mirror across the symmetry planes so the interpolation sees both sides
         cur = np.concatenate([cur, cur * [-1, 1], cur * [1, -1], cur * [-1, -1]])
         down = np.tile(-uz, 4)
     else:
