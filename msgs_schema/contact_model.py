@@ -140,9 +140,11 @@ class LocalModel:
     friction_anchor_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
     slip_force_n: float = 0.0
     answer_period_s: float = 0.0
+    coupling_rate_n_per_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self):
         for name, shape in (
+            ("coupling_rate_n_per_s", (3,)),
             ("friction_anchor_m", (3,)),
             ("normal_force_gradient_n_per_m", (3,)),
             ("x0_m", (3,)),
@@ -157,7 +159,10 @@ class LocalModel:
     @property
     def finite(self) -> bool:
         """True if every number is finite and the radius and time-to-live are >= 0."""
-        arrays = (self.x0_m, self.v0_m_s, self.f0_n, self.stiffness_n_per_m, self.damping_n_s_per_m, self.normal)
+        arrays = (
+            self.x0_m, self.v0_m_s, self.f0_n, self.stiffness_n_per_m, self.damping_n_s_per_m, self.normal,
+            self.coupling_rate_n_per_s,
+        )  # fmt: skip
         law = (self.normal_force_n, self.friction_coefficient, self.slip_speed_m_s, self.tangential_stiffness_n_per_m)
         return (
             all(bool(np.isfinite(a).all()) for a in arrays)
@@ -198,6 +203,7 @@ def fill_contact_model(msg, m: LocalModel):
     msg.slip_force_n = float(m.slip_force_n)
     fill_needle_law(msg, m.needle)
     msg.answer_period_s = float(m.answer_period_s)
+    msg.coupling_rate_n_per_s[:] = m.coupling_rate_n_per_s
     return msg
 
 
@@ -239,6 +245,7 @@ def read_contact_model(msg) -> LocalModel:
         friction_anchor_m=np.array(msg.friction_anchor_m, dtype=float),
         slip_force_n=float(msg.slip_force_n),
         answer_period_s=float(msg.answer_period_s),
+        coupling_rate_n_per_s=np.array(msg.coupling_rate_n_per_s, dtype=float),
     )
 
 
@@ -300,6 +307,8 @@ def fill_contact_model_from_tick(
     msg.validity_radius_m = float(STALE_RADIUS_M if result.stale else radius_m)
     msg.time_to_live_s = float(ttl_s)
     msg.answer_period_s = float(answer_period_s)
+    rate = None if result.stale else getattr(tg, "coupling_rate_n_per_s", None)
+    msg.coupling_rate_n_per_s[:] = 0.0 if rate is None else rate
     return msg
 
 
@@ -396,4 +405,5 @@ class ContactModelCdr:
             friction_anchor_m=f["friction_anchor_m"],
             slip_force_n=float(f["slip_force_n"]),
             answer_period_s=float(f.get("answer_period_s", 0.0)),
+            coupling_rate_n_per_s=f.get("coupling_rate_n_per_s", (0.0, 0.0, 0.0)),
         )

@@ -125,3 +125,37 @@ def test_the_cross_term_falls_with_distance(cfgs):
     fcfg, _ = cfgs
     ratios = [float(np.max(np.abs(c.cross) / c.own)) for c in (th.cross_term(fcfg, d) for d in th.CROSS_DISTANCES_M)]
     assert ratios[0] > ratios[1] > ratios[2] > 0.0
+
+
+@pytest.mark.parametrize("period_s", [4e-3, 1e-3])
+def test_the_coupling_rate_lowers_the_device_error_of_a_fast_other_hand(cfgs, period_s):
+    fcfg, _ = cfgs
+    f, held, rated = th.coupling_render_error(fcfg, 4e-3, 50e-3, period_s)
+    assert f > 0.05 and rated < 0.7 * held, (f, held, rated)
+
+
+def test_the_device_renders_the_coupling_rate_for_one_server_period_at_most():
+    from msgs_schema.contact_model import LocalModel
+    from skin_sim_node.device.render import ContactRenderer, coupled
+
+    stamp_ns = 5_000_000_000
+    z = np.zeros(3)
+
+    def slot(rate):
+        m = LocalModel(
+            sequence=1, stamp_ns=stamp_ns, frame_id="tissue", x0_m=(0.0, 0.0, -1e-3), v0_m_s=z, f0_n=(0.0, 0.0, 0.4),
+            stiffness_n_per_m=np.zeros((3, 3)), damping_n_s_per_m=np.zeros((3, 3)), normal=(0.0, 0.0, 1.0),
+            answer_period_s=4e-3, coupling_rate_n_per_s=(0.0, 0.0, rate),
+        )  # fmt: skip
+        r = ContactRenderer()
+        r.set_model(m, stamp_ns * 1e-9)
+        return r._model
+
+    s = slot(-50.0)
+    f0 = np.array([0.0, 0.0, 0.4])
+    for age_ms in (0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, -1.0):
+        fz = coupled(s, f0, stamp_ns * 1e-9 + age_ms * 1e-3)[2]
+        # 0.4 N - 50 N/s x age, the age in [0, the announced 4 ms period] (the node's next model has the real change)
+        assert fz == pytest.approx(0.4 - 50.0 * min(max(age_ms, 0.0), 4.0) * 1e-3, abs=1e-9), (age_ms, fz)
+    assert coupled(slot(-500.0), f0, stamp_ns * 1e-9 + 3e-3)[2] == 0.0  # one-sided: the tissue never pulls
+    assert coupled(slot(0.0), f0, stamp_ns * 1e-9 + 3e-3) is f0  # one hand: untouched

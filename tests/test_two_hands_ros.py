@@ -1,6 +1,6 @@
 """Two hands on one skin over real DDS (issue 32): one node, two tools, each hand's topics in its own namespace.
 
-Two mock tools press the default tissue 6 mm apart, each in its hand's namespace (``right``: the 2.5 mm punch of
+Two mock tools press the default tissue 8 mm apart, each in its hand's namespace (``right``: the 2.5 mm punch of
 ``tissue.tool.*``; ``left``: the second hand's 5 mm pad). The node answers both; each hand's published forces are the
 offline two-hand session's answers to the poses it answered (the same :func:`skin_sim_node.tools.make_tools`, stepped
 in stamp order), and the coupling is there: during the joint hold the right punch's force is below its force alone.
@@ -30,9 +30,9 @@ from skin_sim_node.tools import make_tools  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
 HANDS = ("right", "left")
-OFFSET_M = 0.006
+OFFSET_M = 0.008
 """The left hand's press, this far along +x from the right hand's (m): close enough to couple (its field lowers the
-surface under the right punch by about a tenth of its depth), apart enough that the disks (2.5 and 5 mm) do not meet."""
+surface under the right punch), apart enough that the disks (2.5 and 5 mm radius) do not meet (0.5 mm between them)."""
 
 
 class Recorder:

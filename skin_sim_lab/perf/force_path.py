@@ -110,6 +110,7 @@ def _plain_contact_model_msg():
         time_to_live_s=0.0,
         normal_force_n=0.0,
         normal_force_gradient_n_per_m=np.zeros(3),
+        coupling_rate_n_per_s=np.zeros(3),
         friction_coefficient=0.0,
         slip_speed_m_s=0.0,
         tangential_stiffness_n_per_m=0.0,

@@ -236,6 +236,35 @@ class _Slot:
         return fn * n + t
 
 
+def coupled(slot: _Slot, f: np.ndarray, now_s: float) -> np.ndarray:
+    """``f`` plus the other hands' first-order change of this force since the model answered (issue 32): its
+    ``coupling_rate_n_per_s`` times the model's age on the stamps, at most one announced server period
+    (``answer_period_s``: the node's next model carries the real change), one-sided along the normal for a punch.
+
+    Parameters
+    ----------
+    slot : _Slot
+        The model rendered.
+    f : ndarray, shape (3,)
+        Its force at the device's pose (N).
+    now_s : float
+        The device pose's stamp (s), on the clock of the model's stamp.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+    """
+    m = slot.m
+    c = m.coupling_rate_n_per_s
+    if not (c[0] or c[1] or c[2]):
+        return f
+    age = min(max(now_s - m.stamp_ns * 1e-9, 0.0), m.answer_period_s)
+    g = f + age * c
+    if slot.needle is None and float(m.normal @ g) <= 0.0:  # a punch's tissue never pulls
+        return np.zeros(3)
+    return g
+
+
 def cap_spectral_norm(A: np.ndarray, limit: float) -> np.ndarray:
     """``A`` scaled down as a whole so that its spectral norm (its largest gain, in any direction) is at most
     ``limit``; its direction structure is kept."""
@@ -572,7 +601,7 @@ class ContactRenderer:
             assert slot is not None  # valid: a fresh model under the tool
             if self._fade_t0 is not None:  # back inside / model fresh again after a fade: blend from the faded force
                 self._begin_blend(d, self.cf_min if self._blend_T <= 0 else self._blend_T, keep_from=False)
-            f = slot.force(x, vd, vl, stick)
+            f = coupled(slot, slot.force(x, vd, vl, stick), now_s)
             w = (d - self._blend_t0) / self._blend_T if self._blend_T > 0 else 1.0
             if w < 1.0:
                 f_from = self._offset + (self._from.force(x, vd, vl, stick) if self._from is not None else 0.0)

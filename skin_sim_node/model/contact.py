@@ -73,6 +73,10 @@ class ContactTangent:
     needle : NeedleLaw or None
         The needle's axial law (``tool.shape`` 'needle', issue 22): rupture ahead, post-rupture line, Dahl friction;
         None for the other tools.
+    coupling_rate_n_per_s : ndarray, shape (3,), or None
+        Two hands (issue 32): the rate at which the other tools' motion moves this force (N/s), ``K[:, 2] dw/dt`` with
+        ``w`` the other fields' deflection under this tool (:class:`skin_sim_node.tools.hands.CoupledTool`); None:
+        one tool.
     """
 
     force_n: np.ndarray
@@ -84,6 +88,7 @@ class ContactTangent:
     tangential_stiffness_n_per_m: float = 0.0
     friction_anchor_m: np.ndarray | None = None
     needle: NeedleLaw | None = None
+    coupling_rate_n_per_s: np.ndarray | None = None
 
     def published(self, force_n: np.ndarray, scale: float, friction: bool = True) -> ContactTangent:
         """This tangent as the session publishes it: ``f0 = force_n`` (the published force, this one's scaled by
@@ -114,6 +119,7 @@ class ContactTangent:
             tangential_stiffness_n_per_m=self.tangential_stiffness_n_per_m * scale if friction else 0.0,
             friction_anchor_m=self.friction_anchor_m if friction else None,
             needle=None if self.needle is None else self.needle.scaled(scale),
+            coupling_rate_n_per_s=None if self.coupling_rate_n_per_s is None else self.coupling_rate_n_per_s * scale,
         )
 
     @property

@@ -137,28 +137,36 @@ class CoupledTool(Tool):
         self.index = index
         self.shift_m = 0.0
         """The others' deflection ``w_i`` at the last step (m, downward)."""
+        self.shift_rate_m_s = 0.0
+        """Its rate over the last step (m/s): how fast the other tools lowered (or raised) the surface here."""
 
     def step(self, pose: ToolPose) -> ToolStep:
-        """The inner tool's step at ``z + w_i``; its record, with positions back in the tissue frame."""
+        """The inner tool's step at ``z + w_i``; its record, with positions back in the tissue frame and the coupling's
+        rate in its tangent (:attr:`ContactTangent.coupling_rate_n_per_s`: ``K[:, 2] dw_i/dt``, the first-order change
+        of this force that the other tools' motion makes while a device renders the local model)."""
         x, y, z = pose.position_m
         w = self.skin.others_displacement_at(self.index, x, y)
-        self.shift_m = w
-        if w == 0.0:
+        prev, self.shift_m = self.shift_m, w
+        self.shift_rate_m_s = (w - prev) / pose.dt_s if pose.dt_s > 0.0 and not pose.restart else 0.0
+        if w == 0.0 and prev == 0.0:
             return self.inner.step(pose)
         s = self.inner.step(replace(pose, position_m=(x, y, z + w)))
         t = s.tangent
-        if t is not None and t.friction_anchor_m is not None:
+        if t is None:
+            return s
+        changes: dict = {"coupling_rate_n_per_s": np.asarray(t.stiffness_n_per_m)[:, 2] * self.shift_rate_m_s}
+        if t.friction_anchor_m is not None:
             anchor = np.asarray(t.friction_anchor_m, dtype=float).copy()
             anchor[2] -= w
-            s = replace(s, tangent=replace(t, friction_anchor_m=anchor))
-        return s
+            changes["friction_anchor_m"] = anchor
+        return replace(s, tangent=replace(t, **changes))
 
     def release(self) -> None:
         self.inner.release()
 
     def reset(self) -> None:
         self.inner.reset()
-        self.shift_m = 0.0
+        self.shift_m = self.shift_rate_m_s = 0.0
 
     def at_rest(self, step: ToolStep) -> ToolStep:
         return self.inner.at_rest(step)
