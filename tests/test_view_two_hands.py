@@ -69,6 +69,17 @@ def test_hands_option_is_checked():
     assert main(["--hands", "a,b,c"]) == 2
 
 
+def test_a_two_hand_bag_plays_one_hand_whatever_the_topic_order():
+    """A bag does not say which hand is first nor each tool's radius: the bag view plays one hand, the same one for
+    every topic (pose and wrench of one hand, never the left pose with the right force)."""
+    from skin_sim_node.view.bag import find_topic
+
+    pose, wrench = "geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/WrenchStamped"
+    for order in (("right", "left"), ("left", "right")):
+        types = {f"/{h}/tool/pose": pose for h in order} | {f"/{h}/tool/wrench": wrench for h in reversed(order)}
+        assert (find_topic(types, "tool_pose"), find_topic(types, "tool_wrench")) == ("/left/tool/pose", "/left/tool/wrench")
+
+
 def _colour_pixels(png: Path) -> dict:
     """Pixels of the 3D area (left of the side panel, without the overlay line) in the first hand's arrow colour (unlit
     cyan), the second hand's (unlit orange) and the tools' steel blue."""
