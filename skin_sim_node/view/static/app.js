@@ -424,7 +424,7 @@ function buildHands(hands) {
   el.style.display = hands ? "block" : "none";
   $("force-hand").textContent = hands ? `(${handName(hands[0], 0)})` : "";
   el.innerHTML = (hands || []).map((spec, i) => `<div><span class="sw" style="background: #${HAND_RGB[i % HAND_RGB.length].toString(16).padStart(6, "0")}"></span>` +
-    `${handName(spec, i)} (${spec.shape}, ${(spec.radius_m * 1e3).toFixed(2)} mm): <span class="hand-force" data-hand="${spec.ns}">-</span> N</div>`).join("");
+    `${handName(spec, i)} (${spec.shape === "needle" ? "needle" : `${spec.shape}, radius ${(spec.radius_m * 1e3).toFixed(2)} mm`}): <span class="hand-force" data-hand="${spec.ns}">-</span> N</div>`).join("");
   state.handForces = {}; state.handDepthM = {}; state.handArrowLenMm = {}; state.handLabels = {}; state.handTools = {};
 }
 function updateHands(h) { // the second hand's drawing and every hand's read-out, from the frame's hands
