@@ -77,6 +77,11 @@ def main(argv=None) -> int:
         help="also read tissue/contact (per-layer stress, for the paper form's layer count); the node "
         "then publishes it every haptic tick, which costs its latency",
     )
+    ap.add_argument(
+        "--hands",
+        help="the hands to follow, comma-separated namespaces (e.g. right,left; a leading comma: the first hand has the "
+        "single-tool names) instead of the node's hand_ns / second_hand_ns parameters (the default)",
+    )
     ap.add_argument("--screenshot", type=Path, help="open the page in headless Chromium and save a PNG after --shot-after-s")
     ap.add_argument("--shot-after-s", type=float, default=3.0, help="delay before the screenshot")
     ap.add_argument(
@@ -103,7 +108,19 @@ def main(argv=None) -> int:
     else:
         from .live import LiveSource
 
-        source = LiveSource(args.namespace, rate_hz=args.rate_hz, contact=args.contact)
+        hands = tuple(n.strip() for n in args.hands.split(",")) if args.hands is not None else None
+        if hands is not None:
+            from msgs_schema.parameters import check_hands
+            from msgs_schema.spec import ConfigError
+
+            try:
+                if len(hands) > 2:
+                    raise ConfigError(f"--hands {args.hands}: at most 2 hands (the node's limit)")
+                check_hands(hands[0], hands[1] if len(hands) > 1 else "")
+            except ConfigError as exc:
+                print(f"skin-sim view: error: {exc}", file=sys.stderr)
+                return 2
+        source = LiveSource(args.namespace, rate_hz=args.rate_hz, contact=args.contact, hands=hands)
         # a view started before its node serves at once, with default geometry, and says so (after its URL line)
         hint = None if source.refresh_geometry(wait_s=NODE_WAIT_S) else no_node_hint(source.namespace)
     shots: list[bool] = []

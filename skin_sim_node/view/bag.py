@@ -35,10 +35,13 @@ def register_needle_type(msgdef: str | None) -> bool:
 
 
 def find_topic(types: dict[str, str], key: str) -> str | None:
-    """The bag topic of contract topic ``key``: same relative name in any namespace, same type."""
+    """The bag topic of contract topic ``key``: same relative name in any namespace, same type.
+
+    Of several, the shortest name, then the first in name order: in a two-hand bag (``/left/tool/pose``,
+    ``/right/tool/pose``, ...) every key then comes from the same hand (the view plays one hand of such a bag)."""
     spec = TOPICS[key]
     hits = [t for t, m in types.items() if m == spec.type and (t.lstrip("/") == spec.name or t.endswith("/" + spec.name))]
-    return min(hits, key=len) if hits else None
+    return min(hits, key=lambda t: (len(t), t)) if hits else None
 
 
 class BagData:

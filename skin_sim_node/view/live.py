@@ -21,6 +21,7 @@ import numpy as np
 from msgs_schema import convert as cv
 from msgs_schema.parameters import NODE_NAME, SPEC_BY_NAME
 from msgs_schema.tissue import LAYER_NAMES
+from msgs_schema.topics import hand_topic
 
 from .frames import (
     TrackMemory,
@@ -41,6 +42,9 @@ GEOMETRY_EXTRA = ("tissue.tool.shape", *(f"tissue.layers.{n}.thickness_m" for n 
 NEEDLE_DIAMETER = "tissue.needle.outer_diameter_m"
 """The needle's outer diameter: the page draws the needle this thick (read like the tool's shape; a node without it:
 the schema's default)."""
+HAND_PARAMS = ("hand_ns", "second_hand_ns", "second_tool_shape", "second_tool_radius_m")
+"""The node's hands (issue 32): each hand's namespace and the second hand's tool. Read with the geometry; a node with two
+hands makes the view follow both (each hand's topics are the contract's under its namespace: topics.hand_topic)."""
 SERVICE_TIMEOUT_S = 3.0  # a parameter call that takes longer than this is reported as unanswered
 SERVICE_WAIT_S = 10.0
 """How long a call first waits for the node's parameter services to be discovered. A view process that
@@ -66,10 +70,98 @@ def parse_value(text: str, ptype: int):
     return text
 
 
-class LiveSource:
-    """rclpy node ``skin_sim_view`` in ``namespace``; :meth:`run` publishes frames to a ViewServer."""
+class _HandState:
+    """One hand's newest samples and their callbacks (run inside spin_once, in the source thread).
 
-    def __init__(self, namespace: str = "", rate_hz: float = 30.0, node_name: str = NODE_NAME, contact: bool = False):
+    The first hand's state lives on the :class:`LiveSource` itself (its single-hand attributes, unchanged); a second
+    hand's on a :class:`HandFeed`.
+    """
+
+    pose = None  # the newest tool/pose
+    wrench = None  # the newest tool/wrench
+    force_max = None  # the largest force z since the last frame (a 1 ms spike between two 30 Hz frames is shown)
+    contact_model = None  # the newest tool/contact_model: its friction anchor is drawn (issue 30)
+    needle = None  # the newest tissue/needle as the page's record (frames.read_needle), None without a needle
+    track: TrackMemory
+
+    def _on_wrench(self, msg) -> None:
+        self.wrench = msg
+        fz = msg.wrench.force.z
+        self.force_max = fz if self.force_max is None else max(self.force_max, fz)
+
+    def _on_needle(self, msg) -> None:
+        self.needle = self.track.update(read_needle(msg))
+
+    def hand_fields(self, grid_stamp_s: float | None) -> dict[str, Any]:
+        """This hand's part of a frame header (tool, force, needle, anchor); resets the largest force since the last frame.
+
+        Parameters
+        ----------
+        grid_stamp_s : float or None
+            Stamp of the newest grid (s): the header then says how far it is from this hand's wrench (``grid_dt_s``).
+
+        Returns
+        -------
+        dict
+        """
+        h: dict[str, Any] = {}
+        if self.pose is not None:
+            _, _, xyz = cv.read_pose(self.pose)
+            h["tool"] = list(xyz)
+            q = self.pose.pose.orientation
+            h["tool_q"] = [q.x, q.y, q.z, q.w]  # the needle's axis (frames.pose_axis); the punch and sphere ignore it
+            h["depth_m"] = tool_depth_m(xyz[2])
+        if self.wrench is not None:
+            stamp, _, f = cv.read_wrench(self.wrench)
+            h["force"] = list(f)
+            h["stamp_s"] = stamp * 1e-9
+            if grid_stamp_s is not None and stamp:
+                h["grid_dt_s"] = grid_stamp_s - stamp * 1e-9
+            if self.force_max is not None:
+                h["force_max"] = float(self.force_max)
+            self.force_max = None
+        if self.needle is not None:
+            h["needle"] = self.needle
+        anchor = friction_anchor(self.contact_model)
+        if anchor is not None:
+            h["anchor"] = anchor
+        return h
+
+
+class HandFeed(_HandState):
+    """A second hand the view follows: its namespace, its tool as the node configures it, its newest samples.
+
+    Parameters
+    ----------
+    ns : str
+        The hand's namespace (``second_hand_ns``).
+    shape : str
+        Its tool's shape (``second_tool_shape``).
+    radius_m : float
+        Its tool's radius (``second_tool_radius_m``).
+    """
+
+    def __init__(self, ns: str, shape: str, radius_m: float):
+        self.ns, self.shape, self.radius_m = ns, shape, radius_m
+        self.track = TrackMemory()
+        self.subs: list = []
+
+
+class LiveSource(_HandState):
+    """rclpy node ``skin_sim_view`` in ``namespace``; :meth:`run` publishes frames to a ViewServer.
+
+    ``hands``: the hands' namespaces to follow (first, and second if any) instead of the node's ``hand_ns`` /
+    ``second_hand_ns``; None (default) follows the node's.
+    """
+
+    def __init__(
+        self,
+        namespace: str = "",
+        rate_hz: float = 30.0,
+        node_name: str = NODE_NAME,
+        contact: bool = False,
+        hands: tuple[str, ...] | None = None,
+    ):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.parameter_client import AsyncParameterClient
@@ -86,30 +178,23 @@ class LiveSource:
         self._spin_lock = threading.Lock()
         self.client = AsyncParameterClient(self.node, node_name)
         self.pose = self.wrench = self.contact = None
-        self.grid = None
+        self.grid: np.ndarray | None = None
         self.grid_new = False
         self.grid_count = 0
         self.diag: dict | None = None
         self._diag_new = False
-        subscription(self.node, "tool_pose", lambda m: setattr(self, "pose", m))
-        subscription(self.node, "tool_wrench", self._on_wrench)
-        if contact:  # a reader of tissue/contact makes the node publish it every tick (lazy): opt-in
-            subscription(self.node, "contact", lambda m: setattr(self, "contact", m))
+        self.contact_on = contact  # a reader of tissue/contact makes the node publish it every tick (lazy): opt-in
         subscription(self.node, "layer_heights", self._on_grid)
         subscription(self.node, "diagnostics", self._on_diag)
         self.needle = None  # the newest tissue/needle as the page's record (frames.read_needle), None without a needle
         self.track = TrackMemory()
         self.needle_topic = False
-        try:  # the contract's tissue/needle, when the message package has it (an older build does not)
-            subscription(self.node, "needle", self._on_needle)
-            self.needle_topic = True
-        except (ImportError, AttributeError, KeyError):
-            pass
         self.contact_model = None  # the newest tool/contact_model: its friction anchor is drawn (issue 30)
-        try:  # the contract's tool/contact_model, when the message package has it
-            subscription(self.node, "contact_model", lambda m: setattr(self, "contact_model", m))
-        except (ImportError, AttributeError, KeyError):
-            pass
+        self.hands_override = tuple(hands) if hands else None
+        self.hand_ns = self.hands_override[0] if self.hands_override else ""  # the first hand's namespace
+        self.others: list[HandFeed] = []  # a second hand, when the node has one (issue 32)
+        self._subs: list = []  # the first hand's subscriptions (made again when its namespace changes)
+        self._subscribe_first(self.hand_ns)
         self.needle_diameter_m = SPEC_BY_NAME[NEEDLE_DIAMETER].default
         self.sheet_m = (SPEC_BY_NAME["tissue.sheet.size_x_m"].default, SPEC_BY_NAME["tissue.sheet.size_y_m"].default)
         self.tool_radius_m = SPEC_BY_NAME["tissue.tool.radius_m"].default
@@ -119,25 +204,78 @@ class LiveSource:
         self._stop = threading.Event()
         self.frames = 0
 
-    # --- callbacks (run inside spin_once, in the source thread) -----------------------
-    def _on_wrench(self, msg) -> None:
-        self.wrench = msg
-        fz = msg.wrench.force.z
-        self.force_max = fz if self.force_max is None else max(self.force_max, fz)
+    # --- hands (issue 32) ----------------------------------------------------------------
+    others: list[HandFeed] = []  # a second hand (also for a source built without __init__, in tests)
+    hand_ns = ""
 
-    grid_stamp_s = None
-    contact_model = None  # the newest tool/contact_model (also for a source built without __init__, in tests)
-    needle = None  # the newest tissue/needle as the page's record (also for a source built without __init__, in tests)
-    force_max = None  # the largest force z since the last frame (a 1 ms spike between two 30 Hz frames is shown)
+    def _hand_subscriptions(self, target: _HandState, ns: str, contact: bool = False) -> tuple[list, bool]:
+        """Subscribe ``target`` to hand ``ns``'s pose, wrench, needle read-out and contact model (and tissue/contact).
+
+        Returns
+        -------
+        (list, bool)
+            The subscriptions, and whether the message package has tissue/needle.
+        """
+        from msgs_schema.qos import subscription
+
+        subs = [
+            subscription(self.node, "tool_pose", lambda m: setattr(target, "pose", m), name=hand_topic("tool_pose", ns)),
+            subscription(self.node, "tool_wrench", target._on_wrench, name=hand_topic("tool_wrench", ns)),
+        ]
+        if contact:
+            subs.append(subscription(self.node, "contact", lambda m: setattr(self, "contact", m), name=hand_topic("contact", ns)))
+        needle = False
+        try:  # the contract's tissue/needle, when the message package has it (an older build does not)
+            subs.append(subscription(self.node, "needle", target._on_needle, name=hand_topic("needle", ns)))
+            needle = True
+        except (ImportError, AttributeError, KeyError):
+            pass
+        try:  # the contract's tool/contact_model, when the message package has it
+            name = hand_topic("contact_model", ns)
+            subs.append(subscription(self.node, "contact_model", lambda m: setattr(target, "contact_model", m), name=name))
+        except (ImportError, AttributeError, KeyError):
+            pass
+        return subs, needle
+
+    def _subscribe_first(self, ns: str) -> None:
+        self._subs, self.needle_topic = self._hand_subscriptions(self, ns, self.contact_on)
+
+    def _set_hands(self, first: str, second: str, shape: str, radius_m: float) -> bool:
+        """Follow the hands ``first`` and ``second`` ('' : none); True if that changed what the view follows.
+
+        A changed namespace drops that hand's subscriptions and samples and subscribes its new topics (under the spin
+        lock: the display loop spins in another thread)."""
+        others = [(h.ns, h.shape, h.radius_m) for h in self.others]
+        want = [(second, shape, radius_m)] if second else []
+        if first == self.hand_ns and others == want:
+            return False
+        with self._spin_lock:
+            if first != self.hand_ns:
+                for sub in self._subs:
+                    self.node.destroy_subscription(sub)
+                self.pose = self.wrench = self.contact = self.contact_model = self.needle = self.force_max = None
+                self.track = TrackMemory()
+                self.hand_ns = first
+                self._subscribe_first(first)
+            if [(h.ns, h.shape, h.radius_m) for h in self.others] != want:
+                for h in self.others:
+                    for sub in h.subs:
+                        self.node.destroy_subscription(sub)
+                feeds = [HandFeed(*w) for w in want]
+                for f in feeds:
+                    f.subs = self._hand_subscriptions(f, f.ns)[0]
+                self.others = feeds
+        return True
+
+    # --- callbacks (run inside spin_once, in the source thread) -----------------------
+    grid_stamp_s: float | None = None
+    contact: Any = None  # the newest tissue/contact (with --contact)
 
     def _on_grid(self, msg) -> None:
         self.grid = cv.read_image(msg)
         self.grid_stamp_s = cv.stamp_ns(msg.header) * 1e-9
         self.grid_new = True
         self.grid_count += 1
-
-    def _on_needle(self, msg) -> None:
-        self.needle = self.track.update(read_needle(msg))
 
     def _on_diag(self, msg) -> None:
         for st in msg.status:
@@ -201,7 +339,7 @@ class LiveSource:
         try:
             names = [
                 "tissue.sheet.size_x_m", "tissue.sheet.size_y_m", "tissue.tool.radius_m", "tissue.form", *GEOMETRY_EXTRA,
-                NEEDLE_DIAMETER,
+                NEEDLE_DIAMETER, *HAND_PARAMS,
             ]  # fmt: skip
             self._set_geometry(self._get(names, wait_s=wait_s, tries=1))
         except TimeoutError:
@@ -234,7 +372,22 @@ class LiveSource:
             self.needle = None
         if "tissue.form" in got:
             self.form = str(got["tissue.form"][1])
-        return changed
+        return self._take_hands(got) or changed
+
+    def _take_hands(self, got: dict) -> bool:
+        """Follow the hands of a get_parameters answer (or of the ``hands`` override); True if they changed.
+
+        A node without the hand parameters (rclpy then answers no values at all) has one hand, of the single-tool names."""
+        if self.hands_override is not None:
+            first, second = self.hands_override[0], (self.hands_override[1:] or ("",))[0]
+        else:
+            first, second = str(got.get("hand_ns", (0, ""))[1]), str(got.get("second_hand_ns", (0, ""))[1])
+        shape = str(got.get("second_tool_shape", (0, SPEC_BY_NAME["second_tool_shape"].default))[1])
+        radius = float(got.get("second_tool_radius_m", (0, SPEC_BY_NAME["second_tool_radius_m"].default))[1])
+        for h in self.others:
+            if h.shape != "needle":
+                h.needle = None
+        return self._set_hands(first, second, shape, radius)
 
     def params(self) -> dict:
         """The node's parameters as it reports them now, tunable ones flagged (none hard-coded)."""
@@ -307,7 +460,16 @@ class LiveSource:
             "rate_hz": self.rate_hz,
             "needle_outer_diameter_m": self.needle_diameter_m,
             "needle_gauge": needle_gauge(self.needle_diameter_m),
+            **self.hands_info(),
         }
+
+    def hands_info(self) -> dict:
+        """``{"hands": [...]}`` with two hands (each: ``ns``, ``shape``, ``radius_m``; the first is the tool above), else
+        nothing: a single-hand page is unchanged."""
+        if not self.others:
+            return {}
+        first = {"ns": self.hand_ns, "shape": self.tool_shape, "radius_m": self.tool_radius_m}
+        return {"hands": [first, *({"ns": h.ns, "shape": h.shape, "radius_m": h.radius_m} for h in self.others)]}
 
     def resend(self) -> None:
         self.grid_new = self.grid is not None  # a new page needs the grid once
@@ -319,27 +481,14 @@ class LiveSource:
         return msgs
 
     def header(self) -> dict:
+        """The frame header: the first hand's tool and force at the top level (the single-hand page's fields); with two
+        hands, ``hands`` lists each hand's (``ns`` and the same fields), the first hand's included."""
         h: dict[str, Any] = {"t": time.time(), "seq": self.frames}
-        if self.pose is not None:
-            _, _, xyz = cv.read_pose(self.pose)
-            h["tool"] = list(xyz)
-            q = self.pose.pose.orientation
-            h["tool_q"] = [q.x, q.y, q.z, q.w]  # the needle's axis (frames.pose_axis); the punch and sphere ignore it
-            h["depth_m"] = tool_depth_m(xyz[2])
-        if self.wrench is not None:
-            stamp, _, f = cv.read_wrench(self.wrench)
-            h["force"] = list(f)
-            h["stamp_s"] = stamp * 1e-9
-            if self.grid_stamp_s is not None and stamp:
-                h["grid_dt_s"] = self.grid_stamp_s - stamp * 1e-9
-            if self.force_max is not None:
-                h["force_max"] = float(self.force_max)
-            self.force_max = None
-        if self.needle is not None:
-            h["needle"] = self.needle
-        anchor = friction_anchor(self.contact_model)
-        if anchor is not None:
-            h["anchor"] = anchor
+        first = self.hand_fields(self.grid_stamp_s)
+        h.update(first)
+        others = self.others
+        if others:
+            h["hands"] = [{"ns": self.hand_ns, **first}, *({"ns": o.ns, **o.hand_fields(self.grid_stamp_s)} for o in others)]
         if self.contact is not None:
             _, comp, _, stress = cv.read_contact(self.contact)
             h["compression_m"], h["stress_pa"] = comp.tolist(), stress.tolist()

@@ -156,7 +156,7 @@ for (const id of ["colour", "zscale", "cutaway"])
   $(id).addEventListener("change", () => {
     cut.constant = $("cutaway").checked && tool.visible ? -toolY : 1e4;
     coloured = ""; if (lastGrid) updateMeshes(lastGrid);
-    if (lastHeader && state.info) updateTool(lastHeader); // the needle and its track follow the z scale
+    if (lastHeader && state.info) { updateTool(lastHeader); updateHands(lastHeader); } // the needle and its track follow the z scale
     dirty = true;
   });
 
@@ -181,12 +181,13 @@ const arrow = new THREE.Group();
 arrow.add(arrowShaft, arrowHead);
 arrow.visible = false;
 scene.add(arrow);
-function setArrow(lenMm) { // total length lenMm, pointing +z from the group's origin
+function setArrowOn(shaftM, headM, lenMm) { // total length lenMm, pointing +z from the group's origin
   const head = Math.min(4, lenMm * 0.4);
-  arrowShaft.scale.set(1, lenMm - head, 1); arrowShaft.position.set(0, 0, (lenMm - head) / 2);
+  shaftM.scale.set(1, lenMm - head, 1); shaftM.position.set(0, 0, (lenMm - head) / 2);
   const k = Math.max(0.5, head / 4); // a short arrow keeps a head no wider than its proportion
-  arrowHead.scale.set(k, head / 4, k); arrowHead.position.set(0, 0, lenMm - head / 2);
+  headM.scale.set(k, head / 4, k); headM.position.set(0, 0, lenMm - head / 2);
 }
+const setArrow = (lenMm) => setArrowOn(arrowShaft, arrowHead, lenMm);
 const patch = new THREE.Mesh(new THREE.RingGeometry(0.8, 1.0, 48), new THREE.MeshBasicMaterial({ color: 0xff5252, side: THREE.DoubleSide }));
 patch.visible = false;
 scene.add(patch);
@@ -342,7 +343,7 @@ function updateTool(h) {
   state.arrowLenMm = 0;
   if (arrow.visible) {
     const len = Math.min(ARROW_MAX_MM, Math.max(ARROW_MIN_MM, f * MM_PER_N));
-    arrow.position.set(at[0] * 1e3 + rmm + 4, at[1] * 1e3, Math.max(zsurf, 0) + 0.5);
+    arrow.position.set(at[0] * 1e3 + arrowSide(h, 0) * (rmm + 4), at[1] * 1e3, Math.max(zsurf, 0) + 0.5);
     setArrow(len);
     state.arrowLenMm = len;
   }
@@ -359,17 +360,127 @@ function updateTool(h) {
   }
   updateCurtain();
 }
-function placeArrowLabel(f) { // "0.740 N" at the arrow's head, in screen coordinates
-  const el = $("arrow-label");
-  if (!arrow.visible) { el.style.display = "none"; return; }
-  const p = arrow.position.clone();
-  p.z += state.arrowLenMm + 1;
+function placeArrowLabel(f) { // "0.740 N" at the arrow's head, in screen coordinates (two hands: "right 0.740 N")
+  const hands = state.info && state.info.hands;
+  placeLabel($("arrow-label"), arrow, state.arrowLenMm, `${hands ? `${handName(hands[0], 0)} ` : ""}${f.toFixed(3)} N`);
+}
+function placeLabel(el, arrowObj, lenMm, text) {
+  if (!arrowObj.visible) { el.style.display = "none"; return; }
+  const p = arrowObj.position.clone();
+  p.z += lenMm + 1;
   p.project(camera);
   el.style.display = "block";
   el.style.left = `${Math.min(host.clientWidth - 80, Math.max(0, (p.x + 1) / 2 * host.clientWidth + 6))}px`;
   el.style.top = `${Math.min(host.clientHeight - 40, Math.max(24, (1 - p.y) / 2 * host.clientHeight - 8))}px`;
-  el.textContent = `${f.toFixed(3)} N`;
+  el.textContent = text;
 }
+
+// --- two hands (issue 32): the second hand's tool, force arrow and label, contact patch and friction anchor ----------
+// The first hand is drawn as a single hand's tool (above: the frame's top-level fields, its needle with track and
+// overlay); the second from the frame's hands[1], with the node's second_tool_shape / second_tool_radius_m: the same
+// steel-blue punch or sphere, or a needle's shaft (no track: the track and the overlay are the first hand's). Its arrow
+// is orange and stands on the side away from the other tool, as the first hand's does then.
+const HAND_RGB = [ARROW_RGB, 0xff9100];
+const handName = (spec, i) => spec.ns || `hand ${i + 1}`;
+let handDraw = [], handsKey = "null"; // drawing objects of state.info.hands[1:], and the hands they were built for
+function arrowSide(h, i) { // +1: the arrow beside the tool at +x; two hands: on the side away from the other hand
+  if (!h.hands || h.hands.length < 2) return 1;
+  const me = h.hands[i].tool, other = h.hands[1 - i].tool;
+  if (!me || !other || me[0] === other[0]) return 1;
+  return me[0] > other[0] ? 1 : -1;
+}
+function buildHands(hands) {
+  handDraw.forEach((d) => { d.objects.forEach((o) => scene.remove(o)); d.label.remove(); });
+  handDraw = (hands || []).slice(1).map((spec, k) => {
+    const i = k + 1, rmm = spec.radius_m * 1e3, rgb = HAND_RGB[i % HAND_RGB.length];
+    const tp = new THREE.Mesh(tip.geometry, toolMat), pu = new THREE.Mesh(punch.geometry, toolMat), sh = new THREE.Mesh(shaft.geometry, toolMat);
+    pu.rotation.x = sh.rotation.x = Math.PI / 2;
+    tp.visible = spec.shape === "sphere"; pu.visible = spec.shape === "flat"; sh.visible = spec.shape === "sphere";
+    tp.scale.setScalar(rmm); tp.position.set(0, 0, rmm);
+    pu.scale.set(rmm, SHAFT_MM, rmm); pu.position.set(0, 0, SHAFT_MM / 2);
+    sh.scale.set(rmm * 0.6, SHAFT_MM, rmm * 0.6); sh.position.set(0, 0, rmm + SHAFT_MM / 2);
+    const group = new THREE.Group();
+    group.add(tp, pu, sh); group.visible = false;
+    const needles = [0, 1].map(() => { const m = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 1, 16), needleMat); m.renderOrder = 12; m.visible = false; return m; });
+    const mat = new THREE.MeshBasicMaterial({ color: rgb });
+    const aShaft = new THREE.Mesh(arrowShaft.geometry, mat), aHead = new THREE.Mesh(arrowHead.geometry, mat);
+    aShaft.rotation.x = aHead.rotation.x = Math.PI / 2;
+    const arr = new THREE.Group();
+    arr.add(aShaft, aHead); arr.visible = false;
+    const pat = new THREE.Mesh(patch.geometry, patch.material); pat.visible = false;
+    const dot = new THREE.Mesh(anchorDot.geometry, anchorMat); dot.visible = false;
+    const line = new THREE.Line(new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3()]), anchorLine.material);
+    line.visible = false;
+    const label = document.createElement("div");
+    label.className = "hand-label"; label.dataset.hand = spec.ns;
+    label.style.color = `#${rgb.toString(16).padStart(6, "0")}`;
+    host.appendChild(label);
+    const objects = [group, ...needles, arr, pat, dot, line];
+    objects.forEach((o) => scene.add(o));
+    return { spec, i, group, needles, arr, aShaft, aHead, pat, dot, line, label, objects, lenMm: 0, text: "" };
+  });
+  // the per-hand force read-out in the side panel (a single hand: hidden; #force alone, as before)
+  const el = $("hand-forces");
+  el.style.display = hands ? "block" : "none";
+  $("force-hand").textContent = hands ? `(${handName(hands[0], 0)})` : "";
+  el.innerHTML = (hands || []).map((spec, i) => `<div><span class="sw" style="background: #${HAND_RGB[i % HAND_RGB.length].toString(16).padStart(6, "0")}"></span>` +
+    `${handName(spec, i)} (${spec.shape === "needle" ? "needle" : `${spec.shape}, radius ${(spec.radius_m * 1e3).toFixed(2)} mm`}): <span class="hand-force" data-hand="${spec.ns}">-</span> N</div>`).join("");
+  state.handForces = {}; state.handDepthM = {}; state.handArrowLenMm = {}; state.handLabels = {}; state.handTools = {};
+}
+function updateHands(h) { // the second hand's drawing and every hand's read-out, from the frame's hands
+  const hands = state.info && state.info.hands;
+  if (!hands) return;
+  const zs = parseFloat($("zscale").value) || 1;
+  (h.hands || []).forEach((hh, i) => {
+    const f = hh.force_max !== undefined ? hh.force_max : hh.force ? hh.force[2] : null;
+    state.handForces[hh.ns] = f;
+    state.handDepthM[hh.ns] = hh.depth_m !== undefined ? hh.depth_m : null;
+    const el = document.querySelector(`.hand-force[data-hand="${hh.ns}"]`);
+    if (el) el.textContent = f !== null ? f.toFixed(4) : "-";
+  });
+  const first = hands[0];
+  state.handArrowLenMm[first.ns] = state.arrowLenMm; state.handTools[first.ns] = h.tool ? state.toolShape : null;
+  state.handLabels[first.ns] = arrow.visible ? $("arrow-label").textContent : "";
+  handDraw.forEach((d) => {
+    const hh = (h.hands || [])[d.i] || {}, spec = d.spec, rmm = spec.radius_m * 1e3;
+    const f = hh.force_max !== undefined ? hh.force_max : hh.force ? hh.force[2] : 0;
+    const at = hh.tool || [0, 0, 0];
+    d.group.visible = !!hh.tool && spec.shape !== "needle";
+    if (d.group.visible) d.group.position.set(at[0] * 1e3, at[1] * 1e3, zDraw(at[2] * 1e3, zs));
+    const needleOn = spec.shape === "needle" && (!!hh.needle || !!hh.tool);
+    d.needles.forEach((m) => { m.visible = false; });
+    if (needleOn) { // the shaft from the tip back NEEDLE_BACK_MM, split at the rest surface (the z scale bends it there)
+      const tipM = hh.needle ? hh.needle.tip_m : hh.tool, axis = hh.needle ? hh.needle.axis : poseAxis(hh.tool_q);
+      const backM = along(tipM, axis, -NEEDLE_BACK_MM * 1e-3), pts = [tipM];
+      if ((tipM[2] < 0) !== (backM[2] < 0)) { const t = tipM[2] / (tipM[2] - backM[2]); pts.push(along(tipM, axis, -t * NEEDLE_BACK_MM * 1e-3)); }
+      pts.push(backM);
+      const r = (state.info.needle_outer_diameter_m || 0.819e-3) * 1e3 / 2;
+      for (let k = 0; k + 1 < pts.length; k++) placeTube(d.needles[k], drawPt(pts[k], zs), drawPt(pts[k + 1], zs), r);
+    }
+    state.handTools[spec.ns] = d.group.visible ? (spec.shape === "sphere" ? "sphere" : "cylinder") : needleOn ? "needle" : null;
+    const zsurf = zDraw(surfaceAt(at[0], at[1]) * 1e3, zs);
+    d.arr.visible = f > 1e-4;
+    d.lenMm = 0;
+    if (d.arr.visible) {
+      d.lenMm = Math.min(ARROW_MAX_MM, Math.max(ARROW_MIN_MM, f * MM_PER_N));
+      d.arr.position.set(at[0] * 1e3 + arrowSide(h, d.i) * (rmm + 4), at[1] * 1e3, Math.max(zsurf, 0) + 0.5);
+      setArrowOn(d.aShaft, d.aHead, d.lenMm);
+    }
+    d.text = `${handName(spec, d.i)} ${f.toFixed(3)} N`;
+    placeLabel(d.label, d.arr, d.lenMm, d.text);
+    state.handArrowLenMm[spec.ns] = d.lenMm;
+    state.handLabels[spec.ns] = d.arr.visible ? d.label.textContent : "";
+    d.pat.visible = f > 1e-4 && spec.shape !== "needle";
+    if (d.pat.visible) { d.pat.position.set(at[0] * 1e3, at[1] * 1e3, zsurf + 0.05); d.pat.scale.setScalar(rmm); }
+    d.dot.visible = d.line.visible = !!hh.anchor && spec.shape !== "needle";
+    if (d.dot.visible) {
+      const [ax, ay] = hh.anchor.map((v) => v * 1e3);
+      d.dot.position.set(ax, ay, zsurf + 0.1);
+      d.line.geometry.setFromPoints([new THREE.Vector3(ax, ay, zsurf + 0.1), new THREE.Vector3(at[0] * 1e3, at[1] * 1e3, zsurf + 0.1)]);
+    }
+  });
+}
+const placeHandLabels = () => handDraw.forEach((d) => placeLabel(d.label, d.arr, d.lenMm, d.text));
 
 // --- plots --------------------------------------------------------------------------------
 const hist = { t: [], f: [], d: [] }; // live: rolling, last HIST_S seconds
@@ -509,6 +620,7 @@ function onFrame(buf) {
   $("layers").textContent = h.layers !== undefined ? h.layers : h.stress_pa ? h.stress_pa.filter((s) => s > 0).length : "-";
   lastHeader = h;
   updateTool(h);
+  updateHands(h);
   plots(h);
   dirty = true;
   // the grid drawn and the tool may be from different instants (grids come at the display rate): say by how much
@@ -530,6 +642,7 @@ function connect() {
     const m = JSON.parse(e.data);
     if (m.type === "info") {
       state.info = m; state.mode = m.mode; shownShape = "";
+      if (JSON.stringify(m.hands || null) !== handsKey) { handsKey = JSON.stringify(m.hands || null); buildHands(m.hands); }
       const th = (m.thickness_m || []).map((t) => (t * 1e3).toFixed(3));
       $("legend-note").textContent = th.length ? `thickness ${th.join(" / ")} mm; in the cut each band is drawn at least ${MIN_BAND_MM} mm` : "";
       $("mode").textContent = m.mode === "bag" ? `bag ${m.bags.join(", ")}` : `live ${m.namespace}`;
@@ -542,7 +655,7 @@ function connect() {
 }
 connect();
 // render on demand only: a page that redraws an unchanged scene 60 times a second costs a CPU core under SwiftShader
-controls.addEventListener("change", () => { dirty = true; if (arrow.visible) placeArrowLabel(state.force || 0); });
+controls.addEventListener("change", () => { dirty = true; if (arrow.visible) placeArrowLabel(state.force || 0); placeHandLabels(); });
 window.addEventListener("resize", () => { dirty = true; });
 // at most RENDER_HZ redraws: leaves the main thread time to take frames when WebGL runs on the CPU (no GPU)
 // (10 when WebGL runs on the CPU: at 30 Hz SwiftShader took 1.5 of this machine's 2 cores from the haptic node)

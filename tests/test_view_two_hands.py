@@ -1,0 +1,185 @@
+"""skin-sim view on a two-hand node (issue 32): both tools, both force arrows, each hand's force read-out.
+
+The view finds the hands from the node's parameters (``hand_ns``, ``second_hand_ns``, ``second_tool_*``) and follows each
+hand's topics (``<hand>/tool/pose``, ``<hand>/tool/wrench``, ...). The browser test runs real processes over DDS: the
+node with two flat punches (``right``: the 2.5 mm punch of ``tissue.tool.*``; ``left``: the 5 mm pad of
+``second_tool_radius_m``), two mock tools pressing 6 mm apart, the view, and headless Chromium.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from skin_sim_node.view.browser import find_browser
+from skin_sim_node.view.live import HandFeed, LiveSource
+
+REPO = Path(__file__).resolve().parents[1]
+SHOTS = Path(os.environ.get("SKIN_SIM_SHOTS", REPO / "out" / "view_shots"))
+"""Where the screenshot goes when it shows both tools pressing: out/ (untracked); ``SKIN_SIM_SHOTS=docs/view``
+regenerates the one docs/view.md shows."""
+needs_browser = pytest.mark.skipif(find_browser() is None, reason="no Chromium on PATH (CI: apt-get install chromium)")
+HANDS = ("right", "left")
+OFFSET_M = 0.006
+"""The left hand presses this far along +x from the right (m), as in tests/test_two_hands_ros.py. The pads overlap by
+1.5 mm in x (radii 2.5 and 5 mm): the node's overlap rule holds there, and the page draws both where they are."""
+
+
+def _wrench(fz: float):
+    from skin_sim_node.bags.io import new_message
+
+    m = new_message("geometry_msgs/msg/WrenchStamped")
+    m.wrench.force.z = fz
+    return m
+
+
+def test_two_hand_header_lists_each_hands_largest_force_and_a_single_hand_header_is_unchanged():
+    src = LiveSource.__new__(LiveSource)  # no rclpy: only the callbacks, the header and the page's info
+    src.pose = src.wrench = src.contact = None
+    src.form, src.frames = "layered", 0
+    src._on_wrench(_wrench(0.3))
+    single = src.header()
+    assert "hands" not in single and single["force_max"] == 0.3  # a single hand: the header as before
+    left = HandFeed("left", "flat", 0.005)
+    src.others, src.hand_ns = [left], "right"
+    for fz in (0.1, 0.9, 0.2):
+        src._on_wrench(_wrench(fz))
+    for fz in (0.05, 0.6, 0.4):
+        left._on_wrench(_wrench(fz))
+    h = src.header()
+    assert h["force_max"] == 0.9 and h["force"][2] == 0.2  # the first hand at the top level (the page's #force)
+    assert [x["ns"] for x in h["hands"]] == ["right", "left"]
+    assert h["hands"][0]["force_max"] == 0.9 and h["hands"][1]["force_max"] == 0.6 and h["hands"][1]["force"][2] == 0.4
+    assert "force_max" not in src.header()["hands"][1]  # no wrench since: the page shows the newest
+    src.tool_shape, src.tool_radius_m = "needle", 0.0025
+    assert src.hands_info() == {
+        "hands": [{"ns": "right", "shape": "needle", "radius_m": 0.0025}, {"ns": "left", "shape": "flat", "radius_m": 0.005}]
+    }
+    src.others = []
+    assert src.hands_info() == {}
+
+
+def test_hands_option_is_checked():
+    from skin_sim_node.view import main
+
+    assert main(["--hands", "right,right"]) == 2
+    assert main(["--hands", "a,b,c"]) == 2
+
+
+def test_a_two_hand_bag_plays_one_hand_whatever_the_topic_order():
+    """A bag does not say which hand is first nor each tool's radius: the bag view plays one hand, the same one for
+    every topic (pose and wrench of one hand, never the left pose with the right force)."""
+    from skin_sim_node.view.bag import find_topic
+
+    pose, wrench = "geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/WrenchStamped"
+    for order in (("right", "left"), ("left", "right")):
+        types = {f"/{h}/tool/pose": pose for h in order} | {f"/{h}/tool/wrench": wrench for h in reversed(order)}
+        assert (find_topic(types, "tool_pose"), find_topic(types, "tool_wrench")) == ("/left/tool/pose", "/left/tool/wrench")
+
+
+def _colour_pixels(png: Path) -> dict:
+    """Pixels of the 3D area (left of the side panel, without the overlay line) in the first hand's arrow colour (unlit
+    cyan), the second hand's (unlit orange) and the tools' steel blue."""
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(png)[..., :3]
+    area = img[30 : img.shape[0] - 50, : int(img.shape[1] * 0.7)]
+    r, g, b = area[..., 0], area[..., 1], area[..., 2]
+    cyan = (r < 0.3) & (g > 0.7) & (b > 0.8)
+    orange = (r > 0.85) & (g > 0.4) & (g < 0.7) & (b < 0.2)
+    tool = (b > r + 0.08) & (b >= g) & (area.mean(axis=2) > 0.2) & ~cyan
+    return {"cyan": int(cyan.sum()), "orange": int(orange.sum()), "tool": int(tool.sum())}
+
+
+@pytest.mark.ros
+@needs_browser
+def test_live_page_draws_both_tools_and_both_force_arrows(ros_domain, tmp_path):
+    """Node with two hands + two mock tools pressing + view (hands found from the node's parameters) + Chromium."""
+    from skin_sim_node.scenes import Scene
+    from skin_sim_node.view.browser import Browser
+
+    with Scene(tmp_path / "logs") as scene:
+        assert scene.env["ROS_DOMAIN_ID"] == os.environ["ROS_DOMAIN_ID"]
+        # the stamp-age check off, as in tests/test_view.py: beside Chromium's software rendering the tools' poses were
+        # seen reaching the node late, which it rightly rejects as stale; this test is about the page
+        node = scene.node("-p", "hand_ns:=right", "-p", "second_hand_ns:=left", "-p", "max_stamp_age_s:=0.0")
+        scene.wait_for_log(node, "live:", timeout_s=180)
+        # the view before the tools: it reads the hands through the node's parameter services at start, which a node
+        # beside 1 kHz tools and Chromium was seen not to answer for 18 s (tests/test_view.py); no option names them
+        view = scene.start("view", "view", "--port", "0")
+        scene.wait_for_log(view, "skin-sim view: http", timeout_s=60)
+        url = view.log().split("skin-sim view: ", 1)[1].split()[0]
+        tools = [
+            scene.start(
+                f"mock_{h}", "mock-tool", "--trajectory", "press_hold_release", "--loop", "--rate-hz", "500",
+                "--ros-args", "-r", f"__ns:=/{h}", "-p", f"offset_x_m:={dx}",
+            )
+            for h, dx in zip(HANDS, (0.0, OFFSET_M))
+        ]  # fmt: skip
+        with Browser(url) as b:
+            b.wait_for(
+                "window.skinView && window.skinView.gridFrames > 2 && window.skinView.info && "
+                "(window.skinView.info.hands || []).length === 2",
+                90,
+                "tissue grids and the two hands on the page",
+            )
+            assert b.evaluate("window.skinView.info.hands") == [
+                {"ns": "right", "shape": "flat", "radius_m": 0.0025},
+                {"ns": "left", "shape": "flat", "radius_m": 0.005},
+            ]
+            rows = b.evaluate("[...document.querySelectorAll('.hand-force')].map((e) => e.dataset.hand)")
+            assert rows == list(HANDS), rows
+            # both press at once: each loop (2.3 s) is in contact for 1.8 s, so whatever the tools' phases, both press
+            # together in every cycle; waited for, not timed (each read waits for the page's main thread)
+            both = "window.skinView.handForces.right > 0.01 && window.skinView.handForces.left > 0.01"
+            b.wait_for(both, 120, "both hands' forces above 0.01 N")
+            # the picture shows a frame where both press, at least 1.5 mm deep (each loop stays that deep for 1.3 s of its
+            # 2.3 s, so the two overlap in every cycle whatever the phases), the grid within 50 ms of the (first) tool;
+            # the page is held on that frame until the shot. Framed from the front: both tools side by side
+            b.evaluate("window.skinViewCamera([3, -58, 20], [3, 0, -3])")
+            deep = "window.skinView.handDepthM.right >= 1.5e-3 && window.skinView.handDepthM.left >= 1.5e-3"
+            try:
+                b.hold_when(
+                    f"{both} && {deep} && Math.abs(window.skinView.gridDtS) < 0.05", 90, "both pressing, grid within 50 ms"
+                )
+                good = True
+            except TimeoutError:
+                b.hold_when(both, 30, "both pressing")
+                good = False
+            n = b.evaluate("window.skinView.frames")
+            b.wait_for(f"window.skinView.renderedFrames >= {n}", 30, "the held frame rendered")
+            shot = b.screenshot(tmp_path / "view_two_hands.png")
+            s = b.evaluate(
+                "(() => { const v = window.skinView; return {forces: v.handForces, arrows: v.handArrowLenMm, "
+                "labels: v.handLabels, tools: v.handTools, force: document.getElementById('force').textContent, "
+                "shown: Object.fromEntries([...document.querySelectorAll('.hand-force')].map((e) => [e.dataset.hand, "
+                "e.textContent])), hand: document.getElementById('force-hand').textContent}; })()"
+            )
+            b.release()
+            assert all(s["forces"][h] > 0.01 for h in HANDS), s  # still the held frame: both pressing
+            assert s["tools"] == {"right": "cylinder", "left": "cylinder"}, s  # two flat punches, each drawn
+            assert all(s["arrows"][h] > 0 for h in HANDS), s
+            for h in HANDS:  # each arrow labelled with its hand and its force in newtons
+                assert s["labels"][h] == f"{h} {s['forces'][h]:.3f} N", s
+                assert float(s["shown"][h]) == pytest.approx(s["forces"][h], abs=1e-4) and float(s["shown"][h]) > 0, s
+            assert float(s["force"]) == pytest.approx(s["forces"]["right"], abs=1e-4) and s["hand"] == "(right)", s
+            px = _colour_pixels(shot)
+            assert px["cyan"] > 50 and px["orange"] > 50 and px["tool"] > 1000, px  # both arrows and the tools drawn
+            if good:
+                SHOTS.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(shot, SHOTS / "view_two_hands.png")
+            else:
+                print(f"view_two_hands.png not saved to {SHOTS}: no frame with both pressing and a grid within 50 ms")
+            # the page's parameters are the node's, read after the tools stop (a node beside 1 kHz tools and Chromium
+            # answered no parameter call for 18 s: tests/test_view.py)
+            for t in tools:
+                scene.stop(t)
+            b.wait_for(
+                "document.querySelector('input[data-name=\"tissue.layers.dermis.stiffness_n_per_m\"]') !== null",
+                60,
+                "the node's parameters on the page",
+            )
+            print(f"two hands on the page: forces {s['forces']}, arrows {s['arrows']} mm, pixels {px}")
