@@ -133,3 +133,10 @@ def test_hand_view_and_aims_name_the_hand():
     bad["steady"]["answered"] = 0.99
     # render below hold-last and the CPU budget are not two-hand aims; the answered share is, named with its hand
     assert missed_hand_aims({"right": ph, "left": bad}) == ["answered: left steady 99.00%"]
+    # a kill after the emulators stopped is no kill: the run's schedule is missed, named once for both hands
+    late = {name: dict(p) for name, p in ph.items()}
+    late["kill"]["kill_at_s"] = 4.3
+    late["throttle"].update(throttle_applied=True, throttle_at_s=0.1, throttle_at_max_s=0.2)
+    assert missed_hand_aims({"right": late, "left": late}) == [
+        "schedule: kill 4.30 s into its phase (its figures are not a kill's)"
+    ]

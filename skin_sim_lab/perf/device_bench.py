@@ -28,7 +28,13 @@ It is a benchmark, not a CI test: its figures depend on the machine. It assumes 
 prints what it found (cores, load average before and after, whether real-time priority was granted); ``--hog`` adds
 a busy process per core. ``--phase-s 4`` is a short run (about 40 s in all).
 
-Command: ``skin-sim bench-device [--phase-s 30] [--hog]`` (``python -m skin_sim_lab.perf.device_bench``). Its
+Two devices (issue 32): ``--hands 2`` runs the node with two hands on one tissue, a bridge and an emulator per hand
+(:mod:`skin_sim_lab.perf.device_bench_hands`): the emulator takes a namespace and a scripted hand (:data:`HAND_PATHS`),
+the emulators one shared start, and the truth is :func:`ground_truth_hands` on both devices' poses merged by stamp.
+Every run also checks its own schedule (the ``schedule`` aim: the throttle and the kill when planned; a loaded
+orchestrator that throttles late or kills after the emulator stopped has no throttle or kill figures to give).
+
+Command: ``skin-sim bench-device [--phase-s 30] [--hog] [--hands 2]`` (``python -m skin_sim_lab.perf.device_bench``). Its
 offline, scheduler-free counterpart for the render error is ``skin-sim force-path --device-drag``
 (:func:`skin_sim_lab.perf.force_path.device_drag`).
 """
@@ -81,6 +87,9 @@ KILL_TAIL_S = 1.0
 KILL_MARGIN_S = 0.005
 """Kill aim: below :data:`KILL_ZERO_N` within TTL + fade + 5 ms: the last model arrived up to one server period
 before the kill (1 ms at 1 kHz input mode, 4 ms at 250 Hz), and the command reaches the device a tick later."""
+THROTTLE_LATE_FRACTION = 0.1
+"""Schedule aim: the throttle applied within the first 10 % of its phase, so at least 90 % of the phase's figures are
+the throttled node's (the parameter service answers in milliseconds on a quiet machine)."""
 KILL_ZERO_N = 0.01
 KILL_STEP_FRACTION = 0.10
 TRUE_FORCE_FACTOR, TRUE_FORCE_SLACK_N = 1.2, 0.05
@@ -101,6 +110,8 @@ AIMS = {
     "kill_step": f"no step above {KILL_STEP_FRACTION:.0%} of the pre-kill force during the fade",
     "watchdog": "0 node watchdog releases in steady, join and throttle",
     "cpu_budget": f"node + bridge at most {CPU_BUDGET_PCT:.0f} % of a core in steady (issue 27's budget)",
+    "schedule": f"the phases as planned: the throttle applied within {THROTTLE_LATE_FRACTION:.0%} of its phase, the kill "
+    f"{KILL_AFTER_S} s into its phase with {KILL_TAIL_S / 2:g} s of it left for the fade",
 }
 
 
@@ -499,6 +510,12 @@ def budget_figures(ph: dict, res: dict) -> None:
         twist = int(bd.get("twists_total", 1)) > 0  # the bridge reads measured_cv only when a model needs it
         p["messages_per_tick"] = device_tick_messages(max(rate, 0.0), device_twist=twist, in_process=res.get("with_node", False))
     ph["steady"]["echo_pct"] = res["echo_pct"]
+    sch = res.get("schedule", {})
+    if "throttle_applied" in sch:
+        ph["throttle"]["throttle_applied"], ph["throttle"]["throttle_at_s"] = sch["throttle_applied"], sch["throttle_at_s"]
+        ph["throttle"]["throttle_at_max_s"] = THROTTLE_LATE_FRACTION * res["phase_s"]
+    if "kill_at_s" in sch:
+        ph["kill"]["kill_at_s"] = sch["kill_at_s"]
 
 
 def print_budget(ph: dict, echo_pct: float) -> None:
@@ -551,7 +568,14 @@ def missed_aims(ph: dict, one_process: bool = False) -> list[str]:
     c = ph["steady"].get("cpu_pct", {})
     if c and not c.get("node", math.inf) + c.get("bridge", 0.0) <= CPU_BUDGET_PCT:
         missed.append(f"cpu_budget: steady node {c.get('node', float('nan')):.1f} + bridge {c.get('bridge', float('nan')):.1f} %")
+    th = ph["throttle"]
+    if "throttle_applied" in th and not (th["throttle_applied"] and th["throttle_at_s"] <= th["throttle_at_max_s"]):
+        missed.append(
+            f"schedule: throttle {'applied' if th['throttle_applied'] else 'NOT applied'} {th['throttle_at_s']:.2f} s in"
+        )
     k = ph["kill"]
+    if "kill_at_s" in k and not k["kill_at_s"] <= KILL_AFTER_S + KILL_TAIL_S / 2:
+        missed.append(f"schedule: kill {k['kill_at_s']:.2f} s into its phase (its figures are not a kill's)")
     if one_process:
         return missed  # --with-node: no kill phase
     if not k.get("kill_zero_ms", math.inf) <= (DEFAULT_TTL_S + FADE_S + KILL_MARGIN_S) * 1e3:
@@ -707,6 +731,7 @@ def run(
 
         readers = []
         kill_ns = None
+        schedule: dict[str, float | bool] = {}
         for name in PHASES:
             a, b = win[name]
             wait_until(a)
@@ -722,13 +747,19 @@ def run(
                 for r in readers:
                     r.close()
                 readers = []
-                print(f"    node throttled: {'applied' if _throttle() else 'NOT applied'}", flush=True)
+                schedule["throttle_applied"] = applied = _throttle()
+                schedule["throttle_at_s"] = (time.monotonic_ns() - t0) * 1e-9 - a
+                print(
+                    f"    node throttled: {'applied' if applied else 'NOT applied'} {schedule['throttle_at_s']:.2f} s in",
+                    flush=True,
+                )
             elif name == "kill" and with_node:
                 print("    (one process: no kill phase; the node is the bridge's process)", flush=True)
             elif name == "kill":
                 wait_until(a + KILL_AFTER_S)
                 kids = psutil.Process(node.popen.pid).children(recursive=True)
                 kill_ns = time.monotonic_ns()
+                schedule["kill_at_s"] = (kill_ns - t0) * 1e-9 - a
                 node.popen.send_signal(signal.SIGKILL)
                 for c in kids:
                     c.kill()
@@ -746,6 +777,8 @@ def run(
             h.wait()
     (log_dir / "kill_ns.txt").write_text(f"{kill_ns}\n")  # with emulator*.npz: enough to analyse the run again
     recs = {ns: dict(np.load(log_dir / f"emulator{hand_key(ns)}.npz")) for ns, _ in hands}
+    marks = {k: c.marks for k, c in cpus.items()}  # (monotonic s, CPU s) per phase start and end: to check a figure
+    (log_dir / "cpu_marks.json").write_text(json.dumps(marks))
     n_marks = len(cpus["node"].marks)
     cpu = {ph: {k: c.pct(2 * i, 2 * i + 1) for k, c in cpus.items()} for i, ph in enumerate(PHASES) if n_marks > 2 * i + 1}
     return {
@@ -757,6 +790,7 @@ def run(
         "echo_pct": echo_pct,
         "diag": snaps,
         "with_node": with_node,
+        "schedule": schedule,
     }
 
 
@@ -783,8 +817,8 @@ def _throttle() -> bool:
         rclpy.try_shutdown(context=ctx)
 
 
-def main(argv=None) -> int:
-    """``skin-sim bench-device``: the device path benchmark, phases of node + bridge + emulated device; prints the table."""
+def parser() -> argparse.ArgumentParser:
+    """``skin-sim bench-device``'s options (one parser for one and two devices)."""
     ap = argparse.ArgumentParser(prog="skin-sim bench-device", description=__doc__.splitlines()[0])
     ap.add_argument("--phase-s", type=float, default=30.0, help="length of each phase (s), rounded to whole drag periods (2 s)")
     ap.add_argument(
@@ -825,13 +859,19 @@ def main(argv=None) -> int:
     ap.add_argument("--path", default="drag", choices=sorted(HAND_PATHS), help=argparse.SUPPRESS)
     ap.add_argument("--t0-file", type=Path, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--t0-offset-ns", type=int, default=0, help=argparse.SUPPRESS)
-    args = ap.parse_args(argv)
+    return ap
+
+
+def main(argv=None) -> int:
+    """``skin-sim bench-device``: the device path benchmark, phases of node + bridge + emulated device; prints the table."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = parser().parse_args(argv)
     if args.emulate is not None:
         return emulate(args.phase_s, args.emulate, args.ns, args.path, args.t0_file, args.t0_offset_ns)
-    if args.hands == 2:
-        from .device_bench_hands import main_hands
-
-        return main_hands(args)
+    if args.hands == 2:  # named, not imported: the two-hand module builds on this one (no import cycle)
+        sys.stdout.flush()
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, (str(REPO), os.environ.get("PYTHONPATH")))))
+        os.execve(sys.executable, [sys.executable, "-m", "skin_sim_lab.perf.device_bench_hands", *argv], env)
     log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="skin_sim_device_bench_"))
     log_dir.mkdir(parents=True, exist_ok=True)
     print(f"skin-sim bench-device: CRTK emulator at 1 kHz vs node + bridge; {args.phase_s:g} s per phase; logs {log_dir}")
