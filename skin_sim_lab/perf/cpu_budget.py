@@ -70,9 +70,15 @@ class ProcCpu:
 
 
 class DiagListener:
-    """The newest ``diagnostics`` key-values of each status name (node, bridge), on a participant of its own."""
+    """The newest ``diagnostics`` key-values of each status name (node, bridge), on a participant of its own.
 
-    def __init__(self):
+    Parameters
+    ----------
+    topics : tuple of str
+        The diagnostics topics read (a bridge in a hand's namespace publishes ``/<hand>/diagnostics``).
+    """
+
+    def __init__(self, topics: tuple[str, ...] = ("/diagnostics",)):
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
 
@@ -83,7 +89,8 @@ class DiagListener:
         self.node = rclpy.create_node(f"bench_diag_{os.getpid()}", context=self.ctx, start_parameter_services=False)
         self.latest: dict[str, dict[str, str]] = {}
         self._lock = threading.Lock()
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 10)
+        for topic in topics:
+            self.node.create_subscription(DiagnosticArray, topic, self._on_diag, 10)
         self._ex = make_executor("events", self.ctx)
         self._ex.add_node(self.node)
         self._stop = threading.Event()

@@ -28,7 +28,13 @@ It is a benchmark, not a CI test: its figures depend on the machine. It assumes 
 prints what it found (cores, load average before and after, whether real-time priority was granted); ``--hog`` adds
 a busy process per core. ``--phase-s 4`` is a short run (about 40 s in all).
 
-Command: ``skin-sim bench-device [--phase-s 30] [--hog]`` (``python -m skin_sim_lab.perf.device_bench``). Its
+Two devices (issue 32): ``--hands 2`` runs the node with two hands on one tissue, a bridge and an emulator per hand
+(:mod:`skin_sim_lab.perf.device_bench_hands`): the emulator takes a namespace and a scripted hand (:data:`HAND_PATHS`),
+the emulators one shared start, and the truth is :func:`ground_truth_hands` on both devices' poses merged by stamp.
+Every run also checks its own schedule (the ``schedule`` aim: the throttle and the kill when planned; a loaded
+orchestrator that throttles late or kills after the emulator stopped has no throttle or kill figures to give).
+
+Command: ``skin-sim bench-device [--phase-s 30] [--hog] [--hands 2]`` (``python -m skin_sim_lab.perf.device_bench``). Its
 offline, scheduler-free counterpart for the render error is ``skin-sim force-path --device-drag``
 (:func:`skin_sim_lab.perf.force_path.device_drag`).
 """
@@ -81,6 +87,10 @@ KILL_TAIL_S = 1.0
 KILL_MARGIN_S = 0.005
 """Kill aim: below :data:`KILL_ZERO_N` within TTL + fade + 5 ms: the last model arrived up to one server period
 before the kill (1 ms at 1 kHz input mode, 4 ms at 250 Hz), and the command reaches the device a tick later."""
+THROTTLE_LATE_FRACTION, THROTTLE_LATE_MIN_S = 0.1, 2.0
+"""Schedule aim: the throttle applied within the first 10 % of its phase, so at least 90 % of the phase's figures are
+the throttled node's, or within 2 s in a short phase: the set comes from a new DDS participant, whose discovery on
+localhost takes well under 2 s (the bridge's ``NO_NODE_HINT_NS``), and the parameter service answers in milliseconds."""
 KILL_ZERO_N = 0.01
 KILL_STEP_FRACTION = 0.10
 TRUE_FORCE_FACTOR, TRUE_FORCE_SLACK_N = 1.2, 0.05
@@ -101,6 +111,9 @@ AIMS = {
     "kill_step": f"no step above {KILL_STEP_FRACTION:.0%} of the pre-kill force during the fade",
     "watchdog": "0 node watchdog releases in steady, join and throttle",
     "cpu_budget": f"node + bridge at most {CPU_BUDGET_PCT:.0f} % of a core in steady (issue 27's budget)",
+    "schedule": f"the phases as planned: the throttle applied within {THROTTLE_LATE_FRACTION:.0%} of its phase (at least "
+    f"{THROTTLE_LATE_MIN_S:g} s), the kill "
+    f"{KILL_AFTER_S} s into its phase with {KILL_TAIL_S / 2:g} s of it left for the fade",
 }
 
 
@@ -126,6 +139,24 @@ def hand(t_s: float, phase_s: float) -> tuple[tuple[float, float, float], tuple[
     )
 
 
+HOLD_XY_M = (0.008, 0.003)
+"""Where the second hand of ``--hands 2`` holds its press (m, tissue frame): beside the first hand's drag (x from 0 to
+10 mm at y = 0), 3 mm from it at its closest (x = 8 mm) and 8.5 mm at its farthest (x = 0), so the two tools couple
+through the tissue over the whole drag (tests/test_two_hands_ros.py's 6 mm lowers the other's surface by about a tenth
+of its depth) without ever standing on the same spot."""
+
+
+def hold_beside(t_s: float, phase_s: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The second hand's path: :func:`hand`'s descent to the same press depth at :data:`HOLD_XY_M`, then held still
+    for the whole run (position (m) and velocity (m/s), tissue frame)."""
+    (_, _, z), (_, _, vz) = hand(min(t_s, 1.0), phase_s)
+    return (HOLD_XY_M[0], HOLD_XY_M[1], z), (0.0, 0.0, vz)
+
+
+HAND_PATHS = {"drag": hand, "hold": hold_beside}
+"""The emulator's scripted hands (``--path``): the benchmark's press and drag, and the second hand's press beside it."""
+
+
 def phase_windows(phase_s: float) -> dict[str, tuple[float, float]]:
     """Emulator-time windows (s) of the phases."""
     w = {name: (WARM_S + i * phase_s, WARM_S + (i + 1) * phase_s) for i, name in enumerate(PHASES[:3])}
@@ -134,8 +165,27 @@ def phase_windows(phase_s: float) -> dict[str, tuple[float, float]]:
 
 
 # --- the emulator process -------------------------------------------------------------------------
-def emulate(phase_s: float, out: Path) -> int:
-    """The CRTK driver emulator (see the module docstring). Writes its records to ``out`` (.npz)."""
+def emulate(
+    phase_s: float, out: Path, ns: str = "", path: str = "drag", t0_file: Path | None = None, t0_offset_ns: int = 0
+) -> int:
+    """The CRTK driver emulator (see the module docstring). Writes its records to ``out`` (.npz).
+
+    Parameters
+    ----------
+    phase_s : float
+        Phase length (s).
+    out : Path
+        Its records (.npz).
+    ns : str
+        The hand's namespace ('' : the single-device topics; ``left``: ``/left/device/measured_cp`` ...).
+    path : str
+        Its scripted hand, a key of :data:`HAND_PATHS`.
+    t0_file : Path or None
+        Its slot 0 is the monotonic time (ns) written to this file by the benchmark once every emulator is ready (one
+        start for several devices), plus ``t0_offset_ns``; None: 0.2 s after its own discovery wait.
+    t0_offset_ns : int
+        Added to the shared start (ns): a second device's servo phase against the first's.
+    """
     import rclpy
     from geometry_msgs.msg import WrenchStamped
 
@@ -145,7 +195,8 @@ def emulate(phase_s: float, out: Path) -> int:
 
     rt = set_realtime(EMULATOR_RT_PRIORITY)
     rclpy.init()
-    node = rclpy.create_node("crtk_emulator")
+    node = rclpy.create_node("crtk_emulator", namespace=f"/{ns}" if ns else None)
+    hand_path = HAND_PATHS[path]
     pub_cp = publisher(node, "crtk_measured_cp", name="device/measured_cp")
     pub_cv = publisher(node, "crtk_measured_cv", name="device/measured_cv")
     pub_cf = publisher(node, "crtk_measured_cf", name="device/measured_cf")
@@ -199,8 +250,15 @@ def emulate(phase_s: float, out: Path) -> int:
     slots = np.zeros((n, 10))  # deadline, published (mono ns), stamp (ns), x, y, z, vx, vy, vz, late flag
     pose, vec = PoseCdr("device_base"), WrenchCdr("device_base")  # a TwistStamped is laid out as a WrenchStamped
     offset = np.array(DEFAULT_OFFSET_M)
-    t0 = time.monotonic_ns() + 200_000_000
-    print(f"EMULATOR t0_ns={t0} rt={'granted' if rt is None else rt}", flush=True)
+    rt_note = "granted" if rt is None else rt
+    if t0_file is None:
+        t0 = time.monotonic_ns() + 200_000_000
+    else:
+        print(f"EMULATOR ready rt={rt_note}", flush=True)
+        while not t0_file.exists():
+            time.sleep(0.005)
+        t0 = int(t0_file.read_text()) + t0_offset_ns
+    print(f"EMULATOR t0_ns={t0} rt={rt_note}", flush=True)
     # no cyclic GC pass inside the timed loop: the start-up heap is frozen (never rescanned) and automatic collection
     # is off until the end (the loop and the callbacks make no reference cycles; what they allocate is freed by
     # reference counting), as a C++ driver's loop would not stop for a collector
@@ -216,7 +274,7 @@ def emulate(phase_s: float, out: Path) -> int:
         if skipped:  # a whole period late: skip to the current slot, marked late (the gap is the emulator's own)
             k = min(n - 1, (now - t0) // PERIOD_NS)
             deadline = t0 + k * PERIOD_NS
-        x, v = hand((deadline - t0) * 1e-9, phase_s)
+        x, v = hand_path((deadline - t0) * 1e-9, phase_s)
         stamp = time.time_ns()
         dev = tuple(np.asarray(x) - offset)
         pub_cv.publish(vec.fill(stamp, v))
@@ -245,32 +303,78 @@ def truth_vector(result) -> np.ndarray:
 def ground_truth(slots: np.ndarray) -> np.ndarray:
     """The offline session stepped on every published pose (stamps, tissue positions and velocities)."""
     from skin_sim_node.bags.offline import load_params
-    from skin_sim_node.session import HapticSession
-    from skin_sim_node.tools import make_tool
 
     sp, cfg = load_params()
-    s = HapticSession(make_tool(cfg), sp)
-    out = np.zeros((len(slots), 3))
-    prev = None
-    for i, row in enumerate(slots):
+    return ground_truth_hands([slots], [cfg], sp)[0]
+
+
+def merge_by_stamp(stamps: list[np.ndarray]) -> list[tuple[int, int]]:
+    """Every published pose of several devices in stamp order: ``(hand, slot)`` pairs, unpublished slots (stamp 0)
+    left out, equal stamps in hand order (the sort is stable).
+
+    Parameters
+    ----------
+    stamps : list of ndarray
+        Each device's slot stamps (ns; 0: nothing published in that slot).
+
+    Returns
+    -------
+    list of (int, int)
+    """
+    if not stamps:
+        return []
+    st = np.concatenate([np.asarray(s, dtype=float) for s in stamps])
+    hand = np.concatenate([np.full(len(s), h) for h, s in enumerate(stamps)])
+    slot = np.concatenate([np.arange(len(s)) for s in stamps])
+    order = np.argsort(st, kind="stable")  # concatenated in hand order: ties stay in hand order
+    order = order[st[order] > 0]
+    return list(zip(hand[order].tolist(), slot[order].tolist()))
+
+
+def ground_truth_hands(slot_sets: list[np.ndarray], cfgs: list, sp) -> list[np.ndarray]:
+    """The offline truth of one or two devices on one tissue: each hand's session (its tool of
+    :func:`skin_sim_node.tools.make_tools`) stepped on every pose its device published, all devices' poses merged in
+    stamp order (:func:`merge_by_stamp`), as tests/test_two_hands_ros.py's offline two-hand session.
+
+    Parameters
+    ----------
+    slot_sets : list of ndarray
+        Each device's emulator slots (:func:`emulate`'s ``slots``: stamp, tissue position and velocity).
+    cfgs : list of TissueConfig
+        Each hand's tool configuration, in the node's hand order.
+    sp : SessionParams
+        The sessions' limits (stamp-age check off offline).
+
+    Returns
+    -------
+    list of ndarray
+        Each device's true force per slot (N, tissue frame; zero where nothing was published or the pose was refused).
+    """
+    from skin_sim_node.session import HapticSession
+    from skin_sim_node.tools import make_tools
+
+    sessions = [HapticSession(t, sp) for t in make_tools(list(cfgs))]
+    out = [np.zeros((len(s), 3)) for s in slot_sets]
+    prev: list[int | None] = [None] * len(slot_sets)
+    for h, i in merge_by_stamp([s[:, 2] for s in slot_sets]):
+        row, s = slot_sets[h][i], sessions[h]
         stamp = int(row[2])
-        if stamp == 0:
-            continue
         s.on_twist(stamp, sp.tissue_frame, row[6:9])
         if s.on_pose(stamp, sp.tissue_frame, row[3:6]) is not None:
             continue
-        out[i] = truth_vector(s.tick(stamp, 0 if prev is None else stamp - prev))
-        prev = stamp
+        out[h][i] = truth_vector(s.tick(stamp, 0 if prev[h] is None else stamp - prev[h]))
+        prev[h] = stamp
     return out
 
 
 # --- analysis -----------------------------------------------------------------------------------------
-def analyse(rec: dict, phase_s: float, kill_ns: int | None) -> dict:
-    """Per-phase figures from the emulator's records (see the module docstring)."""
+def analyse(rec: dict, phase_s: float, kill_ns: int | None, truth: np.ndarray | None = None) -> dict:
+    """Per-phase figures from the emulator's records (see the module docstring); ``truth``: the true force per slot
+    (default: :func:`ground_truth` of the single device; a second hand's run gives :func:`ground_truth_hands`')."""
     slots, cmds, wr = rec["slots"], rec["cmds"], rec["wrenches"]
     t0 = int(rec["t0"])
     sent = slots[:, 2] > 0
-    truth = ground_truth(slots)
+    truth = ground_truth(slots) if truth is None else truth
     idx = {int(s): i for i, s in enumerate(slots[:, 2]) if s > 0}
     # the first command answering each slot
     ans_t = np.full(len(slots), np.nan)
@@ -408,6 +512,12 @@ def budget_figures(ph: dict, res: dict) -> None:
         twist = int(bd.get("twists_total", 1)) > 0  # the bridge reads measured_cv only when a model needs it
         p["messages_per_tick"] = device_tick_messages(max(rate, 0.0), device_twist=twist, in_process=res.get("with_node", False))
     ph["steady"]["echo_pct"] = res["echo_pct"]
+    sch = res.get("schedule", {})
+    if "throttle_applied" in sch:
+        ph["throttle"]["throttle_applied"], ph["throttle"]["throttle_at_s"] = sch["throttle_applied"], sch["throttle_at_s"]
+        ph["throttle"]["throttle_at_max_s"] = max(THROTTLE_LATE_FRACTION * res["phase_s"], THROTTLE_LATE_MIN_S)
+    if "kill_at_s" in sch:
+        ph["kill"]["kill_at_s"] = sch["kill_at_s"]
 
 
 def print_budget(ph: dict, echo_pct: float) -> None:
@@ -460,7 +570,14 @@ def missed_aims(ph: dict, one_process: bool = False) -> list[str]:
     c = ph["steady"].get("cpu_pct", {})
     if c and not c.get("node", math.inf) + c.get("bridge", 0.0) <= CPU_BUDGET_PCT:
         missed.append(f"cpu_budget: steady node {c.get('node', float('nan')):.1f} + bridge {c.get('bridge', float('nan')):.1f} %")
+    th = ph["throttle"]
+    if "throttle_applied" in th and not (th["throttle_applied"] and th["throttle_at_s"] <= th["throttle_at_max_s"]):
+        missed.append(
+            f"schedule: throttle {'applied' if th['throttle_applied'] else 'NOT applied'} {th['throttle_at_s']:.2f} s in"
+        )
     k = ph["kill"]
+    if "kill_at_s" in k and not k["kill_at_s"] <= KILL_AFTER_S + KILL_TAIL_S / 2:
+        missed.append(f"schedule: kill {k['kill_at_s']:.2f} s into its phase (its figures are not a kill's)")
     if one_process:
         return missed  # --with-node: no kill phase
     if not k.get("kill_zero_ms", math.inf) <= (DEFAULT_TTL_S + FADE_S + KILL_MARGIN_S) * 1e3:
@@ -501,6 +618,11 @@ def _machine() -> str:
     return f"{os.cpu_count()} cores, load average {la[0]:.2f} {la[1]:.2f} {la[2]:.2f}"
 
 
+def hand_key(ns: str) -> str:
+    """The suffix of a hand's process and record names: '' for the single device, ``_left`` for hand ``left``."""
+    return f"_{ns}" if ns else ""
+
+
 def run(
     phase_s: float,
     hog: int,
@@ -510,34 +632,49 @@ def run(
     node_args: tuple = (),
     node_shm: bool = False,
     with_node: bool = False,
+    hands: tuple[tuple[str, str], ...] = (("", "drag"),),
+    hand_offset_ns: int = 0,
 ) -> dict:
-    """Start node, bridge and emulator, drive the phases, return the records and the kill time."""
+    """Start node, a bridge and an emulator per hand, drive the phases, return the records and the kill time.
+
+    ``hands``: ``(namespace, path)`` per device ('' : the single device's topics; a path of :data:`HAND_PATHS`); each
+    has its bridge (``__ns:=/<namespace>``) and its emulator, the ``i``-th emulator's slots ``i * hand_offset_ns``
+    after the first's (one shared start). Process names (CPU, records) take :func:`hand_key`'s suffix.
+    """
     import psutil
+
+    from msgs_schema.topics import hand_topic
 
     from .cpu_budget import DiagListener, ProcCpu, echo_baseline
     from .soak import _JoiningReader
 
+    if with_node and len(hands) > 1:
+        raise ValueError("--with-node runs one device's bridge with the node: one hand only")
     phase_s = max(DRAG_PERIOD_S, DRAG_PERIOD_S * round(phase_s / DRAG_PERIOD_S))
     hogs = []
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
         shm_flag = ["--localhost-shm"] if bridge_shm else []
+        bridges = {}
         if with_node:  # one process: the bridge with the node linked in memory (skin-sim bridge --with-node)
             params = ("--ros-args", "--params-file", str(DEFAULT_PARAMS), *node_args)
-            bridge = node = scene.start("bridge", "bridge", "--with-node", *shm_flag, *params)
+            bridges[""] = node = scene.start("bridge", "bridge", "--with-node", *shm_flag, *params)
         elif node_shm:  # the node on rmw's LOCALHOST transports (shared memory), as before it used the UDP profile
             shm = ("--localhost-shm", "--ros-args", "--params-file", str(DEFAULT_PARAMS))
             node = scene.start("skin_sim_node", "node", *shm, *node_args)
         else:
             node = scene.node(*node_args)
         scene.wait_for_log(node, "live:")
-        if not with_node:
-            bridge = scene.start("bridge", "bridge", *shm_flag)
-        scene.wait_for_log(bridge, "bridge crtk")
-        rt_line = next((ln for ln in bridge.log().splitlines() if "device path" in ln or "SCHED_FIFO refused" in ln), "")
-        tr_line = next((ln for ln in bridge.log().splitlines() if "transports:" in ln), "")
-        print(f"  bridge: {rt_line.split(']: ')[-1]}; {tr_line.split(']: ')[-1]}", flush=True)
+        for ns, _ in hands:
+            if not with_node:
+                remap = ("--ros-args", "-r", f"__ns:=/{ns}") if ns else ()
+                bridges[ns] = scene.start(f"bridge{hand_key(ns)}", "bridge", *shm_flag, *remap)
+            bridge = bridges[ns]
+            scene.wait_for_log(bridge, "bridge crtk")
+            rt_line = next((ln for ln in bridge.log().splitlines() if "device path" in ln or "SCHED_FIFO refused" in ln), "")
+            tr_line = next((ln for ln in bridge.log().splitlines() if "transports:" in ln), "")
+            print(f"  bridge{' ' + ns if ns else ''}: {rt_line.split(']: ')[-1]}; {tr_line.split(']: ')[-1]}", flush=True)
         emu_env = dict(scene.env)
         updates, why = localhost_udp_env(emu_env, keep_shm=driver_shm)
         emu_env.update(updates)
@@ -548,36 +685,47 @@ def run(
             print(f"  CPU hog: {len(hogs)} busy processes at normal priority", flush=True)
         echo_pct = echo_baseline(scene)
         print(f"  bare rclpy echo (SingleThreadedExecutor, 1 kHz poses in, wrenches out): {echo_pct:.1f} % of a core", flush=True)
-        diag = DiagListener()
+        diag = DiagListener(topics=("/diagnostics", *(f"/{ns}/diagnostics" for ns, _ in hands if ns)))
         cpus = {"node": ProcCpu(node.popen.pid)}
         if not with_node:
-            cpus["bridge"] = ProcCpu(bridge.popen.pid)
-        rec_path = log_dir / "emulator.npz"
-        emu_log = open(log_dir / "emulator.log", "w")
-        emu = subprocess.Popen(
-            [sys.executable, "-m", "skin_sim_lab.perf.device_bench", "--emulate", str(rec_path), "--phase-s", str(phase_s)],
-            stdout=emu_log,
-            stderr=subprocess.STDOUT,
-            env=emu_env,
-            cwd=REPO,
-        )
-        t0 = None
-        while t0 is None:
+            cpus.update({f"bridge{hand_key(ns)}": ProcCpu(b.popen.pid) for ns, b in bridges.items()})
+        t0_path = log_dir / "emulator_t0.txt"
+        t0_path.unlink(missing_ok=True)
+        emus, emu_logs = {}, []
+        for i, (ns, path) in enumerate(hands):
+            k = hand_key(ns)
+            emu_logs.append(open(log_dir / f"emulator{k}.log", "w"))
+            argv = [sys.executable, "-m", "skin_sim_lab.perf.device_bench", "--emulate", str(log_dir / f"emulator{k}.npz")]
+            argv += ["--phase-s", str(phase_s), "--t0-file", str(t0_path), "--t0-offset-ns", str(i * hand_offset_ns)]
+            argv += ["--ns", ns, "--path", path] if ns else ["--path", path]
+            emus[ns] = subprocess.Popen(argv, stdout=emu_logs[-1], stderr=subprocess.STDOUT, env=emu_env, cwd=REPO)
+        ready: dict[str, str] = {}
+        while len(ready) < len(hands):  # every emulator up and discovered: then one start for all
             time.sleep(0.05)
-            for ln in (log_dir / "emulator.log").read_text().splitlines():
-                if ln.startswith("EMULATOR t0_ns="):
-                    t0 = int(ln.split()[1].split("=")[1])
-                    print(f"  emulator: 1 kHz, SCHED_FIFO {EMULATOR_RT_PRIORITY}: {ln.split('rt=')[1]}", flush=True)
-            if emu.poll() is not None:
-                raise RuntimeError(f"emulator exited: {(log_dir / 'emulator.log').read_text()[-2000:]}")
-        cpus["emulator"] = ProcCpu(emu.pid)
+            for ns, emu in emus.items():
+                text = (log_dir / f"emulator{hand_key(ns)}.log").read_text()
+                for ln in text.splitlines():
+                    if ln.startswith("EMULATOR ready"):
+                        ready[ns] = ln.split("rt=")[1]
+                if emu.poll() is not None:
+                    raise RuntimeError(f"emulator{hand_key(ns)} exited: {text[-2000:]}")
+        t0 = time.monotonic_ns() + 200_000_000
+        (log_dir / "emulator_t0.tmp").write_text(f"{t0}\n")
+        (log_dir / "emulator_t0.tmp").replace(t0_path)  # whole or absent: an emulator never reads half of it
+        for ns, _ in hands:
+            print(f"  emulator{' ' + ns if ns else ''}: 1 kHz, SCHED_FIFO {EMULATOR_RT_PRIORITY}: {ready[ns]}", flush=True)
+            cpus[f"emulator{hand_key(ns)}"] = ProcCpu(emus[ns].pid)
         win = phase_windows(phase_s)
         snaps: dict[str, dict] = {}
 
         def snapshot(tag: str) -> None:
             for c in cpus.values():
                 c.mark()
-            snaps[tag] = {"node": diag.find("haptic loop"), "bridge": diag.find("device render")}
+            snaps[tag] = {"node": diag.find("haptic loop")}
+            for ns, _ in hands:  # a namespaced bridge's status is named by its full name
+                snaps[tag][f"bridge{hand_key(ns)}"] = diag.find(
+                    f"/{ns}/skin_sim_bridge: device render" if ns else "device render"
+                )
 
         def wait_until(t_s):
             while time.monotonic_ns() < t0 + t_s * 1e9:
@@ -585,6 +733,7 @@ def run(
 
         readers = []
         kill_ns = None
+        schedule: dict[str, float | bool] = {}
         for name in PHASES:
             a, b = win[name]
             wait_until(a)
@@ -593,19 +742,26 @@ def run(
             if name == "join":
                 for i in range(N_READERS):
                     wait_until(a + (i + 0.5) * (b - a) / N_READERS)
-                    readers.append(_JoiningReader())
+                    ns = hands[i % len(hands)][0]  # the readers take turns over the hands' wrench topics
+                    readers.append(_JoiningReader(hand_topic("tool_wrench", ns)))
                 print(f"    {len(readers)} tool/wrench readers joined", flush=True)
             elif name == "throttle":
                 for r in readers:
                     r.close()
                 readers = []
-                print(f"    node throttled: {'applied' if _throttle() else 'NOT applied'}", flush=True)
+                schedule["throttle_applied"] = applied = _throttle()
+                schedule["throttle_at_s"] = (time.monotonic_ns() - t0) * 1e-9 - a
+                print(
+                    f"    node throttled: {'applied' if applied else 'NOT applied'} {schedule['throttle_at_s']:.2f} s in",
+                    flush=True,
+                )
             elif name == "kill" and with_node:
                 print("    (one process: no kill phase; the node is the bridge's process)", flush=True)
             elif name == "kill":
                 wait_until(a + KILL_AFTER_S)
                 kids = psutil.Process(node.popen.pid).children(recursive=True)
                 kill_ns = time.monotonic_ns()
+                schedule["kill_at_s"] = (kill_ns - t0) * 1e-9 - a
                 node.popen.send_signal(signal.SIGKILL)
                 for c in kids:
                     c.kill()
@@ -613,24 +769,30 @@ def run(
             wait_until(b - (0.0 if name == "kill" else 1.1))  # the node's last diagnostics (1 s) inside the phase
             snapshot(f"{name}_end")
             wait_until(b)
-        emu.wait(timeout=30)
-        emu_log.close()
+        for emu in emus.values():
+            emu.wait(timeout=30)
+        for f in emu_logs:
+            f.close()
         diag.close()
         for h in hogs:
             h.kill()
             h.wait()
-    (log_dir / "kill_ns.txt").write_text(f"{kill_ns}\n")  # with emulator.npz: enough to analyse the run again
-    rec = dict(np.load(rec_path))
+    (log_dir / "kill_ns.txt").write_text(f"{kill_ns}\n")  # with emulator*.npz: enough to analyse the run again
+    recs = {ns: dict(np.load(log_dir / f"emulator{hand_key(ns)}.npz")) for ns, _ in hands}
+    marks = {k: c.marks for k, c in cpus.items()}  # (monotonic s, CPU s) per phase start and end: to check a figure
+    (log_dir / "cpu_marks.json").write_text(json.dumps(marks))
     n_marks = len(cpus["node"].marks)
     cpu = {ph: {k: c.pct(2 * i, 2 * i + 1) for k, c in cpus.items()} for i, ph in enumerate(PHASES) if n_marks > 2 * i + 1}
     return {
-        "rec": rec,
+        "rec": recs[hands[0][0]],
+        "recs": recs,
         "kill_ns": kill_ns,
         "phase_s": phase_s,
         "cpu": cpu,
         "echo_pct": echo_pct,
         "diag": snaps,
         "with_node": with_node,
+        "schedule": schedule,
     }
 
 
@@ -657,8 +819,8 @@ def _throttle() -> bool:
         rclpy.try_shutdown(context=ctx)
 
 
-def main(argv=None) -> int:
-    """``skin-sim bench-device``: the device path benchmark, phases of node + bridge + emulated device; prints the table."""
+def parser() -> argparse.ArgumentParser:
+    """``skin-sim bench-device``'s options (one parser for one and two devices)."""
     ap = argparse.ArgumentParser(prog="skin-sim bench-device", description=__doc__.splitlines()[0])
     ap.add_argument("--phase-s", type=float, default=30.0, help="length of each phase (s), rounded to whole drag periods (2 s)")
     ap.add_argument(
@@ -680,10 +842,38 @@ def main(argv=None) -> int:
         action="store_true",
         help="node and bridge in one process (skin-sim bridge --with-node: the local model handed over in memory)",
     )
+    ap.add_argument(
+        "--hands",
+        type=int,
+        choices=(1, 2),
+        default=1,
+        help="2: two devices on one tissue (issue 32): node with two hands, a bridge and an emulator per hand "
+        "(skin_sim_lab/perf/device_bench_hands.py)",
+    )
+    ap.add_argument(
+        "--hand-phase-us",
+        type=float,
+        default=None,
+        help="--hands 2: the second emulator's servo slots this long after the first's (us; default half a period)",
+    )
     ap.add_argument("--emulate", type=Path, default=None, help=argparse.SUPPRESS)
-    args = ap.parse_args(argv)
+    ap.add_argument("--ns", default="", help=argparse.SUPPRESS)
+    ap.add_argument("--path", default="drag", choices=sorted(HAND_PATHS), help=argparse.SUPPRESS)
+    ap.add_argument("--t0-file", type=Path, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--t0-offset-ns", type=int, default=0, help=argparse.SUPPRESS)
+    return ap
+
+
+def main(argv=None) -> int:
+    """``skin-sim bench-device``: the device path benchmark, phases of node + bridge + emulated device; prints the table."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = parser().parse_args(argv)
     if args.emulate is not None:
-        return emulate(args.phase_s, args.emulate)
+        return emulate(args.phase_s, args.emulate, args.ns, args.path, args.t0_file, args.t0_offset_ns)
+    if args.hands == 2:  # named, not imported: the two-hand module builds on this one (no import cycle)
+        sys.stdout.flush()
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, (str(REPO), os.environ.get("PYTHONPATH")))))
+        os.execve(sys.executable, [sys.executable, "-m", "skin_sim_lab.perf.device_bench_hands", *argv], env)
     log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="skin_sim_device_bench_"))
     log_dir.mkdir(parents=True, exist_ok=True)
     print(f"skin-sim bench-device: CRTK emulator at 1 kHz vs node + bridge; {args.phase_s:g} s per phase; logs {log_dir}")

@@ -305,9 +305,15 @@ class PhaseTracker:
 
 
 class _JoiningReader:
-    """A new DDS participant (its own rclpy context) with a ``tool/wrench`` reader: what ``ros2 topic echo`` does."""
+    """A new DDS participant (its own rclpy context) with a ``tool/wrench`` reader: what ``ros2 topic echo`` does.
 
-    def __init__(self):
+    Parameters
+    ----------
+    topic : str or None
+        The topic read (a hand's ``right/tool/wrench``); None: the contract's ``tool/wrench``.
+    """
+
+    def __init__(self, topic: str | None = None):
         import rclpy
 
         from msgs_schema.qos import subscription
@@ -315,7 +321,7 @@ class _JoiningReader:
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
         self.node = rclpy.create_node(f"soak_joiner_{os.getpid()}_{time.monotonic_ns()}", context=self.ctx)
-        subscription(self.node, "tool_wrench", lambda _m: None)
+        subscription(self.node, "tool_wrench", lambda _m: None, name=topic)
 
     def close(self) -> None:
         import rclpy

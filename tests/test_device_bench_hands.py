@@ -1,0 +1,142 @@
+"""The two-device benchmark's ground truth and merge (issue 32, ``skin-sim bench-device --hands 2``): no DDS, no timing.
+
+The truth is the offline two-hand session stepped on both emulators' poses merged by stamp; it must be
+tests/test_two_hands_ros.py's two-hand truth (each hand its session on :func:`skin_sim_node.tools.make_tools`'
+tools, stepped in stamp order across hands), one device's must be the single benchmark's, and a hand held still
+beside another's drag must feel the drag through the tissue.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from skin_sim_lab.perf.device_bench import (
+    HOLD_XY_M,
+    PERIOD_NS,
+    ground_truth,
+    ground_truth_hands,
+    hand,
+    hold_beside,
+    merge_by_stamp,
+)
+from skin_sim_lab.perf.device_bench_hands import (
+    HAND_PARAMS,
+    hand_configs,
+    hand_view,
+    missed_hand_aims,
+    parse_node_params,
+)
+from skin_sim_node.session import HapticSession
+from skin_sim_node.tools import make_tools
+
+T0_STAMP_NS = 1_700_000_000_000_000_000
+"""A system-clock stamp of this era (ns), as the emulators stamp their poses."""
+PHASE_S = 2.0
+"""One drag period per phase: the paths' shape, not their length, matters here."""
+
+
+def slots_of(path, seconds: float, offset_ns: int = 0, every: int = 1) -> np.ndarray:
+    """Emulator slots (:func:`emulate`'s layout) of a scripted hand: deadline, published, stamp, x, v, late."""
+    n = int(seconds * 1e9 / PERIOD_NS)
+    out = np.zeros((n, 10))
+    for k in range(0, n, every):
+        t_ns = k * PERIOD_NS + offset_ns
+        x, v = path(t_ns * 1e-9, PHASE_S)
+        out[k] = (t_ns, t_ns, T0_STAMP_NS + t_ns, *x, *v, 0.0)
+    return out
+
+
+def test_merge_orders_by_stamp_skips_unpublished_and_keeps_hand_order_on_ties():
+    a = np.array([30.0, 0.0, 10.0, 20.0])
+    b = np.array([10.0, 25.0, 0.0])
+    assert merge_by_stamp([a, b]) == [(0, 2), (1, 0), (0, 3), (1, 1), (0, 0)]
+    assert merge_by_stamp([a]) == [(0, 2), (0, 3), (0, 0)]
+    assert merge_by_stamp([]) == []
+
+
+def test_hand_configs_are_the_nodes_two_hands():
+    _, cfgs = hand_configs()
+    assert [(c.tool_shape, c.tool_radius_m) for c in cfgs] == [("flat", 0.0025), ("flat", 0.005)]
+    _, one = hand_configs(overrides={})
+    assert len(one) == 1
+    assert parse_node_params(["second_tool_radius_m:=0.004", "hand_ns:=right"]) == {
+        "second_tool_radius_m": 0.004,
+        "hand_ns": "right",
+    }
+    _, cfgs = hand_configs(overrides=HAND_PARAMS | {"second_tool_radius_m": 0.004})
+    assert cfgs[1].tool_radius_m == 0.004
+    with pytest.raises(ValueError):
+        parse_node_params(["hand_ns=right"])
+
+
+def test_one_device_truth_is_the_single_benchmarks():
+    sp, cfgs = hand_configs(overrides={})
+    slots = slots_of(hand, 1.5, every=1)
+    slots[100:110] = 0.0  # slots the emulator did not publish
+    np.testing.assert_array_equal(ground_truth_hands([slots], cfgs, sp)[0], ground_truth(slots))
+
+
+def test_two_hand_truth_is_the_offline_two_hand_session_in_stamp_order():
+    """tests/test_two_hands_ros.py's ``offline``, written out: the truth of each published pose, both hands merged."""
+    sp, cfgs = hand_configs()
+    right = slots_of(hand, 2.6)
+    left = slots_of(hold_beside, 2.6, offset_ns=PERIOD_NS // 2, every=2)  # the left at 500 Hz, half a slot later
+    truth = ground_truth_hands([right, left], cfgs, sp)
+    sessions = [HapticSession(t, sp) for t in make_tools(cfgs)]
+    rows = sorted([(r[2], 0, i) for i, r in enumerate(right) if r[2]] + [(r[2], 1, i) for i, r in enumerate(left) if r[2]])
+    prev = [None, None]
+    for stamp, h, i in rows:
+        row, s = (right, left)[h][i], sessions[h]
+        s.on_twist(int(stamp), "tissue", row[6:9])
+        assert s.on_pose(int(stamp), "tissue", row[3:6]) is None
+        f = s.tick(int(stamp), 0 if prev[h] is None else int(stamp) - prev[h]).force_n
+        np.testing.assert_array_equal(truth[h][i], f)
+        prev[h] = int(stamp)
+    assert not truth[1][1::2].any()  # the left's unpublished slots stay zero
+
+
+def test_the_held_hand_feels_the_drag_and_the_drag_feels_the_held_hand():
+    sp, cfgs = hand_configs()
+    right, left = slots_of(hand, 4.0), slots_of(hold_beside, 4.0)
+    assert tuple(left[-1, 3:5]) == HOLD_XY_M and not left[-1, 6:9].any()
+    two = ground_truth_hands([right, left], cfgs, sp)
+    alone_right = ground_truth_hands([right], cfgs[:1], sp)[0]
+    alone_left = ground_truth_hands([left], cfgs[1:], sp)[0]
+    drag = slice(2000, 4000)  # the drag's first period (WARM_S = 2 s)
+    # held still, its force moves with the drag: the coupling (its force beside the drag less its force alone, which
+    # relaxes slowly by itself: viscoelastic memory) spans more than 5 % of its force (11 % when written)
+    coupling = two[1][drag, 2] - alone_left[drag, 2]
+    assert np.ptp(coupling) > 0.05 * np.abs(alone_left[drag, 2]).max(), np.ptp(coupling)
+    assert np.any(np.abs(two[0][drag, 2] - alone_right[drag, 2]) > 1e-3)  # and the drag's force differs from alone
+
+
+def test_hand_view_and_aims_name_the_hand():
+    cpu = {"node": 30.0, "bridge_right": 40.0, "bridge_left": 41.0, "emulator_right": 20.0, "emulator_left": 21.0}
+    res = {
+        "recs": {"right": {"r": 1}, "left": {"l": 2}},
+        "cpu": {"steady": cpu},
+        "diag": {"steady_end": {"node": {"count_x": "1", "hand_left_count_x": "2", "hand_left_rate_hz": "999.0"}}},
+    }
+    left = hand_view(res, "left", "hand_left_")
+    assert left["rec"] == {"l": 2}
+    assert left["cpu"]["steady"] == {"node": 30.0, "bridge": 41.0, "emulator": 21.0}
+    assert left["diag"]["steady_end"]["node"] == {"count_x": "2", "rate_hz": "999.0", "server_rate_hz": "999.0"}
+    assert hand_view(res, "right", "")["diag"]["steady_end"]["node"]["count_x"] == "1"
+    ok = {
+        "over_true": 0, "over_limit": 0, "answered": 1.0, "gaps_5ms": 0, "render_p99_pct": 1.0, "hold_p99_pct": 0.5,
+        "watchdog_releases": 0, "cpu_pct": {"node": 90.0, "bridge": 90.0},
+    }  # fmt: skip
+    ph = {name: dict(ok) for name in ("steady", "join", "throttle")}
+    ph["kill"] = dict(ok, kill_zero_ms=10.0, kill_step_pct=1.0)
+    bad = {name: dict(p) for name, p in ph.items()}
+    bad["steady"]["answered"] = 0.99
+    # render below hold-last and the CPU budget are not two-hand aims; the answered share is, named with its hand
+    assert missed_hand_aims({"right": ph, "left": bad}) == ["answered: left steady 99.00%"]
+    # a kill after the emulators stopped is no kill: the run's schedule is missed, named once for both hands
+    late = {name: dict(p) for name, p in ph.items()}
+    late["kill"]["kill_at_s"] = 4.3
+    late["throttle"].update(throttle_applied=True, throttle_at_s=0.1, throttle_at_max_s=0.2)
+    assert missed_hand_aims({"right": late, "left": late}) == [
+        "schedule: kill 4.30 s into its phase (its figures are not a kill's)"
+    ]
