@@ -16,6 +16,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from msgs_schema.topics import hand_topic
@@ -27,7 +28,7 @@ from .compare import LIVE
 from .inputs import add_input_arguments, input_options, read_hand_inputs, read_inputs
 from .io import STORAGES, BagError, custom_data
 from .offline import hands_of, replay, replay_hands, replay_hands_to_bag, replay_to_bag
-from .published import PublishedCheck, answered_only, check_published, format_check
+from .published import PUBLISHED, PublishedCheck, answered_only, check_published, format_check
 from .report import format_summary, write_report
 
 
@@ -123,6 +124,14 @@ def main(argv=None) -> int:
     return run_live(inputs, res, args, out, recorded=checked)
 
 
+PUBLISHED_HANDS = replace(PUBLISHED, force_abs_n=0.01, force_rel=0.05)
+"""A hand's recorded forces against the offline two-hand answer: 0.01 N + 5 % of its offline peak (one hand: 1 % of
+peak). The node ticks the hands in the order their poses arrive, each over its receive-clock interval; offline takes
+them in stamp order over stamp intervals. A few ms of scheduling delay while the other hand moves changes the field
+under this tool by tens of um: measured on a finger's release beside the needle, 4.6e-2 N (2.6 % of the needle's peak)
+with the machine's load average at 7. The live two-hand test (tests/test_two_hands_ros.py) holds each force to 5 % of
+itself + 0.01 N for the same reason."""
+
 HAND_OPTIONS = ("pose_topic", "twist_topic", "convention")
 """Foreign-bag options that name one tool's topics: a parameter file with hands names each hand's."""
 
@@ -184,7 +193,7 @@ def replay_hands_main(args, out: Path, hands: tuple[str, ...]) -> int:
         return 0
     t0_ns = min(int(r.stamps_ns[0]) for r in results)
     for ns, (c, unchecked) in checks.items():
-        line = format_check(c, f"hand {ns}: recorded forces vs offline", t0_ns)
+        line = format_check(c, f"hand {ns}: recorded forces vs offline", t0_ns, PUBLISHED_HANDS)
         print(line + (f" ({unchecked} later answers not checked: see below)" if unchecked else ""))
     if any(u for _, u in checks.values()):
         print(
@@ -221,7 +230,9 @@ def check_recording_hands(bag, params, inputs, hands) -> dict[str, tuple[Publish
         if not published[ns]:
             continue
         kept = {s: f for s, f in published[ns].items() if s <= last}
-        out[ns] = (check_published(res.forces_by_stamp(), kept), len(published[ns]) - len(kept))
+        offline = res.forces_by_stamp()
+        unchecked = sum(1 for s in published[ns] if s > last and s in offline)
+        out[ns] = (check_published(offline, kept, PUBLISHED_HANDS), unchecked)
     return out
 
 
