@@ -97,6 +97,18 @@ def read_outputs(
     return forces, images
 
 
+def hand_wrench_topics(bag) -> list[str]:
+    """The hands' wrench topics of an output bag without ``/tool/wrench``: ``/<hand>/tool/wrench`` (a node with hands,
+    issue 32), sorted; empty for a single-tool bag."""
+    bag = Path(bag)
+    with open_bag(bag) as reader:
+        types = topic_types(reader)
+    name, wtype = TOPICS["tool_wrench"].name, TOPICS["tool_wrench"].type
+    if _topic(types, name) is not None:
+        return []
+    return sorted(t for t, ty in types.items() if ty == wtype and t.endswith("/" + name) and t.count("/") == 3)
+
+
 @dataclass
 class Diff:
     """Force and grid differences of B against A."""
@@ -221,22 +233,34 @@ def main(argv=None) -> int:
         help=f"min fraction of A's stamps in B (live {LIVE.min_matched:g}, exact {EXACT.min_matched:g})",
     )
     ap.add_argument("--no-grids", action="store_true", help="compare forces only")
-    ap.add_argument("--wrench-topic", default=TOPICS["tool_wrench"].name)
+    ap.add_argument(
+        "--wrench-topic",
+        default=TOPICS["tool_wrench"].name,
+        help="wrench topic (default tool/wrench; in a bag of a node with hands, each hand's <hand>/tool/wrench)",
+    )
     ap.add_argument("--grid-topic", default=TOPICS["layer_heights"].name)
     args = ap.parse_args(argv)
-    try:
-        a = read_outputs(args.bag_a, args.wrench_topic, args.grid_topic, not args.no_grids)
-        b = read_outputs(args.bag_b, args.wrench_topic, args.grid_topic, not args.no_grids)
-    except BagError as exc:
-        print(f"skin-sim compare: error: {exc}", file=sys.stderr)
-        return 2
-    d = diff_outputs(a, b)
-    print(format_table(d, str(args.bag_a), str(args.bag_b)))
     tol = replace(
         EXACT if args.exact else LIVE,
         **{k: v for k in ("force_abs_n", "force_rel", "grid_m", "min_matched") if (v := getattr(args, k)) is not None},
     )
-    fails = verdict(d, tol)
+    fails = []
+    try:
+        topics = [args.wrench_topic]
+        if args.wrench_topic == TOPICS["tool_wrench"].name:
+            topics = hand_wrench_topics(args.bag_a) or topics  # each hand's forces, the tissue's grids once
+        for i, wt in enumerate(topics):
+            grids = not args.no_grids and i == 0
+            a = read_outputs(args.bag_a, wt, args.grid_topic, grids)
+            b = read_outputs(args.bag_b, wt, args.grid_topic, grids)
+            d = diff_outputs(a, b)
+            if len(topics) > 1:
+                print(f"{wt}:")
+            print(format_table(d, str(args.bag_a), str(args.bag_b)))
+            fails += [f"{wt}: {f}" if len(topics) > 1 else f for f in verdict(d, tol)]
+    except BagError as exc:
+        print(f"skin-sim compare: error: {exc}", file=sys.stderr)
+        return 2
     print(f"tolerances ({'exact' if args.exact else 'live'}): {describe(tol)}")
     print("DIFFERENT: " + "; ".join(fails) if fails else "SAME within tolerances")
     return 1 if fails else 0

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from msgs_schema import convert as cv
-from msgs_schema.topics import FRAMES, TOPICS
+from msgs_schema.topics import FRAMES, TOPICS, hand_topic
 
 from ..device.mapping import CONVENTIONS, DEFAULTS, DeviceMapping
 from ..device.mapping import parse_vec3 as _vec3
@@ -183,6 +183,45 @@ def read_inputs(bag, opts: InputOptions, tissue_frame: str = FRAMES["tissue"]) -
         )
     events.sort(key=lambda e: (e[0], e[1]))
     return Inputs(bag, pose_topic, twist_topic, events, n_pose, n_twist, first or 0, dict(frames))
+
+
+def read_hand_inputs(bag, hands, frame: str | None = None, tissue_frame: str = FRAMES["tissue"]) -> list[Inputs]:
+    """Each hand's tool inputs of a bag (issue 32): ``<hand>/tool/pose`` and, when recorded, ``<hand>/tool/twist``.
+
+    Parameters
+    ----------
+    bag : path
+    hands : sequence of str
+        The hands' namespaces (:func:`skin_sim_node.bags.offline.hands_of`); '' is the single-tool names.
+    frame : str, optional
+        The bag's frame_id to treat as the tissue frame (as :attr:`InputOptions.frame`).
+    tissue_frame : str
+
+    Returns
+    -------
+    list of Inputs
+        One per hand, in the order of ``hands``.
+
+    Raises
+    ------
+    NoPoseTopicError
+        A hand's pose topic is not in the bag.
+    """
+    bag = Path(bag)
+    with open_bag(bag) as reader:
+        types = topic_types(reader)
+    out = []
+    for ns in hands:
+        pose, twist = hand_topic("tool_pose", ns), hand_topic("tool_twist", ns)
+        if _find(types, pose) is None:
+            raise NoPoseTopicError(
+                f"{bag}: no pose topic '/{pose}' of hand '{ns}'; topics present: {describe_topics(types)} (the parameter "
+                f"file's hands are {', '.join(repr(h) for h in hands)}: its hand_ns and second_hand_ns; replay a "
+                "single-hand bag with a single-hand --params)"
+            )
+        opts = InputOptions(pose_topic=pose, twist_topic=twist if _find(types, twist) else "", frame=frame)
+        out.append(read_inputs(bag, opts, tissue_frame))
+    return out
 
 
 # --- command-line options (shared by replay and live replay) --------------------------------

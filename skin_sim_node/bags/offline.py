@@ -12,15 +12,16 @@ timestamp is its header stamp, so two runs write identical message bytes.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import session_params
+from msgs_schema.parameters import TISSUE_PREFIX, session_params
 from msgs_schema.tissue import LAYER_NAMES
-from msgs_schema.topics import TOPICS
+from msgs_schema.topics import TOPICS, hand_topic
 
 from .. import tools
 from ..configure import configure
@@ -29,7 +30,7 @@ from ..model.config import load_yaml
 from ..rate import AnswerThrottle
 from ..scenes import DEFAULT_PARAMS
 from ..session import HapticSession
-from ..tools import make_tool
+from ..tools import make_tool, make_tools
 from .inputs import POSE, Inputs
 from .io import BagWriter, new_message, qos_profiles
 
@@ -78,6 +79,7 @@ class ReplayResult:
     layer_names: tuple[str, ...] = field(default_factory=tuple)
     tissue_frame: str = "tissue"  # the frame_id the replayed poses had to carry
     force_vec_n: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # the published vectors (N), (n, 3)
+    hand: str = ""  # the hand's namespace ('' : the single-tool names)
 
     def forces_by_stamp(self) -> dict[int, np.ndarray]:
         """``{stamp_ns: force vector}`` of every answered pose: what a live node's wrenches are held against."""
@@ -136,7 +138,7 @@ def _write_image(writer: BagWriter, out: _Out, key: str, stamp: int, frame: str,
 
 
 def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = None, grid_rate_hz: float = 60.0) -> ReplayResult:
-    """Run the model over ``inputs``; write outputs to ``writer`` if given.
+    """Run the model over ``inputs`` (one tool: the parameter file's first hand); write outputs to ``writer`` if given.
 
     Parameters
     ----------
@@ -150,73 +152,206 @@ def replay(inputs: Inputs, params=DEFAULT_PARAMS, writer: BagWriter | None = Non
         time; 0 writes none.
     """
     sp, cfg = load_params(params)
-    session = HapticSession(make_tool(cfg), sp)
-    throttle = answer_throttle(params)
+    return _replay([inputs], [""], [make_tool(cfg)], sp, cfg, params, writer, grid_rate_hz)[0]
+
+
+def hands_of(params=DEFAULT_PARAMS) -> tuple[str, ...]:
+    """The hands of a node with parameter file ``params``: ``(hand_ns,)``, or ``(hand_ns, second_hand_ns)`` (issue 32).
+
+    Parameters
+    ----------
+    params : path
+        Node parameter file.
+
+    Returns
+    -------
+    tuple of str
+        Each hand's namespace ('' : the single-tool topic names).
+    """
+    node_params, _ = configure(load_yaml(params))
+    return (node_params.hand_ns,) + ((node_params.second_hand_ns,) if node_params.second_hand_ns else ())
+
+
+def hand_configs(params=DEFAULT_PARAMS) -> list[TissueConfig]:
+    """Each hand's tool configuration of a parameter file, as the node builds them (``SkinSimNode._hand_configs``):
+    the tissue with ``tissue.tool.*``, and with a second hand the same tissue with ``second_tool_shape`` and
+    ``second_tool_radius_m``.
+
+    Parameters
+    ----------
+    params : path
+        Node parameter file.
+
+    Returns
+    -------
+    list of TissueConfig
+    """
+    flat = load_yaml(params)
+    node_params, cfg = configure(flat)
+    if not node_params.second_hand_ns:
+        return [cfg]
+    second = flat | {
+        TISSUE_PREFIX + "tool.shape": node_params.second_tool_shape,
+        TISSUE_PREFIX + "tool.radius_m": node_params.second_tool_radius_m,
+    }
+    return [cfg, configure(second)[1]]
+
+
+def replay_hands(
+    inputs: Sequence[Inputs], params=DEFAULT_PARAMS, writer: BagWriter | None = None, grid_rate_hz: float = 60.0
+) -> list[ReplayResult]:
+    """Run the parameter file's hands (:func:`hands_of`) over their inputs on one tissue; write outputs to ``writer``.
+
+    Every hand's poses and twists are taken in stamp order across the hands, each to its hand's session (the tools of
+    :func:`skin_sim_node.tools.make_tools`, one tissue), as the node takes them in the order they arrive; at equal
+    stamps the first hand goes first, and a twist before the pose of its hand with the same stamp. Each hand's answers
+    go to its own topics (``<hand_ns>/tool/wrench``, ``<hand_ns>/tissue/contact``), the grids of the one tissue (every
+    tool's field) to ``tissue/height_map`` and ``tissue/layer_heights``.
+
+    Parameters
+    ----------
+    inputs : sequence of Inputs
+        Each hand's inputs, in the order of :func:`hands_of`.
+    params : path
+        Node parameter file with the hands (``hand_ns``, ``second_hand_ns``, ``second_tool_*``).
+    writer : BagWriter, optional
+    grid_rate_hz : float
+        Display grids per second of stamp time; 0 writes none.
+
+    Returns
+    -------
+    list of ReplayResult
+        One per hand, in the order of :func:`hands_of`.
+    """
+    hands = hands_of(params)
+    if len(inputs) != len(hands):
+        raise ValueError(f"{len(inputs)} hands' inputs for the {len(hands)} hands of {params}")
+    sp, cfg = load_params(params)
+    return _replay(list(inputs), list(hands), make_tools(hand_configs(params)), sp, cfg, params, writer, grid_rate_hz)
+
+
+@dataclass
+class _HandRun:
+    """One hand's session and what it answered, in an offline replay."""
+
+    ns: str
+    session: HapticSession
+    throttle: AnswerThrottle | None
+    wrench_topic: str
+    contact_topic: str
+    prev: int | None = None
+    stamps: list = field(default_factory=list)
+    forces: list = field(default_factory=list)
+    vectors: list = field(default_factory=list)
+    n_aff: list = field(default_factory=list)
+    depths: list = field(default_factory=list)
+    xyzs: list = field(default_factory=list)
+    peak_f: float = -1.0
+    peak_i: int = 0
+    peak_state: dict | None = None
+
+
+def _replay(inputs, hands, tool_list, sp, cfg, params, writer, grid_rate_hz) -> list[ReplayResult]:
+    """The replay core: ``tool_list[i]`` answers ``inputs[i]`` under namespace ``hands[i]``, all in stamp order."""
     frame = sp.tissue_frame
+    runs = [
+        _HandRun(
+            ns,
+            HapticSession(tool, sp),
+            answer_throttle(params),
+            "/" + hand_topic("tool_wrench", ns),
+            "/" + hand_topic("contact", ns),
+        )
+        for ns, tool in zip(hands, tool_list)
+    ]
+    shared = tool_list[0].skin if len(tool_list) > 1 else None  # the one tissue under several tools (SharedSkin)
     out = _Out()
     grid_ns = int(round(1e9 / grid_rate_hz)) if grid_rate_hz > 0 else 0
     next_grid = None
-    stamps, forces, vectors, n_aff, depths, xyzs = [], [], [], [], [], []
-    peak_f, peak_i, peak_state = -1.0, 0, None
-    prev = None
     n_grids = 0
     wq, cq = qos_profiles("tool_wrench"), qos_profiles("contact")
-    for stamp, rank, fr, xyz, quat in inputs.events:
+    events = [(e[0], i, *e[1:]) for i, inp in enumerate(inputs) for e in inp.events]
+    if len(inputs) > 1:  # one hand's events are in (stamp, rank) order already
+        events.sort(key=lambda e: (e[0], e[1], e[2]))
+    for stamp, hand, rank, fr, xyz, quat in events:
+        h = runs[hand]
+        session = h.session
         if rank != POSE:
             session.on_twist(stamp, fr, xyz)
             continue
         if session.on_pose(stamp, fr, xyz, quat=quat) is not None:
             continue
-        if throttle is not None and not throttle.due(stamp):
+        if h.throttle is not None and not h.throttle.due(stamp):
             continue  # as the node: kept, and the next answered pose steps the model over both stamps
-        r = session.tick(stamp, 0 if prev is None else stamp - prev)
-        prev = stamp
+        r = session.tick(stamp, 0 if h.prev is None else stamp - h.prev)
+        h.prev = stamp
         force = math.hypot(*r.force_n)
-        stamps.append(stamp)
-        forces.append(force)
-        vectors.append(r.force_n)
-        n_aff.append(r.n_affected)
-        depths.append(r.depth_m)
-        xyzs.append(r.x0_m)
-        if force > peak_f:
-            peak_f, peak_i = force, len(forces) - 1
-            peak_state = session.state()
+        h.stamps.append(stamp)
+        h.forces.append(force)
+        h.vectors.append(r.force_n)
+        h.n_aff.append(r.n_affected)
+        h.depths.append(r.depth_m)
+        h.xyzs.append(r.x0_m)
+        if force > h.peak_f:
+            h.peak_f, h.peak_i = force, len(h.forces) - 1
+            h.peak_state = session.state()
         if writer is None:
             continue
-        writer.write(
-            bag_topic("tool_wrench"), TOPICS["tool_wrench"].type, stamp, cv.fill_wrench_from_tick(out.wrench, r, stamp, frame), wq
-        )
+        writer.write(h.wrench_topic, TOPICS["tool_wrench"].type, stamp, cv.fill_wrench_from_tick(out.wrench, r, stamp, frame), wq)
         msg = cv.fill_contact_from_tick(out.contact, r, stamp, frame)
         msg.position, msg.velocity, msg.effort = (
             np.asarray(a, dtype=np.float64) for a in (msg.position, msg.velocity, msg.effort)
         )
-        writer.write(bag_topic("contact"), TOPICS["contact"].type, stamp, msg, cq)
+        writer.write(h.contact_topic, TOPICS["contact"].type, stamp, msg, cq)
         if grid_ns:
             if next_grid is None:
                 next_grid = stamp
             if stamp >= next_grid:
-                g = session.build_grid()
-                _write_image(writer, out, "height_map", stamp, frame, g.heights_m[0])
-                _write_image(writer, out, "layer_heights", stamp, frame, np.moveaxis(g.heights_m, 0, -1))
+                heights = shared.heights_m() if shared is not None else session.build_grid().heights_m
+                _write_image(writer, out, "height_map", stamp, frame, heights[0])
+                _write_image(writer, out, "layer_heights", stamp, frame, np.moveaxis(heights, 0, -1))
                 n_grids += 1
                 next_grid += grid_ns * ((stamp - next_grid) // grid_ns + 1)
-    return ReplayResult(
-        np.array(stamps, dtype=np.int64),
-        np.array(forces),
-        np.array(n_aff, dtype=int),
-        np.array(depths),
-        np.array(xyzs).reshape(-1, 3),
-        dict(session.counts),
-        inputs.n_poses,
-        inputs.n_twists,
-        n_grids,
-        peak_i,
-        peak_state,
-        cfg,
-        tuple(LAYER_NAMES),
-        frame,
-        np.array(vectors, dtype=float).reshape(-1, 3),
-    )
+    return [
+        ReplayResult(
+            np.array(h.stamps, dtype=np.int64),
+            np.array(h.forces),
+            np.array(h.n_aff, dtype=int),
+            np.array(h.depths),
+            np.array(h.xyzs).reshape(-1, 3),
+            dict(h.session.counts),
+            inp.n_poses,
+            inp.n_twists,
+            n_grids,
+            h.peak_i,
+            h.peak_state,
+            h.session.tool.cfg,
+            tuple(LAYER_NAMES),
+            frame,
+            np.array(h.vectors, dtype=float).reshape(-1, 3),
+            h.ns,
+        )
+        for h, inp in zip(runs, inputs)
+    ]
+
+
+def replay_hands_to_bag(
+    inputs: Sequence[Inputs],
+    out_bag: Path,
+    params=DEFAULT_PARAMS,
+    storage: str = "mcap",
+    grid_rate_hz: float = 60.0,
+    compress: bool = False,
+) -> list[ReplayResult]:
+    """:func:`replay_hands` writing a new output bag at ``out_bag`` (replaced if it is a bag)."""
+    custom = {
+        "skin_sim.source": str(inputs[0].bag.name),
+        "skin_sim.params": Path(params).name,
+        "skin_sim.grid_rate_hz": f"{grid_rate_hz:g}",
+        "skin_sim.hands": ",".join(hands_of(params)),
+    }
+    with BagWriter(out_bag, storage, compress=compress, custom_data=custom, overwrite=True) as w:
+        return replay_hands(inputs, params, w, grid_rate_hz)
 
 
 def replay_to_bag(

@@ -20,7 +20,6 @@ from msgs_schema.topics import TOPICS
 
 from ..ros_util import make_executor, spin_context
 from .io import BagWriter, qos_profiles
-from .offline import bag_topic
 
 INPUT_KEYS = ("tool_pose", "tool_twist")
 OUTPUT_KEYS = ("tool_wrench", "contact", "height_map", "layer_heights", "diagnostics")
@@ -46,8 +45,9 @@ class Recorder:
 
     Parameters
     ----------
-    keys : iterable of str
-        ``msgs_schema.topics`` keys to record.
+    keys : iterable of str or (str, str)
+        ``msgs_schema.topics`` keys to record under the contract's names, or ``(key, name)``: contract topic ``key``
+        under the relative name ``name`` (a hand's topic, :func:`msgs_schema.topics.hand_topic`), counted as ``name``.
     writer : BagWriter, optional
     name : str
         Node name.
@@ -67,14 +67,17 @@ class Recorder:
         self.writer = writer
         self.keep = keep
         self.records: list[tuple[int, str, bytes]] = []
-        self.counts = dict.fromkeys(keys, 0)
+        topics = [(k, TOPICS[k].name) if isinstance(k, str) else tuple(k) for k in keys]
+        self.counts = {key if name == TOPICS[key].name else name: 0 for key, name in topics}
+        self._topics: dict[str, tuple[str, str, str]] = {}  # label -> (key, bag topic, type)
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._clock = self.node.get_clock()
-        for key in keys:
+        for (key, name), label in zip(topics, self.counts):
             spec = TOPICS[key]
+            self._topics[label] = (key, "/" + name, spec.type)
             if writer is not None:
-                writer.add_topic(bag_topic(key), spec.type, qos_profiles(key))
-            self.node.create_subscription(spec.msg_class, spec.name, self._callback(key), reader_qos(key), raw=True)
+                writer.add_topic("/" + name, spec.type, qos_profiles(key))
+            self.node.create_subscription(spec.msg_class, name, self._callback(label), reader_qos(key), raw=True)
         self._executor = make_executor(executor, self.context)
         self._executor.add_node(self.node)
         self._stop = threading.Event()
@@ -102,9 +105,10 @@ class Recorder:
             item = self._queue.get()
             if item is None:
                 return
-            rx, key, raw = item
+            rx, label, raw = item
             assert self.writer is not None  # only a recorder with a writer queues records
-            self.writer.write_raw(bag_topic(key), TOPICS[key].type, rx, raw)
+            _, topic, msgtype = self._topics[label]
+            self.writer.write_raw(topic, msgtype, rx, raw)
 
     def publisher(self, key: str):
         """A publisher of contract topic ``key`` on the recorder's node."""

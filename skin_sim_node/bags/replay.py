@@ -13,18 +13,22 @@ live node answered too few poses, 2 unusable bag (the message names the problem)
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
+
+from msgs_schema.topics import hand_topic
 
 from ..scenes import DEFAULT_PARAMS
 from ..session import UNKNOWN_FRAME
 from ..verdicts import verdict_line
 from .compare import LIVE
-from .inputs import add_input_arguments, input_options, read_inputs
+from .inputs import add_input_arguments, input_options, read_hand_inputs, read_inputs
 from .io import STORAGES, BagError, custom_data
-from .offline import replay, replay_to_bag
-from .published import PublishedCheck, answered_only, check_published, format_check
+from .offline import hands_of, replay, replay_hands, replay_hands_to_bag, replay_to_bag
+from .published import PUBLISHED, PublishedCheck, answered_only, check_published, format_check
 from .report import format_summary, write_report
 
 
@@ -76,6 +80,9 @@ def main(argv=None) -> int:
     if not args.params.is_file():  # before any output is written
         print(f"skin-sim replay: error: --params {args.params}: no such file", file=sys.stderr)
         return 2
+    hands = hands_of(args.params)
+    if hands != ("",):  # the node's hands (hand_ns, second_hand_ns): each hand's topics under its namespace
+        return replay_hands_main(args, out, hands)
     try:
         inputs = read_inputs(args.bag, input_options(args))
         t0 = time.perf_counter()
@@ -115,6 +122,118 @@ def main(argv=None) -> int:
     from .live import run_live
 
     return run_live(inputs, res, args, out, recorded=checked)
+
+
+PUBLISHED_HANDS = replace(PUBLISHED, force_abs_n=0.01, force_rel=0.05)
+"""A hand's recorded forces against the offline two-hand answer: 0.01 N + 5 % of its offline peak (one hand: 1 % of
+peak). The node ticks the hands in the order their poses arrive, each over its receive-clock interval; offline takes
+them in stamp order over stamp intervals. A few ms of scheduling delay while the other hand moves changes the field
+under this tool by tens of um: measured on a finger's release beside the needle, 4.6e-2 N (2.6 % of the needle's peak)
+with the machine's load average at 7. The live two-hand test (tests/test_two_hands_ros.py) holds each force to 5 % of
+itself + 0.01 N for the same reason."""
+
+HAND_OPTIONS = ("pose_topic", "twist_topic", "convention")
+"""Foreign-bag options that name one tool's topics: a parameter file with hands names each hand's."""
+
+
+def replay_hands_main(args, out: Path, hands: tuple[str, ...]) -> int:
+    """``replay`` of a bag of a node with hands (issue 32): every hand through the one tissue, each hand reported.
+
+    Writes ``OUT/outputs`` (each hand's ``<hand>/tool/wrench`` and ``<hand>/tissue/contact``, the tissue's grids),
+    ``OUT/<hand>/report.png`` and ``OUT/<hand>/summary.json`` per hand and ``OUT/summary.json`` (every hand), and checks
+    each hand's recorded wrenches against the offline answer. Returns the exit code.
+    """
+    named = [f"--{o.replace('_', '-')}" for o in HAND_OPTIONS if getattr(args, o) is not None]
+    if named:
+        print(
+            f"skin-sim replay: error: {' '.join(named)}: {args.params} names the hands {', '.join(hands)} (hand_ns, "
+            "second_hand_ns), whose topics are <hand>/tool/pose and <hand>/tool/twist; give a single-hand --params "
+            "to replay one tool's topics",
+            file=sys.stderr,
+        )
+        return 2
+    if args.live:
+        print("skin-sim replay: error: --live replays one hand; a bag with hands replays offline only", file=sys.stderr)
+        return 2
+    try:
+        inputs = read_hand_inputs(args.bag, hands, args.frame)
+        t0 = time.perf_counter()
+        results = replay_hands_to_bag(inputs, out / "outputs", args.params, args.storage, args.grid_rate_hz)
+        t_replay = time.perf_counter() - t0
+    except BagError as exc:
+        print(f"skin-sim replay: error: {exc}", file=sys.stderr)
+        return 2
+    for ns, inp, res in zip(hands, inputs, results):
+        if res.stamps_ns.size == 0:
+            hint = inp.frame_hint(res.tissue_frame) if res.counts.get(UNKNOWN_FRAME) else None
+            print(
+                f"skin-sim replay: error: {args.bag}: none of hand {ns}'s {res.n_poses} poses was answered ("
+                + (", ".join(f"{k} {v}" for k, v in sorted(res.counts.items())) or "no events")
+                + ")"
+                + (f"; {hint}" if hint else ""),
+                file=sys.stderr,
+            )
+            return 2
+    print(f"offline replay of {args.bag} (hands {', '.join(hands)}) in {t_replay:.2f} s -> {out / 'outputs'}")
+    summaries = {}
+    for ns, inp, res in zip(hands, inputs, results):
+        title = f"offline replay of {args.bag}, hand {ns} (the pictures: this hand's own field)"
+        summaries[ns] = write_report(res, out / ns, title=title) if not args.no_report else res.summary()
+        twist = f", {inp.twist_topic}" if inp.twist_topic else ""
+        print(f"hand {ns} ({inp.pose_topic}{twist}): {format_summary(summaries[ns])}")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "summary.json").write_text(json.dumps({"hands": summaries}, indent=2) + "\n")
+    if not args.no_report:
+        print(
+            f"report: {', '.join(str(out / ns / 'report.png') for ns in hands)} (force over time; each hand's own field), "
+            f"{out / 'summary.json'}"
+        )
+    checks = check_recording_hands(args.bag, args.params, inputs, hands)
+    if not checks:
+        return 0
+    t0_ns = min(int(r.stamps_ns[0]) for r in results)
+    for ns, (c, unchecked) in checks.items():
+        line = format_check(c, f"hand {ns}: recorded forces vs offline", t0_ns, PUBLISHED_HANDS)
+        print(line + (f" ({unchecked} later answers not checked: see below)" if unchecked else ""))
+    if any(u for _, u in checks.values()):
+        print(
+            "note: answers after another hand's last pose are not checked: the node then ticks that hand on its "
+            "fallback clock (its field relaxes under the other tool), which the offline replay does not emulate"
+        )
+    print(verdict_line("replay", [(c.ok, f"hand {ns}'s recorded forces vs offline") for ns, (c, _) in checks.items()]))
+    return 0 if all(c.ok for c, _ in checks.values()) else 1
+
+
+def check_recording_hands(bag, params, inputs, hands) -> dict[str, tuple[PublishedCheck, int]]:
+    """Each hand's recorded ``<hand>/tool/wrench`` against the offline answer of the one tissue: ``{hand: (check,
+    answers not checked)}``, empty without recorded wrenches.
+
+    Only the poses the recording node answered are replayed, every hand's in stamp order. A hand's answers stamped after
+    another hand's last answered pose are not checked: the node then ticks the other hand on its fallback clock (its
+    field keeps relaxing), and the offline replay holds that field where its last pose left it.
+    """
+    from .compare import read_outputs
+
+    published = {}
+    for ns in hands:
+        try:
+            published[ns], _ = read_outputs(bag, hand_topic("tool_wrench", ns), grids=False)
+        except BagError:
+            published[ns] = {}
+    if not any(published.values()):
+        return {}
+    answered = [answered_only(inp, set(published[ns])) for ns, inp in zip(hands, inputs)]
+    results = replay_hands(answered, params, None, 0.0)
+    last = min(int(r.stamps_ns[-1]) for r in results if r.stamps_ns.size)
+    out = {}
+    for ns, res in zip(hands, results):
+        if not published[ns]:
+            continue
+        kept = {s: f for s, f in published[ns].items() if s <= last}
+        offline = res.forces_by_stamp()
+        unchecked = sum(1 for s in published[ns] if s > last and s in offline)
+        out[ns] = (check_published(offline, kept, PUBLISHED_HANDS), unchecked)
+    return out
 
 
 def check_recording(args, inputs) -> PublishedCheck | None:
