@@ -97,7 +97,7 @@ def test_a_non_editable_install_finds_the_presets(tmp_path):
     r = subprocess.run(pip, capture_output=True, text=True, timeout=600, cwd=tmp_path)
     assert r.returncode == 0, r.stderr[-3000:]
     shipped = sorted(p.name for p in (target / "skin_sim_node" / "config").glob("*.yaml"))
-    assert shipped == ["default.yaml", "isotropic.yaml", "needle.yaml", "paper.yaml"]
+    assert shipped == ["default.yaml", "isotropic.yaml", "needle.yaml", "paper.yaml", "two_hands.yaml"]
     assert (target / "skin_sim_lab" / "perf" / "bench_model.py").is_file()  # the lab ships beside the runtime
     code = (
         "import skin_sim_node, skin_sim_node.scenes as sc\n"

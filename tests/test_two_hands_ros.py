@@ -22,7 +22,7 @@ rclpy = pytest.importorskip("rclpy")
 from msgs_schema.convert import read_wrench  # noqa: E402
 from msgs_schema.parameters import SessionParams  # noqa: E402
 from msgs_schema.qos import subscription  # noqa: E402
-from skin_sim_node.demo_hands import settled_stamps  # noqa: E402
+from skin_sim_node.demo.hands import settled_stamps  # noqa: E402
 from skin_sim_node.model.config import load_tissue_config  # noqa: E402
 from skin_sim_node.scenes import REPO, Scene  # noqa: E402
 from skin_sim_node.session import HapticSession  # noqa: E402
@@ -116,7 +116,7 @@ def test_two_hands_answer_in_their_namespaces_as_the_offline_two_hand_session(tm
 
     cfgs = [base, replace(base, tool_radius_m=0.005)]
     truth = offline(answered, rec.poses, cfgs)
-    # compared where this reader saw every answer for the last second (demo_hands.settled_stamps: a reader that missed
+    # compared where this reader saw every answer for the last second (demo.hands.settled_stamps: a reader that missed
     # answers beside busy processes steps a different viscoelastic path offline)
     usable = {(s, h) for h in HANDS for s in settled_stamps([s for s, hh in answered if hh == h])[0]}
     assert all(sum(1 for _, h2 in usable if h2 == h) > 50 for h in HANDS), "this reader missed most answers"

@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from .scenes import DEFAULT_PARAMS, Scene
-from .verdicts import exit_code, verdict_line
+from ..scenes import DEFAULT_PARAMS, Scene
+from ..verdicts import exit_code, verdict_line
 
 PROMISED_HZ = 1000.0
 """The rate the demo promises at the device: a Touch's 1 kHz servo loop (every device tick gets a force)."""
@@ -163,11 +163,11 @@ def model_at(inputs, params, stamp_ns: int):
 
     Returns ``(model, (x, y, z), n_affected)``: the whole dynamic state copied from the session at that tick.
     """
-    from .bags.inputs import POSE
-    from .bags.offline import load_params
-    from .model import SkinModel
-    from .session import HapticSession
-    from .tools import make_tool
+    from ..bags.inputs import POSE
+    from ..bags.offline import load_params
+    from ..model import SkinModel
+    from ..session import HapticSession
+    from ..tools import make_tool
 
     sp, cfg = load_params(params)
     session = HapticSession(make_tool(cfg), sp)
@@ -192,7 +192,7 @@ def deepest_figure(model, tool_xyz, path: Path, title: str, note: str) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .bags.plots import cross_section_legend, draw_cross_section, draw_surface, save_figure
+    from ..bags.plots import cross_section_legend, draw_cross_section, draw_surface, save_figure
 
     x, y, z = tool_xyz
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1, 1.5]})
@@ -238,7 +238,7 @@ def main(argv=None) -> int:
     )
     args = ap.parse_args(argv)
     if args.hands == 2:
-        from .demo_hands import main as two_hands
+        from .hands import main as two_hands
 
         if args.out == Path("out/demo"):
             args.out = Path("out/demo_hands")
@@ -250,13 +250,13 @@ def main(argv=None) -> int:
     from msgs_schema import convert as cv
     from msgs_schema.qos import subscription
 
-    from .bags.monitor import Monitor  # rclpy reads the domain at init
+    from ..bags.monitor import Monitor  # rclpy reads the domain at init
 
     print(f"skin-sim demo: ROS_DOMAIN_ID={scene.env['ROS_DOMAIN_ID']}, source={args.source}, path={args.path}", flush=True)
     monitor = Monitor(record_depth=1)  # latency as a device sees it: newest sample
     poses: list = []
     subscription(monitor.node, "tool_pose", lambda m: poses.append((monitor.now_ns(), *cv.read_pose(m)[2])))
-    from .bags.recorder import Recorder
+    from ..bags.recorder import Recorder
 
     # every input and published force (deep queues), for the offline check and out/demo/bag
     rec = Recorder(RECORDED, None, name="skin_sim_demo_recorder", keep=True, executor="events")
@@ -296,7 +296,7 @@ def main(argv=None) -> int:
     checks.append((not bad, "processes exited 0" if not bad else f"processes exited non-zero: {bad}"))
     checks.append((s["peak_force_n"] > 0, f"peak force {s['peak_force_n']:.4f} N > 0"))
     print(f"  processes exited: {codes}")
-    from .model.config import load_tissue_config
+    from ..model.config import load_tissue_config
 
     cfg = load_tissue_config(DEFAULT_PARAMS)
     depth_m = max((-p[3] for p in poses), default=0.0)
@@ -383,11 +383,11 @@ def offline_check(records: list, args, s: dict) -> list:
     """
     from msgs_schema.topics import TOPICS
 
-    from .bags.compare import read_outputs
-    from .bags.inputs import InputOptions, read_inputs
-    from .bags.io import BagError, BagWriter, qos_profiles
-    from .bags.offline import bag_topic, replay
-    from .bags.published import answered_only, check_published, format_check
+    from ..bags.compare import read_outputs
+    from ..bags.inputs import InputOptions, read_inputs
+    from ..bags.io import BagError, BagWriter, qos_profiles
+    from ..bags.offline import bag_topic, replay
+    from ..bags.published import answered_only, check_published, format_check
 
     bag = args.out / "bag"
     with BagWriter(

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .scenes import REPO, Scene
-from .verdicts import exit_code, verdict_line
+from ..scenes import REPO, Scene
+from ..verdicts import exit_code, verdict_line
 
 PARAMS = REPO / "config" / "two_hands.yaml"
 HANDS = ("right", "left")
@@ -117,9 +117,9 @@ def offline(rec: _Recorder, until_ns: int | None = None):
     """
     from msgs_schema.parameters import SessionParams
 
-    from .model.config import load_tissue_config, load_yaml
-    from .session import HapticSession
-    from .tools import make_tools
+    from ..model.config import load_tissue_config, load_yaml
+    from ..session import HapticSession
+    from ..tools import make_tools
 
     cfg = load_tissue_config(PARAMS)
     flat = load_yaml(PARAMS)
@@ -149,7 +149,7 @@ def figure(tools, needle_xyz, finger_xyz, path: Path, title: str) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .bags.plots import LAYER_COLOURS, save_figure
+    from ..bags.plots import LAYER_COLOURS, save_figure
 
     skin = tools[0].skin
     cfg = tools[0].cfg
