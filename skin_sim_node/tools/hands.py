@@ -48,6 +48,12 @@ the coupling itself costs one point evaluation of each other tool's field per ti
 cost row)."""
 
 
+SLOPE_STEP_M = 10e-6
+"""The finite-difference step of the other fields' slope under a tool (m): the model's displacement accuracy
+(``lod.tolerance_m`` default) in depth is reached over millimetres of the fields' decay, so 10 um resolves the slope
+with a relative error of order 1e-3 and stays far above round-off (1e-16 m on a 1e-4 m field)."""
+
+
 class SharedSkin:
     """One tissue pressed by several tools: the sum of their modal fields (module docstring).
 
@@ -138,23 +144,41 @@ class CoupledTool(Tool):
         self.shift_m = 0.0
         """The others' deflection ``w_i`` at the last step (m, downward)."""
         self.shift_rate_m_s = 0.0
-        """Its rate over the last step (m/s): how fast the other tools lowered (or raised) the surface here."""
+        """Its rate over the last step at this tool's place (m/s): how fast the other tools lowered (or raised) it."""
+        self._xy: tuple[float, float] | None = None  # this tool's place at the last step
 
     def step(self, pose: ToolPose) -> ToolStep:
-        """The inner tool's step at ``z + w_i``; its record, with positions back in the tissue frame and the coupling's
-        rate in its tangent (:attr:`ContactTangent.coupling_rate_n_per_s`: ``K[:, 2] dw_i/dt``, the first-order change
-        of this force that the other tools' motion makes while a device renders the local model)."""
+        """The inner tool's step at ``z + w_i``; its record, with positions back in the tissue frame and the coupling
+        in its tangent, to first order: ``K`` gains ``K[:, 2] grad(w_i)^T`` (moving this tool sideways along the other
+        fields' slope changes its depth into its own), and :attr:`ContactTangent.coupling_rate_n_per_s` is
+        ``K[:, 2] dw_i/dt`` at this tool's place (the other tools' own motion, which a device renders for one server
+        period)."""
         x, y, z = pose.position_m
-        w = self.skin.others_displacement_at(self.index, x, y)
-        prev, self.shift_m = self.shift_m, w
-        self.shift_rate_m_s = (w - prev) / pose.dt_s if pose.dt_s > 0.0 and not pose.restart else 0.0
+        others = self.skin.others_displacement_at
+        w = others(self.index, x, y)
+        prev, prev_xy, self.shift_m, self._xy = self.shift_m, self._xy, w, (x, y)
         if w == 0.0 and prev == 0.0:
+            self.shift_rate_m_s = 0.0
             return self.inner.step(pose)
         s = self.inner.step(replace(pose, position_m=(x, y, z + w)))
+        # the other fields' change here over the step, at this tool's last place (its own sideways motion is in K)
+        if pose.dt_s > 0.0 and not pose.restart and prev_xy is not None:
+            here_then = others(self.index, prev_xy[0], prev_xy[1]) if prev_xy != (x, y) else w
+            self.shift_rate_m_s = (here_then - prev) / pose.dt_s
+        else:
+            self.shift_rate_m_s = 0.0
         t = s.tangent
         if t is None:
             return s
-        changes: dict = {"coupling_rate_n_per_s": np.asarray(t.stiffness_n_per_m)[:, 2] * self.shift_rate_m_s}
+        k = np.asarray(t.stiffness_n_per_m, dtype=float)
+        grad = (
+            (others(self.index, x + SLOPE_STEP_M, y) - w) / SLOPE_STEP_M,
+            (others(self.index, x, y + SLOPE_STEP_M) - w) / SLOPE_STEP_M,
+        )
+        k = k.copy()
+        k[:, 0] += k[:, 2] * grad[0]
+        k[:, 1] += k[:, 2] * grad[1]
+        changes: dict = {"stiffness_n_per_m": k, "coupling_rate_n_per_s": k[:, 2] * self.shift_rate_m_s}
         if t.friction_anchor_m is not None:
             anchor = np.asarray(t.friction_anchor_m, dtype=float).copy()
             anchor[2] -= w
@@ -167,6 +191,7 @@ class CoupledTool(Tool):
     def reset(self) -> None:
         self.inner.reset()
         self.shift_m = self.shift_rate_m_s = 0.0
+        self._xy = None
 
     def at_rest(self, step: ToolStep) -> ToolStep:
         return self.inner.at_rest(step)
