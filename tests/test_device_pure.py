@@ -11,6 +11,7 @@ from skin_sim_node.device.trajectories import LIFT_Z_M, TRAJECTORIES, ScriptCloc
 from skin_sim_node.model import SkinModel, classify, interface_depths_m
 
 NAMES = ["press_hold_release", "press_all_layers", "drag", "edge_press", "fast_stab", "lift_during_relax", "light_touch"]
+NAMES += ["anchor_hold"]
 NAMES += [
     "needle_straight",
     "needle_oblique_15",

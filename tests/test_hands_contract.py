@@ -52,3 +52,15 @@ def test_more_hands_than_the_limit_are_refused():
     cfg = preset("default")
     with pytest.raises(ValueError, match=f"1 to {MAX_HANDS} tools"):
         SharedSkin([make_tool(cfg) for _ in range(MAX_HANDS + 1)])
+
+
+def test_the_offline_check_uses_the_answers_a_reader_saw_for_the_last_second():
+    from skin_sim_node.demo.hands import settled_stamps
+
+    ms = 1_000_000
+    assert settled_stamps([]) == ([], 0)
+    every = [k * ms for k in range(100)]
+    assert settled_stamps(every) == (every, 0)  # no gap: every answer
+    gapped = every + [200 * ms + k * ms for k in range(2000)]  # a 101 ms gap, then 2 s of answers
+    used, gaps = settled_stamps(gapped, gap_s=0.05, settle_s=1.0)
+    assert gaps == 1 and used == every + [200 * ms + k * ms for k in range(1000, 2000)]

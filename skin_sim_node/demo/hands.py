@@ -24,8 +24,9 @@ from ..verdicts import exit_code, verdict_line
 
 PARAMS = REPO / "config" / "two_hands.yaml"
 HANDS = ("right", "left")
-PATHS = {"right": "needle_straight", "left": "press_hold_release"}
-"""Each hand's path (skin-sim mock-tool --list): the needle in and out at 5 mm/s; the finger pressed 2.5 mm and held."""
+PATHS = {"right": "needle_straight", "left": "anchor_hold"}
+"""Each hand's path (skin-sim mock-tool --list): the needle in and out at 5 mm/s; the finger pressed 2 mm 0.5 s before
+the needle starts and held until it is out."""
 FINGER_X_M = -8e-3
 """The finger's centre (m, along x): its 5 mm pad's edge 3 mm from the needle's entry at the origin (issue 32's nearer
 anchoring distance)."""
@@ -59,6 +60,8 @@ def settled_stamps(stamps, gap_s: float = GAP_S, settle_s: float = SETTLE_S) -> 
     if seen.size == 0:
         return [], 0
     gap_ends = seen[1:][np.diff(seen) > gap_s * 1e9]
+    if gap_ends.size == 0:
+        return [int(s) for s in seen], 0
     after = np.searchsorted(gap_ends, seen, side="right") - 1
     ok = (after < 0) | (seen - gap_ends[np.maximum(after, 0)] >= settle_s * 1e9)
     return [int(s) for s in seen[ok]], int(gap_ends.size)
@@ -185,15 +188,24 @@ def main(args) -> int:
     rec = _Recorder()
     checks: list = []
     devices = {}
+    mock = getattr(args, "source", "device") == "mock"  # --source mock: scripted poses, no bridges and devices
     try:
         node = scene.node(params=PARAMS)
         scene.wait_for_log(node, "live:", timeout_s=180)
+        if not mock:
+            for h in HANDS:
+                scene.start(f"bridge_{h}", "bridge", "--ros-args", "-r", f"__ns:=/{h}")
         for h in HANDS:
-            scene.start(f"bridge_{h}", "bridge", "--ros-args", "-r", f"__ns:=/{h}")
-        for h in HANDS:
-            extra = [f"--path-offset-m={FINGER_X_M},0,0"] if h == "left" else []
             # the finger first: it anchors before the needle comes (its path starts 0.5 s earlier)
             delay = args.start_delay_s + (0.0 if h == "left" else 0.5)
+            if mock:  # scripted poses, no device loop: the node and the tissue alone
+                extra = ["-p", f"offset_x_m:={FINGER_X_M}"] if h == "left" else []
+                devices[h] = scene.start(
+                    f"mock_{h}", "mock-tool", "--trajectory", PATHS[h], "--start-delay-s", f"{delay:g}",
+                    "--ros-args", "-r", f"__ns:=/{h}", *extra,
+                )  # fmt: skip
+                continue
+            extra = [f"--path-offset-m={FINGER_X_M},0,0"] if h == "left" else []
             devices[h] = scene.start(
                 f"device_{h}", "device", "--hand-path", PATHS[h], "--start-delay-s", f"{delay:g}", *extra,
                 "--ros-args", "-r", f"__ns:=/{h}",
@@ -210,7 +222,7 @@ def main(args) -> int:
         rec.close()
     bad = {k: c for k, c in codes.items() if c != 0}
     checks.append((not bad, "processes exited 0" if not bad else f"processes exited non-zero: {bad}"))
-    for h in HANDS:
+    for h in HANDS if not mock else ():
         m = re.search(r"(\d+) force commands received, (\d+) of them non-zero \(> 1 mN\), peak ([0-9.]+) N", devices[h].log())
         ticks = re.search(r"sim device stopping: (\d+) ticks, (\d+) overruns", devices[h].log())
         peak = float(m.group(3)) if m else 0.0
@@ -261,7 +273,7 @@ def main(args) -> int:
             finger[-1] if finger else (FINGER_X_M, 0.0, 0.01),
             args.out / "two_hands_deepest.png",
             f"two hands: the tissue at the needle's deepest pose (tip {-tip[2] * 1e3:.2f} mm), the finger "
-            f"{-(finger[-1][2] if finger else 0.0) * 1e3:.2f} mm pressed at x = {FINGER_X_M * 1e3:g} mm; offline state at "
+            f"pressed {-(finger[-1][2] if finger else 0.0) * 1e3:.2f} mm at x = {FINGER_X_M * 1e3:g} mm; offline state at "
             "that pose's stamp",
         )
         print(f"  picture: {pic}")

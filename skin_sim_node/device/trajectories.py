@@ -147,6 +147,17 @@ def _build() -> dict[str, Trajectory]:
             "centre: press to 2.5 mm over 0.5 s, hold 1 s, release over 0.3 s, stay lifted 0.5 s",
         ),
         _press(
+            "anchor_hold",
+            0.0,
+            2e-3,
+            0.5,
+            3.5,
+            0.3,
+            0.5,
+            "centre: a finger anchoring the skin (two hands, with --offset / --path-offset beside a needle): press to 2 mm "
+            "over 0.5 s, hold 3.5 s (through a needle_straight started 0.5 s later), release over 0.3 s, stay lifted 0.5 s",
+        ),
+        _press(
             "light_touch",
             0.0,
             20e-6,
