@@ -64,3 +64,5 @@ def test_the_offline_check_uses_the_answers_a_reader_saw_for_the_last_second():
     gapped = every + [200 * ms + k * ms for k in range(2000)]  # a 101 ms gap, then 2 s of answers
     used, gaps = settled_stamps(gapped, gap_s=0.05, settle_s=1.0)
     assert gaps == 1 and used == every + [200 * ms + k * ms for k in range(1000, 2000)]
+    late = [k * ms for k in range(1500)]  # the reader joined a press: its first second is not compared
+    assert settled_stamps(late, settle_s=1.0, started_in_contact=True) == ([k * ms for k in range(1000, 1500)], 1)
