@@ -22,9 +22,11 @@ rclpy = pytest.importorskip("rclpy")
 from msgs_schema.convert import read_wrench  # noqa: E402
 from msgs_schema.parameters import SessionParams  # noqa: E402
 from msgs_schema.qos import subscription  # noqa: E402
-from skin_sim_node.demo.hands import settled_stamps  # noqa: E402
+from skin_sim_node.demo.hands import READER_RT, settled_stamps  # noqa: E402
 from skin_sim_node.model.config import load_tissue_config  # noqa: E402
+from skin_sim_node.ros_util import set_process_realtime  # noqa: E402
 from skin_sim_node.scenes import REPO, Scene  # noqa: E402
+from skin_sim_node.server.display import restore_priority  # noqa: E402
 from skin_sim_node.session import HapticSession  # noqa: E402
 from skin_sim_node.tools import make_tools  # noqa: E402
 
@@ -53,6 +55,7 @@ class Recorder:
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
+        set_process_realtime(READER_RT)  # as the demo's reader: beside busy processes a normal one misses answers
 
     def _spin(self):
         while not self._stop.is_set():
@@ -68,6 +71,7 @@ class Recorder:
         self.wrench[hand].setdefault(t, np.asarray(f, dtype=float))
 
     def close(self):
+        restore_priority(os.getpid())
         self._stop.set()
         self.thread.join(timeout=2)
         self.node.destroy_node()

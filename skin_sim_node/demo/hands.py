@@ -19,7 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..ros_util import set_process_realtime
 from ..scenes import REPO, Scene
+from ..server.display import restore_priority
 from ..verdicts import exit_code, verdict_line
 
 PARAMS = REPO / "config" / "two_hands.yaml"
@@ -74,6 +76,11 @@ def settled_stamps(
     return [int(s) for s in seen[ok]], int(gap_ends.size)
 
 
+READER_RT = 10
+"""SCHED_FIFO priority of the demo's reader threads (DDS ones included): above normal work, below the node's 50 and the
+device paths' 80-90, which it must never delay."""
+
+
 class _Recorder:
     """Each hand's poses and wrenches (stamp-keyed), from a node of this process."""
 
@@ -105,6 +112,9 @@ class _Recorder:
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
+        # above normal work, below the node (50) and the device paths (80-90): a normal-priority reader missed most
+        # answers beside them, and the offline check needs every one (READER_RT); not permitted: normal priority
+        self.rt_note = set_process_realtime(READER_RT)
 
     def _spin(self):
         while not self._stop.is_set():
@@ -113,6 +123,7 @@ class _Recorder:
     def close(self):
         import rclpy
 
+        restore_priority(os.getpid())  # the demo's own work after the scene runs at normal priority
         self._stop.set()
         self.thread.join(timeout=2)
         self.node.destroy_node()
