@@ -11,7 +11,6 @@ hand's.
 from __future__ import annotations
 
 import os
-import threading
 import time
 
 import numpy as np
@@ -19,82 +18,23 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
-from msgs_schema.convert import read_wrench  # noqa: E402
-from msgs_schema.parameters import SessionParams  # noqa: E402
-from msgs_schema.qos import subscription  # noqa: E402
-from skin_sim_node.demo.hands import READER_RT, settled_stamps  # noqa: E402
+from skin_sim_node.demo.hands import HANDS, HandsRecorder, settled_stamps, step_offline  # noqa: E402
 from skin_sim_node.model.config import load_tissue_config  # noqa: E402
-from skin_sim_node.ros_util import set_process_realtime  # noqa: E402
 from skin_sim_node.scenes import REPO, Scene  # noqa: E402
-from skin_sim_node.server.display import restore_priority  # noqa: E402
-from skin_sim_node.session import HapticSession  # noqa: E402
-from skin_sim_node.tools import make_tools  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
-HANDS = ("right", "left")
 OFFSET_M = 0.008
 """The left hand's press, this far along +x from the right hand's (m): close enough to couple (its field lowers the
 surface under the right punch), apart enough that the disks (2.5 and 5 mm radius) do not meet (0.5 mm between them)."""
 
 
-class Recorder:
-    """Each hand's poses and wrenches, keyed by stamp."""
-
-    def __init__(self):
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx)
-        self.node = rclpy.create_node(f"two_hands_observer_{os.getpid()}", context=self.ctx)
-        self.poses: dict[str, dict[int, tuple]] = {h: {} for h in HANDS}
-        self.wrench: dict[str, dict[int, np.ndarray]] = {h: {} for h in HANDS}
-        self.needle: list = []
-        for h in HANDS:
-            subscription(self.node, "tool_pose", lambda m, h=h: self._on_pose(h, m), name=f"/{h}/tool/pose", depth=1000)
-            subscription(self.node, "tool_wrench", lambda m, h=h: self._on_wrench(h, m), name=f"/{h}/tool/wrench", depth=1000)
-        self.ex = rclpy.executors.SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-        self._stop = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-        set_process_realtime(READER_RT)  # as the demo's reader: beside busy processes a normal one misses answers
-
-    def _spin(self):
-        while not self._stop.is_set():
-            self.ex.spin_once(timeout_sec=0.05)
-
-    def _on_pose(self, hand, m):
-        s = m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
-        p, q = m.pose.position, m.pose.orientation
-        self.poses[hand][s] = ((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
-
-    def _on_wrench(self, hand, m):
-        t, _, f = read_wrench(m)
-        self.wrench[hand].setdefault(t, np.asarray(f, dtype=float))
-
-    def close(self):
-        restore_priority(os.getpid())
-        self._stop.set()
-        self.thread.join(timeout=2)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
-
-
 def offline(answered: list[tuple[int, str]], poses: dict, cfgs) -> dict[tuple[str, int], np.ndarray]:
-    """The two-hand session's answer to each answered pose, stepped in stamp order (each hand its own session)."""
-    tools = make_tools(cfgs)
-    sessions = {h: HapticSession(t, SessionParams(max_stamp_age_s=0.0)) for h, t in zip(HANDS, tools)}
-    prev: dict[str, int | None] = dict.fromkeys(HANDS)
-    out = {}
-    for stamp, h in answered:
-        xyz, quat = poses[h][stamp]
-        s = sessions[h]
-        s.on_pose(stamp, "tissue", xyz, quat=quat)
-        out[h, stamp] = np.asarray(s.tick(stamp, 0 if prev[h] is None else stamp - prev[h]).force_n)
-        prev[h] = stamp
-    return out
+    """The two-hand session's answer to each answered pose (the demo's :func:`step_offline`, these configurations)."""
+    return step_offline(answered, poses, cfgs, HANDS[: len(cfgs)])[0]
 
 
 def test_two_hands_answer_in_their_namespaces_as_the_offline_two_hand_session(tmp_path):
-    rec = Recorder()
+    rec = HandsRecorder()
     try:
         with Scene(tmp_path / "logs", domain_id=int(os.environ["ROS_DOMAIN_ID"])) as scene:
             node = scene.node("-p", "hand_ns:=right", "-p", "second_hand_ns:=left")

@@ -81,8 +81,9 @@ READER_RT = 10
 device paths' 80-90, which it must never delay."""
 
 
-class _Recorder:
-    """Each hand's poses and wrenches (stamp-keyed), from a node of this process."""
+class HandsRecorder:
+    """Each hand's poses and wrenches (stamp-keyed, the first of each stamp), from a node of this process at
+    :data:`READER_RT` (restored to normal in :meth:`close`)."""
 
     def __init__(self):
         import rclpy
@@ -130,32 +131,48 @@ class _Recorder:
         rclpy.try_shutdown(context=self.ctx)
 
 
-def offline(rec: _Recorder, until_ns: int | None = None):
-    """The two-hand session stepped on every answered pose in stamp order (each hand its own session).
+def offline(rec: HandsRecorder, until_ns: int | None = None):
+    """The two-hand session of :data:`PARAMS` stepped on every pose the reader saw answered (:func:`step_offline`).
 
     Returns ``({(hand, stamp): force}, tools)``: the answers, and the tools (their fields) after the last pose stepped
     (up to ``until_ns`` if given).
     """
-    from msgs_schema.parameters import SessionParams
+    from dataclasses import replace
 
     from ..model.config import load_tissue_config, load_yaml
-    from ..session import HapticSession
-    from ..tools import make_tools
 
     cfg = load_tissue_config(PARAMS)
     flat = load_yaml(PARAMS)
-    second = flat.get("second_tool_shape", "flat"), float(flat.get("second_tool_radius_m", 0.005))
-    from dataclasses import replace
-
-    tools = make_tools([cfg, replace(cfg, tool_shape=second[0], tool_radius_m=second[1])])
-    sessions = {h: HapticSession(t, SessionParams(max_stamp_age_s=0.0)) for h, t in zip(HANDS, tools)}
+    second = replace(
+        cfg, tool_shape=flat.get("second_tool_shape", "flat"), tool_radius_m=float(flat.get("second_tool_radius_m", 0.005))
+    )
     answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
+    return step_offline(answered, rec.poses, [cfg, second], HANDS, until_ns)
+
+
+def step_offline(answered, poses: dict, cfgs: list, hands=HANDS, until_ns: int | None = None):
+    """The hands' session stepped on ``answered`` (``(stamp, hand)``, in stamp order), each hand its own
+    :class:`~skin_sim_node.session.HapticSession` of :func:`~skin_sim_node.tools.make_tools` (``cfgs``, one per hand
+    of ``hands``), the stamp age not checked.
+
+    Returns
+    -------
+    dict, list of Tool
+        ``{(hand, stamp): force vector}`` and the tools after the last pose stepped (up to ``until_ns``).
+    """
+    from msgs_schema.parameters import SessionParams
+
+    from ..session import HapticSession
+    from ..tools import make_tools
+
+    tools = make_tools(cfgs)
+    sessions = {h: HapticSession(t, SessionParams(max_stamp_age_s=0.0)) for h, t in zip(hands, tools)}
     prev: dict[str, int] = {}
     out = {}
     for stamp, h in answered:
         if until_ns is not None and stamp > until_ns:
             break
-        xyz, quat = rec.poses[h][stamp]
+        xyz, quat = poses[h][stamp]
         s = sessions[h]
         s.on_pose(stamp, "tissue", xyz, quat=quat)
         out[h, stamp] = np.asarray(s.tick(stamp, stamp - prev.get(h, stamp)).force_n)
@@ -203,7 +220,7 @@ def main(args) -> int:
         f"left: fingertip pad at x = {FINGER_X_M * 1e3:g} mm ({PATHS['left']})",
         flush=True,
     )
-    rec = _Recorder()
+    rec = HandsRecorder()
     checks: list = []
     devices = {}
     mock = getattr(args, "source", "device") == "mock"  # --source mock: scripted poses, no bridges and devices

@@ -521,6 +521,7 @@ class SkinSimNode(Node):
         flat = self._flat | changes
         try:
             node_params, cfg = validate(flat, changes)
+            self._hand_configs(flat, cfg)  # the second hand's tool on the new tissue too (a refusal names why)
         except ConfigError as exc:
             why = reason(exc)
             self.get_logger().warning(f"parameter change rejected: {why}")
