@@ -4,7 +4,7 @@ The tissue's membranes are linear (eq 2: the wave equation of each layer, with i
 several contacts is the sum of each contact's own modal field. Each tool keeps the modal field it drives (its own
 :class:`~skin_sim_node.model.SkinModel`, centred where it presses, with its chain, friction anchor, viscoelastic arms,
 edge footprint, anisotropic patch and, for a needle, its track), and the sum of the fields is the one tissue
-(:meth:`SharedSkin.surface_displacement_at`, :meth:`SharedSkin.grids`).
+(:meth:`SharedSkin.surface_displacement_at`, :meth:`SharedSkin.heights_m`, :meth:`SharedSkin.cross_section`).
 
 The coupling: each tool's chain (eq 6) acts at a surface that includes the others' deflection. Tool ``i`` at depth
 ``d_i`` below the rest surface, where the others have lowered the surface by ``w_i = sum_{j != i} u_j(x_i, y_i)``,
@@ -21,9 +21,13 @@ the force has no jolt (tests/test_hands.py sweeps the distance through ``r_1 + r
 flat punches at one depth share the force of one punch (``w_i`` is the other's whole share of the depth).
 
 The local contact model a device renders (:class:`~skin_sim_node.model.ContactTangent`) is this tool's, with positions
-in the tissue frame (the friction anchor lowered back by ``w_i``); the other tool's motion reaches it at the server rate
-through ``f0`` (the cross term ``dF_i / dx_j = K_i,zz g_ij`` is not in the local model: its size at the devices is
-measured in docs/two_hands.md).
+in the tissue frame (the friction anchor lowered back by ``w_i``), and the coupling to first order: ``K`` gains
+``K[:, 2] grad(w_i)^T`` (moving sideways along the others' slope), and ``coupling_rate_n_per_s = K[:, 2] dw_i/dt`` is
+the other tools' own motion, which the bridge renders for at most one server period (docs/two_hands.md).
+
+Not modelled: the heave beside a punch. The FEM's surface rises above rest 5-15 mm out (nearly incompressible tissue
+on a rigid base); the membranes on a foundation only dent, so a second punch 6-10 mm away feels the skin softer where the
+FEM has it stiffer (``skin-sim two-punch``, docs/two_hands.md).
 
 Limit: :data:`MAX_HANDS` tools.
 """
@@ -43,9 +47,9 @@ from .base import Tool, ToolPose, ToolStep
 MAX_HANDS = 2
 """Most tools one tissue takes. Two hands is the clinical scene (a hand anchoring or palpating beside a tool in the
 other, issue 32). The bound is the machine's, not the model's: each hand's device path costs about half a core at
-1 kHz with rclpy here (docs/performance.md: a bare echo alone is 56 % of a core), so two hands fill a 2-core machine;
-the coupling itself costs one point evaluation of each other tool's field per tick (about 8 us, tests/test_hands.py's
-cost row)."""
+1 kHz with rclpy here (docs/performance.md: a bare echo alone is 56 % of a core), so two hands fill a 2-core machine
+(``skin-sim bench-device --hands 2``, docs/two_hands.md); the coupling itself costs up to four point evaluations of each
+other tool's field per tick (about 4 us each: ``skin-sim two-hands``' cost study)."""
 
 
 SLOPE_STEP_M = 10e-6
