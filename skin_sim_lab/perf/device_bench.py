@@ -709,6 +709,7 @@ def run(
                         ready[ns] = ln.split("rt=")[1]
                 if emu.poll() is not None:
                     raise RuntimeError(f"emulator{hand_key(ns)} exited: {text[-2000:]}")
+        throttler = Throttler()  # its discovery before the emulators' start, not in the throttle phase
         t0 = time.monotonic_ns() + 200_000_000
         (log_dir / "emulator_t0.tmp").write_text(f"{t0}\n")
         (log_dir / "emulator_t0.tmp").replace(t0_path)  # whole or absent: an emulator never reads half of it
@@ -749,7 +750,7 @@ def run(
                 for r in readers:
                     r.close()
                 readers = []
-                schedule["throttle_applied"] = applied = _throttle()
+                schedule["throttle_applied"] = applied = throttler.apply()
                 schedule["throttle_at_s"] = (time.monotonic_ns() - t0) * 1e-9 - a
                 print(
                     f"    node throttled: {'applied' if applied else 'NOT applied'} {schedule['throttle_at_s']:.2f} s in",
@@ -769,6 +770,7 @@ def run(
             wait_until(b - (0.0 if name == "kill" else 1.1))  # the node's last diagnostics (1 s) inside the phase
             snapshot(f"{name}_end")
             wait_until(b)
+        throttler.close()
         for emu in emus.values():
             emu.wait(timeout=30)
         for f in emu_logs:
@@ -796,27 +798,37 @@ def run(
     }
 
 
-def _throttle() -> bool:
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-    from rclpy.parameter_client import AsyncParameterClient
+class Throttler:
+    """The throttle phase's live parameter set (:data:`THROTTLE`), its client made and its services found before the
+    run: made at the throttle, a fresh context's discovery under load took up to 8 s of its phase (the schedule aim)."""
 
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx)
-    node = rclpy.create_node(f"device_bench_{os.getpid()}", context=ctx)
-    try:
-        client = AsyncParameterClient(node, "skin_sim_node")
-        if not client.wait_for_services(timeout_sec=10.0):
+    def __init__(self, wait_s: float = 10.0):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.parameter_client import AsyncParameterClient
+
+        self._rclpy = rclpy
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx)
+        self.node = rclpy.create_node(f"device_bench_{os.getpid()}", context=self.ctx)
+        self.client = AsyncParameterClient(self.node, "skin_sim_node")
+        self.found = self.client.wait_for_services(timeout_sec=wait_s)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+
+    def apply(self) -> bool:
+        """Set :data:`THROTTLE` on the node; True when every value was applied."""
+        from rclpy.parameter import Parameter
+
+        if not self.found and not self.client.wait_for_services(timeout_sec=10.0):
             return False
-        fut = client.set_parameters([Parameter(k, value=v) for k, v in THROTTLE])
-        ex = SingleThreadedExecutor(context=ctx)
-        ex.add_node(node)
-        rclpy.spin_until_future_complete(node, fut, executor=ex, timeout_sec=10.0)
+        fut = self.client.set_parameters([Parameter(k, value=v) for k, v in THROTTLE])
+        self._rclpy.spin_until_future_complete(self.node, fut, executor=self.ex, timeout_sec=10.0)
         return fut.done() and all(r.successful for r in fut.result().results)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+
+    def close(self) -> None:
+        self.node.destroy_node()
+        self._rclpy.try_shutdown(context=self.ctx)
 
 
 def parser() -> argparse.ArgumentParser:
