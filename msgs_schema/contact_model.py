@@ -307,7 +307,8 @@ def fill_contact_model_from_tick(
     msg.validity_radius_m = float(STALE_RADIUS_M if result.stale else radius_m)
     msg.time_to_live_s = float(ttl_s)
     msg.answer_period_s = float(answer_period_s)
-    rate = None if result.stale else getattr(tg, "coupling_rate_n_per_s", None)
+    # a tick that answers no pose (a held republish, stamped now) carries no rate: its age would restart from zero
+    rate = None if result.stale or not getattr(result, "answered", True) else getattr(tg, "coupling_rate_n_per_s", None)
     msg.coupling_rate_n_per_s[:] = 0.0 if rate is None else rate
     return msg
 

@@ -14,7 +14,7 @@ import pytest
 
 from skin_sim_lab.validation import two_hands as th
 from skin_sim_node.model import preset
-from skin_sim_node.tools import make_tool
+from skin_sim_node.tools import DOWN, ToolPose, make_tool
 from skin_sim_node.tools.hands import MAX_HANDS, SharedSkin
 
 
@@ -159,3 +159,39 @@ def test_the_device_renders_the_coupling_rate_for_one_server_period_at_most():
         assert fz == pytest.approx(0.4 - 50.0 * min(max(age_ms, 0.0), 4.0) * 1e-3, abs=1e-9), (age_ms, fz)
     assert coupled(slot(-500.0), f0, stamp_ns * 1e-9 + 3e-3)[2] == 0.0  # one-sided: the tissue never pulls
     assert coupled(slot(0.0), f0, stamp_ns * 1e-9 + 3e-3) is f0  # one hand: untouched
+
+
+def test_the_coupling_rate_is_not_taken_across_a_jump_of_the_other_field(cfgs):
+    """A stall's resume, a restart or a reset of the other hand moves its field in one step: the device must not
+    extrapolate that jump once more (a review, 2026-12-03: +0.15 N extrapolated by 38.9 N/s for 4 ms)."""
+    fcfg, _ = cfgs
+    a, b = SharedSkin([make_tool(fcfg), make_tool(fcfg)]).hands
+    for i in range(600):  # both pressed 1 mm, 4 mm apart, at 250 Hz
+        d = 1e-3 * min(i, 300) / 300
+        a.step(ToolPose((0.0, 0.0, -d), (0.0, 0.0, 0.0), DOWN, 4e-3, i == 0))
+        b.step(ToolPose((4e-3, 0.0, -d), (0.0, 0.0, 0.0), DOWN, 4e-3, i == 0))
+    b.step(ToolPose((4e-3, 0.0, 0.5e-3), (0.0, 0.0, 0.0), DOWN, 0.2, False))  # B's poses resume 200 ms later, lifted
+    s = a.step(ToolPose((0.0, 0.0, -1e-3), (0.0, 0.0, 0.0), DOWN, 4e-3, False))
+    assert s.tangent is not None and not np.asarray(s.tangent.coupling_rate_n_per_s).any()
+    b.reset()  # a reset of B: its field drops at once
+    s = a.step(ToolPose((0.0, 0.0, -1e-3), (0.0, 0.0, 0.0), DOWN, 4e-3, False))
+    assert s.tangent is not None and not np.asarray(s.tangent.coupling_rate_n_per_s).any()
+    rates = []
+    for i in range(25):  # B presses again, continuously: the rate is back, pushing A's force down (K_zz < 0)
+        b.step(ToolPose((4e-3, 0.0, -1e-3 * i / 25), (0.0, 0.0, -0.01), DOWN, 4e-3, i == 0))
+        s = a.step(ToolPose((0.0, 0.0, -1e-3), (0.0, 0.0, 0.0), DOWN, 4e-3, False))
+        assert s.tangent is not None
+        c = s.tangent.coupling_rate_n_per_s  # None: no other field under A at all (its fast path)
+        rates.append(0.0 if c is None else float(c[2]))
+    assert rates[0] == 0.0 and min(rates[5:]) < 0.0, rates  # none across B's restart, then B's own motion
+
+
+def test_a_non_finite_field_never_reaches_the_other_tool(cfgs):
+    fcfg, _ = cfgs
+    a, b = SharedSkin([make_tool(fcfg), make_tool(fcfg)]).hands
+    for i in range(300):
+        a.step(ToolPose((0.0, 0.0, -1e-3 * min(i, 200) / 200), (0.0, 0.0, 0.0), DOWN, 1e-3, i == 0))
+    b.tissue.q[:] = np.nan
+    b.tissue.active[:] = 1
+    s = a.step(ToolPose((0.0, 0.0, -1e-3), (0.0, 0.0, 0.0), DOWN, 1e-3, False))
+    assert np.isfinite(s.force_n).all() and s.force_n[2] > 0.1

@@ -236,10 +236,16 @@ class _Slot:
         return fn * n + t
 
 
+COUPLING_MIN_AGE_S = 1e-3
+"""The coupling rate is rendered for at least this long (s) when the node answers every pose (``answer_period_s`` 0):
+one servo period of a 1 kHz device, about the age of a model answering the device's last pose."""
+
+
 def coupled(slot: _Slot, f: np.ndarray, now_s: float) -> np.ndarray:
     """``f`` plus the other hands' first-order change of this force since the model answered (issue 32): its
     ``coupling_rate_n_per_s`` times the model's age on the stamps, at most one announced server period
-    (``answer_period_s``: the node's next model carries the real change), one-sided along the normal for a punch.
+    (``answer_period_s``, at least :data:`COUPLING_MIN_AGE_S`: the node's next model carries the real change), one-sided
+    along the normal for a punch.
 
     Parameters
     ----------
@@ -258,7 +264,7 @@ def coupled(slot: _Slot, f: np.ndarray, now_s: float) -> np.ndarray:
     c = m.coupling_rate_n_per_s
     if not (c[0] or c[1] or c[2]):
         return f
-    age = min(max(now_s - m.stamp_ns * 1e-9, 0.0), m.answer_period_s)
+    age = min(max(now_s - m.stamp_ns * 1e-9, 0.0), max(m.answer_period_s, COUPLING_MIN_AGE_S))
     g = f + age * c
     if slot.needle is None and float(m.normal @ g) <= 0.0:  # a punch's tissue never pulls
         return np.zeros(3)

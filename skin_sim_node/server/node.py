@@ -402,6 +402,7 @@ class SkinSimNode(Node):
             rate_diag = self.hands[0].rate.diagnostics()
             idle_skipped = self.hands[0].n_idle_skipped
             others = [self._hand_values(h) for h in self.hands[1:]]
+            stale_others = [h.ns for h in self.hands[1:] if h.session.stale]
         now = time.perf_counter_ns()
         wall = (now - self._last_diag_ns) * 1e-9
         self._last_diag_ns = now
@@ -451,8 +452,12 @@ class SkinSimNode(Node):
         st = DiagnosticStatus()
         st.name = f"{self.get_fully_qualified_name()}: haptic loop"
         st.hardware_id = "skin_sim"
-        if stale:
-            st.level, st.message = DiagnosticStatus.WARN, "input stale: force held at zero"
+        if stale or stale_others:  # any hand: a stalled second device is a warning too
+            who = ", ".join(([self.hands[0].ns or "the tool"] if stale else []) + stale_others)
+            st.level, st.message = (
+                DiagnosticStatus.WARN,
+                "input stale: force held at zero" + (f" ({who})" if len(self.hands) > 1 else ""),
+            )
         elif late > 0.01 * max(n, 1):
             st.level, st.message = DiagnosticStatus.WARN, f"{late} late ticks in the last {wall:.1f} s"
         else:

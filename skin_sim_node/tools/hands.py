@@ -34,6 +34,7 @@ Limit: :data:`MAX_HANDS` tools.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import replace
 
@@ -51,6 +52,11 @@ other, issue 32). The bound is the machine's, not the model's: each hand's devic
 (``skin-sim bench-device --hands 2``, docs/two_hands.md); the coupling itself costs up to four point evaluations of each
 other tool's field per tick (about 4 us each: ``skin-sim two-hands``' cost study)."""
 
+
+CONTINUOUS_STEP_S = 0.02
+"""A tool's step longer than this (s) is a jump of its field, not its motion: a gap stepped in parts (``max_dt_s``
+parts, 0.1 s by default) or a stall's resume, at a server rate down to 50 Hz. The other tools' coupling rate is not
+taken across it (:meth:`CoupledTool.step`): a device would extrapolate the jump once more."""
 
 SLOPE_STEP_M = 10e-6
 """The finite-difference step of the other fields' slope under a tool (m): the model's displacement accuracy
@@ -95,8 +101,20 @@ class SharedSkin:
         w = 0.0
         for j, h in enumerate(self.hands):
             if j != i and h.tissue.active.any():
-                w += h.tissue.surface_displacement_at(x, y)
+                u = h.tissue.surface_displacement_at(x, y)
+                if math.isfinite(u):  # a field gone non-finite (its session resets it) never reaches another tool
+                    w += u
         return w
+
+    def others_time_s(self, i: int) -> tuple[float, float]:
+        """The other tools' stepped time (s, summed) and the time of their last jump (s, the latest): what
+        :meth:`CoupledTool.step` needs to take the others' field change as a rate over *their* motion."""
+        t = jump = 0.0
+        for j, h in enumerate(self.hands):
+            if j != i:
+                t += h.time_s
+                jump = max(jump, h.jump_time_s)
+        return t, jump
 
     def surface_displacement_at(self, x: float, y: float) -> float:
         """Downward surface displacement (m) of the one tissue at ``(x, y)``: every tool's field."""
@@ -150,6 +168,11 @@ class CoupledTool(Tool):
         self.shift_rate_m_s = 0.0
         """Its rate over the last step at this tool's place (m/s): how fast the other tools lowered (or raised) it."""
         self._xy: tuple[float, float] | None = None  # this tool's place at the last step
+        self.time_s = 0.0
+        """Model time this tool has stepped (s, the sum of its steps' ``dt_s``)."""
+        self.jump_time_s = 0.0
+        """:attr:`time_s` at its last jump (a restart, a release or reset, a step over :data:`CONTINUOUS_STEP_S`)."""
+        self._seen: tuple[float, float] | None = None  # the others' (time, jump time) at this tool's last step
 
     def step(self, pose: ToolPose) -> ToolStep:
         """The inner tool's step at ``z + w_i``; its record, with positions back in the tissue frame and the coupling
@@ -158,17 +181,25 @@ class CoupledTool(Tool):
         ``K[:, 2] dw_i/dt`` at this tool's place (the other tools' own motion, which a device renders for one server
         period)."""
         x, y, z = pose.position_m
+        self.time_s += max(pose.dt_s, 0.0)
+        if pose.restart or pose.dt_s > CONTINUOUS_STEP_S:
+            self.jump_time_s = self.time_s
         others = self.skin.others_displacement_at
         w = others(self.index, x, y)
         prev, prev_xy, self.shift_m, self._xy = self.shift_m, self._xy, w, (x, y)
+        seen, self._seen = self._seen, self.skin.others_time_s(self.index)
         if w == 0.0 and prev == 0.0:
             self.shift_rate_m_s = 0.0
             return self.inner.step(pose)
         s = self.inner.step(replace(pose, position_m=(x, y, z + w)))
-        # the other fields' change here over the step, at this tool's last place (its own sideways motion is in K)
-        if pose.dt_s > 0.0 and not pose.restart and prev_xy is not None:
+        # the other fields' change at this tool's last place (its own sideways motion is in K), over the time the others
+        # stepped since (their motion, not this tool's tick: a burst of one hand's answers is not a fast other hand);
+        # none across a jump of theirs or of this tool's
+        elapsed = self._seen[0] - seen[0] if seen is not None else 0.0
+        jumped = seen is None or self._seen[1] > seen[0] or pose.restart or pose.dt_s > CONTINUOUS_STEP_S
+        if elapsed > 0.0 and not jumped and prev_xy is not None:
             here_then = others(self.index, prev_xy[0], prev_xy[1]) if prev_xy != (x, y) else w
-            self.shift_rate_m_s = (here_then - prev) / pose.dt_s
+            self.shift_rate_m_s = (here_then - prev) / elapsed
         else:
             self.shift_rate_m_s = 0.0
         t = s.tangent
@@ -191,11 +222,13 @@ class CoupledTool(Tool):
 
     def release(self) -> None:
         self.inner.release()
+        self.jump_time_s = self.time_s = self.time_s + CONTINUOUS_STEP_S  # its field jumps: no rate across it
 
     def reset(self) -> None:
         self.inner.reset()
         self.shift_m = self.shift_rate_m_s = 0.0
-        self._xy = None
+        self._xy = self._seen = None
+        self.jump_time_s = self.time_s = self.time_s + CONTINUOUS_STEP_S
 
     def at_rest(self, step: ToolStep) -> ToolStep:
         return self.inner.at_rest(step)
