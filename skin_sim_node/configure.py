@@ -12,7 +12,14 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from msgs_schema.parameters import SPEC_BY_NAME, NodeParams, check_value, node_params_from_flat, tissue_part
+from msgs_schema.parameters import (
+    SPEC_BY_NAME,
+    TISSUE_PREFIX,
+    NodeParams,
+    check_value,
+    node_params_from_flat,
+    tissue_part,
+)
 from msgs_schema.spec import check_names
 
 from .model import TissueConfig, config_from_flat
@@ -42,3 +49,33 @@ def configure(flat: Mapping[str, Any], changed: Iterable[str] = ()) -> tuple[Nod
     for name in changed:
         check_value(name, flat[name])
     return node_params_from_flat(flat), config_from_flat(tissue_part(flat))
+
+
+def hand_configs(flat: Mapping[str, Any], cfg: TissueConfig) -> list[TissueConfig]:
+    """Each hand's tool configuration (issue 32): ``cfg`` (the first hand's, ``tissue.tool.*``), and with a second hand
+    (``second_hand_ns``) the same tissue under ``second_tool_shape`` / ``second_tool_radius_m``, built and checked the
+    one way (:func:`configure`). The node, the offline replay, the demo and the lab all take them from here.
+
+    Parameters
+    ----------
+    flat : mapping
+        The node's dotted parameter dict.
+    cfg : TissueConfig
+        ``configure(flat)``'s tissue.
+
+    Returns
+    -------
+    list of TissueConfig
+
+    Raises
+    ------
+    ConfigError
+        The second hand's tool does not fit the tissue.
+    """
+    if not flat.get("second_hand_ns", ""):
+        return [cfg]
+    second = dict(flat) | {
+        TISSUE_PREFIX + "tool.shape": flat.get("second_tool_shape", SPEC_BY_NAME["second_tool_shape"].default),
+        TISSUE_PREFIX + "tool.radius_m": flat.get("second_tool_radius_m", SPEC_BY_NAME["second_tool_radius_m"].default),
+    }
+    return [cfg, configure(second)[1]]

@@ -75,18 +75,18 @@ def hand_configs(params: Path | None = None, overrides: dict | None = None) -> t
     -------
     SessionParams, list of TissueConfig
         The session limits with the stamp-age check off (offline: stamps are compared with no clock), and one
-        configuration per hand (the node's ``_hand_configs``: the second hand's tool is ``second_tool_*``).
+        configuration per hand (``skin_sim_node.configure.hand_configs``: the second hand's tool is ``second_tool_*``).
     """
     from msgs_schema.parameters import ALL_PARAMETERS, session_params
     from skin_sim_node.configure import configure
+    from skin_sim_node.configure import hand_configs as hand_configs_of
     from skin_sim_node.model.config import load_yaml
     from skin_sim_node.scenes import DEFAULT_PARAMS
-    from skin_sim_node.server.node import SkinSimNode
 
     flat = {s.name: s.default for s in ALL_PARAMETERS} | load_yaml(params or DEFAULT_PARAMS)
     flat |= HAND_PARAMS if overrides is None else overrides
     node_params, cfg = configure(flat)
-    return session_params(node_params, max_stamp_age_s=0.0), SkinSimNode._hand_configs(flat, cfg)
+    return session_params(node_params, max_stamp_age_s=0.0), hand_configs_of(flat, cfg)
 
 
 def parse_node_params(items: list[str]) -> dict:

@@ -19,12 +19,13 @@ from pathlib import Path
 import numpy as np
 
 from msgs_schema import convert as cv
-from msgs_schema.parameters import TISSUE_PREFIX, session_params
+from msgs_schema.parameters import session_params
 from msgs_schema.tissue import LAYER_NAMES
 from msgs_schema.topics import TOPICS, hand_topic
 
 from .. import tools
 from ..configure import configure
+from ..configure import hand_configs as configure_hands
 from ..model import SkinModel, TissueConfig
 from ..model.config import load_yaml
 from ..rate import AnswerThrottle
@@ -173,7 +174,7 @@ def hands_of(params=DEFAULT_PARAMS) -> tuple[str, ...]:
 
 
 def hand_configs(params=DEFAULT_PARAMS) -> list[TissueConfig]:
-    """Each hand's tool configuration of a parameter file, as the node builds them (``SkinSimNode._hand_configs``):
+    """Each hand's tool configuration of a parameter file, as the node builds them (:func:`skin_sim_node.configure.hand_configs`):
     the tissue with ``tissue.tool.*``, and with a second hand the same tissue with ``second_tool_shape`` and
     ``second_tool_radius_m``.
 
@@ -187,14 +188,7 @@ def hand_configs(params=DEFAULT_PARAMS) -> list[TissueConfig]:
     list of TissueConfig
     """
     flat = load_yaml(params)
-    node_params, cfg = configure(flat)
-    if not node_params.second_hand_ns:
-        return [cfg]
-    second = flat | {
-        TISSUE_PREFIX + "tool.shape": node_params.second_tool_shape,
-        TISSUE_PREFIX + "tool.radius_m": node_params.second_tool_radius_m,
-    }
-    return [cfg, configure(second)[1]]
+    return configure_hands(flat, configure(flat)[1])
 
 
 def replay_hands(

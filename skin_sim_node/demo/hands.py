@@ -137,17 +137,10 @@ def offline(rec: HandsRecorder, until_ns: int | None = None):
     Returns ``({(hand, stamp): force}, tools)``: the answers, and the tools (their fields) after the last pose stepped
     (up to ``until_ns`` if given).
     """
-    from dataclasses import replace
+    from ..bags.offline import hand_configs
 
-    from ..model.config import load_tissue_config, load_yaml
-
-    cfg = load_tissue_config(PARAMS)
-    flat = load_yaml(PARAMS)
-    second = replace(
-        cfg, tool_shape=flat.get("second_tool_shape", "flat"), tool_radius_m=float(flat.get("second_tool_radius_m", 0.005))
-    )
     answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
-    return step_offline(answered, rec.poses, [cfg, second], HANDS, until_ns)
+    return step_offline(answered, rec.poses, hand_configs(PARAMS), HANDS, until_ns)
 
 
 def step_offline(answered, poses: dict, cfgs: list, hands=HANDS, until_ns: int | None = None):

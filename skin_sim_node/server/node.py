@@ -49,7 +49,7 @@ from msgs_schema.spec import check_names
 from msgs_schema.tissue import TISSUE_PARAMETERS
 from msgs_schema.topics import FRAMES
 
-from ..configure import configure
+from ..configure import configure, hand_configs
 from ..model import ConfigError, TissueConfig
 from ..ros_util import LoopTiming, PeriodicLoop, localhost_udp_env, run_nodes, set_process_realtime, set_realtime
 from ..session import WATCHDOG, HapticSession, TickResult
@@ -138,7 +138,7 @@ class SkinSimNode(Node):
         self.params, cfg = validate(self._flat, self._flat)  # ConfigError: refuse to start, with the reason
         self.get_logger().info(start_line(self._flat, ros_args, self.get_fully_qualified_name()))  # form, preset, tool
         t0 = time.perf_counter()
-        cfgs = self._hand_configs(self._flat, cfg)
+        cfgs = hand_configs(self._flat, cfg)
         for c in cfgs:
             warm_up(c)
         self._warmup_s = time.perf_counter() - t0
@@ -199,18 +199,6 @@ class SkinSimNode(Node):
     def _last(self) -> TickResult | None:
         """The first hand's last tick."""
         return self.hands[0].last
-
-    @staticmethod
-    def _hand_configs(flat: dict, cfg: TissueConfig) -> list[TissueConfig]:
-        """Each hand's tool configuration: ``cfg``, and with a second hand the same tissue with its tool
-        (``second_tool_shape``, ``second_tool_radius_m``), built the one way (:func:`validate`)."""
-        if not flat.get("second_hand_ns", ""):
-            return [cfg]
-        second = flat | {
-            TISSUE_PREFIX + "tool.shape": flat["second_tool_shape"],
-            TISSUE_PREFIX + "tool.radius_m": flat["second_tool_radius_m"],
-        }
-        return [cfg, validate(second)[1]]
 
     def _describe_hands(self) -> str:
         return ", ".join(f"{h.ns or '(unnamed)'}: {h.session.tool.cfg.tool_shape} ({h.topic('tool_pose')})" for h in self.hands)
@@ -526,7 +514,7 @@ class SkinSimNode(Node):
         flat = self._flat | changes
         try:
             node_params, cfg = validate(flat, changes)
-            self._hand_configs(flat, cfg)  # the second hand's tool on the new tissue too (a refusal names why)
+            hand_configs(flat, cfg)  # the second hand's tool on the new tissue too (a refusal names why)
         except ConfigError as exc:
             why = reason(exc)
             self.get_logger().warning(f"parameter change rejected: {why}")
@@ -551,7 +539,7 @@ class SkinSimNode(Node):
             accepted = (changes, self._flat | changes, *validate(self._flat | changes, changes))
         _, flat, node_params, cfg = accepted
         tissue_set = any(p.name.startswith(TISSUE_PREFIX) for p in ours)
-        new_tools = make_tools(self._hand_configs(flat, cfg)) if tissue_set else None
+        new_tools = make_tools(hand_configs(flat, cfg)) if tissue_set else None
         with self._lock:
             now = time.perf_counter_ns()
             for i, h in enumerate(self.hands):
