@@ -264,7 +264,7 @@ def _general_specs() -> list[ParamSpec]:
             "modes.m",
             15,
             "modal terms along x (M in eq 2); <= 61: with jittery tick intervals the propagator "
-            "is recomputed every tick, ~67 us at 61 x 61",
+            "is recomputed every tick, ~51 us at 61 x 61 (2026-12-05, quiet)",
             max=61,
         ),
         _i("modes.n", 15, "modal terms along y (N in eq 2); <= 61, as modes.m", max=61),
