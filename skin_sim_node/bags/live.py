@@ -11,6 +11,9 @@ watchdog: a lifted tool leaves the model at rest, the state the offline replay s
 the first recorded pose, 5 s of stamps later (past ``stall_hold_s``), restarts contact as the
 offline replay's first pose does. Within one stamp the twist is published first, so the
 node's tick uses it, as the offline tick does.
+
+A node with hands (issue 32, :func:`run_live_hands`): every hand's inputs go out in the offline two-hand replay's order
+(:func:`skin_sim_node.bags.offline.merged_events`), with a handshake pose per hand, and each hand's wrenches are checked.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Offline: writes ``OUT/outputs`` (a rosbag2 of tool/wrench, tissue/contact and display grids),
 ``OUT/report.png`` and ``OUT/summary.json``, and prints the summary. ``--live`` then also
 publishes the inputs to a node at recorded timing and compares its wrenches with the
-offline ones (see :mod:`skin_sim_node.bags.live`). When the bag holds the wrenches its node
+offline ones (see :mod:`skin_sim_node.bags.live`; with hands, every hand's). When the bag holds the wrenches its node
 published (``/tool/wrench``, as ``skin-sim record`` writes), each is checked against the offline
 answer to the poses that node answered (:mod:`skin_sim_node.bags.published`). Exit codes: 0 ok,
 1 a published force disagrees with the offline answer (the recording's or the live node's) or the
@@ -56,7 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--force-tol-frac",
         type=float,
         default=LIVE.force_rel,
-        help=f"max |dF| allowed, fraction of peak (default {LIVE.force_rel}, as skin-sim compare)",
+        help=f"max |dF| allowed, fraction of peak (default {LIVE.force_rel}, as skin-sim compare; with hands the default is "
+        "0.01 N + 5 %% of each hand's peak, and another value replaces the 5 %%)",
     )
     g.add_argument(
         "--min-answered",
