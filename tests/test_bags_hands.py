@@ -1,5 +1,6 @@
 """Two-hand bags (issue 32 item 4): the golden two-hand bag replays exactly and deterministically, the replay command
-reports each hand, and a live two-hand recording replays with each hand's recorded forces agreeing with offline."""
+reports each hand, a live two-hand recording replays with each hand's recorded forces agreeing with offline, and the
+golden bag replays live (every hand's inputs in the offline order) with each hand's node answering and agreeing."""
 
 from __future__ import annotations
 
@@ -11,9 +12,9 @@ import yaml
 
 from skin_sim_node.bags import compare, replay
 from skin_sim_node.bags.golden import GRID_RATE_HZ, HAND_SCENE_PARAMS, HAND_SCENES
-from skin_sim_node.bags.inputs import read_hand_inputs
+from skin_sim_node.bags.inputs import POSE, TWIST_FIRST, Inputs, read_hand_inputs
 from skin_sim_node.bags.io import NoPoseTopicError, iter_raw, open_bag, topic_types
-from skin_sim_node.bags.offline import hands_of, replay_hands_to_bag
+from skin_sim_node.bags.offline import hands_of, merged_events, replay_hands_to_bag
 from skin_sim_node.scenes import DEFAULT_PARAMS
 
 DATA = Path(__file__).parent / "data"
@@ -115,3 +116,44 @@ def test_record_a_live_two_hand_scene_and_replay_it(tmp_path, ros_domain, capfd)
         assert line.split(" of ")[0].split(": ")[-1] != "0" and ": agrees" in line, line
         assert raw(tmp_path / "a" / "outputs", f"/{ns}/tool/wrench") == raw(tmp_path / "b" / "outputs", f"/{ns}/tool/wrench")
     assert "replay PASS" in outs[0]
+
+
+def _inputs(events) -> Inputs:
+    poses = sum(1 for e in events if e[1] == POSE)
+    return Inputs(Path("b"), "p", "t", events, poses, len(events) - poses, events[0][0] if events else 0)
+
+
+def test_merged_events_are_stamp_order_first_hand_first_twist_before_pose():
+    """The one order the offline two-hand replay and the live replay's publisher take: stamps across the hands; at an
+    equal stamp the first hand, and within a hand its twist before its pose; one hand's events as they are."""
+    xyz, q = (0.0, 0.0, 0.01), (0.0, 0.0, 0.0, 1.0)
+    right = _inputs([(10, TWIST_FIRST, "tissue", xyz, None), (10, POSE, "tissue", xyz, q), (30, POSE, "tissue", xyz, q)])
+    left = _inputs([(5, POSE, "tissue", xyz, q), (10, TWIST_FIRST, "tissue", xyz, None), (10, POSE, "tissue", xyz, q)])
+    order = [(e[0], e[1], e[2]) for e in merged_events([right, left])]
+    assert order == [(5, 1, POSE), (10, 0, TWIST_FIRST), (10, 0, POSE), (10, 1, TWIST_FIRST), (10, 1, POSE), (30, 0, POSE)]
+    assert merged_events([left]) == [(e[0], 0, *e[1:]) for e in left.events]
+
+
+@pytest.mark.ros
+def test_live_replay_of_the_golden_two_hand_bag_passes_for_each_hand(tmp_path, ros_domain, capfd):
+    """``replay --live`` of the golden needle-and-finger bag against a node with two hands: every hand's poses and
+    twists streamed in the offline replay's order, each hand's node answers (the answered-fraction floor, 95 %) with
+    the forces of the offline two-hand replay of the poses it answered (0.01 N + 5 % of its peak); each hand's wrenches
+    are in the live bag under its namespace."""
+    pytest.importorskip("rclpy")
+    out = tmp_path / "o"
+    code = replay.main([str(GOLDEN / "input"), "--out", str(out), "--no-report", "--grid-rate-hz", "0", "--live"])
+    printed = capfd.readouterr().out
+    s = json.loads((out / "live_summary.json").read_text())
+    assert code == 0 and s["pass"], printed
+    verdict = printed.strip().splitlines()[-1]
+    assert verdict.startswith("live replay PASS: ") and verdict.count("live forces and answered fraction vs offline") == 2
+    for ns in ("right", "left"):
+        h = s["hands"][ns]
+        assert h["live_pass"] and h["offline_answered"] == 3681 and h["fraction_answered"] >= 0.95, h
+        assert h["answered_max_df_n"] <= 0.01 + 0.05 * h["answered_peak_n"], h
+        line = next(ln for ln in printed.splitlines() if ln.startswith(f"hand {ns}: node answered "))
+        assert ": agrees" in line, line
+        assert len(raw(out / "live", f"/{ns}/tool/wrench")) >= h["live_answered"]
+    with open_bag(out / "live") as r:
+        assert "/tool/wrench" not in topic_types(r)

@@ -224,6 +224,19 @@ def replay_hands(
     return _replay(list(inputs), list(hands), make_tools(hand_configs(params)), sp, cfg, params, writer, grid_rate_hz)
 
 
+def merged_events(inputs: Sequence[Inputs]) -> list[tuple]:
+    """Every hand's events in the order the replay takes them: ``(stamp_ns, hand index, rank, frame, xyz, quat)``.
+
+    Stamp order across the hands; at equal stamps the first hand first, and within a hand a twist before the pose with
+    the same stamp. The offline replay (:func:`replay_hands`) and the live replay's publisher
+    (:mod:`skin_sim_node.bags.live_source`) take this one order. One hand's events are in (stamp, rank) order already.
+    """
+    events = [(e[0], i, *e[1:]) for i, inp in enumerate(inputs) for e in inp.events]
+    if len(inputs) > 1:
+        events.sort(key=lambda e: (e[0], e[1], e[2]))
+    return events
+
+
 @dataclass
 class _HandRun:
     """One hand's session and what it answered, in an offline replay."""
@@ -264,10 +277,7 @@ def _replay(inputs, hands, tool_list, sp, cfg, params, writer, grid_rate_hz) -> 
     next_grid = None
     n_grids = 0
     wq, cq = qos_profiles("tool_wrench"), qos_profiles("contact")
-    events = [(e[0], i, *e[1:]) for i, inp in enumerate(inputs) for e in inp.events]
-    if len(inputs) > 1:  # one hand's events are in (stamp, rank) order already
-        events.sort(key=lambda e: (e[0], e[1], e[2]))
-    for stamp, hand, rank, fr, xyz, quat in events:
+    for stamp, hand, rank, fr, xyz, quat in merged_events(inputs):
         h = runs[hand]
         session = h.session
         if rank != POSE:

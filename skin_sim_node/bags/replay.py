@@ -3,7 +3,7 @@
 Offline: writes ``OUT/outputs`` (a rosbag2 of tool/wrench, tissue/contact and display grids),
 ``OUT/report.png`` and ``OUT/summary.json``, and prints the summary. ``--live`` then also
 publishes the inputs to a node at recorded timing and compares its wrenches with the
-offline ones (see :mod:`skin_sim_node.bags.live`). When the bag holds the wrenches its node
+offline ones (see :mod:`skin_sim_node.bags.live`; with hands, every hand's). When the bag holds the wrenches its node
 published (``/tool/wrench``, as ``skin-sim record`` writes), each is checked against the offline
 answer to the poses that node answered (:mod:`skin_sim_node.bags.published`). Exit codes: 0 ok,
 1 a published force disagrees with the offline answer (the recording's or the live node's) or the
@@ -16,7 +16,6 @@ import argparse
 import json
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 from msgs_schema.topics import hand_topic
@@ -27,8 +26,8 @@ from ..verdicts import verdict_line
 from .compare import LIVE
 from .inputs import add_input_arguments, input_options, read_hand_inputs, read_inputs
 from .io import STORAGES, BagError, custom_data
-from .offline import hands_of, replay, replay_hands, replay_hands_to_bag, replay_to_bag
-from .published import PUBLISHED, PublishedCheck, answered_only, check_published, format_check
+from .offline import hands_of, replay, replay_hands_to_bag, replay_to_bag
+from .published import PUBLISHED_HANDS, PublishedCheck, answered_only, check_hands, check_published, format_check
 from .report import format_summary, write_report
 
 
@@ -57,7 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--force-tol-frac",
         type=float,
         default=LIVE.force_rel,
-        help=f"max |dF| allowed, fraction of peak (default {LIVE.force_rel}, as skin-sim compare)",
+        help=f"max |dF| allowed, fraction of peak (default {LIVE.force_rel}, as skin-sim compare; with hands the default is "
+        "0.01 N + 5 %% of each hand's peak, and another value replaces the 5 %%)",
     )
     g.add_argument(
         "--min-answered",
@@ -124,14 +124,6 @@ def main(argv=None) -> int:
     return run_live(inputs, res, args, out, recorded=checked)
 
 
-PUBLISHED_HANDS = replace(PUBLISHED, force_abs_n=0.01, force_rel=0.05)
-"""A hand's recorded forces against the offline two-hand answer: 0.01 N + 5 % of its offline peak (one hand: 1 % of
-peak). The node ticks the hands in the order their poses arrive, each over its receive-clock interval; offline takes
-them in stamp order over stamp intervals. A few ms of scheduling delay while the other hand moves changes the field
-under this tool by tens of um: measured on a finger's release beside the needle, 4.6e-2 N (2.6 % of the needle's peak)
-with the machine's load average at 7. The live two-hand test (tests/test_two_hands_ros.py) holds each force to 5 % of
-itself + 0.01 N for the same reason."""
-
 HAND_OPTIONS = ("pose_topic", "twist_topic", "convention")
 """Foreign-bag options that name one tool's topics: a parameter file with hands names each hand's."""
 
@@ -151,9 +143,6 @@ def replay_hands_main(args, out: Path, hands: tuple[str, ...]) -> int:
             "to replay one tool's topics",
             file=sys.stderr,
         )
-        return 2
-    if args.live:
-        print("skin-sim replay: error: --live replays one hand; a bag with hands replays offline only", file=sys.stderr)
         return 2
     try:
         inputs = read_hand_inputs(args.bag, hands, args.frame)
@@ -189,29 +178,30 @@ def replay_hands_main(args, out: Path, hands: tuple[str, ...]) -> int:
             f"{out / 'summary.json'}"
         )
     checks = check_recording_hands(args.bag, args.params, inputs, hands)
+    if checks:
+        t0_ns = min(int(r.stamps_ns[0]) for r in results)
+        for ns, (c, unchecked) in checks.items():
+            line = format_check(c, f"hand {ns}: recorded forces vs offline", t0_ns, PUBLISHED_HANDS)
+            print(line + (f" ({unchecked} later answers not checked: see below)" if unchecked else ""))
+        if any(u for _, u in checks.values()):
+            print(
+                "note: answers after another hand's last pose are not checked: the node then ticks that hand on its "
+                "fallback clock (its field relaxes under the other tool), which the offline replay does not emulate"
+            )
+    if args.live:
+        from .live import run_live_hands
+
+        return run_live_hands(inputs, results, hands, args, out, recorded={ns: c for ns, (c, _) in checks.items()})
     if not checks:
         return 0
-    t0_ns = min(int(r.stamps_ns[0]) for r in results)
-    for ns, (c, unchecked) in checks.items():
-        line = format_check(c, f"hand {ns}: recorded forces vs offline", t0_ns, PUBLISHED_HANDS)
-        print(line + (f" ({unchecked} later answers not checked: see below)" if unchecked else ""))
-    if any(u for _, u in checks.values()):
-        print(
-            "note: answers after another hand's last pose are not checked: the node then ticks that hand on its "
-            "fallback clock (its field relaxes under the other tool), which the offline replay does not emulate"
-        )
     print(verdict_line("replay", [(c.ok, f"hand {ns}'s recorded forces vs offline") for ns, (c, _) in checks.items()]))
     return 0 if all(c.ok for c, _ in checks.values()) else 1
 
 
 def check_recording_hands(bag, params, inputs, hands) -> dict[str, tuple[PublishedCheck, int]]:
-    """Each hand's recorded ``<hand>/tool/wrench`` against the offline answer of the one tissue: ``{hand: (check,
-    answers not checked)}``, empty without recorded wrenches.
-
-    Only the poses the recording node answered are replayed, every hand's in stamp order. A hand's answers stamped after
-    another hand's last answered pose are not checked: the node then ticks the other hand on its fallback clock (its
-    field keeps relaxing), and the offline replay holds that field where its last pose left it.
-    """
+    """Each hand's recorded ``<hand>/tool/wrench`` against the offline answer of the one tissue to the poses the
+    recording node answered (:func:`skin_sim_node.bags.published.check_hands`): ``{hand: (check, answers not
+    checked)}``, empty without recorded wrenches."""
     from .compare import read_outputs
 
     published = {}
@@ -222,18 +212,7 @@ def check_recording_hands(bag, params, inputs, hands) -> dict[str, tuple[Publish
             published[ns] = {}
     if not any(published.values()):
         return {}
-    answered = [answered_only(inp, set(published[ns])) for ns, inp in zip(hands, inputs)]
-    results = replay_hands(answered, params, None, 0.0)
-    last = min(int(r.stamps_ns[-1]) for r in results if r.stamps_ns.size)
-    out = {}
-    for ns, res in zip(hands, results):
-        if not published[ns]:
-            continue
-        kept = {s: f for s, f in published[ns].items() if s <= last}
-        offline = res.forces_by_stamp()
-        unchecked = sum(1 for s in published[ns] if s > last and s in offline)
-        out[ns] = (check_published(offline, kept, PUBLISHED_HANDS), unchecked)
-    return out
+    return check_hands(inputs, hands, params, published, PUBLISHED_HANDS)
 
 
 def check_recording(args, inputs) -> PublishedCheck | None:
