@@ -13,7 +13,7 @@ import yaml
 
 from msgs_schema import convert as cv
 from msgs_schema.topics import TOPICS
-from skin_sim_node.bags import compare, replay
+from skin_sim_node.bags import compare, live, published, replay
 from skin_sim_node.bags.golden import GRID_RATE_HZ, SCENE_PARAMS, SCENES, write_trajectory_bag
 from skin_sim_node.bags.inputs import InputOptions, read_inputs
 from skin_sim_node.bags.io import (
@@ -139,7 +139,11 @@ def test_compare_defaults_are_the_live_replay_contract():
     fails = compare.verdict(d, compare.EXACT)
     assert len(fails) == 3 and "of B's wrench stamps are not in A" in fails[2]
     ap = replay.build_parser().parse_args(["x", "--live"])
-    assert (ap.force_tol_frac, ap.min_answered) == (compare.LIVE.force_rel, compare.LIVE.min_matched)
+    assert (live.force_tol_frac(ap, hands=False), ap.min_answered) == (compare.LIVE.force_rel, compare.LIVE.min_matched)
+    # with hands the default is the recorded two-hand check's 5 %; a value given, the single-tool default included, wins
+    assert live.force_tol_frac(ap, hands=True) == published.PUBLISHED_HANDS.force_rel
+    given = replay.build_parser().parse_args(["x", "--live", "--force-tol-frac", str(compare.LIVE.force_rel)])
+    assert live.force_tol_frac(given, hands=True) == compare.LIVE.force_rel
     b2 = {s: f for s, f in b.items() if s % 10}  # 87 % answered: both fail
     assert compare.verdict(compare.diff_outputs((a, {}), (b2, {})))[0].startswith("matched 0.8")
 

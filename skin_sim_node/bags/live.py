@@ -123,6 +123,22 @@ def _wrench_label(ns: str) -> str:
     return "tool_wrench" if not ns else hand_topic("tool_wrench", ns)
 
 
+def force_tol_frac(args, hands: bool) -> float:
+    """The live check's force tolerance, a fraction of the (hand's) offline peak.
+
+    ``--force-tol-frac`` when given; otherwise ``compare``'s ``LIVE`` contract for one tool, and the recorded two-hand
+    check's 5 % (``published.PUBLISHED_HANDS``, on top of its 0.01 N) with hands. A value given is used as given, the
+    single-tool default included.
+    """
+    if args.force_tol_frac is not None:
+        return float(args.force_tol_frac)
+    if hands:
+        from .published import PUBLISHED_HANDS
+
+        return PUBLISHED_HANDS.force_rel
+    return LIVE.force_rel
+
+
 def live_forces(records, label: str = "tool_wrench") -> dict[int, np.ndarray]:
     """``{stamp_ns: force vector (N)}`` of the recorded live wrenches (``label``: a hand's, :func:`_wrench_label`)."""
     out = {}
@@ -164,7 +180,7 @@ def run_live(inputs: Inputs, offline: ReplayResult, args, out: Path, recorded=No
     stats.update({"speed": args.speed, "recorded_span_s": span, "handshake_s": t_handshake, **src})
     t_stream = src["stream_wall_s"]
     # the PASS is compare's verdict on the same two sets of wrenches (compare OUT/outputs OUT/live agrees)
-    tol = replace(LIVE, force_rel=args.force_tol_frac, min_matched=args.min_answered)
+    tol = replace(LIVE, force_rel=force_tol_frac(args, hands=False), min_matched=args.min_answered)
     fails = verdict(diff_outputs((offline.forces_by_stamp(), {}), (live, {})), tol)
     what = "live node's forces and answered fraction vs offline"
     checks = [(not fails, what + (f" ({'; '.join(fails)})" if fails else ""))]
@@ -200,7 +216,7 @@ def run_live_hands(
     Each hand's check: the node answered at least ``--min-answered`` of the poses the offline replay answers
     (``offline``, one per hand), and its live forces agree with the offline two-hand replay of the poses the node
     answered (every hand's, :func:`skin_sim_node.bags.published.check_hands`) to 0.01 N + 5 % of the hand's offline
-    peak, as a recording's (``PUBLISHED_HANDS``; ``--force-tol-frac``, when not its default, replaces the 5 %).
+    peak, as a recording's (``PUBLISHED_HANDS``; ``--force-tol-frac``, when given, replaces the 5 %).
     ``recorded``: ``{hand: PublishedCheck}`` of the bag's own wrenches, part of the verdict. Prints one line per hand
     and one closing line naming each check; returns 0 or 1.
     """
@@ -208,8 +224,7 @@ def run_live_hands(
 
     records, src, t_handshake = _stream_live(inputs, tuple(hands), args, out)
     live = {ns: live_forces(records, _wrench_label(ns)) for ns in hands}
-    rel = PUBLISHED_HANDS.force_rel if args.force_tol_frac == LIVE.force_rel else args.force_tol_frac
-    tol = replace(PUBLISHED_HANDS, force_rel=rel)
+    tol = replace(PUBLISHED_HANDS, force_rel=force_tol_frac(args, hands=True))
     forces = check_hands(inputs, hands, args.params, live, tol) if any(live.values()) else {}
     events = merged_events(inputs)
     span = (events[-1][0] - events[0][0]) * 1e-9

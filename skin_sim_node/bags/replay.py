@@ -55,9 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument(
         "--force-tol-frac",
         type=float,
-        default=LIVE.force_rel,
+        default=None,
         help=f"max |dF| allowed, fraction of peak (default {LIVE.force_rel}, as skin-sim compare; with hands the default is "
-        "0.01 N + 5 %% of each hand's peak, and another value replaces the 5 %%)",
+        "0.01 N + 5 %% of each hand's peak, and a value given replaces the 5 %%)",
     )
     g.add_argument(
         "--min-answered",
