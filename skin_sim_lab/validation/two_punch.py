@@ -795,7 +795,8 @@ def volume_findings(p: Profiles) -> str:
             f"- Sizes: the rigid punch's heave is {rig[8e-3] / fem[8e-3]:.1f} x the FEM's at 8 mm "
             f"({rig[8e-3]:+.3f} against {fem[8e-3]:+.3f}) and its dimple at 4 mm {rig[4e-3]:+.3f} against "
             f"{fem[4e-3]:+.3f}; the uniform pressure gives {uni[8e-3]:+.3f} at 8 mm and {uni[4e-3]:+.3f} at 4 mm; at "
-            f"10 mm {rig[10e-3]:+.3f} (rigid) and {uni[10e-3]:+.3f} (uniform) against {fem[10e-3]:+.3f}. Thin-layer theory wants lateral lengths well above "
+            f"10 mm {rig[10e-3]:+.3f} (rigid) and {uni[10e-3]:+.3f} (uniform) against {fem[10e-3]:+.3f}. "
+            "Thin-layer theory wants lateral lengths well above "
             f"h = {h * 1e3:.1f} mm and L is {p.length_m / h:.2f} h: the positions hold, the sizes are approximate.",
             f"- Kept beside the model's Winkler term (l = {foundation * 1e3:.2f} mm) the volume term does not heave at "
             f"all: that needs l > L / sqrt(2) = {heave_needs_foundation_length_m(p.length_m) * 1e3:.2f} mm "
