@@ -14,6 +14,12 @@ the block's centre (:class:`~.hyperelastic3d.PunchLayout`): the pair as a quarte
 interaction ``pair - single`` is of one discretisation. Solves are cached in ``docs/validation/hyper_cache``
 (``3d-<hash>.npz``); ``--fresh`` solves again (about an hour here for all of them).
 
+Two lab analyses follow the table (the model is not changed by them): what the reference implies for the coupling
+(:func:`implied`: the surface lowering under a punch that the model's single-punch curve needs to give the FEM's pair
+force, against the FEM's single-punch field averaged over the other punch's disk, :func:`disk_averages`), and where the
+heave would come from (:func:`foundation_profiles`: a membrane over a thin incompressible layer on a rigid base, the
+volume term of length :func:`volume_length_m`, against the FEM's and the model's profiles).
+
 Writes ``docs/validation/two_punch.md``; exits 1 when an aim fails.
 """
 
@@ -28,9 +34,12 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+from scipy import special
+from scipy.interpolate import RegularGridInterpolator
 from tqdm import tqdm
 
 from skin_sim_node.model import TissueConfig
+from skin_sim_node.model.calibration import POISSON_RATIO
 from skin_sim_node.model.config import load_tissue_config
 from skin_sim_node.tools import DOWN, ToolPose, make_tool
 from skin_sim_node.tools.hands import SharedSkin
@@ -355,6 +364,471 @@ def checks_text(c: Checks) -> str:
     return "\n".join(lines)
 
 
+# ---------------------------------------------------------------------------------------------------------------------
+# What the reference implies for the coupling, and where the heave would come from (lab analysis; the model is unchanged)
+
+IMPLIED_DISTANCES_M = (4e-3, 6e-3, 10e-3)
+"""The distances whose rows fail (:data:`DISTANCES_M` without the far pair, which passes)."""
+IMPLIED_DEPTH_M = tuple(round(0.1 * k, 1) * 1e-3 for k in range(6, 25))
+"""Depths (0.6-2.4 mm every 0.1 mm) of the model's single-punch force-depth curve that :func:`implied` inverts: wide
+enough for a lowering or raising of the surface by a quarter of either depth (:data:`DEPTHS_M`); between them the
+curve is interpolated linearly in log force against log depth (the curve is close to a power law, ``F ~ d^1.4``)."""
+DISK_WEIGHTS = {"uniform": 0.0, "parabolic": 1.0, "pressure": -0.5}
+"""Weights of :func:`disk_averages`, the exponent ``alpha`` of ``(1 - s^2 / a^2)^alpha`` over the other punch's disk
+(``s`` from its centre, ``a`` its radius): uniform; parabolic (a pressure vanishing at the rim: a soft pad); the rigid
+flat punch's pressure on a half-space (``alpha = -1/2``, Boussinesq / Sneddon), which Betti's reciprocal theorem uses:
+a rigid punch's force change equals the other's field averaged with its own contact pressure."""
+DISK_RADIAL_NODES = 48
+DISK_ANGLE_NODES = 96
+"""Quadrature of :func:`disk_average`: Gauss-Jacobi in ``t = s^2 / a^2`` with the weight ``(1 - t)^alpha`` (exact for
+a field polynomial of degree ``2 * 48 - 1`` in ``t``, the rigid punch's rim singularity in the weight, not sampled), and
+the trapezoid rule in the angle (exact for trigonometric polynomials below degree 96)."""
+HEAVE_FLOOR = 1e-3
+"""A profile heaves where ``w / depth`` falls below ``-HEAVE_FLOOR`` (0.1 % of the depth; the FEM's heave is 8 %)."""
+VOLUME_EDGES = ("rigid", "uniform")
+"""The two loadings of :func:`volume_profile`: a rigid flat punch (surface at the depth over the disk, the volume it
+displaces carried out by the layer's flux at the rim) and a uniform pressure over the disk (centre at the depth)."""
+FEATURE_RADII_M = tuple(np.round(np.arange(25, 301) * 1e-4, 6))
+"""Radii (2.5-30 mm every 0.1 mm) where :func:`foundation_profiles` looks for the first rise above rest and the lowest
+point (the FEM's own field is sampled every 0.5 mm and interpolated linearly)."""
+
+
+def disk_average(field, centre_m: tuple[float, float], radius_m: float, alpha: float) -> float:
+    """Average of ``field(x, y)`` over a disk, weighted by ``(1 - s^2 / a^2)^alpha``.
+
+    ``<f> = int_disk f W dA / int_disk W dA`` with ``W = (1 - s^2 / a^2)^alpha`` and ``s`` the distance from the disk's
+    centre: in ``t = s^2 / a^2`` (``dA = a^2 / 2 dt dtheta``) the radial integral is Gauss-Jacobi with weight
+    ``(1 - t)^alpha`` (:data:`DISK_RADIAL_NODES`), the angular one the trapezoid rule (:data:`DISK_ANGLE_NODES`).
+
+    Parameters
+    ----------
+    field : callable
+        Vectorised ``field(x_m, y_m)`` (arrays of one shape).
+    centre_m : tuple of float
+        The disk's centre (m).
+    radius_m : float
+        Its radius ``a`` (m).
+    alpha : float
+        Exponent of the weight, ``> -1`` (:data:`DISK_WEIGHTS`).
+
+    Returns
+    -------
+    float
+        The weighted average.
+    """
+    x, w = special.roots_jacobi(DISK_RADIAL_NODES, alpha, 0.0)  # weight (1 - x)^alpha on [-1, 1]; t = (1 + x) / 2
+    s = radius_m * np.sqrt((1 + x) / 2)
+    th = 2 * np.pi * np.arange(DISK_ANGLE_NODES) / DISK_ANGLE_NODES
+    vals = field(centre_m[0] + s[:, None] * np.cos(th), centre_m[1] + s[:, None] * np.sin(th))
+    return float((w @ np.mean(vals, axis=1)) / w.sum())
+
+
+def disk_averages(field, centre_m: tuple[float, float], radius_m: float) -> dict[str, float]:
+    """:func:`disk_average` of ``field`` with each of :data:`DISK_WEIGHTS`, by name."""
+    return {name: disk_average(field, centre_m, radius_m, alpha) for name, alpha in DISK_WEIGHTS.items()}
+
+
+def model_single_curve(cfg: TissueConfig, centre_x_m: float) -> np.ndarray:
+    """The model's relaxed single-punch force (N) at ``(centre_x_m, 0)`` at each of :data:`IMPLIED_DEPTH_M`."""
+    return np.array([model_single_n(cfg, centre_x_m, d)[0] for d in IMPLIED_DEPTH_M])
+
+
+def invert_curve(depths_m, forces_n, force_n: float) -> float:
+    """The depth (m) at which a rising force-depth curve reaches ``force_n`` (log-log interpolation, no
+    extrapolation: a force outside the curve raises ``ValueError``)."""
+    f = np.asarray(forces_n, float)
+    if not f[0] <= force_n <= f[-1]:
+        raise ValueError(f"{force_n:.4g} N is outside the curve's {f[0]:.4g}-{f[-1]:.4g} N")
+    return float(np.exp(np.interp(np.log(force_n), np.log(f), np.log(np.asarray(depths_m, float)))))
+
+
+@dataclass
+class Implied:
+    """What the FEM's pair force implies for the model's coupling at one distance and depth.
+
+    ``lowering`` is the surface lowering ``w`` at the punch over the depth (+ lowered, - raised) with which the model's
+    own single-punch curve gives the FEM's pair force, ``F_model(depth - w) = F_pair_FEM``. ``lowering_ratio`` removes
+    the model's single-punch error: ``F_model(depth - w) / F_model(depth) = F_pair_FEM / F_single_FEM``, the ``w`` that
+    gives the FEM's interaction. ``fem_curve`` inverts the FEM's own single-punch curve (its 0.25 mm load stops,
+    linear between them, as :meth:`~.hyperelastic3d.Result3D.force_n`), None where the pair force lies beyond its
+    deepest stop. The disk averages (the FEM's single-punch field, over the other punch's disk) exist at
+    :data:`MAX_DEPTH_M` only, where the FEM keeps its surface field.
+    """
+
+    distance_m: float
+    depth_m: float
+    fem_ratio: float  # F_pair_FEM / F_single_FEM
+    lowering: float
+    lowering_ratio: float
+    fem_curve: float | None
+    at_centre: float | None  # the FEM single's u / depth at the other punch's centre (MAX_DEPTH_M)
+    disk: dict[str, float] | None  # the FEM single's u / depth averaged over the other's disk, by DISK_WEIGHTS
+    overlapping: bool  # the two disks overlap (d < 2 a)
+    single_error: float  # the model's single punch against the FEM's, F_single_model / F_single_FEM - 1
+    outside_lens: dict[str, float] | None = None  # overlapping disks: the disk averages over the part of the other's
+    # disk outside this punch's own (the lens left out), by DISK_WEIGHTS
+
+
+def fem_field(res: Result3D, depth_m: float):
+    """The FEM's surface field over ``depth_m`` as a vectorised ``f(x_m, y_m)`` (global coordinates, mirrored across
+    ``y = 0``; bilinear on the 0.5 mm samples), for :func:`disk_averages`."""
+    interp = RegularGridInterpolator((res.sample_y_m, res.sample_x_m), res.field_down_m / depth_m)
+
+    def f(x, y):
+        return interp(np.stack(np.broadcast_arrays(np.abs(y), x), -1))
+
+    return f
+
+
+def disk_averages_outside(
+    field, centre_m: tuple[float, float], radius_m: float, hole_centre_m: tuple[float, float], hole_radius_m: float
+) -> dict[str, float]:
+    """:func:`disk_averages` over the part of the disk outside a second disk (the hole), each weight renormalised
+    over that part: ``int f W 1_out dA / int W 1_out dA`` (the indicator makes the integrand discontinuous, so the
+    quadrature is accurate to about 1e-3 here, not to round-off)."""
+
+    def outside(x, y):
+        return np.hypot(x - hole_centre_m[0], y - hole_centre_m[1]) >= hole_radius_m
+
+    out = {}
+    for name, alpha in DISK_WEIGHTS.items():
+        num = disk_average(lambda x, y: np.where(outside(x, y), field(x, y), 0.0), centre_m, radius_m, alpha)
+        den = disk_average(lambda x, y: outside(x, y).astype(float), centre_m, radius_m, alpha)
+        out[name] = num / den
+    return out
+
+
+def implied(
+    cfg: TissueConfig, rs: list[Row], fresh: bool = False, progress: bool = True, missing_ok: bool = False
+) -> list[Implied] | None:
+    """:class:`Implied` for each row of :data:`IMPLIED_DISTANCES_M`.
+
+    The lowering inverts the model's single punch at the pair's position ``x = d/2`` (:func:`model_single_curve`).
+    The FEM's profile is the single-punch solve of the same distance (the punch at ``x = d/2`` on the pair's mirrored
+    mesh, the solve ``F_single_FEM`` comes from), averaged over the other punch's disk, centred at ``x = -d/2``.
+    With ``missing_ok`` None when a solve is not cached.
+    """
+    a = cfg.tool_radius_m
+    out = []
+    for d in IMPLIED_DISTANCES_M:
+        single = fem_solve(fem_setup(cfg, d, False), fresh, progress, missing_ok)
+        if single is None:
+            return None
+        curve = model_single_curve(cfg, d / 2)
+        field = fem_field(single, MAX_DEPTH_M)
+        for r in (r for r in rs if abs(r.distance_m - d) < 1e-9):
+            ratio = r.fem_pair_n / r.fem_single_n
+            low = 1 - invert_curve(IMPLIED_DEPTH_M, curve, r.fem_pair_n) / r.depth_m
+            low_ratio = 1 - invert_curve(IMPLIED_DEPTH_M, curve, ratio * r.model_single_n) / r.depth_m
+            stops, forces = np.r_[0.0, single.depths_m], np.r_[0.0, single.forces_n]
+            fem_curve = 1 - float(np.interp(r.fem_pair_n, forces, stops)) / r.depth_m if r.fem_pair_n <= forces[-1] else None
+            deepest = abs(r.depth_m - MAX_DEPTH_M) < 1e-12
+            centre = (-d / 2, 0.0)
+            out.append(
+                Implied(
+                    d,
+                    r.depth_m,
+                    ratio,
+                    low,
+                    low_ratio,
+                    fem_curve,
+                    float(np.squeeze(field(np.array(centre[0]), np.array(centre[1])))) if deepest else None,
+                    disk_averages(field, centre, a) if deepest else None,
+                    d < 2 * a,
+                    r.force_errors[1],
+                    disk_averages_outside(field, centre, a, (d / 2, 0.0), a) if deepest and d < 2 * a else None,
+                )
+            )
+    return out
+
+
+def implied_text(imps: list[Implied]) -> str:
+    """:func:`implied` as a markdown table (fractions of the depth; + lowered, - raised)."""
+    names = list(DISK_WEIGHTS)
+    lines = [
+        "| d (mm) | depth (mm) | FEM pair / single | w: model curve | w: interaction | w: FEM curve "
+        "| FEM u at other centre | " + " | ".join(f"FEM u, {n} disk" for n in names) + " |",
+        "|---|---|---|---|---|---|---|" + "---|" * len(names),
+    ]
+
+    def fmt(v):
+        return "-" if v is None else f"{v:+.3f}"
+
+    for m in imps:
+        disk = [fmt(None if m.disk is None else m.disk[n]) for n in names]
+        lines.append(
+            f"| {m.distance_m * 1e3:g} | {m.depth_m * 1e3:g} | {m.fem_ratio:.3f} | {m.lowering:+.3f} "
+            f"| {m.lowering_ratio:+.3f} | {fmt(m.fem_curve)} | {fmt(m.at_centre)} | " + " | ".join(disk) + " |"
+        )
+    return "\n".join(lines)
+
+
+def implied_findings(imps: list[Implied]) -> str:
+    """What :func:`implied` says: the coupling the model would need, against the FEM's own field."""
+    deep = [m for m in imps if m.disk is not None]
+    need = ", ".join(f"{m.distance_m * 1e3:g} mm {m.lowering_ratio:+.3f}" for m in deep)
+    para = ", ".join(f"{m.distance_m * 1e3:g} mm {m.disk['parabolic']:+.3f}" for m in deep)
+    best = ", ".join(
+        f"{m.distance_m * 1e3:g} mm " + min(DISK_WEIGHTS, key=lambda n, m=m: abs(m.disk[n] - m.lowering_ratio))
+        for m in deep
+        if not m.overlapping
+    )
+    spread = max(abs(m.lowering - m.lowering_ratio) for m in imps)
+    four = [m for m in deep if m.overlapping]
+    times = [v / m.lowering_ratio for m in four for v in m.disk.values()] or [float("nan")]
+    lo4, hi4 = min(times), max(times)
+    lens = ", ".join(f"{v:+.3f} ({n})" for m in four if m.outside_lens for n, v in m.outside_lens.items()) or "-"
+    return "\n".join(
+        [
+            f"- At {MAX_DEPTH_M * 1e3:g} mm the FEM's interaction needs the surface at the punch lowered by (over the "
+            f"depth, - = raised) {need}; the FEM's own single-punch field averaged over the other's disk (parabolic "
+            f"weight) is {para}. Closest weight where the disks are apart: {best}.",
+            "- At 6 and 10 mm the needed raising is the FEM's heave averaged over the other punch's disk: a coupling "
+            "through a disk average of a heaving field gives the sign and the size there. At 4 mm (disks overlapping) "
+            f"the disk averages are {lo4:.1f}-{hi4:.1f} times the needed lowering: where the disks overlap, the other's "
+            "part of the field is not free surface but a second rigid punch, and superposing two single-punch fields "
+            f"overstates the shared dimple. Leaving the lens out does not mend it: over the rest of the disk the field "
+            f"averages {lens}.",
+            f"- Inverting the model's own curve at the FEM's pair force (w: model curve) instead of matching the "
+            f"interaction differs by up to {spread:.3f} of the depth: the model's single punch is "
+            f"{min(m.single_error for m in imps):+.1%} to {max(m.single_error for m in imps):+.1%} off the FEM's at "
+            "these positions, and the force grows faster than the depth.",
+        ]
+    )
+
+
+def volume_parameters(cfg: TissueConfig, poisson: float = POISSON_RATIO) -> tuple[float, float, float]:
+    """The thin layer's tension ``T`` (N/m), thickness ``h`` (m) and shear modulus ``mu`` (Pa) from ``cfg``.
+
+    ``T``: the sum of the layers' membrane tensions (their membranes deflect together under a punch, so their
+    tensions add). ``h``: the whole tissue, every layer, over the FEM's rigid base. ``mu``: the thickness-weighted
+    harmonic (Reuss) mean of the layers' shear moduli ``E / (2 (1 + nu))``, ``E`` by :func:`layer_moduli_pa` (the
+    FEM's moduli) and ``nu`` the FEM's Poisson ratio, ``h / mu = sum_i h_i / mu_i``.
+    """
+    moduli = layer_moduli_pa(cfg, poisson)
+    t = sum(la.tension_n_per_m for la in cfg.layers)
+    h = sum(la.thickness_m for la in cfg.layers)
+    mu = h / sum(la.thickness_m * 2 * (1 + poisson) / e for la, e in zip(cfg.layers, moduli))
+    return t, h, mu
+
+
+def layered_volume_length_m(cfg: TissueConfig, poisson: float = POISSON_RATIO) -> float:
+    """:func:`volume_length_m` with the layered layer's own flux coefficient instead of ``h^3 / (3 mu)``.
+
+    In a layer with its shear modulus varying with the depth ``zeta`` below the (shear-free) top, the shear stress is
+    ``-zeta dp/dx`` and the flux ``q = -D dp/dx`` with ``D = int_0^h zeta^2 / mu(zeta) dzeta`` (``h^3 / (3 mu)`` when
+    uniform); ``L^4 = T D``. The layers of ``cfg`` from the top, moduli as :func:`volume_parameters`.
+    """
+    t, _, _ = volume_parameters(cfg, poisson)
+    coeff, top = 0.0, 0.0
+    for la, e in zip(cfg.layers, layer_moduli_pa(cfg, poisson)):
+        bottom = top + la.thickness_m
+        coeff += (bottom**3 - top**3) / 3 * 2 * (1 + poisson) / e
+        top = bottom
+    return float((t * coeff) ** 0.25)
+
+
+def volume_length_m(cfg: TissueConfig) -> float:
+    """The length of the volume term, ``L = (T h^3 / (3 mu))^(1/4)`` (:func:`volume_parameters`).
+
+    A membrane of tension ``T`` over a thin incompressible layer (thickness ``h``, shear modulus ``mu``, bonded to a
+    rigid base, its top free of shear) loaded by ``p_load``: the layer's pressure ``p`` drives a lateral flux
+    ``q = -(h^3 / (3 mu)) grad p`` (lubrication / thin-layer theory), whose divergence lowers the surface,
+    ``w = -(h^3 / (3 mu)) Lap p``; the membrane's balance is ``p = p_load + T Lap w``. Outside the load
+
+    ``L^4 Lap^2 w + w = 0``, ``L^4 = T h^3 / (3 mu)``,
+
+    whose decaying axisymmetric solutions are the Kelvin functions ``ker(r / L)``, ``kei(r / L)``: they cross zero,
+    so the surface rises beside the load (the heave), and the volume lowered under the load comes up around it.
+    """
+    t, h, mu = volume_parameters(cfg)
+    return float((t * h**3 / (3 * mu)) ** 0.25)
+
+
+def volume_profile(radius_m, length_m: float, punch_radius_m: float, edge: str = "rigid") -> np.ndarray:
+    """Surface lowering over the depth of one punch on the volume term (:func:`volume_length_m`), no Winkler term.
+
+    Outside the disk ``w = A ker(r / L) + B kei(r / L)``, with ``Lap ker(r / L) = -kei(r / L) / L^2`` and
+    ``Lap kei(r / L) = ker(r / L) / L^2``.
+
+    - ``"rigid"``: the rigid flat punch. ``w = depth`` on the disk; at its rim ``w`` is continuous (the membrane's slope
+      may jump: the rim carries a line force) and so are the layer's pressure (fixing the free constant of the
+      pressure under the punch) and its flux, which carries the volume the punch displaces,
+      ``2 pi a q(a) = pi a^2 depth``, i.e. ``L^4 d/dr Lap w (a) = -a depth / 2``: the heave holds that volume
+      (``int w dA = 0`` over the whole surface).
+    - ``"uniform"``: a uniform pressure over the disk instead, ``w = (1 / (2 pi T)) int p_load ker(|r - r'| / L) dA'``
+      (the Green's function of ``L^4 Lap^2 + 1`` applied to ``-(h^3 / (3 mu)) Lap p_load``), by the addition theorem
+      outside the disk ``w ~ Re[(2 pi a / k) I_1(k a) K_0(k r)]`` with ``k = e^{i pi / 4} / L``, inside
+      ``Re[(2 pi / k^2)(1 - k a K_1(k a) I_0(k r))]``; scaled so that the centre is at the depth (the earlier attempt's
+      volume term: the surface under the pad is not flat, its rim at about half the depth).
+
+    Parameters
+    ----------
+    radius_m : array_like
+        Distances from the punch's axis (m).
+    length_m : float
+        ``L`` (m).
+    punch_radius_m : float
+        The punch's radius ``a`` (m).
+    edge : {"rigid", "uniform"}
+        The loading.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``w / depth`` (+ lowered, - raised).
+    """
+    r = np.asarray(radius_m, float)
+    a, ell = punch_radius_m, length_m
+    xa = a / ell
+    if edge == "rigid":
+        mat = [[special.ker(xa), special.kei(xa)], [-ell * special.keip(xa), ell * special.kerp(xa)]]
+        c1, c2 = np.linalg.solve(mat, [1.0, -a / 2])
+        outside = c1 * special.ker(r / ell) + c2 * special.kei(r / ell)
+        return np.where(r <= a, 1.0, outside)
+    if edge == "uniform":
+        k = np.exp(1j * np.pi / 4) / ell
+        ri = np.minimum(r, a)
+        ro = np.maximum(r, a)
+        inside = ((2 * np.pi / k**2) * (1 - k * a * special.kv(1, k * a) * special.iv(0, k * ri))).real
+        outside = (2 * np.pi * a / k * special.iv(1, k * a) * special.kv(0, k * ro)).real
+        centre = ((2 * np.pi / k**2) * (1 - k * a * special.kv(1, k * a))).real
+        return np.where(r <= a, inside, outside) / centre
+    raise ValueError(f"edge {edge!r}: one of {VOLUME_EDGES}")
+
+
+def heave_needs_foundation_length_m(length_m: float) -> float:
+    """The least Winkler length ``l`` for which the volume term still heaves, ``L / sqrt(2)``.
+
+    With the membranes' foundation ``-(T / l^2) w`` kept beside the volume term, the layer carries
+    ``p = p_load + T Lap w - (T / l^2) w`` and outside the load ``L^4 Lap^2 w - (L^4 / l^2) Lap w + w = 0``. Its radial
+    wavenumbers ``s = lambda^2`` solve ``L^4 s^2 - (L^4 / l^2) s + 1 = 0``: complex (a decaying oscillation, a heave)
+    only when ``L^4 / l^4 < 4``, i.e. ``l > L / sqrt(2)``; below it both roots are real and the dimple decays without
+    changing sign.
+    """
+    return length_m / np.sqrt(2)
+
+
+@dataclass
+class Profiles:
+    """One punch's surface lowering over the depth (:data:`MAX_DEPTH_M`), by source: the FEM, the model, the volume
+    term under each of :data:`VOLUME_EDGES`; and where each first rises above rest and where it is lowest."""
+
+    length_m: float
+    values: dict[str, dict[float, float]]  # source -> radius (PROFILE_RADII_M) -> w / depth
+    rise_m: dict[str, float | None]  # source -> first radius beyond the punch where w < 0 (interpolated); None: never
+    # (below -HEAVE_FLOOR: the model's modal field dips by 1e-4 of the depth at its patch's edge, 28 mm out)
+    lowest: dict[str, tuple[float, float]]  # source -> (radius of the least w, the least w / depth)
+    fem_radii_m: np.ndarray  # the FEM's field along +x, its samples
+    fem_down: np.ndarray  # ... and w / depth there
+    layer: tuple[float, float, float]  # the volume term's T (N/m), h (m), mu (Pa): volume_parameters
+    foundation_length_m: float  # the model's Winkler length l (patch.foundation_length_m)
+    layered_length_m: float  # L with the layered flux coefficient (layered_volume_length_m)
+
+    def fem_fine(self, radius_m: float) -> float:
+        """The FEM's w / depth at ``radius_m`` (linear between its 0.5 mm samples)."""
+        return float(np.interp(radius_m, self.fem_radii_m, self.fem_down))
+
+
+def _features(r, w) -> tuple[float | None, tuple[float, float]]:
+    """First zero crossing from above (linear between samples; only where the profile then falls below
+    ``-HEAVE_FLOOR``) and the minimum of a sampled profile."""
+    r, w = np.asarray(r, float), np.asarray(w, float)
+    neg = np.flatnonzero(w < -HEAVE_FLOOR)
+    rise = None
+    if neg.size and neg[0] > 0:
+        i = neg[0]
+        rise = float(r[i - 1] + (r[i] - r[i - 1]) * w[i - 1] / (w[i - 1] - w[i]))
+    j = int(np.argmin(w))
+    return rise, (float(r[j]), float(w[j]))
+
+
+def foundation_profiles(
+    cfg: TissueConfig, fresh: bool = False, progress: bool = True, missing_ok: bool = False
+) -> Profiles | None:
+    """The FEM's centred single punch, the model's (:func:`model_single`) and the volume term's profiles at
+    :data:`MAX_DEPTH_M`, at :data:`PROFILE_RADII_M` and their features over :data:`FEATURE_RADII_M`."""
+    centred = fem_solve(fem_setup(cfg, None, False), fresh, progress, missing_ok)
+    if centred is None:
+        return None
+    _, _, tool = model_single(cfg, 0.0, MAX_DEPTH_M)
+    ell, a = volume_length_m(cfg), cfg.tool_radius_m
+    fine = np.asarray(FEATURE_RADII_M)
+    fem_r, fem_w = centred.sample_x_m, centred.field_down_m[0] / MAX_DEPTH_M
+    sources = {
+        "FEM": lambda r: np.interp(r, fem_r, fem_w),
+        "model": lambda r: np.array([tool.tissue.surface_displacement_at(float(x), 0.0) for x in np.atleast_1d(r)]) / MAX_DEPTH_M,
+    }
+    for edge in VOLUME_EDGES:
+        sources[f"volume, {edge}"] = lambda r, edge=edge: volume_profile(r, ell, a, edge)
+    values, rise, lowest = {}, {}, {}
+    for name, f in sources.items():
+        values[name] = {r: float(np.squeeze(f(r))) for r in PROFILE_RADII_M}
+        rr = fem_r[fem_r >= a] if name == "FEM" else fine
+        rise[name], lowest[name] = _features(rr, f(rr))
+    foundation = float(cfg.as_flat().get("patch.foundation_length_m", float("nan")))
+    return Profiles(ell, values, rise, lowest, fem_r, fem_w, volume_parameters(cfg), foundation, layered_volume_length_m(cfg))
+
+
+def profiles_text(p: Profiles) -> str:
+    """:func:`foundation_profiles` as markdown: the parameters, then one row per source."""
+    t, h, mu = p.layer
+    head = (
+        f"Volume term: T = {t:.2f} N/m (the three membranes' tensions), h = {h * 1e3:.3f} mm (the whole tissue), "
+        f"mu = {mu:.0f} Pa (Reuss mean of the layers' E / (2 (1 + nu)), nu = {POISSON_RATIO:g}): "
+        f"L = (T h^3 / (3 mu))^(1/4) = {p.length_m * 1e3:.2f} mm."
+    )
+    lines = [
+        head,
+        "",
+        "| w / depth (2 mm) | "
+        + " | ".join(f"r = {r * 1e3:g} mm" for r in PROFILE_RADII_M)
+        + " | rises above rest from (mm) | lowest at (mm) | lowest w / depth |",
+        "|---|" + "---|" * (len(PROFILE_RADII_M) + 3),
+    ]
+    for name, vals in p.values.items():
+        rise = p.rise_m[name]
+        r_lo, w_lo = p.lowest[name]
+        low = "- | -" if rise is None else f"{r_lo * 1e3:.1f} | {w_lo:+.3f}"
+        lines.append(
+            f"| {name} | "
+            + " | ".join(f"{vals[r]:+.3f}" for r in PROFILE_RADII_M)
+            + f" | {'never' if rise is None else f'{rise * 1e3:.1f}'} | {low} |"
+        )
+    return "\n".join(lines)
+
+
+def volume_findings(p: Profiles) -> str:
+    """What :func:`foundation_profiles` says about the heave's source."""
+    fem, rig, uni = (p.values[k] for k in ("FEM", "volume, rigid", "volume, uniform"))
+    _, h, _ = p.layer
+    foundation = p.foundation_length_m
+    flat = [r for r in FEATURE_RADII_M if p.fem_fine(r) < p.lowest["FEM"][1] + 0.005]
+    return "\n".join(
+        [
+            f"- The volume term alone (no Winkler term) heaves where the FEM does: it rises above rest from "
+            f"{p.rise_m['volume, rigid'] * 1e3:.1f} mm (rigid punch) or {p.rise_m['volume, uniform'] * 1e3:.1f} mm "
+            f"(uniform pressure) against the FEM's {p.rise_m['FEM'] * 1e3:.1f} mm, lowest at "
+            f"{p.lowest['volume, rigid'][0] * 1e3:.1f} / {p.lowest['volume, uniform'][0] * 1e3:.1f} mm against "
+            f"{p.lowest['FEM'][0] * 1e3:.1f} mm (the FEM's trough is flat, within 0.005 of its least value from "
+            f"{flat[0] * 1e3:.1f} to {flat[-1] * 1e3:.1f} mm). One length, "
+            f"L = {p.length_m * 1e3:.2f} mm from the config's tensions and moduli, no fit (the layered flux "
+            f"coefficient, `int zeta^2 / mu dzeta`, gives {p.layered_length_m * 1e3:.2f} mm; a top bonded against shear "
+            f"would give h^3 / (12 mu), L / sqrt(2)).",
+            f"- Sizes: the rigid punch's heave is {rig[8e-3] / fem[8e-3]:.1f} x the FEM's at 8 mm "
+            f"({rig[8e-3]:+.3f} against {fem[8e-3]:+.3f}) and its dimple at 4 mm {rig[4e-3]:+.3f} against "
+            f"{fem[4e-3]:+.3f}; the uniform pressure gives {uni[8e-3]:+.3f} at 8 mm and {uni[4e-3]:+.3f} at 4 mm; at "
+            f"10 mm {rig[10e-3]:+.3f} (rigid) and {uni[10e-3]:+.3f} (uniform) against {fem[10e-3]:+.3f}. "
+            "Thin-layer theory wants lateral lengths well above "
+            f"h = {h * 1e3:.1f} mm and L is {p.length_m / h:.2f} h: the positions hold, the sizes are approximate.",
+            f"- Kept beside the model's Winkler term (l = {foundation * 1e3:.2f} mm) the volume term does not heave at "
+            f"all: that needs l > L / sqrt(2) = {heave_needs_foundation_length_m(p.length_m) * 1e3:.2f} mm "
+            "(`heave_needs_foundation_length_m`). The heave needs the foundation's length recalibrated with the "
+            "volume term in it, or the Winkler term replaced.",
+        ]
+    )
+
+
 def aims_text() -> str:
     """The aims and the verdict rules."""
     return (
@@ -430,8 +904,35 @@ def findings(rs: list[Row], c: Checks) -> str:
     return "\n".join(lines)
 
 
-def markdown(rs: list[Row], c: Checks, command: str) -> str:
-    """The page: the command, the table, the aims and verdicts, the checks and the method."""
+IMPLIED_INTRO = """## What the reference implies for the coupling
+
+The model's coupling lowers the surface under one punch by the other's field, and each punch's chain presses
+`depth - w` (`CoupledTool`). Here `w` is solved for from the FEM's forces: `w: model curve` from
+`F_single_model(depth - w) = F_pair_FEM` (the model's relaxed single punch at x = d/2, 0.6-2.4 mm every 0.1 mm,
+log-log interpolation), `w: interaction` from `F_single_model(depth - w) / F_single_model(depth) = F_pair_FEM /
+F_single_FEM` (the FEM's interaction, free of the model's single-punch error), `w: FEM curve` from the FEM's own
+single-punch curve (its 0.25 mm load stops; `-` where the pair force is beyond the deepest stop). Beside them the FEM's
+single punch (the solve at x = d/2 on the pair's mesh) at the other punch's centre (x = -d/2) and averaged over the
+other's disk (radius 2.5 mm) with the weights uniform, parabolic `1 - s^2/a^2` and the rigid punch's pressure
+`1/sqrt(1 - s^2/a^2)` (Gauss-Jacobi in `s^2/a^2`). The FEM keeps its surface field at 2 mm only. Fractions of the
+depth, + lowered, - raised."""
+
+VOLUME_INTRO = """## Where the heave would come from
+
+A membrane of tension T over a thin incompressible layer (thickness h, shear modulus mu) bonded to a rigid base: the
+layer's pressure p drives a lateral flux `q = -(h^3/(3 mu)) grad p` (lubrication theory, top free of shear), which
+lowers the surface by `w = -(h^3/(3 mu)) Lap p`; the membrane carries `p = p_load + T Lap w`. Outside the load
+`L^4 Lap^2 w + w = 0`, `L^4 = T h^3/(3 mu)`, solved by `w = A ker(r/L) + B kei(r/L)` (Kelvin functions), which cross
+zero: the heave. `rigid`: the surface at the depth over the disk, and at the rim the layer's flux carries out the
+volume the punch displaces, `L^4 d/dr Lap w = -a depth/2` (no net volume). `uniform`: a uniform pressure over the disk
+(the Green's function of `L^4 Lap^2 + 1` over the disk), the centre at the depth. No Winkler term in either. FEM and
+model as in the profile check above (2 mm, the FEM's field every 0.5 mm)."""
+
+
+def markdown(rs: list[Row], c: Checks, command: str, imps: list[Implied] | None = None, prof: Profiles | None = None) -> str:
+    """The page: the command, the table, the aims and verdicts, the checks, the findings, what the reference implies
+    for the coupling (``imps``, :func:`implied`), where the heave would come from (``prof``,
+    :func:`foundation_profiles`), and the method."""
     ok = all(r.ok for r in rs)
     spread = max(r.model_pair_spread for r in rs)
     return "\n".join(
@@ -466,6 +967,8 @@ def markdown(rs: list[Row], c: Checks, command: str) -> str:
             "",
             findings(rs, c),
             "",
+            *([] if imps is None else [IMPLIED_INTRO, "", implied_text(imps), "", implied_findings(imps), ""]),
+            *([] if prof is None else [VOLUME_INTRO, "", profiles_text(prof), "", volume_findings(prof), ""]),
             METHOD,
         ]
     )
@@ -484,8 +987,10 @@ def main(argv=None) -> int:
     cfg = load_tissue_config(CONFIG)
     rs = rows(cfg, a.fresh)
     c = checks(cfg, a.fresh)
+    imps = implied(cfg, rs, a.fresh)
+    prof = foundation_profiles(cfg, a.fresh)
     command = "skin-sim two-punch" + "".join(f" {shlex.quote(x)}" for x in (argv if argv is not None else sys.argv[1:]))
-    text = markdown(rs, c, command)
+    text = markdown(rs, c, command, imps, prof)
     (out / "two_punch.md").write_text(text)
     print(table(rs))
     print()
@@ -496,6 +1001,14 @@ def main(argv=None) -> int:
     print(checks_text(c))
     print()
     print(findings(rs, c))
+    print()
+    print(implied_text(imps))
+    print()
+    print(implied_findings(imps))
+    print()
+    print(profiles_text(prof))
+    print()
+    print(volume_findings(prof))
     ok = all(r.ok for r in rs)
     print(f"\noverall: {'PASS' if ok else 'FAIL'}  ({time.perf_counter() - t0:.0f} s; wrote {out / 'two_punch.md'})")
     return 0 if ok else 1
