@@ -101,6 +101,17 @@ def _colour_pixels(png: Path) -> dict:
     return {"cyan": int(cyan.sum()), "orange": int(orange.sum()), "tool": int(tool.sum())}
 
 
+def _hands_shown(b, more: str = "") -> dict:
+    """What the page shows of each hand: its force, arrow length, arrow label, tool, read-out; the ``Force`` number and
+    its hand; and the JavaScript object entries ``more`` (``v`` is ``window.skinView``)."""
+    return b.evaluate(
+        "(() => { const v = window.skinView; return {forces: v.handForces, arrows: v.handArrowLenMm, "
+        "labels: v.handLabels, tools: v.handTools, force: document.getElementById('force').textContent, "
+        "shown: Object.fromEntries([...document.querySelectorAll('.hand-force')].map((e) => [e.dataset.hand, "
+        f"e.textContent])), hand: document.getElementById('force-hand').textContent, {more}}}; }})()"
+    )
+
+
 @pytest.mark.ros
 @needs_browser
 def test_live_page_draws_both_tools_and_both_force_arrows(ros_domain, tmp_path):
@@ -159,12 +170,7 @@ def test_live_page_draws_both_tools_and_both_force_arrows(ros_domain, tmp_path):
             n = b.evaluate("window.skinView.frames")
             b.wait_for(f"window.skinView.renderedFrames >= {n}", 30, "the held frame rendered")
             shot = b.screenshot(tmp_path / "view_two_hands.png")
-            s = b.evaluate(
-                "(() => { const v = window.skinView; return {forces: v.handForces, arrows: v.handArrowLenMm, "
-                "labels: v.handLabels, tools: v.handTools, force: document.getElementById('force').textContent, "
-                "shown: Object.fromEntries([...document.querySelectorAll('.hand-force')].map((e) => [e.dataset.hand, "
-                "e.textContent])), hand: document.getElementById('force-hand').textContent}; })()"
-            )
+            s = _hands_shown(b)
             b.release()
             assert all(s["forces"][h] > 0.01 for h in HANDS), s  # still the held frame: both pressing
             assert s["tools"] == {"right": "cylinder", "left": "cylinder"}, s  # two flat punches, each drawn
@@ -324,14 +330,11 @@ def test_bag_page_draws_both_hands_of_a_two_hand_bag(tmp_path):
             n = b.evaluate("window.skinView.frames")
             b.wait_for(f"window.skinView.renderedFrames >= {n}", 20, "a render of the last frame")
             shot = b.screenshot(tmp_path / "view_two_hands_bag.png")
-            s = b.evaluate(
-                "(() => { const v = window.skinView; return {forces: v.handForces, arrows: v.handArrowLenMm, "
-                "labels: v.handLabels, tools: v.handTools, force: document.getElementById('force').textContent, "
-                "shown: Object.fromEntries([...document.querySelectorAll('.hand-force')].map((e) => [e.dataset.hand, "
-                "e.textContent])), hand: document.getElementById('force-hand').textContent, plots: v.plotLabels, "
-                "depthPlots: v.plotDepthLabels, gridDt: v.gridDtS, "
+            s = _hands_shown(
+                b,
+                "plots: v.plotLabels, depthPlots: v.plotDepthLabels, gridDt: v.gridDtS, "
                 "tools_source: document.getElementById('tools-source').textContent, "
-                " label: document.getElementById('tlabel').textContent}; })()"
+                "label: document.getElementById('tlabel').textContent",
             )
     finally:
         src.stop()
