@@ -294,6 +294,23 @@ def test_single_hand_bag_info_and_frames_have_no_hands():
     assert "hands" not in src.data.header_at(1.5) and "hands" not in src.data.timeline()
 
 
+def test_two_hand_bag_tools_from_params(tmp_path, capsys):
+    """``--params`` replaces the preset the bag names; a missing file is one line and exit 2."""
+    from skin_sim_node.view import main
+    from skin_sim_node.view.bag import BagSource
+
+    params = tmp_path / "p.yaml"
+    params.write_text("/**/skin_sim_node:\n  ros__parameters:\n    second_tool_shape: sphere\n    second_tool_radius_m: 0.004\n")
+    info = BagSource(BAG, params=params).info()
+    assert info["hands"] == [
+        {"ns": "right", "shape": "flat", "radius_m": 0.0025},  # the schema's tissue.tool.*: the file sets none
+        {"ns": "left", "shape": "sphere", "radius_m": 0.004},
+    ]
+    assert info["tools_source"] == str(params)
+    assert main([*map(str, BAG), "--params", str(tmp_path / "none.yaml")]) == 2
+    assert "--params" in capsys.readouterr().err
+
+
 @needs_browser
 def test_bag_page_draws_both_hands_of_a_two_hand_bag(tmp_path):
     """The golden two-hand bag in ``skin-sim view``'s bag player and headless Chromium: seeked to the grid instant where
