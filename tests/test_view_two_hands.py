@@ -1,9 +1,11 @@
-"""skin-sim view on a two-hand node (issue 32): both tools, both force arrows, each hand's force read-out.
+"""skin-sim view on a two-hand node and a two-hand bag (issue 32): both tools, both force arrows, each hand's force.
 
 The view finds the hands from the node's parameters (``hand_ns``, ``second_hand_ns``, ``second_tool_*``) and follows each
 hand's topics (``<hand>/tool/pose``, ``<hand>/tool/wrench``, ...). The browser test runs real processes over DDS: the
 node with two flat punches (``right``: the 2.5 mm punch of ``tissue.tool.*``; ``left``: the 5 mm pad of
-``second_tool_radius_m``), two mock tools pressing 6 mm apart, the view, and headless Chromium.
+``second_tool_radius_m``), two mock tools pressing 6 mm apart, the view, and headless Chromium. The bag tests play the
+golden two-hand bag ``tests/data/two_hands_needle_finger`` (its input: each hand's pose; its expected output: each hand's
+wrench and contact, the tissue's grids) in process, as tests/test_view.py plays its bag.
 """
 
 from __future__ import annotations
@@ -23,6 +25,10 @@ SHOTS = Path(os.environ.get("SKIN_SIM_SHOTS", REPO / "out" / "view_shots"))
 regenerates the one docs/view.md shows."""
 needs_browser = pytest.mark.skipif(find_browser() is None, reason="no Chromium on PATH (CI: apt-get install chromium)")
 HANDS = ("right", "left")
+GOLDEN = REPO / "tests" / "data" / "two_hands_needle_finger"
+BAG = [Path(os.path.relpath(GOLDEN / p)) for p in ("input", "expected")]  # relative: the page's header names them
+"""The golden two-hand bag (``custom_data``: ``skin_sim.hands: right,left``, ``skin_sim.params: two_hands.yaml``): the right
+hand a needle going straight in at (0, 0), the left a 5 mm flat pad pressing at (3 mm, 0)."""
 OFFSET_M = 0.006
 """The left hand presses this far along +x from the right (m), as in tests/test_two_hands_ros.py. The pads overlap by
 1.5 mm in x (radii 2.5 and 5 mm): the node's overlap rule holds there, and the page draws both where they are."""
@@ -69,9 +75,10 @@ def test_hands_option_is_checked():
     assert main(["--hands", "a,b,c"]) == 2
 
 
-def test_a_two_hand_bag_plays_one_hand_whatever_the_topic_order():
-    """A bag does not say which hand is first nor each tool's radius: the bag view plays one hand, the same one for
-    every topic (pose and wrench of one hand, never the left pose with the right force)."""
+def test_a_two_hand_bag_without_its_hands_named_plays_one_hand_whatever_the_topic_order():
+    """A bag that does not say its hands (no ``skin_sim.hands``: written before issue 32) does not say which hand is
+    first: the bag view plays one hand, the same one for every topic (pose and wrench of one hand, never the left pose
+    with the right force)."""
     from skin_sim_node.view.bag import find_topic
 
     pose, wrench = "geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/WrenchStamped"
@@ -92,6 +99,17 @@ def _colour_pixels(png: Path) -> dict:
     orange = (r > 0.85) & (g > 0.4) & (g < 0.7) & (b < 0.2)
     tool = (b > r + 0.08) & (b >= g) & (area.mean(axis=2) > 0.2) & ~cyan
     return {"cyan": int(cyan.sum()), "orange": int(orange.sum()), "tool": int(tool.sum())}
+
+
+def _hands_shown(b, more: str = "") -> dict:
+    """What the page shows of each hand: its force, arrow length, arrow label, tool, read-out; the ``Force`` number and
+    its hand; and the JavaScript object entries ``more`` (``v`` is ``window.skinView``)."""
+    return b.evaluate(
+        "(() => { const v = window.skinView; return {forces: v.handForces, arrows: v.handArrowLenMm, "
+        "labels: v.handLabels, tools: v.handTools, force: document.getElementById('force').textContent, "
+        "shown: Object.fromEntries([...document.querySelectorAll('.hand-force')].map((e) => [e.dataset.hand, "
+        f"e.textContent])), hand: document.getElementById('force-hand').textContent, {more}}}; }})()"
+    )
 
 
 @pytest.mark.ros
@@ -152,12 +170,7 @@ def test_live_page_draws_both_tools_and_both_force_arrows(ros_domain, tmp_path):
             n = b.evaluate("window.skinView.frames")
             b.wait_for(f"window.skinView.renderedFrames >= {n}", 30, "the held frame rendered")
             shot = b.screenshot(tmp_path / "view_two_hands.png")
-            s = b.evaluate(
-                "(() => { const v = window.skinView; return {forces: v.handForces, arrows: v.handArrowLenMm, "
-                "labels: v.handLabels, tools: v.handTools, force: document.getElementById('force').textContent, "
-                "shown: Object.fromEntries([...document.querySelectorAll('.hand-force')].map((e) => [e.dataset.hand, "
-                "e.textContent])), hand: document.getElementById('force-hand').textContent}; })()"
-            )
+            s = _hands_shown(b)
             b.release()
             assert all(s["forces"][h] > 0.01 for h in HANDS), s  # still the held frame: both pressing
             assert s["tools"] == {"right": "cylinder", "left": "cylinder"}, s  # two flat punches, each drawn
@@ -183,3 +196,177 @@ def test_live_page_draws_both_tools_and_both_force_arrows(ros_domain, tmp_path):
                 "the node's parameters on the page",
             )
             print(f"two hands on the page: forces {s['forces']}, arrows {s['arrows']} mm, pixels {px}")
+
+
+# --- a two-hand bag (issue 32) ----------------------------------------------------------------------------------------
+def _recorded_wrenches(t0_ns: int) -> dict[str, tuple]:
+    """Each hand's ``/<hand>/tool/wrench`` force z of the golden bag's expected output, read with the bag readers
+    (not the view's code): hand -> (times in s from ``t0_ns``, forces in N)."""
+    import numpy as np
+
+    from msgs_schema import convert as cv
+    from skin_sim_node.bags.io import deserialize, iter_raw, open_bag
+
+    rows: dict[str, list] = {h: [] for h in HANDS}
+    with open_bag(GOLDEN / "expected") as reader:
+        topics = [f"/{h}/tool/wrench" for h in HANDS]
+        for topic, msgtype, t_ns, raw in iter_raw(GOLDEN / "expected", reader, topics):
+            rows[topic.split("/")[1]].append(((t_ns - t0_ns) * 1e-9, cv.read_wrench(deserialize(raw, msgtype))[2][2]))
+    return {h: tuple(np.array(c) for c in zip(*sorted(r))) for h, r in rows.items()}
+
+
+def _recorded_at(rec: tuple, t_s: float) -> float:
+    import numpy as np
+
+    t, f = rec
+    return float(f[int(np.searchsorted(t, t_s, side="right")) - 1])
+
+
+@pytest.fixture(scope="module")
+def two_hand_bag():
+    from skin_sim_node.view.bag import BagSource
+
+    return BagSource(BAG)
+
+
+def test_two_hand_bag_frames_carry_each_hands_tool_and_force_and_a_single_hand_bag_is_unchanged(two_hand_bag):
+    """The bag-to-frames hand logic: each hand's topics under its namespace (whatever the topics' order), each hand's
+    fields in the header's ``hands`` (the first hand's also at the top level, as the live view's), each hand's largest
+    force while playing, each hand's line in the timeline, the tools from the preset the bag names."""
+    import numpy as np
+
+    from skin_sim_node.view.bag import BagData, bag_hands, hand_topic_keys
+
+    pose, wrench, grid = "geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/WrenchStamped", "sensor_msgs/msg/Image"
+    for order in (HANDS, HANDS[::-1]):
+        types = {f"/{h}/tool/pose": pose for h in order} | {f"/{h}/tool/wrench": wrench for h in order}
+        types["/tissue/layer_heights"] = grid
+        keys = hand_topic_keys(types, HANDS)
+        assert keys["/right/tool/pose"] == (0, "tool_pose") and keys["/left/tool/wrench"] == (1, "tool_wrench"), keys
+        assert keys["/tissue/layer_heights"] == (0, "layer_heights")
+        assert hand_topic_keys(types, ())["/left/tool/pose"] == (0, "tool_pose")  # no hands named: one hand, as before
+        assert "/right/tool/pose" not in hand_topic_keys(types, ())
+    assert bag_hands(BAG) == HANDS
+    src = two_hand_bag
+    d = src.data
+    assert [s.ns for s in d.hands] == list(HANDS) and len(d.grids) > 0
+    rec = _recorded_wrenches(d.t0_ns)
+    for t in (*d.grid_t[1:], 1.2345):  # the left hand's first sample comes 0.5 ms in
+        h = d.header_at(float(t))
+        assert [x["ns"] for x in h["hands"]] == list(HANDS)
+        for x in h["hands"]:
+            assert x["force"][2] == pytest.approx(_recorded_at(rec[x["ns"]], float(t)), abs=1e-12), (t, x)
+        assert h["force"] == h["hands"][0]["force"] and h["tool"] == h["hands"][0]["tool"]  # the first hand on top
+        assert h["hands"][1]["tool"][0] == pytest.approx(0.003)  # the left hand pressed 3 mm along +x
+    info = src.info()
+    assert info["hands"] == [
+        {"ns": "right", "shape": "needle", "radius_m": 0.0025},
+        {"ns": "left", "shape": "flat", "radius_m": 0.005},
+    ]
+    assert info["tool_shape"] == "needle" and "two_hands.yaml" in info["tools_source"]
+    tl = d.timeline()
+    assert [x["ns"] for x in tl["hands"]] == list(HANDS) and tl["force_n"] == tl["hands"][0]["force_n"]
+    assert max(tl["hands"][1]["force_n"]) == pytest.approx(rec["left"][1].max(), abs=1e-6)
+    # playing: each hand's largest force since the last frame
+    src.frame_at(1.0)
+    src.playing = True
+    try:
+        h, _, _ = src.frame_at(1.6)
+    finally:
+        src.playing = False
+    for x in h["hands"]:
+        t, f = rec[x["ns"]]
+        assert x["force_max"] == pytest.approx(f[(t > 1.0) & (t <= 1.6)].max(), abs=1e-12), x
+    # the bag without its hands named: one hand (the shortest topic name), no hands on the page, as before
+    one = BagData(BAG)
+    assert len(one.hands) == 1 and "hands" not in one.header_at(1.5) and "hands" not in one.timeline()
+    assert np.array_equal(one.wrench[:, 2], rec["left"][1])  # find_topic: /left/ sorts first
+
+
+def test_single_hand_bag_info_and_frames_have_no_hands():
+    from skin_sim_node.view.bag import BagSource
+
+    src = BagSource(
+        [REPO / "tests" / "data" / "press_hold_release" / "input", REPO / "tests" / "data" / "press_hold_release" / "expected"]
+    )
+    info = src.info()
+    assert "hands" not in info and "tools_source" not in info and info["tool_shape"] == "flat"
+    assert "hands" not in src.data.header_at(1.5) and "hands" not in src.data.timeline()
+
+
+def test_two_hand_bag_tools_from_params(tmp_path, capsys):
+    """``--params`` replaces the preset the bag names; a missing file is one line and exit 2."""
+    from skin_sim_node.view import main
+    from skin_sim_node.view.bag import BagSource
+
+    params = tmp_path / "p.yaml"
+    params.write_text("/**/skin_sim_node:\n  ros__parameters:\n    second_tool_shape: sphere\n    second_tool_radius_m: 0.004\n")
+    info = BagSource(BAG, params=params).info()
+    assert info["hands"] == [
+        {"ns": "right", "shape": "flat", "radius_m": 0.0025},  # the schema's tissue.tool.*: the file sets none
+        {"ns": "left", "shape": "sphere", "radius_m": 0.004},
+    ]
+    assert info["tools_source"] == str(params)
+    assert main([*map(str, BAG), "--params", str(tmp_path / "none.yaml")]) == 2
+    assert "--params" in capsys.readouterr().err
+
+
+@needs_browser
+def test_bag_page_draws_both_hands_of_a_two_hand_bag(tmp_path):
+    """The golden two-hand bag in ``skin-sim view``'s bag player and headless Chromium: seeked to the grid instant where
+    both hands press hardest together, the page shows the right hand's needle and the left hand's pad, both arrows and
+    both force read-outs, each the bag's recorded wrench of that hand at that instant, and both hands' force lines."""
+    import threading
+
+    from skin_sim_node.view.bag import BagSource
+    from skin_sim_node.view.browser import Browser
+    from skin_sim_node.view.server import ViewServer
+
+    src = BagSource(BAG)
+    d = src.data
+    rec = _recorded_wrenches(d.t0_ns)
+    # the picture's instant: a grid instant (the grid drawn is the hands' instant), both pressing, the weaker the largest
+    t_s = float(max(d.grid_t, key=lambda t: min(_recorded_at(rec[h], float(t)) for h in HANDS)))
+    want = {h: _recorded_at(rec[h], t_s) for h in HANDS}
+    assert all(f > 0.5 for f in want.values()), (t_s, want)
+    srv = ViewServer(src, port=0).start()
+    th = threading.Thread(target=src.run, args=(srv, 180.0), daemon=True)
+    th.start()
+    try:
+        with Browser(srv.url) as b:
+            b.wait_for(
+                "window.skinView && window.skinView.gridFrames > 0 && (window.skinView.info.hands || []).length === 2",
+                60,
+                "the first grid and the two hands",
+            )
+            b.evaluate("window.skinViewCamera([3, -58, 20], [3, 0, -3])")  # from the front: both tools side by side
+            b.evaluate(f"fetch('/api/seek', {{method: 'POST', body: JSON.stringify({{t_s: {t_s}}})}}).then(r => r.json())")
+            close = " && ".join(f"Math.abs(window.skinView.handForces.{h} - {want[h]}) < 1e-4" for h in HANDS)
+            b.wait_for(f"{close} && Math.abs(window.skinView.t_s - {t_s}) < 1e-9", 20, f"both hands' forces at {t_s} s")
+            b.wait_for("window.skinView.plotLabels && window.skinView.plotLabels.length === 2", 20, "the plots")
+            n = b.evaluate("window.skinView.frames")
+            b.wait_for(f"window.skinView.renderedFrames >= {n}", 20, "a render of the last frame")
+            shot = b.screenshot(tmp_path / "view_two_hands_bag.png")
+            s = _hands_shown(
+                b,
+                "plots: v.plotLabels, depthPlots: v.plotDepthLabels, gridDt: v.gridDtS, "
+                "tools_source: document.getElementById('tools-source').textContent, "
+                "label: document.getElementById('tlabel').textContent",
+            )
+    finally:
+        src.stop()
+        th.join(timeout=5)
+        srv.close()
+    assert s["tools"] == {"right": "needle", "left": "cylinder"}, s  # the preset's needle and the 5 mm pad
+    for h in HANDS:
+        assert float(s["shown"][h]) == pytest.approx(want[h], abs=1e-4), s  # each read-out: the bag's wrench
+        assert s["labels"][h] == f"{h} {want[h]:.3f} N" and s["arrows"][h] > 0, s  # each arrow labelled
+    assert float(s["force"]) == pytest.approx(want["right"], abs=1e-4) and s["hand"] == "(right)", s
+    assert s["tools_source"] == "tools from two_hands.yaml (recorded with the bag)", s
+    assert s["plots"] == list(HANDS) and s["depthPlots"] == list(HANDS), s  # both hands' force lines, labelled
+    assert abs(s["gridDt"]) < 1e-3 and s["label"].startswith(f"{t_s:.3f}"), s  # the grid drawn is of that instant
+    px = _colour_pixels(shot)
+    assert px["cyan"] > 50 and px["orange"] > 50 and px["tool"] > 500, px  # both arrows and the pad drawn
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(shot, SHOTS / "view_two_hands_bag.png")
+    print(f"two-hand bag at {t_s:.3f} s: forces {want}, arrows {s['arrows']} mm, pixels {px}")

@@ -82,6 +82,12 @@ def main(argv=None) -> int:
         help="the hands to follow, comma-separated namespaces (e.g. right,left; a leading comma: the first hand has the "
         "single-tool names) instead of the node's hand_ns / second_hand_ns parameters (the default)",
     )
+    ap.add_argument(
+        "--params",
+        type=Path,
+        help="a two-hand bag: the parameter file its hands' tools are drawn from (default: the shipped preset the bag "
+        "names in skin_sim.params)",
+    )
     ap.add_argument("--screenshot", type=Path, help="open the page in headless Chromium and save a PNG after --shot-after-s")
     ap.add_argument("--shot-after-s", type=float, default=3.0, help="delay before the screenshot")
     ap.add_argument(
@@ -96,12 +102,17 @@ def main(argv=None) -> int:
     hint = None
     source: BagSource | LiveSource
     if args.bags:
+        from msgs_schema.spec import ConfigError
+
         from ..bags.io import BagError
         from .bag import BagSource
 
+        if args.params is not None and not args.params.is_file():
+            print(f"skin-sim view: error: --params {args.params}: no such file", file=sys.stderr)
+            return 2
         try:
-            source = BagSource(args.bags, rate_hz=args.rate_hz)
-        except BagError as exc:
+            source = BagSource(args.bags, rate_hz=args.rate_hz, params=args.params)
+        except (BagError, ConfigError) as exc:
             print(f"skin-sim view: error: {exc}", file=sys.stderr)
             return 2
         print(f"skin-sim view: {len(source.data.grids)} grid frames, {source.data.duration_s:.2f} s of bag", flush=True)

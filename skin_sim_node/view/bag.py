@@ -19,13 +19,18 @@ from tqdm import tqdm
 
 from msgs_schema import convert as cv
 from msgs_schema.parameters import SPEC_BY_NAME
-from msgs_schema.topics import TOPICS
+from msgs_schema.tissue import LAYER_NAMES
+from msgs_schema.topics import TOPICS, hand_topic
 
-from ..bags.io import BagError, deserialize, iter_raw, open_bag, register_project_type, topic_types
+from ..bags.io import BagError, custom_data, deserialize, iter_raw, open_bag, register_project_type, topic_types
+from ..scenes import DEFAULT_PARAMS
 from . import frames as fr
 from .frames import decimate, default_thickness_m, diag_message, encode_frame, tool_depth_m
 
 KEYS = ("tool_pose", "tool_wrench", "contact", "layer_heights", "diagnostics", "needle")
+HAND_KEYS = ("tool_pose", "tool_wrench", "contact", "needle")
+"""The keys read per hand in a two-hand bag (each under its namespace: ``msgs_schema.topics.HAND_TOPICS``); the others
+are the tissue's."""
 
 
 def register_needle_type(msgdef: str | None) -> bool:
@@ -44,19 +49,146 @@ def find_topic(types: dict[str, str], key: str) -> str | None:
     return min(hits, key=lambda t: (len(t), t)) if hits else None
 
 
-class BagData:
-    """All contract topics of the bags, as arrays on bag time (ns)."""
+def bag_hands(paths) -> tuple[str, ...]:
+    """The hands the bags say they hold (``custom_data`` ``skin_sim.hands``, e.g. ``right,left``: the first hand first), of
+    the first bag that says; () when none does (a single-hand bag, or one written before issue 32)."""
+    for path in paths:
+        named = custom_data(path).get("skin_sim.hands", "")
+        if named:
+            return tuple(n.strip() for n in named.split(","))
+    return ()
 
-    def __init__(self, paths: list[Path]):
+
+def bag_params(paths, params: Path | None = None) -> tuple[Path | None, str]:
+    """The parameter file the hands' tools are drawn from: ``params`` (``--params``), else the shipped preset the bags
+    name in ``skin_sim.params`` (as ``skin-sim replay`` takes it); (None, why) when there is neither."""
+    if params is not None:
+        return Path(params), str(params)
+    for path in paths:
+        recorded = custom_data(path).get("skin_sim.params")
+        if recorded:
+            shipped = DEFAULT_PARAMS.parent / recorded
+            if shipped.is_file():
+                return shipped, f"{recorded} (recorded with the bag)"
+    return None, "the schema's defaults (the bag names no shipped preset: give --params)"
+
+
+def hand_tools(params: Path | None) -> tuple[dict, list[tuple[str, float]]]:
+    """The geometry the page draws and each hand's tool ``(shape, radius_m)`` from parameter file ``params``, as the node
+    builds them (:func:`skin_sim_node.configure.hand_configs`: the first hand's ``tissue.tool.*``, the second's
+    ``second_tool_shape`` / ``second_tool_radius_m``); the schema's defaults without a file."""
+    from ..configure import configure, hand_configs
+    from ..model.config import load_yaml
+
+    flat: dict[str, Any] = load_yaml(params) if params is not None else {}
+    if not flat.get("second_hand_ns"):  # the bag has two hands whatever the file says: the second takes second_tool_*
+        flat["second_hand_ns"] = "left" if flat.get("hand_ns") != "left" else "right"
+    cfgs = hand_configs(flat, configure(flat)[1])
+
+    def value(name):
+        return flat.get(name, SPEC_BY_NAME[name].default)
+
+    geometry = {
+        "sheet_m": [value("tissue.sheet.size_x_m"), value("tissue.sheet.size_y_m")],
+        "thickness_m": [value(f"tissue.layers.{n}.thickness_m") for n in LAYER_NAMES],
+        "needle_outer_diameter_m": value("tissue.needle.outer_diameter_m"),
+    }
+    return geometry, [(c.tool_shape, c.tool_radius_m) for c in cfgs]
+
+
+def hand_topic_keys(types: dict[str, str], hands: tuple[str, ...]) -> dict[str, tuple[int, str]]:
+    """Bag topic -> (hand index, contract key): each hand's topics (:data:`HAND_KEYS`) under its namespace
+    (``msgs_schema.topics.hand_topic``) and of the right type, and the tissue's (grid, diagnostics: hand 0) by
+    :func:`find_topic`. With fewer than two hands, every key by :func:`find_topic` (one hand, as before)."""
+    out: dict[str, tuple[int, str]] = {}
+    for key in KEYS:
+        if len(hands) < 2 or key not in HAND_KEYS:
+            topic = find_topic(types, key)
+            if topic is not None:
+                out[topic] = (0, key)
+            continue
+        for i, ns in enumerate(hands):
+            topic = "/" + hand_topic(key, ns).lstrip("/")
+            if types.get(topic) == TOPICS[key].type:
+                out[topic] = (i, key)
+    return out
+
+
+class HandSeries:
+    """One hand's recorded topics as arrays on bag time (s from the recording's start): pose, wrench, contact, needle."""
+
+    def __init__(self, ns: str, series: dict[str, list], t0_ns: int):
+        self.ns = ns
+
+        def table(key, width):
+            rows = sorted(series[key], key=lambda r: r[0])
+            a = np.array(rows, dtype=np.float64).reshape(-1, width)
+            return ((a[:, 0] - t0_ns) * 1e-9) if len(a) else np.zeros(0), a[:, 1:]
+
+        self.pose_t, pose = table("tool_pose", 8)
+        self.pose, self.pose_q = pose[:, :3], pose[:, 3:]
+        self.wrench_t, self.wrench = table("tool_wrench", 4)
+        self.contact_t, self.contact = table("contact", 7)
+        needles = sorted(series["needle"], key=lambda r: r[0])
+        self.needle_t = np.array([(t - t0_ns) * 1e-9 for t, _ in needles])
+        track = fr.TrackMemory()  # the deepest insertion of each track, in bag order: a seek shows the track so far
+        self.needles = [track.update(n) for _, n in needles]
+
+    def fields_at(self, t_s: float, since_s: float | None = None) -> dict[str, Any]:
+        """This hand's part of the frame header at ``t_s`` (tool, depth, needle, force, contact); with ``since_s`` (playing)
+        also the largest force since then (``force_max``, as the live view's)."""
+        h: dict[str, Any] = {}
+        i = BagData.index_at(self.pose_t, t_s)
+        if i >= 0:
+            h["tool"] = self.pose[i].tolist()
+            h["depth_m"] = tool_depth_m(self.pose[i][2])
+            h["tool_q"] = self.pose_q[i].tolist()
+        i = BagData.index_at(self.needle_t, t_s)
+        if i >= 0:
+            h["needle"] = self.needles[i]
+        i = BagData.index_at(self.wrench_t, t_s)
+        if i >= 0:
+            h["force"] = self.wrench[i].tolist()
+            if since_s is not None and since_s < t_s:
+                lo, hi = np.searchsorted(self.wrench_t, [since_s, t_s], side="right")
+                if hi > lo:
+                    h["force_max"] = float(self.wrench[lo:hi, 2].max())
+        i = BagData.index_at(self.contact_t, t_s)
+        if i >= 0:
+            h["compression_m"], h["stress_pa"] = self.contact[i][:3].tolist(), self.contact[i][3:].tolist()
+            h.setdefault("depth_m", float(self.contact[i][:3].sum()))  # no pose topic: total compression
+        return h
+
+    def timeline(self) -> dict:
+        """This hand's whole recording for the page's plots: force against time, and depth at those times."""
+        t, f = decimate(self.wrench_t, self.wrench[:, 2]) if len(self.wrench_t) else (np.zeros(0), np.zeros(0))
+        if len(self.pose_t):
+            depth = np.maximum(0.0, -np.interp(t, self.pose_t, self.pose[:, 2]))
+        elif len(self.contact_t):
+            depth = np.interp(t, self.contact_t, self.contact[:, :3].sum(axis=1))
+        else:
+            depth = np.zeros_like(t)
+        return {"t_s": t.round(5).tolist(), "force_n": f.round(6).tolist(), "depth_m": depth.round(8).tolist()}
+
+
+class BagData:
+    """All contract topics of the bags, as arrays on bag time (ns).
+
+    ``hands``: the hands' namespaces (``skin_sim.hands`` of a two-hand bag, :func:`bag_hands`): each hand's topics are
+    read under its namespace into its own :class:`HandSeries` (``self.hands``, the first hand first). Without (or with one
+    hand) the bag plays one hand, each topic found by :func:`find_topic`. The first hand's arrays are also this object's
+    (``pose_t``, ``wrench``, ...)."""
+
+    def __init__(self, paths: list[Path], hands: tuple[str, ...] = ()):
         self.paths = [Path(p) for p in paths]
-        series: dict[str, list] = {k: [] for k in KEYS}
+        names = tuple(hands) if len(hands) > 1 else ("",)
+        per_hand: list[dict[str, list]] = [{k: [] for k in HAND_KEYS} for _ in names]
+        series: dict[str, list] = {k: [] for k in KEYS if k not in HAND_KEYS}
         for path in self.paths:
             with open_bag(path) as reader:
                 types = topic_types(reader)
-                topics = {find_topic(types, k): k for k in KEYS}
-                topics.pop(None, None)
-                needle_topic = next((t for t, k in topics.items() if k == "needle"), None)
-                if needle_topic is not None:
+                topics = hand_topic_keys(types, names)
+                for needle_topic in [t for t, (_, k) in topics.items() if k == "needle"]:
                     conn = next(c for c in reader.connections if c.topic == needle_topic)
                     if not register_needle_type(getattr(conn, "msgdef", None) and getattr(conn.msgdef, "data", None)):
                         topics.pop(needle_topic)  # no definition to read it with: the bag plays without the needle
@@ -66,50 +198,43 @@ class BagData:
                 for topic, msgtype, t_ns, raw in tqdm(
                     iter_raw(path, reader, list(topics)), total=total, desc=f"reading {path.name}", unit="msg", leave=False
                 ):
-                    key = topics[topic]
+                    hand, key = topics[topic]
+                    rows = per_hand[hand][key] if key in HAND_KEYS else series[key]
                     msg = deserialize(raw, msgtype)
                     if key == "tool_pose":
                         q = msg.pose.orientation
-                        series[key].append((t_ns, *cv.read_pose(msg)[2], q.x, q.y, q.z, q.w))
+                        rows.append((t_ns, *cv.read_pose(msg)[2], q.x, q.y, q.z, q.w))
                     elif key == "needle":
-                        series[key].append((t_ns, fr.read_needle(msg)))
+                        rows.append((t_ns, fr.read_needle(msg)))
                     elif key == "tool_wrench":
-                        series[key].append((t_ns, *cv.read_wrench(msg)[2]))
+                        rows.append((t_ns, *cv.read_wrench(msg)[2]))
                     elif key == "contact":
                         _, comp, _, stress = cv.read_contact(msg)
-                        series[key].append((t_ns, *comp[:3], *stress[:3]))
+                        rows.append((t_ns, *comp[:3], *stress[:3]))
                     elif key == "layer_heights":
-                        series[key].append((t_ns, cv.read_image(msg).astype(np.float32)))
+                        rows.append((t_ns, cv.read_image(msg).astype(np.float32)))
                     else:
                         for st in msg.status:
                             values = {kv.key: kv.value for kv in st.values}
                             if "achieved_rate_hz" in values:
-                                series[key].append((t_ns, diag_message(int(st.level), st.message, values)))
-        if not any(series.values()):
+                                rows.append((t_ns, diag_message(int(st.level), st.message, values)))
+        everything = [*series.values(), *(s for h in per_hand for s in h.values())]
+        if not any(everything):
             raise BagError(f"{', '.join(map(str, self.paths))}: the skin-sim topics are present but empty")
-        starts = [s[0][0] for s in series.values() if s]
-        ends = [s[-1][0] for s in series.values() if s]
-        self.t0_ns, self.t1_ns = min(starts), max(ends)
-
-        def table(key, width):
-            rows = sorted(series[key], key=lambda r: r[0])
-            a = np.array(rows, dtype=np.float64).reshape(-1, width)
-            return ((a[:, 0] - self.t0_ns) * 1e-9) if len(a) else np.zeros(0), a[:, 1:]
-
-        self.pose_t, pose = table("tool_pose", 8)
-        self.pose, self.pose_q = pose[:, :3], pose[:, 3:]
-        self.wrench_t, self.wrench = table("tool_wrench", 4)
-        self.contact_t, self.contact = table("contact", 7)
+        self.t0_ns = min(s[0][0] for s in everything if s)
+        self.t1_ns = max(max(r[0] for r in s) for s in everything if s)
+        self.hands = [HandSeries(ns, h, self.t0_ns) for ns, h in zip(names, per_hand)]
+        first = self.hands[0]
+        self.pose_t, self.pose, self.pose_q = first.pose_t, first.pose, first.pose_q
+        self.wrench_t, self.wrench = first.wrench_t, first.wrench
+        self.contact_t, self.contact = first.contact_t, first.contact
+        self.needle_t, self.needles = first.needle_t, first.needles
         grids = sorted(series["layer_heights"], key=lambda r: r[0])
         self.grid_t = np.array([(t - self.t0_ns) * 1e-9 for t, _ in grids])
         self.grids = [g for _, g in grids]
         diags = sorted(series["diagnostics"], key=lambda r: r[0])
         self.diag_t = np.array([(t - self.t0_ns) * 1e-9 for t, _ in diags])
         self.diags = [d for _, d in diags]
-        needles = sorted(series["needle"], key=lambda r: r[0])
-        self.needle_t = np.array([(t - self.t0_ns) * 1e-9 for t, _ in needles])
-        track = fr.TrackMemory()  # the deepest insertion of each track, in bag order: a seek shows the track so far
-        self.needles = [track.update(n) for _, n in needles]
 
     @property
     def duration_s(self) -> float:
@@ -120,49 +245,37 @@ class BagData:
         """Index of the newest sample at or before ``t_s`` (-1: none yet)."""
         return int(np.searchsorted(ts, t_s, side="right")) - 1
 
-    def header_at(self, t_s: float) -> dict:
+    def header_at(self, t_s: float, since_s: float | None = None) -> dict:
+        """The frame header at ``t_s``: the first hand's fields at the top level, with two hands each hand's in ``hands``
+        (:func:`frames.add_hands`, as the live view's); ``since_s``: see :meth:`HandSeries.fields_at`."""
         h: dict[str, Any] = {"t_s": t_s, "duration_s": self.duration_s}
-        i = self.index_at(self.pose_t, t_s)
-        if i >= 0:
-            h["tool"] = self.pose[i].tolist()
-            h["depth_m"] = tool_depth_m(self.pose[i][2])
-            h["tool_q"] = self.pose_q[i].tolist()
-        i = self.index_at(self.needle_t, t_s)
-        if i >= 0:
-            h["needle"] = self.needles[i]
-        i = self.index_at(self.wrench_t, t_s)
-        if i >= 0:
-            h["force"] = self.wrench[i].tolist()
-        i = self.index_at(self.contact_t, t_s)
-        if i >= 0:
-            h["compression_m"], h["stress_pa"] = self.contact[i][:3].tolist(), self.contact[i][3:].tolist()
-            h.setdefault("depth_m", float(self.contact[i][:3].sum()))  # no pose topic: total compression
-        return h
+        return fr.add_hands(h, [(s.ns, s.fields_at(t_s, since_s)) for s in self.hands])
 
     def timeline(self) -> dict:
-        """The whole recording for the page's plots: force against time, and against depth."""
-        t, f = decimate(self.wrench_t, self.wrench[:, 2]) if len(self.wrench_t) else (np.zeros(0), np.zeros(0))
-        if len(self.pose_t):
-            depth = np.maximum(0.0, -np.interp(t, self.pose_t, self.pose[:, 2]))
-        elif len(self.contact_t):
-            depth = np.interp(t, self.contact_t, self.contact[:, :3].sum(axis=1))
-        else:
-            depth = np.zeros_like(t)
-        return {
-            "type": "timeline",
-            "duration_s": self.duration_s,
-            "t_s": t.round(5).tolist(),
-            "force_n": f.round(6).tolist(),
-            "depth_m": depth.round(8).tolist(),
-            "grid_t_s": self.grid_t.round(5).tolist(),
-        }
+        """The whole recording for the page's plots: force against time, and against depth (the first hand's; with two
+        hands ``hands`` has each hand's, the first included)."""
+        out = {"type": "timeline", "duration_s": self.duration_s, **self.hands[0].timeline()}
+        out["grid_t_s"] = self.grid_t.round(5).tolist()
+        if len(self.hands) > 1:
+            out["hands"] = [{"ns": s.ns, **s.timeline()} for s in self.hands]
+        return out
 
 
 class BagSource:
-    """Timeline player over :class:`BagData`; the page seeks, plays and pauses it."""
+    """Timeline player over :class:`BagData`; the page seeks, plays and pauses it.
 
-    def __init__(self, paths: list[Path], rate_hz: float = 30.0, speed: float = 1.0):
-        self.data = BagData(paths)
+    A two-hand bag (``skin_sim.hands``) plays both hands; their tools are drawn from ``params`` (``--params``), else the
+    shipped preset the bag names (``skin_sim.params``), else the schema's defaults (:func:`bag_params`)."""
+
+    tools: list[tuple[str, float]] = []  # each hand's tool (shape, radius_m): a two-hand bag's
+    geometry: dict = {}
+    tools_source = ""
+
+    def __init__(self, paths: list[Path], rate_hz: float = 30.0, speed: float = 1.0, params: Path | None = None):
+        self.data = BagData(paths, bag_hands(paths))
+        if len(self.data.hands) > 1:  # a two-hand bag: each hand's tool as the node built it from the bag's preset
+            path, self.tools_source = bag_params(paths, params)
+            self.geometry, self.tools = hand_tools(path)
         self.rate_hz = rate_hz
         self.speed = speed
         # open at the first grid: before it the page would show an empty scene (grids start 2-3 s into a recording)
@@ -192,6 +305,27 @@ class BagSource:
             "needle_diameter_source": "the schema's default (a bag has no parameters)",
             "duration_s": self.data.duration_s,
             "n_grids": len(self.data.grids),
+            **self.hands_info(),
+        }
+
+    def hands_info(self) -> dict:
+        """A two-hand bag's page entries: the tools, sheet, layers and needle of its parameter file (:func:`bag_params`)
+        and ``hands`` (:func:`frames.hands_info`, as the live view's); nothing for one hand (its page is unchanged)."""
+        if len(self.data.hands) < 2:
+            return {}
+        g, tools = self.geometry, self.tools
+        d = g["needle_outer_diameter_m"]
+        shape = "needle" if len(self.data.needles) > 0 else tools[0][0]
+        return {
+            "sheet_m": g["sheet_m"],
+            "thickness_m": g["thickness_m"],
+            "tool_shape": shape,
+            "tool_radius_m": tools[0][1],
+            "needle_outer_diameter_m": d,
+            "needle_gauge": fr.needle_gauge(d),
+            "needle_diameter_source": self.tools_source,
+            "tools_source": self.tools_source,
+            **fr.hands_info([(s.ns, *tool) for s, tool in zip(self.data.hands, tools)]),
         }
 
     def hello(self) -> list[str]:
@@ -222,13 +356,9 @@ class BagSource:
     def frame_at(self, t_s: float, force_grid: bool = False) -> tuple[dict, bytes, dict | None]:
         """(header, encoded frame, diagnostics record or None) at ``t_s``; the grid only when it changed."""
         d = self.data
-        h = d.header_at(t_s)
-        h["playing"] = self.playing
         prev = self._sent[0]
-        if self.playing and prev is not None and prev < t_s and "force" in h:  # the largest force since the last frame
-            lo, hi = np.searchsorted(d.wrench_t, [prev, t_s], side="right")
-            if hi > lo:
-                h["force_max"] = float(d.wrench[lo:hi, 2].max())
+        h = d.header_at(t_s, prev if self.playing else None)  # playing: each hand's largest force since the last frame
+        h["playing"] = self.playing
         gi = d.index_at(d.grid_t, t_s)
         di = d.index_at(d.diag_t, t_s)
         _, last_gi, last_di = self._sent

@@ -87,6 +87,47 @@ def decimate(t: np.ndarray, *series: np.ndarray, max_points: int = 4000):
     return (t[::k], *(s[::k] for s in series))
 
 
+def hands_info(hands) -> dict:
+    """The page's ``info`` entry for the hands (issue 32): ``{"hands": [{"ns", "shape", "radius_m"}, ...]}`` with two
+    hands, else nothing, so that a single-hand page is unchanged. Shared by the live and the bag source.
+
+    Parameters
+    ----------
+    hands : sequence of (str, str, float)
+        Each hand's namespace, its tool's shape and radius (m), the first hand first.
+
+    Returns
+    -------
+    dict
+    """
+    if len(hands) < 2:
+        return {}
+    return {"hands": [{"ns": ns, "shape": shape, "radius_m": radius_m} for ns, shape, radius_m in hands]}
+
+
+def add_hands(header: dict, hands) -> dict:
+    """Put each hand's part of a frame header into ``header`` (issue 32): the first hand's fields at the top level (the
+    single-hand page's fields: tool, force, needle, ...), and with two hands a ``hands`` list of every hand's (``ns`` and
+    the same fields, the first hand's included). Shared by the live and the bag source.
+
+    Parameters
+    ----------
+    header : dict
+        The frame header so far (time, sequence); updated in place.
+    hands : sequence of (str, dict)
+        Each hand's namespace and its fields, the first hand first.
+
+    Returns
+    -------
+    dict
+        ``header``.
+    """
+    header.update(hands[0][1])
+    if len(hands) > 1:
+        header["hands"] = [{"ns": ns, **fields} for ns, fields in hands]
+    return header
+
+
 def friction_anchor(msg) -> list[float] | None:
     """The presliding friction's anchor (m, tissue frame) of a ``skin_sim_msgs/msg/ContactModel`` (rclpy or rosbags),
     or None: no message, no presliding law in it (out of contact, the paper form, the needle), or an older message

@@ -25,10 +25,12 @@ from msgs_schema.topics import hand_topic
 
 from .frames import (
     TrackMemory,
+    add_hands,
     default_thickness_m,
     diag_message,
     encode_frame,
     friction_anchor,
+    hands_info,
     needle_gauge,
     read_needle,
     tool_depth_m,
@@ -466,10 +468,9 @@ class LiveSource(_HandState):
     def hands_info(self) -> dict:
         """``{"hands": [...]}`` with two hands (each: ``ns``, ``shape``, ``radius_m``; the first is the tool above), else
         nothing: a single-hand page is unchanged."""
-        if not self.others:
-            return {}
-        first = {"ns": self.hand_ns, "shape": self.tool_shape, "radius_m": self.tool_radius_m}
-        return {"hands": [first, *({"ns": h.ns, "shape": h.shape, "radius_m": h.radius_m} for h in self.others)]}
+        return hands_info(
+            [(self.hand_ns, self.tool_shape, self.tool_radius_m), *((h.ns, h.shape, h.radius_m) for h in self.others)]
+        )
 
     def resend(self) -> None:
         self.grid_new = self.grid is not None  # a new page needs the grid once
@@ -484,11 +485,8 @@ class LiveSource(_HandState):
         """The frame header: the first hand's tool and force at the top level (the single-hand page's fields); with two
         hands, ``hands`` lists each hand's (``ns`` and the same fields), the first hand's included."""
         h: dict[str, Any] = {"t": time.time(), "seq": self.frames}
-        first = self.hand_fields(self.grid_stamp_s)
-        h.update(first)
-        others = self.others
-        if others:
-            h["hands"] = [{"ns": self.hand_ns, **first}, *({"ns": o.ns, **o.hand_fields(self.grid_stamp_s)} for o in others)]
+        hands = [(self.hand_ns, self.hand_fields(self.grid_stamp_s))]
+        add_hands(h, hands + [(o.ns, o.hand_fields(self.grid_stamp_s)) for o in self.others])
         if self.contact is not None:
             _, comp, _, stress = cv.read_contact(self.contact)
             h["compression_m"], h["stress_pa"] = comp.tolist(), stress.tolist()

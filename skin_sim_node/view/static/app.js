@@ -424,7 +424,8 @@ function buildHands(hands) {
   el.style.display = hands ? "block" : "none";
   $("force-hand").textContent = hands ? `(${handName(hands[0], 0)})` : "";
   el.innerHTML = (hands || []).map((spec, i) => `<div><span class="sw" style="background: #${HAND_RGB[i % HAND_RGB.length].toString(16).padStart(6, "0")}"></span>` +
-    `${handName(spec, i)} (${spec.shape === "needle" ? "needle" : `${spec.shape}, radius ${(spec.radius_m * 1e3).toFixed(2)} mm`}): <span class="hand-force" data-hand="${spec.ns}">-</span> N</div>`).join("");
+    `${handName(spec, i)} (${spec.shape === "needle" ? "needle" : `${spec.shape}, radius ${(spec.radius_m * 1e3).toFixed(2)} mm`}): <span class="hand-force" data-hand="${spec.ns}">-</span> N</div>`).join("") +
+    (hands && state.info.tools_source ? `<div id="tools-source" class="note">tools from ${state.info.tools_source}</div>` : ""); // a two-hand bag's tools
   state.handForces = {}; state.handDepthM = {}; state.handArrowLenMm = {}; state.handLabels = {}; state.handTools = {};
 }
 function updateHands(h) { // the second hand's drawing and every hand's read-out, from the frame's hands
@@ -486,20 +487,33 @@ const placeHandLabels = () => handDraw.forEach((d) => placeLabel(d.label, d.arr,
 const hist = { t: [], f: [], d: [] }; // live: rolling, last HIST_S seconds
 const HIST_S = 10;
 let timeline = null;
-function drawPlot(canvas, xs, ys, xlabel, cursor) {
+const PLOT_RGB = ["#4fc3f7", "#ff9100"]; // the first hand's line (a single hand's), the second hand's (its arrow's orange)
+function drawPlot(canvas, xs, ys, xlabel, cursor, more = []) {
+  // more: further lines [{xs, ys, label, cursor}] (a two-hand bag: every hand's, each labelled in its colour)
   const ctx = canvas.getContext("2d"), W = canvas.width, H = canvas.height;
   ctx.clearRect(0, 0, W, H);
   ctx.fillStyle = "#889"; ctx.font = "10px sans-serif";
-  if (!xs.length) return;
-  let x0 = Math.min(...xs), x1 = Math.max(...xs), y1 = Math.max(0.01, ...ys);
+  const lines = more.length ? more : [{ xs, ys, cursor }];
+  const allX = lines.flatMap((l) => l.xs), allY = lines.flatMap((l) => l.ys);
+  if (!allX.length) return;
+  let x0 = Math.min(...allX), x1 = Math.max(...allX), y1 = Math.max(0.01, ...allY);
   if (x1 - x0 < 1e-9) x1 = x0 + 1;
   const X = (x) => 30 + (x - x0) / (x1 - x0) * (W - 36), Y = (y) => H - 14 - y / y1 * (H - 22);
   ctx.fillText(`${y1.toFixed(3)} N`, 2, 10); ctx.fillText(xlabel, W - 60, H - 2);
   ctx.fillText(x0.toFixed(2), 30, H - 2);
-  ctx.strokeStyle = "#4fc3f7"; ctx.beginPath();
-  xs.forEach((x, i) => (i ? ctx.lineTo(X(x), Y(ys[i])) : ctx.moveTo(X(x), Y(ys[i]))));
-  ctx.stroke();
-  if (cursor !== undefined) { ctx.strokeStyle = "#ff5252"; ctx.beginPath(); ctx.moveTo(X(cursor), 0); ctx.lineTo(X(cursor), H); ctx.stroke(); }
+  lines.forEach((l, k) => {
+    ctx.strokeStyle = PLOT_RGB[k % PLOT_RGB.length]; ctx.beginPath();
+    l.xs.forEach((x, i) => (i ? ctx.lineTo(X(x), Y(l.ys[i])) : ctx.moveTo(X(x), Y(l.ys[i]))));
+    ctx.stroke();
+    if (l.label) { ctx.fillStyle = PLOT_RGB[k % PLOT_RGB.length]; ctx.fillText(l.label, W - 60, 10 + 11 * k); }
+  });
+  lines.forEach((l, k) => { // the cursor (red); each further hand's in its line's colour, dashed
+    if (l.cursor === undefined) return;
+    ctx.strokeStyle = k ? PLOT_RGB[k % PLOT_RGB.length] : "#ff5252"; ctx.setLineDash(k ? [3, 3] : []);
+    ctx.beginPath(); ctx.moveTo(X(l.cursor), 0); ctx.lineTo(X(l.cursor), H); ctx.stroke();
+  });
+  ctx.setLineDash([]);
+  return lines.map((l) => l.label || "");
 }
 let plotH = null, plotsDirty = false;
 function plots(h) { // records every frame; the canvases are redrawn with the scene, at most RENDER_HZ
@@ -512,8 +526,13 @@ function plots(h) { // records every frame; the canvases are redrawn with the sc
 function drawPlots() {
   const h = plotH;
   if (timeline) {
-    drawPlot($("plot-t"), timeline.t_s, timeline.force_n, "t (s)", h.t_s);
-    drawPlot($("plot-d"), timeline.depth_m.map((d) => d * 1e3), timeline.force_n, "depth (mm)", h.depth_m !== undefined ? h.depth_m * 1e3 : undefined);
+    // a two-hand bag: every hand's force, a line each (labelled with its hand), each hand's own depth cursor
+    const hands = timeline.hands || [], mm = (d) => (d !== undefined ? d * 1e3 : undefined);
+    const byT = hands.map((l, k) => ({ xs: l.t_s, ys: l.force_n, label: l.ns || `hand ${k + 1}`, cursor: k ? undefined : h.t_s }));
+    const byD = hands.map((l, k) => ({ xs: l.depth_m.map((d) => d * 1e3), ys: l.force_n, label: l.ns || `hand ${k + 1}`,
+      cursor: mm(((h.hands || [])[k] || {}).depth_m) }));
+    state.plotLabels = drawPlot($("plot-t"), timeline.t_s, timeline.force_n, "t (s)", h.t_s, byT);
+    state.plotDepthLabels = drawPlot($("plot-d"), timeline.depth_m.map((d) => d * 1e3), timeline.force_n, "depth (mm)", mm(h.depth_m), byD);
     return;
   }
   const t = performance.now() / 1e3;
