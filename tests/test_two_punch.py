@@ -133,8 +133,9 @@ def test_the_volume_term_heaves():
     """``L^4 Lap^2 w + w = 0``, ``L^4 = T h^3 / (3 mu)`` (T the membranes' tensions, h the tissue, mu the Reuss mean
     shear modulus): L = 2.77 mm from the default config; outside a punch ``A ker(r/L) + B kei(r/L)`` changes sign (the
     heave); the rigid punch's heave holds the volume it displaces (``int w dA = -pi a^2 depth`` outside the disk), the
-    uniform pressure has its centre at the depth; with the model's Winkler term (``- (L^4 / l^2) Lap w``) the radial
-    wavenumbers ``L^4 s^2 - (L^4 / l^2) s + 1 = 0`` are complex (a heave) only for ``l > L / sqrt(2)``."""
+    uniform pressure has its centre at the depth; with the model's Winkler term too (``- (L^4 / l^2) Lap w``) the radial
+    wavenumbers ``L^4 s^2 - (L^4 / l^2) s + 1 = 0`` are real below ``l = L / sqrt(2)`` (no oscillation) but the surface
+    still rises: the displaced volume stays outside the punch, so the two decaying modes have opposite signs."""
     ell, a = tp.volume_length_m(CFG), CFG.tool_radius_m
     assert ell == pytest.approx(2.77e-3, abs=0.005e-3)
     assert tp.layered_volume_length_m(CFG) == pytest.approx(ell, rel=0.03)
@@ -150,10 +151,20 @@ def test_the_volume_term_heaves():
     # the earlier attempt's volume term (no Winkler term) is the uniform pressure
     earlier = (0.133, -0.049, -0.079, -0.060, 0.002)
     assert tp.volume_profile(np.array(tp.PROFILE_RADII_M), ell, a, "uniform") == pytest.approx(earlier, abs=0.001)
-    limit = tp.heave_needs_foundation_length_m(ell)
-    for foundation, heaves in ((CFG.as_flat()["patch.foundation_length_m"], False), (1.1 * limit, True)):
+    limit = tp.oscillation_needs_foundation_length_m(ell)
+    model_l = CFG.as_flat()["patch.foundation_length_m"]
+    for foundation, oscillates in ((model_l, False), (1.1 * limit, True)):
         roots = np.roots([ell**4, -(ell**4) / foundation**2, 1.0])
-        assert bool(np.any(np.abs(roots.imag) > 0)) == heaves
+        assert bool(np.any(np.abs(roots.imag) > 0)) == oscillates
+        both = tp.combined_profile(r, ell, foundation, a)
+        assert both[0] == pytest.approx(1.0)
+        assert both[np.searchsorted(r, 4e-3)] > 0 > both[np.searchsorted(r, 8e-3)]  # a heave either way
+        assert np.trapezoid(both * 2 * np.pi * r, r) == pytest.approx(-np.pi * a**2, rel=0.01)
+    # a long Winkler length is the volume term alone; the model's l gives the reviewer's hand solution
+    assert tp.combined_profile(r, ell, 1.0, a) == pytest.approx(rigid, abs=1e-6)
+    assert tp.combined_profile(np.array([4e-3, 6e-3, 8e-3, 10e-3]), ell, model_l, a) == pytest.approx(
+        (0.178, -0.060, -0.076, -0.056), abs=0.001
+    )
 
 
 def test_the_volume_term_against_the_fem(profiles):
@@ -161,8 +172,7 @@ def test_the_volume_term_against_the_fem(profiles):
     FEM's does, and its lowest point is within 1.5 mm of the FEM's (whose trough is flat within 0.005 of the depth
     from 6.5 to 8.5 mm); the model's profile never rises."""
     fem_rise, (fem_low, _) = profiles.rise_m["FEM"], profiles.lowest["FEM"]
-    for edge in tp.VOLUME_EDGES:
-        name = f"volume, {edge}"
+    for name in (*(f"volume, {edge}" for edge in tp.VOLUME_EDGES), tp.COMBINED):
         assert profiles.rise_m[name] == pytest.approx(fem_rise, abs=0.5e-3)
         assert profiles.lowest[name][0] == pytest.approx(fem_low, abs=1.5e-3)
     assert profiles.rise_m["model"] is None
