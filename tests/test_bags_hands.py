@@ -163,3 +163,18 @@ def test_live_replay_of_the_golden_two_hand_bag_passes_for_each_hand(tmp_path, r
         assert len(raw(out / "live", f"/{ns}/tool/wrench")) >= h["live_answered"]
     with open_bag(out / "live") as r:
         assert "/tool/wrench" not in topic_types(r)
+
+
+def test_live_bag_labels_for_a_first_hand_with_the_single_tool_names():
+    """A node with ``hand_ns: ''`` and ``second_hand_ns: left`` (allowed by the contract): the live replay's recorder
+    labels the first hand's wrenches ``tool_wrench`` (its names are the contract's) and the second hand's by name; the
+    live bag's writer finds both (a key error here was a traceback after the whole stream)."""
+    from msgs_schema.topics import hand_topic
+    from skin_sim_node.bags import live
+
+    keys = [(k, hand_topic(k, ns)) for ns in ("", "left") for k in ("tool_wrench", "contact")] + ["diagnostics"]
+    labels = live.recorder_labels(keys)
+    assert labels["tool_wrench"] == ("tool_wrench", "tool/wrench")
+    assert labels["left/tool/wrench"] == ("tool_wrench", "left/tool/wrench")
+    assert labels["diagnostics"][0] == "diagnostics"
+    assert {live._wrench_label(ns) for ns in ("", "left")} <= set(labels)

@@ -89,18 +89,20 @@ def _run_source(
     try:
         t0 = time.perf_counter()
         end = time.monotonic() + timeout_s
-        waiting = {_wrench_label(ns) for ns in hands}  # the hands whose node has not answered a handshake pose yet
+        waiting = {_wrench_label(ns): ns for ns in hands}  # the hands whose node has not answered a handshake pose yet
         seen = 0
         while waiting:
             new = rec.records[seen:]  # the recorder's thread appends; read each record once
             seen += len(new)
-            waiting -= {k for k in waiting if any(base <= s < first for s in live_forces(new, k))}
+            for k in [k for k in waiting if any(base <= s < first for s in live_forces(new, k))]:
+                del waiting[k]
             if not waiting:
                 break
             if time.monotonic() > end or proc.poll() is not None:
+                names = ", ".join(sorted(ns or "(unnamed)" for ns in waiting.values()))
                 raise TimeoutError(
                     "the node never answered a handshake pose"
-                    + (f" of hand {', '.join(sorted(k.split('/')[0] for k in waiting))}" if hands != ("",) else "")
+                    + (f" of hand {names}" if hands != ("",) else "")
                     + ": is it running on this ROS_DOMAIN_ID, with max_stamp_age_s:=0.0?"
                 )
             time.sleep(0.01)
@@ -121,6 +123,17 @@ def _run_source(
 def _wrench_label(ns: str) -> str:
     """The recorder's label of hand ``ns``'s wrenches: the key for the single-tool names, else the topic name."""
     return "tool_wrench" if not ns else hand_topic("tool_wrench", ns)
+
+
+def recorder_labels(keys) -> dict[str, tuple[str, str]]:
+    """``{label: (key, topic name)}`` for the :class:`~.recorder.Recorder`'s ``keys`` (a contract key, or
+    ``(key, name)``): its label is the key where the name is the contract's (a hand ``''``, the single-tool names), else
+    the name (``left/tool/wrench``)."""
+    out = {}
+    for k in keys:
+        key, name = (k, TOPICS[k].name) if isinstance(k, str) else k
+        out[key if name == TOPICS[key].name else name] = (key, name)
+    return out
 
 
 def force_tol_frac(args, hands: bool) -> float:
@@ -288,7 +301,7 @@ def _stream_live(inputs: Sequence[Inputs], hands: Sequence[str], args, out: Path
         keys: list = hand_keys[:1] + tissue_keys[:1] + hand_keys[1:] + tissue_keys[1:]
     else:
         keys = [(k, hand_topic(k, ns)) for ns in hands for k in hand_keys] + tissue_keys
-    topics = {k if isinstance(k, str) else k[1]: (k, TOPICS[k].name) if isinstance(k, str) else k for k in keys}
+    topics = recorder_labels(keys)
     # kept in memory while streaming and written afterwards: no disk work competes with the node for the 2 cores
     rec = Recorder(keys, None, name="skin_sim_live_replay", keep=True)
     try:
@@ -307,7 +320,10 @@ def _stream_live(inputs: Sequence[Inputs], hands: Sequence[str], args, out: Path
         rec.close()
         if scene is not None:
             scene.stop_all()
-    with BagWriter(out / "live", args.storage, custom_data={"skin_sim.source": inputs[0].bag.name}, overwrite=True) as w:
+    custom = {"skin_sim.source": inputs[0].bag.name}
+    if hands != ("",):  # as the offline two-hand output (offline.replay_hands_to_bag): the view plays every hand
+        custom.update({"skin_sim.hands": ",".join(hands), **({"skin_sim.params": Path(args.params).name} if args.params else {})})
+    with BagWriter(out / "live", args.storage, custom_data=custom, overwrite=True) as w:
         for rx, label, raw in rec.records:
             key, name = topics[label]
             w.write_raw("/" + name, TOPICS[key].type, rx, raw, qos_profiles(key))
