@@ -21,6 +21,8 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
+from msgs_schema.spec import ConfigError
+
 try:  # rclpy >= 7 (Jazzy): far less CPU per callback at 1 kHz than the default executors
     from rclpy.experimental import EventsExecutor
 except ImportError:  # pragma: no cover - older rclpy
@@ -108,7 +110,15 @@ def run_nodes(factories: list[Callable[[], Node]], args=None, executor: str = "e
     # shutdown to rclpy, and the loop below ends on rclpy.ok(); a second one (start-up still compiling, or a
     # hung clean-up) interrupts as usual.
     signal.signal(signal.SIGINT, _quiet_first_interrupt)
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # rclpy's RCLError (not importable by a public name): e.g. a params file rcl cannot parse
+        if type(exc).__name__ != "RCLError":
+            raise
+        import sys
+
+        print(f"error: {str(exc).strip().splitlines()[0]}; the node does not start", file=sys.stderr, flush=True)
+        return 2
     nodes = []
     code = 0
     try:
@@ -127,8 +137,6 @@ def run_nodes(factories: list[Callable[[], Node]], args=None, executor: str = "e
         pass
     except Exception as exc:
         import sys
-
-        from msgs_schema.spec import ConfigError
 
         if isinstance(exc, ConfigError) and not nodes:  # a bad parameter at start-up: one line, no traceback, exit 2
             print(f"error: {exc}; the node does not start", file=sys.stderr, flush=True)

@@ -298,3 +298,18 @@ def test_a_scene_node_that_refuses_its_parameters_is_one_configuration_error(tmp
             scene.wait_for_log(node, "live:", timeout_s=180)
     assert isinstance(e.value, ConfigError) and isinstance(e.value, RuntimeError)
     assert str(e.value) == "skin_sim_node: unknown parameter 'rate_hzz' (did you mean 'rate_hz'?); the node does not start"
+
+
+def test_a_parameter_file_that_is_not_yaml_is_one_line(tmp_path):
+    """A parameter file that does not parse (an unclosed list) stops the node, an offline command and the view with one
+    line naming the file and the place, exit 2, before rcl or a bag is touched (rcl's own parse error was a C log line
+    and a traceback)."""
+    bad = tmp_path / "broken.yaml"
+    bad.write_text("a: [1, 2\n  b: :\n")
+    where = f"{bad}: not a YAML parameter file (line 2, column 4)"
+    assert one_line_error(run("node", "--ros-args", "--params-file", str(bad))).startswith(
+        f"skin-sim node: error: --params-file {where}"
+    )
+    line = one_line_error(run("replay", "tests/data/drag/input", "--params", str(bad), "--out", str(tmp_path / "o")))
+    assert line.startswith(f"skin-sim replay: error: {where}"), line
+    assert not (tmp_path / "o").exists()

@@ -309,10 +309,16 @@ def load_yaml(path: str | Path, node_name: str = NODE_NAME) -> dict[str, Any]:
     Raises
     ------
     ConfigError
-        No ``<node_name>: ros__parameters:`` at the top.
+        Not YAML, or no ``<node_name>: ros__parameters:`` at the top.
     """
+    from ..startup import yaml_problem
+
+    if problem := yaml_problem(str(path)):  # a file that is not YAML: one line, as every other bad parameter file
+        raise ConfigError(f"{path}: {problem}")
     with open(path) as fh:
         doc = yaml.safe_load(fh) or {}
+    if not isinstance(doc, dict):
+        raise ConfigError(f"{path}: expected '{node_name}: ros__parameters:' at the top")
     if node_name not in doc and len(doc) == 1:
         node_name = next(iter(doc))
     try:
