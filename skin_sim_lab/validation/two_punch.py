@@ -371,13 +371,16 @@ IMPLIED_DISTANCES_M = (4e-3, 6e-3, 10e-3)
 """The distances whose rows fail (:data:`DISTANCES_M` without the far pair, which passes)."""
 IMPLIED_DEPTH_M = tuple(round(0.1 * k, 1) * 1e-3 for k in range(6, 25))
 """Depths (0.6-2.4 mm every 0.1 mm) of the model's single-punch force-depth curve that :func:`implied` inverts: wide
-enough for a lowering or raising of the surface by a quarter of either depth (:data:`DEPTHS_M`); between them the
+enough for a lowering by 40 % of either depth (:data:`DEPTHS_M`) or a raising by 20 % of the deeper (the largest
+needed is 0.07); between them the
 curve is interpolated linearly in log force against log depth (the curve is close to a power law, ``F ~ d^1.4``)."""
 DISK_WEIGHTS = {"uniform": 0.0, "parabolic": 1.0, "pressure": -0.5}
 """Weights of :func:`disk_averages`, the exponent ``alpha`` of ``(1 - s^2 / a^2)^alpha`` over the other punch's disk
 (``s`` from its centre, ``a`` its radius): uniform; parabolic (a pressure vanishing at the rim: a soft pad); the rigid
-flat punch's pressure on a half-space (``alpha = -1/2``, Boussinesq / Sneddon), which Betti's reciprocal theorem uses:
-a rigid punch's force change equals the other's field averaged with its own contact pressure."""
+flat punch's pressure on a half-space (``alpha = -1/2``, Boussinesq / Sneddon). By Betti's reciprocal theorem a rigid
+punch's force change is, to first order in linear elasticity, the other's field averaged with this punch's contact
+pressure; the exact identity takes the pressure under the pair, and on a 5.3 mm layer (``a / h`` about 0.5) at 2 mm
+of a neo-Hookean tissue the half-space pressure is itself an approximation."""
 DISK_RADIAL_NODES = 48
 DISK_ANGLE_NODES = 96
 """Quadrature of :func:`disk_average`: Gauss-Jacobi in ``t = s^2 / a^2`` with the weight ``(1 - t)^alpha`` (exact for
