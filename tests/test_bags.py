@@ -416,6 +416,7 @@ def test_offline_replay_answers_what_a_throttled_node_answers(tmp_path):
     assert np.array_equal(np.array([w[1] for w in want]), res.force_vec_n)
 
 
+@pytest.mark.ros
 def test_live_replay_of_a_throttled_node_agrees_with_offline(tmp_path, ros_domain):
     """A real node at rate_hz 250 (fixed) fed the 1 kHz bag live: it answers the poses the offline replay answers
     (the throttle on the stamps, issue 28 item 4), with the same forces."""
