@@ -68,6 +68,27 @@ def test_two_hand_header_lists_each_hands_largest_force_and_a_single_hand_header
     assert src.hands_info() == {}
 
 
+def test_a_second_needle_hands_header_carries_its_needle_with_its_track():
+    """A second hand that is a needle: its ``<hand>/tissue/needle`` goes into its entry of the header's ``hands`` with the
+    deepest insertion of its track (``deepest_m``, the page draws the track to it), as the first hand's does; the first
+    hand (a punch, no needle) has none."""
+    msg = pytest.importorskip("skin_sim_msgs.msg")
+    from skin_sim_node.view.needle_fake import NeedleScript, fill_needle
+
+    src = LiveSource.__new__(LiveSource)
+    src.pose = src.wrench = src.contact = None
+    src.form, src.frames, src.hand_ns = "layered", 0, "right"
+    left = HandFeed("left", "needle", 0.0025)
+    src.others = [left]
+    script = NeedleScript(angle_deg=20.0)
+    deep = max((script.state(t)["insertion_m"], t) for t in (i * 0.01 for i in range(int(script.period_s / 0.01))))
+    left._on_needle(fill_needle(msg.NeedleState(), script.state(deep[1]), 1))
+    h = src.header()
+    assert "needle" not in h and "needle" not in h["hands"][0]  # the first hand: no needle
+    nd = h["hands"][1]["needle"]
+    assert nd["inserted"] and nd["deepest_m"] == pytest.approx(deep[0]) and nd["entry_m"] == [0.0, 0.0, 0.0]
+
+
 def test_hands_option_is_checked():
     from skin_sim_node.view import main
 
@@ -370,3 +391,115 @@ def test_bag_page_draws_both_hands_of_a_two_hand_bag(tmp_path):
     SHOTS.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(shot, SHOTS / "view_two_hands_bag.png")
     print(f"two-hand bag at {t_s:.3f} s: forces {want}, arrows {s['arrows']} mm, pixels {px}")
+
+
+# --- the live page's plots and a second hand's needle track, from a scripted source (no node) ------------------------
+class _ScriptedLive:
+    """A live-mode source for the page (the :class:`LiveSource` interface the server uses): a 5 mm pad ``right`` and, with
+    ``two``, a needle ``left`` going in along :class:`NeedleScript` (its ``tissue/needle`` record, each frame)."""
+
+    def __init__(self, two: bool):
+        import threading
+
+        from skin_sim_node.view.frames import TrackMemory
+        from skin_sim_node.view.needle_fake import NeedleScript
+
+        self.two, self.script, self.track = two, NeedleScript(angle_deg=20.0), TrackMemory()
+        self.frames = 0
+        self._stop = threading.Event()
+
+    def info(self) -> dict:
+        info = {"type": "info", "mode": "live", "namespace": "/", "sheet_m": [0.12, 0.12], "tool_radius_m": 0.005,
+                "tool_shape": "flat", "thickness_m": [7.5e-5, 1.5e-3, 5e-3], "rate_hz": 30.0,
+                "needle_outer_diameter_m": 0.819e-3, "needle_gauge": 21}  # fmt: skip
+        if self.two:
+            info["hands"] = [
+                {"ns": "right", "shape": "flat", "radius_m": 0.005},
+                {"ns": "left", "shape": "needle", "radius_m": 0.0025},
+            ]
+        return info
+
+    def hello(self) -> list[str]:
+        import json
+
+        return [json.dumps(self.info())]
+
+    def resend(self) -> None:
+        pass
+
+    def params(self) -> dict:
+        return {"ok": False, "reason": "a scripted source has no parameters", "params": []}
+
+    def run(self, server, duration_s: float) -> None:
+        import time
+
+        from skin_sim_node.view.frames import NEEDLE_FIELDS_1, NEEDLE_FIELDS_3, add_hands, encode_frame
+
+        end = time.monotonic() + duration_s
+        while not self._stop.is_set() and time.monotonic() < end:
+            t = 0.033 * self.frames
+            right = {"tool": [0.0, 0.0, -0.001], "depth_m": 0.001, "force": [0.0, 0.0, 0.5 + 0.1 * (self.frames % 3)]}
+            hands = [("right", right)]
+            if self.two:
+                st = self.script.state(t % self.script.period_s)
+                keys = ("inserted", "ruptured_layers", "crossing_m", *NEEDLE_FIELDS_3, *NEEDLE_FIELDS_1)
+                nd = self.track.update({k: st[k] for k in keys})  # the page's needle record (frames.read_needle)
+                left = {"tool": st["tip_m"], "tool_q": list(st["quaternion"]), "depth_m": max(0.0, -st["tip_m"][2]),
+                        "force": [0.0, 0.0, 0.3], "needle": nd}  # fmt: skip
+                hands.append(("left", left))
+            h = add_hands({"t": time.time(), "seq": self.frames}, hands)
+            server.broadcast_frame(h, encode_frame(h))
+            self.frames += 1
+            time.sleep(0.033)
+
+    def stop(self) -> None:
+        self._stop.set()
+
+
+def _scripted_page(two: bool, js: str, ready: str):
+    import threading
+
+    from skin_sim_node.view.browser import Browser
+    from skin_sim_node.view.server import ViewServer
+
+    src = _ScriptedLive(two)
+    srv = ViewServer(src, port=0).start()
+    th = threading.Thread(target=src.run, args=(srv, 180.0), daemon=True)
+    th.start()
+    try:
+        with Browser(srv.url) as b:
+            b.hold_when(ready, 60, "the scripted frames on the page")  # held: what is read is of that frame
+            return b.evaluate(js), src
+    finally:
+        src.stop()
+        th.join(timeout=5)
+        srv.close()
+
+
+@needs_browser
+def test_live_page_plots_a_line_per_hand_and_draws_a_second_hands_needle_track():
+    """A live two-hand page (a scripted source: a pad and a needle going in): both plots carry one line per hand,
+    labelled with its hand, and the second hand's needle track is drawn from its ``tissue/needle`` record (entry to its
+    deepest insertion, each punctured layer's segment), as the first hand's is; a live single-hand page plots one
+    unlabelled line, as before."""
+    ready = (
+        "window.skinView && window.skinView.frames > 5 && (window.skinView.plotLabels || []).length === 2 && "
+        "window.skinViewNeedle().hands.left && window.skinViewNeedle().hands.left.track !== null && "
+        "window.skinViewNeedle().hands.left.rec.segments.length > 0"
+    )
+    js = "({labels: window.skinView.plotLabels, depth: window.skinView.plotDepthLabels, needle: window.skinViewNeedle()})"
+    got, _ = _scripted_page(True, js, ready)
+    assert got["labels"] == ["right", "left"] and got["depth"] == ["right", "left"], got
+    assert got["needle"]["visible"] is False  # the first hand is a pad: no needle of its own
+    left = got["needle"]["hands"]["left"]
+    rec = left["rec"]["track"]
+    assert rec["entryM"] == [0.0, 0.0, 0.0] and rec["lengthM"] > 0, left
+    zs = got["needle"]["zscale"]
+    ends = [[c * 1e3 for c in p] for p in (rec["entryM"], rec["endM"])]
+    ends = [[x, y, z * zs if z < 0 else z] for x, y, z in ends]  # drawn mm (the z scale below the rest surface)
+    drawn = sorted(left["track"], key=lambda p: -p[2])
+    for p, q in zip(drawn, ends):
+        assert p == pytest.approx(q, abs=1e-3), (drawn, ends)
+    assert sum(s is not None for s in left["segments"]) == len(left["rec"]["segments"]), left
+    single, _ = _scripted_page(False, js, "window.skinView && window.skinView.frames > 5 && window.skinView.plotLabels")
+    assert single["labels"] == [""] and single["depth"] == [""], single  # one line, unlabelled: as before

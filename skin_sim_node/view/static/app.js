@@ -233,15 +233,17 @@ const trackMat = new THREE.MeshBasicMaterial({ color: 0x8a9099, depthTest: false
 const segMats = LAYER_RGB.map((rgb) => new THREE.MeshBasicMaterial({ color: new THREE.Color().setRGB(...rgb, THREE.SRGBColorSpace), depthTest: false }));
 const needleGroup = new THREE.Group();
 scene.add(needleGroup);
-function tube(mat, order) {
+function tube(mat, order, parent = needleGroup) {
   const m = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 1, 16), mat);
-  m.renderOrder = order; m.visible = false; needleGroup.add(m); return m;
+  m.renderOrder = order; m.visible = false; parent.add(m); return m;
 }
 const needleTubes = [tube(needleMat, 12), tube(needleMat, 12)]; // tip to the rest surface, and above it (unscaled z)
-const trackTube = tube(trackMat, 10);
-const segTubes = [0, 1, 2].map((i) => tube(segMats[i], 11));
 const edgeMat = new THREE.MeshBasicMaterial({ color: 0x15181d, depthTest: false }); // a dark rim: told apart from the cut's bands
-const edgeTubes = [0, 1, 2].map(() => tube(edgeMat, 10));
+function trackTubes(parent = needleGroup) { // a needle's track: the grey line, each punctured layer's segment and its rim
+  return { track: tube(trackMat, 10, parent), segs: [0, 1, 2].map((i) => tube(segMats[i], 11, parent)),
+    edges: [0, 1, 2].map(() => tube(edgeMat, 10, parent)) };
+}
+const firstTrack = trackTubes(), trackTube = firstTrack.track, segTubes = firstTrack.segs;
 const EDGE_MM = 0.12;
 const Y_AXIS = new THREE.Vector3(0, 1, 0);
 function placeTube(m, a, b, r) { // the unit cylinder (along its y) from a to b (drawn mm), radius r mm
@@ -259,6 +261,22 @@ function poseAxis(q) { // R(q) (0, 0, -1): the needle's axis from tool/pose (msg
   const n = Math.hypot(...q) || 1, [x, y, z, w] = q.map((c) => c / n);
   return [-2 * (x * z + w * y), -2 * (y * z - w * x), -(1 - 2 * (x * x + y * y))];
 }
+function drawTrack(nd, zs, rmm, tubes, rec) { // a needle's track (tubes: trackTubes()) into rec.track and rec.segments
+  tubes.track.visible = false; tubes.segs.forEach((m) => { m.visible = false; }); tubes.edges.forEach((m) => { m.visible = false; });
+  if (!(nd && nd.inserted && nd.deepest_m > 0)) return rec;
+  const end = nd.deepest_m, cr = nd.crossing_m;
+  placeTube(tubes.track, drawPt(nd.entry_m, zs), drawPt(along(nd.entry_m, nd.axis, end), zs), Math.max(0.08, rmm * 0.45));
+  rec.track = { entryM: nd.entry_m, endM: along(nd.entry_m, nd.axis, end), lengthM: end };
+  for (let i = 0; i < Math.min(nd.ruptured_layers, 3, cr.length); i++) {
+    const s0 = cr[i], s1 = Math.min(i + 1 < cr.length ? cr[i + 1] : end, end);
+    if (!(s1 > s0)) continue;
+    const a = drawPt(along(nd.entry_m, nd.axis, s0), zs), b = drawPt(along(nd.entry_m, nd.axis, s1), zs), r = Math.max(0.25, rmm * 1.8);
+    placeTube(tubes.segs[i], a, b, r);
+    placeTube(tubes.edges[i], a, b, r + EDGE_MM);
+    rec.segments.push({ layer: i, s0M: s0, s1M: s1 });
+  }
+  return rec;
+}
 function updateNeedle(h, zs) { // true when a needle is drawn
   const nd = h.needle, shape = state.info.tool_shape;
   const on = !!nd || (shape === "needle" && !!h.tool);
@@ -274,21 +292,7 @@ function updateNeedle(h, zs) { // true when a needle is drawn
   pts.push(backM);
   needleTubes.forEach((m, i) => { if (i + 1 < pts.length) placeTube(m, drawPt(pts[i], zs), drawPt(pts[i + 1], zs), rmm); else m.visible = false; });
   const rec = { tipM, axis, backM, angleDeg: Math.acos(Math.min(1, Math.max(-1, -axis[2]))) * 180 / Math.PI, track: null, segments: [] };
-  const track = nd && nd.inserted && nd.deepest_m > 0;
-  trackTube.visible = false; segTubes.forEach((m) => { m.visible = false; }); edgeTubes.forEach((m) => { m.visible = false; });
-  if (track) {
-    const end = nd.deepest_m, cr = nd.crossing_m;
-    placeTube(trackTube, drawPt(nd.entry_m, zs), drawPt(along(nd.entry_m, nd.axis, end), zs), Math.max(0.08, rmm * 0.45));
-    rec.track = { entryM: nd.entry_m, endM: along(nd.entry_m, nd.axis, end), lengthM: end };
-    for (let i = 0; i < Math.min(nd.ruptured_layers, 3, cr.length); i++) {
-      const s0 = cr[i], s1 = Math.min(i + 1 < cr.length ? cr[i + 1] : end, end);
-      if (!(s1 > s0)) continue;
-      const a = drawPt(along(nd.entry_m, nd.axis, s0), zs), b = drawPt(along(nd.entry_m, nd.axis, s1), zs), r = Math.max(0.25, rmm * 1.8);
-      placeTube(segTubes[i], a, b, r);
-      placeTube(edgeTubes[i], a, b, r + EDGE_MM);
-      rec.segments.push({ layer: i, s0M: s0, s1M: s1 });
-    }
-  }
+  drawTrack(nd, zs, rmm, firstTrack, rec);
   state.needle = rec;
   // the text overlay: gauge and diameter, insertion, dimple, punctured layers, the axial force's parts
   const g = state.info.needle_gauge, dmm = (2 * rmm).toFixed(3);
@@ -310,7 +314,12 @@ window.skinViewNeedle = () => { // for tests: what is drawn, read back from the 
     ? [new THREE.Vector3(0, -0.5, 0), new THREE.Vector3(0, 0.5, 0)].map((v) => m.localToWorld(v).toArray()) : null;
   return { visible: needleGroup.visible, zscale: parseFloat($("zscale").value) || 1, radiusMm: needleTubes[0].scale.x,
     needle: needleTubes.map(ends), track: ends(trackTube), segments: segTubes.map(ends),
-    segmentColours: segMats.map((m) => m.color.getHexString()), rec: state.needle };
+    segmentColours: segMats.map((m) => m.color.getHexString()), rec: state.needle,
+    hands: Object.fromEntries(handDraw.map((d) => { // a second hand's needle track (drawn mm), as the first's
+      d.tubes.track.parent.updateMatrixWorld(true);
+      const e = (m) => (m.visible ? [new THREE.Vector3(0, -0.5, 0), new THREE.Vector3(0, 0.5, 0)].map((v) => m.localToWorld(v).toArray()) : null);
+      return [d.spec.ns, { track: e(d.tubes.track), segments: d.tubes.segs.map(e), rec: state.handTracks[d.spec.ns] || null }];
+    })) };
 };
 
 let shownShape = "";
@@ -378,7 +387,8 @@ function placeLabel(el, arrowObj, lenMm, text) {
 // --- two hands (issue 32): the second hand's tool, force arrow and label, contact patch and friction anchor ----------
 // The first hand is drawn as a single hand's tool (above: the frame's top-level fields, its needle with track and
 // overlay); the second from the frame's hands[1], with the node's second_tool_shape / second_tool_radius_m: the same
-// steel-blue punch or sphere, or a needle's shaft (no track: the track and the overlay are the first hand's). Its arrow
+// steel-blue punch or sphere, or a needle's shaft with its track from its <hand>/tissue/needle (drawTrack, as the first
+// hand's; the text overlay is the first hand's only). Its arrow
 // is orange and stands on the side away from the other tool, as the first hand's does then.
 const HAND_RGB = [ARROW_RGB, 0xff9100];
 const handName = (spec, i) => spec.ns || `hand ${i + 1}`;
@@ -402,6 +412,8 @@ function buildHands(hands) {
     const group = new THREE.Group();
     group.add(tp, pu, sh); group.visible = false;
     const needles = [0, 1].map(() => { const m = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 1, 16), needleMat); m.renderOrder = 12; m.visible = false; return m; });
+    const trackGroup = new THREE.Group(); // its needle's track (from its <hand>/tissue/needle), drawn as the first hand's
+    const tubes = trackTubes(trackGroup);
     const mat = new THREE.MeshBasicMaterial({ color: rgb });
     const aShaft = new THREE.Mesh(arrowShaft.geometry, mat), aHead = new THREE.Mesh(arrowHead.geometry, mat);
     aShaft.rotation.x = aHead.rotation.x = Math.PI / 2;
@@ -415,9 +427,9 @@ function buildHands(hands) {
     label.className = "hand-label"; label.dataset.hand = spec.ns;
     label.style.color = `#${rgb.toString(16).padStart(6, "0")}`;
     host.appendChild(label);
-    const objects = [group, ...needles, arr, pat, dot, line];
+    const objects = [group, ...needles, trackGroup, arr, pat, dot, line];
     objects.forEach((o) => scene.add(o));
-    return { spec, i, group, needles, arr, aShaft, aHead, pat, dot, line, label, objects, lenMm: 0, text: "" };
+    return { spec, i, group, needles, tubes, arr, aShaft, aHead, pat, dot, line, label, objects, lenMm: 0, text: "" };
   });
   // the per-hand force read-out in the side panel (a single hand: hidden; #force alone, as before)
   const el = $("hand-forces");
@@ -426,7 +438,7 @@ function buildHands(hands) {
   el.innerHTML = (hands || []).map((spec, i) => `<div><span class="sw" style="background: #${HAND_RGB[i % HAND_RGB.length].toString(16).padStart(6, "0")}"></span>` +
     `${handName(spec, i)} (${spec.shape === "needle" ? "needle" : `${spec.shape}, radius ${(spec.radius_m * 1e3).toFixed(2)} mm`}): <span class="hand-force" data-hand="${spec.ns}">-</span> N</div>`).join("") +
     (hands && state.info.tools_source ? `<div id="tools-source" class="note">tools from ${state.info.tools_source}</div>` : ""); // a two-hand bag's tools
-  state.handForces = {}; state.handDepthM = {}; state.handArrowLenMm = {}; state.handLabels = {}; state.handTools = {};
+  state.handForces = {}; state.handDepthM = {}; state.handArrowLenMm = {}; state.handLabels = {}; state.handTools = {}; state.handTracks = {};
 }
 function updateHands(h) { // the second hand's drawing and every hand's read-out, from the frame's hands
   const hands = state.info && state.info.hands;
@@ -458,6 +470,9 @@ function updateHands(h) { // the second hand's drawing and every hand's read-out
       const r = (state.info.needle_outer_diameter_m || 0.819e-3) * 1e3 / 2;
       for (let k = 0; k + 1 < pts.length; k++) placeTube(d.needles[k], drawPt(pts[k], zs), drawPt(pts[k + 1], zs), r);
     }
+    const rec = drawTrack(needleOn ? hh.needle : null, zs, (state.info.needle_outer_diameter_m || 0.819e-3) * 1e3 / 2, d.tubes,
+      { track: null, segments: [] });
+    state.handTracks[spec.ns] = rec.track ? rec : null;
     state.handTools[spec.ns] = d.group.visible ? (spec.shape === "sphere" ? "sphere" : "cylinder") : needleOn ? "needle" : null;
     const zsurf = zDraw(surfaceAt(at[0], at[1]) * 1e3, zs);
     d.arr.visible = f > 1e-4;
@@ -484,7 +499,7 @@ function updateHands(h) { // the second hand's drawing and every hand's read-out
 const placeHandLabels = () => handDraw.forEach((d) => placeLabel(d.label, d.arr, d.lenMm, d.text));
 
 // --- plots --------------------------------------------------------------------------------
-const hist = { t: [], f: [], d: [] }; // live: rolling, last HIST_S seconds
+const hist = { t: [], f: [], d: [], hands: [] }; // live: rolling, last HIST_S seconds; hands: each hand's {f, d} (two hands)
 const HIST_S = 10;
 let timeline = null;
 const PLOT_RGB = ["#4fc3f7", "#ff9100"]; // the first hand's line (a single hand's), the second hand's (its arrow's orange)
@@ -521,7 +536,14 @@ function plots(h) { // records every frame; the canvases are redrawn with the sc
   if (timeline) return;
   const t = performance.now() / 1e3;
   hist.t.push(t); hist.f.push(h.force_max !== undefined ? h.force_max : h.force ? h.force[2] : 0); hist.d.push((h.depth_m || 0) * 1e3);
-  while (hist.t.length && hist.t[0] < t - HIST_S) { hist.t.shift(); hist.f.shift(); hist.d.shift(); }
+  // a two-hand node: each hand's force and depth too, on the same times (a hand without a sample yet: 0, as above)
+  const specs = (state.info && state.info.hands) || [];
+  if (hist.hands.length !== specs.length) hist.hands = specs.map(() => ({ f: hist.t.slice(1).map(() => 0), d: hist.t.slice(1).map(() => 0) }));
+  hist.hands.forEach((l, k) => {
+    const hh = (h.hands || [])[k] || {};
+    l.f.push(hh.force_max !== undefined ? hh.force_max : hh.force ? hh.force[2] : 0); l.d.push((hh.depth_m || 0) * 1e3);
+  });
+  while (hist.t.length && hist.t[0] < t - HIST_S) { hist.t.shift(); hist.f.shift(); hist.d.shift(); hist.hands.forEach((l) => { l.f.shift(); l.d.shift(); }); }
 }
 function drawPlots() {
   const h = plotH;
@@ -535,9 +557,13 @@ function drawPlots() {
     state.plotDepthLabels = drawPlot($("plot-d"), timeline.depth_m.map((d) => d * 1e3), timeline.force_n, "depth (mm)", mm(h.depth_m), byD);
     return;
   }
-  const t = performance.now() / 1e3;
-  drawPlot($("plot-t"), hist.t.map((x) => x - t), hist.f, "t (s)");
-  drawPlot($("plot-d"), hist.d, hist.f, "depth (mm)");
+  const t = performance.now() / 1e3, ts = hist.t.map((x) => x - t);
+  // a two-hand node: every hand's force, a line each labelled with its hand, as a two-hand bag's (a single hand: as before)
+  const specs = (state.info && state.info.hands) || [], two = specs.length > 1 && hist.hands.length === specs.length;
+  const byT = two ? hist.hands.map((l, k) => ({ xs: ts, ys: l.f, label: handName(specs[k], k) })) : [];
+  const byD = two ? hist.hands.map((l, k) => ({ xs: l.d, ys: l.f, label: handName(specs[k], k) })) : [];
+  state.plotLabels = drawPlot($("plot-t"), ts, hist.f, "t (s)", undefined, byT);
+  state.plotDepthLabels = drawPlot($("plot-d"), hist.d, hist.f, "depth (mm)", undefined, byD);
 }
 
 // --- diagnostics --------------------------------------------------------------------------
