@@ -216,6 +216,10 @@ def test_live_page_draws_both_tools_and_both_force_arrows(ros_domain, tmp_path):
                 60,
                 "the node's parameters on the page",
             )
+            # the live plots: each hand's force its own line, labelled with its hand (as a two-hand bag's)
+            b.wait_for("(window.skinView.plotLabels || []).length === 2", 30, "the live plots")
+            plots = b.evaluate("[window.skinView.plotLabels, window.skinView.plotDepthLabels]")
+            assert plots == [list(HANDS), list(HANDS)], plots
             print(f"two hands on the page: forces {s['forces']}, arrows {s['arrows']} mm, pixels {px}")
 
 
