@@ -1,4 +1,6 @@
 import os
+import threading
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -52,3 +54,20 @@ def ros_domain():
             os.environ.pop(k, None)
         else:
             os.environ[k] = v
+
+
+@contextmanager
+def served(src, duration_s: float = 180.0):
+    """A view server for the source ``src`` (a bag or live source) with its player thread running, yielding the server;
+    on exit the source stops, its thread is joined and the server closed."""
+    from skin_sim_node.view.server import ViewServer
+
+    srv = ViewServer(src, port=0).start()
+    t = threading.Thread(target=src.run, args=(srv, duration_s), daemon=True)
+    t.start()
+    try:
+        yield srv
+    finally:
+        src.stop()
+        t.join(timeout=5)
+        srv.close()

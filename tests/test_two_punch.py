@@ -10,20 +10,21 @@ from skin_sim_lab.validation import two_punch as tp
 CFG = tp.load_tissue_config(tp.CONFIG)
 
 
+def cached(value, missing: str):
+    """``value`` (a result read from the committed FEM solves), or skip the test naming the ``missing`` solve."""
+    if value is None:
+        pytest.skip(f"{missing}: run `skin-sim two-punch` (about an hour for every solve)")
+    return value
+
+
 @pytest.fixture(scope="module")
 def rows():
-    rs = tp.rows(CFG, progress=False, missing_ok=True)
-    if rs is None:
-        pytest.skip("a two-punch FEM solve is not in docs/validation/hyper_cache: run `skin-sim two-punch` (about an hour)")
-    return rs
+    return cached(tp.rows(CFG, progress=False, missing_ok=True), "a two-punch FEM solve is not in docs/validation/hyper_cache")
 
 
 @pytest.fixture(scope="module")
 def checks():
-    c = tp.checks(CFG, progress=False, missing_ok=True)
-    if c is None:
-        pytest.skip("the centred or 10 mm single-punch solve is not cached: run `skin-sim two-punch`")
-    return c
+    return cached(tp.checks(CFG, progress=False, missing_ok=True), "the centred or 10 mm single-punch solve is not cached")
 
 
 def test_the_reference_is_consistent(rows, checks):
@@ -75,18 +76,16 @@ def test_the_command_table_matches(rows, checks, capsys, tmp_path):
 
 @pytest.fixture(scope="module")
 def implied(rows):
-    imps = tp.implied(CFG, rows, progress=False, missing_ok=True)
-    if imps is None:
-        pytest.skip("a two-punch single-punch FEM solve is not in docs/validation/hyper_cache: run `skin-sim two-punch`")
+    imps = cached(
+        tp.implied(CFG, rows, progress=False, missing_ok=True),
+        "a two-punch single-punch FEM solve is not in docs/validation/hyper_cache",
+    )
     return {(m.distance_m, m.depth_m): m for m in imps}
 
 
 @pytest.fixture(scope="module")
 def profiles():
-    p = tp.foundation_profiles(CFG, progress=False, missing_ok=True)
-    if p is None:
-        pytest.skip("the centred single-punch solve is not cached: run `skin-sim two-punch`")
-    return p
+    return cached(tp.foundation_profiles(CFG, progress=False, missing_ok=True), "the centred single-punch solve is not cached")
 
 
 @pytest.mark.parametrize("name", list(tp.DISK_WEIGHTS))

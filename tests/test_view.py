@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import served
 
 from skin_sim_node.bags.compare import read_outputs
 from skin_sim_node.view import frames, ws
 from skin_sim_node.view.bag import BagData, BagSource, find_topic
 from skin_sim_node.view.browser import find_browser
 from skin_sim_node.view.live import parse_value
-from skin_sim_node.view.server import ViewServer
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "tests" / "data" / "press_all_layers"
@@ -119,12 +119,7 @@ def test_bag_seek_sends_the_grid_at_that_time(bag):
 
 def test_server_streams_frames_and_answers_the_api(bag):
     src = BagSource(BAGS, rate_hz=50)
-    srv = ViewServer(src, port=0).start()
-    import threading
-
-    t = threading.Thread(target=src.run, args=(srv, 20.0), daemon=True)
-    t.start()
-    try:
+    with served(src, 20.0) as srv:
         page = urllib.request.urlopen(srv.url, timeout=5).read().decode()
         assert "three.module.min.js" in page and "app.js" in page
         params = json.load(urllib.request.urlopen(srv.url + "api/params", timeout=5))
@@ -148,10 +143,6 @@ def test_server_streams_frames_and_answers_the_api(bag):
         assert got is not None, "no frame with the last grid after seeking to it"
         np.testing.assert_array_equal(got, bag.grids[-1])
         c.close()
-    finally:
-        src.stop()
-        t.join(timeout=5)
-        srv.close()
 
 
 def test_live_frame_carries_the_largest_force_since_the_last_frame():
@@ -246,18 +237,8 @@ def bag_page():
     from skin_sim_node.view.browser import Browser
 
     src = BagSource(BAGS)
-    srv = ViewServer(src, port=0).start()
-    import threading
-
-    t = threading.Thread(target=src.run, args=(srv, 180.0), daemon=True)
-    t.start()
-    try:
-        with Browser(srv.url) as b:
-            yield src, b
-    finally:
-        src.stop()
-        t.join(timeout=5)
-        srv.close()
+    with served(src) as srv, Browser(srv.url) as b:
+        yield src, b
 
 
 @needs_browser

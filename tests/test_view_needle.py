@@ -10,18 +10,16 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import threading
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import served
 
 from skin_sim_node.view import frames
 from skin_sim_node.view.bag import BagData, BagSource, register_needle_type
 from skin_sim_node.view.browser import find_browser
 from skin_sim_node.view.needle_fake import FAKE_RUPTURE_DIMPLE_M, NeedleScript, fill_needle
-from skin_sim_node.view.server import ViewServer
 
 needs_browser = pytest.mark.skipif(find_browser() is None, reason="no Chromium on PATH (CI: apt-get install chromium)")
 NEEDLE_BACK_MM = 30.0  # app.js: the needle is drawn this far back from the tip
@@ -187,19 +185,9 @@ def frames_layer_rgb():
     return [rgba[:3] for rgba in LAYER_RGBA]
 
 
-@contextmanager
 def _served(paths):
     """A view server playing the bags ``paths`` (its player thread running); stopped and closed on exit."""
-    src = BagSource(paths)
-    srv = ViewServer(src, port=0).start()
-    t = threading.Thread(target=src.run, args=(srv, 120.0), daemon=True)
-    t.start()
-    try:
-        yield srv
-    finally:
-        src.stop()
-        t.join(timeout=5)
-        srv.close()
+    return served(BagSource(paths), 120.0)
 
 
 @needs_browser

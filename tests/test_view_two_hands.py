@@ -15,6 +15,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from conftest import served
 
 from skin_sim_node.view.browser import find_browser
 from skin_sim_node.view.live import HandFeed, LiveSource
@@ -341,11 +342,8 @@ def test_bag_page_draws_both_hands_of_a_two_hand_bag(tmp_path):
     """The golden two-hand bag in ``skin-sim view``'s bag player and headless Chromium: seeked to the grid instant where
     both hands press hardest together, the page shows the right hand's needle and the left hand's pad, both arrows and
     both force read-outs, each the bag's recorded wrench of that hand at that instant, and both hands' force lines."""
-    import threading
-
     from skin_sim_node.view.bag import BagSource
     from skin_sim_node.view.browser import Browser
-    from skin_sim_node.view.server import ViewServer
 
     src = BagSource(BAG)
     d = src.data
@@ -354,34 +352,26 @@ def test_bag_page_draws_both_hands_of_a_two_hand_bag(tmp_path):
     t_s = float(max(d.grid_t, key=lambda t: min(_recorded_at(rec[h], float(t)) for h in HANDS)))
     want = {h: _recorded_at(rec[h], t_s) for h in HANDS}
     assert all(f > 0.5 for f in want.values()), (t_s, want)
-    srv = ViewServer(src, port=0).start()
-    th = threading.Thread(target=src.run, args=(srv, 180.0), daemon=True)
-    th.start()
-    try:
-        with Browser(srv.url) as b:
-            b.wait_for(
-                "window.skinView && window.skinView.gridFrames > 0 && (window.skinView.info.hands || []).length === 2",
-                60,
-                "the first grid and the two hands",
-            )
-            b.evaluate("window.skinViewCamera([3, -58, 20], [3, 0, -3])")  # from the front: both tools side by side
-            b.evaluate(f"fetch('/api/seek', {{method: 'POST', body: JSON.stringify({{t_s: {t_s}}})}}).then(r => r.json())")
-            close = " && ".join(f"Math.abs(window.skinView.handForces.{h} - {want[h]}) < 1e-4" for h in HANDS)
-            b.wait_for(f"{close} && Math.abs(window.skinView.t_s - {t_s}) < 1e-9", 20, f"both hands' forces at {t_s} s")
-            b.wait_for("window.skinView.plotLabels && window.skinView.plotLabels.length === 2", 20, "the plots")
-            n = b.evaluate("window.skinView.frames")
-            b.wait_for(f"window.skinView.renderedFrames >= {n}", 20, "a render of the last frame")
-            shot = b.screenshot(tmp_path / "view_two_hands_bag.png")
-            s = _hands_shown(
-                b,
-                "plots: v.plotLabels, depthPlots: v.plotDepthLabels, gridDt: v.gridDtS, "
-                "tools_source: document.getElementById('tools-source').textContent, "
-                "label: document.getElementById('tlabel').textContent",
-            )
-    finally:
-        src.stop()
-        th.join(timeout=5)
-        srv.close()
+    with served(src) as srv, Browser(srv.url) as b:
+        b.wait_for(
+            "window.skinView && window.skinView.gridFrames > 0 && (window.skinView.info.hands || []).length === 2",
+            60,
+            "the first grid and the two hands",
+        )
+        b.evaluate("window.skinViewCamera([3, -58, 20], [3, 0, -3])")  # from the front: both tools side by side
+        b.evaluate(f"fetch('/api/seek', {{method: 'POST', body: JSON.stringify({{t_s: {t_s}}})}}).then(r => r.json())")
+        close = " && ".join(f"Math.abs(window.skinView.handForces.{h} - {want[h]}) < 1e-4" for h in HANDS)
+        b.wait_for(f"{close} && Math.abs(window.skinView.t_s - {t_s}) < 1e-9", 20, f"both hands' forces at {t_s} s")
+        b.wait_for("window.skinView.plotLabels && window.skinView.plotLabels.length === 2", 20, "the plots")
+        n = b.evaluate("window.skinView.frames")
+        b.wait_for(f"window.skinView.renderedFrames >= {n}", 20, "a render of the last frame")
+        shot = b.screenshot(tmp_path / "view_two_hands_bag.png")
+        s = _hands_shown(
+            b,
+            "plots: v.plotLabels, depthPlots: v.plotDepthLabels, gridDt: v.gridDtS, "
+            "tools_source: document.getElementById('tools-source').textContent, "
+            "label: document.getElementById('tlabel').textContent",
+        )
     assert s["tools"] == {"right": "needle", "left": "cylinder"}, s  # the preset's needle and the 5 mm pad
     for h in HANDS:
         assert float(s["shown"][h]) == pytest.approx(want[h], abs=1e-4), s  # each read-out: the bag's wrench
@@ -461,23 +451,12 @@ class _ScriptedLive:
 
 
 def _scripted_page(two: bool, js: str, ready: str):
-    import threading
-
     from skin_sim_node.view.browser import Browser
-    from skin_sim_node.view.server import ViewServer
 
     src = _ScriptedLive(two)
-    srv = ViewServer(src, port=0).start()
-    th = threading.Thread(target=src.run, args=(srv, 180.0), daemon=True)
-    th.start()
-    try:
-        with Browser(srv.url) as b:
-            b.hold_when(ready, 60, "the scripted frames on the page")  # held: what is read is of that frame
-            return b.evaluate(js), src
-    finally:
-        src.stop()
-        th.join(timeout=5)
-        srv.close()
+    with served(src) as srv, Browser(srv.url) as b:
+        b.hold_when(ready, 60, "the scripted frames on the page")  # held: what is read is of that frame
+        return b.evaluate(js), src
 
 
 @needs_browser
