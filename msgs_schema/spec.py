@@ -20,6 +20,26 @@ class ConfigError(ValueError):
     """A parameter value or a tissue configuration that cannot be used; the message says why."""
 
 
+def read_yaml(path) -> Any:
+    """The YAML document of a parameter file, parsed once.
+
+    Raises
+    ------
+    ConfigError
+        The file is not YAML: one line naming the file, the line and column, and what the parser expected (rcl's own
+        parser would print a C log line and raise).
+    """
+    import yaml
+
+    try:
+        with open(path) as fh:
+            return yaml.safe_load(fh)
+    except yaml.YAMLError as exc:
+        where = getattr(exc, "problem_mark", None)
+        at = f" (line {where.line + 1}, column {where.column + 1})" if where is not None else ""
+        raise ConfigError(f"{path}: not a YAML parameter file{at}: {getattr(exc, 'problem', None) or exc}") from None
+
+
 SUGGEST_CUTOFF = 0.6
 """difflib similarity from which a valid name is offered as the one meant (difflib's own default: ``max_forse_n``
 finds ``max_force_n`` and ``tissue.layers.dermis.stifness_n_per_m`` its layer's ``stiffness_n_per_m``, while an

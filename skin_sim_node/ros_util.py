@@ -11,6 +11,7 @@ import ctypes.util
 import gc
 import os
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -115,8 +116,6 @@ def run_nodes(factories: list[Callable[[], Node]], args=None, executor: str = "e
     except Exception as exc:  # rclpy's RCLError (not importable by a public name): e.g. a params file rcl cannot parse
         if type(exc).__name__ != "RCLError":
             raise
-        import sys
-
         print(f"error: {str(exc).strip().splitlines()[0]}; the node does not start", file=sys.stderr, flush=True)
         return 2
     nodes = []
@@ -136,8 +135,6 @@ def run_nodes(factories: list[Callable[[], Node]], args=None, executor: str = "e
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:
-        import sys
-
         if isinstance(exc, ConfigError) and not nodes:  # a bad parameter at start-up: one line, no traceback, exit 2
             print(f"error: {exc}; the node does not start", file=sys.stderr, flush=True)
             code = 2

@@ -10,6 +10,8 @@ import difflib
 import re
 from pathlib import Path
 
+from msgs_schema.spec import ConfigError, read_yaml
+
 
 def params_files(ros_args) -> list[str]:
     """The ``--params-file PATH`` values among ROS arguments (in order)."""
@@ -80,19 +82,6 @@ def start_line(flat: dict, ros_args, node_fqn: str | None = None) -> str:
     return f"starting: tissue form '{flat.get('tissue.form', '?')}', {preset}, tool {tool} {size}"
 
 
-def yaml_problem(path: str) -> str | None:
-    """Why ``path`` is not a YAML file, in one line with its place (None: it parses)."""
-    import yaml
-
-    try:
-        yaml.safe_load(Path(path).read_text())
-    except yaml.YAMLError as exc:
-        where = getattr(exc, "problem_mark", None)
-        at = f" (line {where.line + 1}, column {where.column + 1})" if where is not None else ""
-        return f"not a YAML parameter file{at}: {getattr(exc, 'problem', None) or exc}"
-    return None
-
-
 def node_argument_error(rest: list[str]) -> str | None:
     """A mistake in ``skin-sim node`` arguments that rclpy would ignore silently, as one line (None: none).
 
@@ -107,8 +96,10 @@ def node_argument_error(rest: list[str]) -> str | None:
     for path in params_files(rest[ros:]):
         if not Path(path).is_file():
             return f"--params-file {path}: no such file"
-        if problem := yaml_problem(path):  # rcl's own parse error is a C log line and more: say it in one line first
-            return f"--params-file {path}: {problem}"
+        try:  # rcl's own parse error is a C log line and more: say it in one line first
+            read_yaml(path)
+        except ConfigError as exc:
+            return f"--params-file {exc}"
     return None
 
 

@@ -18,7 +18,7 @@ import numpy as np
 import yaml
 
 from msgs_schema.parameters import NODE_NAME, SPEC_BY_NAME, check_tissue, tissue_part
-from msgs_schema.spec import ConfigError, check_names
+from msgs_schema.spec import ConfigError, check_names, read_yaml
 from msgs_schema.tissue import INTERFACE_NAMES, LAYER_NAMES, LOD_TOLERANCE_M, tissue_defaults
 
 __all__ = [
@@ -311,12 +311,7 @@ def load_yaml(path: str | Path, node_name: str = NODE_NAME) -> dict[str, Any]:
     ConfigError
         Not YAML, or no ``<node_name>: ros__parameters:`` at the top.
     """
-    from ..startup import yaml_problem
-
-    if problem := yaml_problem(str(path)):  # a file that is not YAML: one line, as every other bad parameter file
-        raise ConfigError(f"{path}: {problem}")
-    with open(path) as fh:
-        doc = yaml.safe_load(fh) or {}
+    doc = read_yaml(path) or {}  # a file that is not YAML: one line, as every other bad parameter file
     if not isinstance(doc, dict):
         raise ConfigError(f"{path}: expected '{node_name}: ros__parameters:' at the top")
     if node_name not in doc and len(doc) == 1:
