@@ -248,6 +248,17 @@ def custom_data(path) -> dict[str, str]:
     return {str(k): str(v) for k, v in (info.get("custom_data") or {}).items()}
 
 
+def recorded_params(path) -> Path | None:
+    """The shipped parameter preset a bag names (``custom_data`` ``skin_sim.params``, as ``skin-sim record`` and the
+    replays write it), when the installed package has it; None otherwise. ``skin-sim replay`` and the bag view take it
+    when no ``--params`` is given."""
+    from ..scenes import DEFAULT_PARAMS
+
+    recorded = custom_data(path).get("skin_sim.params")
+    shipped = DEFAULT_PARAMS.parent / recorded if recorded else None
+    return shipped if shipped is not None and shipped.is_file() else None
+
+
 @contextmanager
 def open_bag(path) -> Iterator[Reader]:
     """Open a rosbag2 folder (or a single .mcap/.db3 file) for reading, with clear errors.

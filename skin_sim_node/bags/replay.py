@@ -25,7 +25,7 @@ from ..session import UNKNOWN_FRAME
 from ..verdicts import verdict_line
 from .compare import LIVE
 from .inputs import add_input_arguments, input_options, read_hand_inputs, read_inputs
-from .io import STORAGES, BagError, custom_data
+from .io import STORAGES, BagError, recorded_params
 from .offline import hands_of, replay, replay_hands_to_bag, replay_to_bag
 from .published import PUBLISHED_HANDS, PublishedCheck, answered_only, check_hands, check_published, format_check
 from .report import format_summary, write_report
@@ -73,10 +73,9 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     out = args.out or Path("out/replay") / args.bag.resolve().name
     if args.params is None:  # a needle bag replayed with the flat punch's preset would disagree with its own forces
-        recorded = custom_data(args.bag).get("skin_sim.params")
-        shipped = DEFAULT_PARAMS.parent / recorded if recorded else None
-        args.params = shipped if shipped is not None and shipped.is_file() else DEFAULT_PARAMS
-        print(f"params: {args.params}" + (" (recorded with the bag)" if args.params == shipped else ""))
+        shipped = recorded_params(args.bag)
+        args.params = shipped or DEFAULT_PARAMS
+        print(f"params: {args.params}" + (" (recorded with the bag)" if shipped is not None else ""))
     if not args.params.is_file():  # before any output is written
         print(f"skin-sim replay: error: --params {args.params}: no such file", file=sys.stderr)
         return 2

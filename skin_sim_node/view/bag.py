@@ -22,8 +22,16 @@ from msgs_schema.parameters import SPEC_BY_NAME
 from msgs_schema.tissue import LAYER_NAMES
 from msgs_schema.topics import TOPICS, hand_topic
 
-from ..bags.io import BagError, custom_data, deserialize, iter_raw, open_bag, register_project_type, topic_types
-from ..scenes import DEFAULT_PARAMS
+from ..bags.io import (
+    BagError,
+    custom_data,
+    deserialize,
+    iter_raw,
+    open_bag,
+    recorded_params,
+    register_project_type,
+    topic_types,
+)
 from . import frames as fr
 from .frames import decimate, default_thickness_m, diag_message, encode_frame, tool_depth_m
 
@@ -65,11 +73,9 @@ def bag_params(paths, params: Path | None = None) -> tuple[Path | None, str]:
     if params is not None:
         return Path(params), str(params)
     for path in paths:
-        recorded = custom_data(path).get("skin_sim.params")
-        if recorded:
-            shipped = DEFAULT_PARAMS.parent / recorded
-            if shipped.is_file():
-                return shipped, f"{recorded} (recorded with the bag)"
+        shipped = recorded_params(path)
+        if shipped is not None:
+            return shipped, f"{shipped.name} (recorded with the bag)"
     return None, "the schema's defaults (the bag names no shipped preset: give --params)"
 
 
