@@ -47,7 +47,7 @@ import scipy.sparse.linalg as spla
 from skfem import Basis, ElementQuad2, ElementVector, MeshQuad
 from tqdm import tqdm
 
-from skin_sim_node.model.calibration import LOAD_SPREADING, POISSON_RATIO
+from skin_sim_node.model.calibration import POISSON_RATIO, layer_moduli_pa
 from skin_sim_node.model.config import TissueConfig, preset
 
 from .cache import cached
@@ -56,33 +56,6 @@ from .fem import axis_nodes
 HYPER_VERSION = 1  # bump when the discretisation or solver changes: part of the cache key
 CACHE_DIR = Path(__file__).resolve().parents[2] / "docs" / "validation" / "hyper_cache"
 SAVE_DEPTHS_M = (0.1e-3, 0.5e-3, 1e-3, 2e-3, 3e-3)  # depths whose surface profile is stored
-
-
-def layer_moduli_pa(cfg: TissueConfig, poisson: float = POISSON_RATIO) -> tuple[float, float, float]:
-    """Young's modulus per layer, read from the config (both forms).
-
-    ``layers.<name>.youngs_modulus_pa`` when the schema has it; otherwise inverted from the layer
-    spring, by the rule the form's springs are built with (``msgs_schema.tissue``):
-
-    - ``layered``: the spread column, ``k = s E A / h`` (:func:`skin_sim_node.model.calibration.layered_stiffness_n_per_m`,
-      ``s`` = :data:`skin_sim_node.model.calibration.LOAD_SPREADING`), so ``E = k h / (s A)`` with the layer's ``thickness_m``
-      and ``area_m2``;
-    - ``paper``: Sneddon's flat punch on a half-space, ``k = 2 E r0 / (1 - nu^2)``
-      (:func:`skin_sim_node.model.calibration.flat_punch_stiffness_n_per_m`), so ``E = k (1 - nu^2) / (2 r0)``.
-
-    Either way the preset's moduli come back, and a changed spring changes the reference's modulus.
-    """
-    flat = cfg.as_flat()
-    out = []
-    for la in cfg.layers:
-        n = la.name
-        e = flat.get(f"layers.{n}.youngs_modulus_pa")
-        if e is None and cfg.form == "layered":
-            e = la.stiffness_n_per_m * la.thickness_m / (la.area_m2 * LOAD_SPREADING.get(n, 1.0))
-        elif e is None:
-            e = la.stiffness_n_per_m * (1 - poisson**2) / (2 * cfg.tool_radius_m)
-        out.append(float(f"{e:.12g}"))  # round-off free, so cache keys are stable
-    return tuple(out)
 
 
 @dataclass(frozen=True)

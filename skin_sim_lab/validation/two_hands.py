@@ -632,7 +632,8 @@ def cross_term(fcfg, distance_m: float) -> Cross:
     for h, s in zip(skin.hands, snap):
         h.tissue.set_state(s)
     t = skin.tissues
-    other = np.array([t[1].surface_displacement_at(0.0, 0.0), t[0].surface_displacement_at(distance_m, 0.0)])
+    # the coupling's lowering under each tool (the heave kernel's, skin_sim_node.model.heave) over the other's own depth
+    other = np.array([skin.others_displacement_at(0, 0.0, 0.0), skin.others_displacement_at(1, distance_m, 0.0)])
     gain = other / np.array([t[1].surface_displacement_at(distance_m, 0.0), t[0].surface_displacement_at(0.0, 0.0)])
     return Cross(
         own=np.array([d0[0, 0], d1[0, 1]]),
@@ -648,7 +649,7 @@ def cross_ok(c, i: int, tolerance_m: float) -> bool:
     dimple is at least ``tolerance_m`` (``lod.tolerance_m``), else below :data:`CROSS_NEGLIGIBLE_REL` of the own
     stiffness; and always smaller than the own stiffness."""
     pred = -c.own[i] * c.gain[i]
-    if c.other_m[i] >= tolerance_m:
+    if abs(c.other_m[i]) >= tolerance_m:
         near = abs(c.cross[i] / pred - 1.0) <= CROSS_PREDICTION_REL
     else:
         near = abs(c.cross[i]) <= CROSS_NEGLIGIBLE_REL * c.own[i]

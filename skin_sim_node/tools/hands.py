@@ -42,6 +42,7 @@ import numpy as np
 
 from ..model import SkinModel
 from ..model.grid import assemble_heights
+from ..model.heave import coupling_table
 from ..model.interfaces import interface_depths_m
 from .base import Tool, ToolPose, ToolStep
 
@@ -62,6 +63,12 @@ SLOPE_STEP_M = 10e-6
 """The finite-difference step of the other fields' slope under a tool (m): the model's displacement accuracy
 (``lod.tolerance_m`` default) in depth is reached over millimetres of the fields' decay, so 10 um resolves the slope
 with a relative error of order 1e-3 and stays far above round-off (1e-16 m on a 1e-4 m field)."""
+
+
+def receiver_radius_m(cfg) -> float:
+    """The radius (m) of the disk over which a tool of ``cfg`` feels another's heave: a flat tool's radius; 0 (its
+    centre) for a sphere, whose contact disk changes with depth, and for a needle, whose contact is its tip."""
+    return cfg.tool_radius_m if cfg.tool_shape == "flat" else 0.0
 
 
 class SharedSkin:
@@ -87,6 +94,17 @@ class SharedSkin:
             if t.cfg.sheet_size_m != first.sheet_size_m or len(t.cfg.layers) != len(first.layers):
                 raise ValueError("the tools of one tissue need the same sheet and layers")
         self.hands = tuple(CoupledTool(t, self, i) for i, t in enumerate(tools))
+        self._heave: list[list[tuple[np.ndarray, np.ndarray] | None]] = [
+            [
+                coupling_table(src.cfg, src.cfg.tool_radius_m, receiver_radius_m(dst.cfg))
+                if j != i and src.cfg.tool_shape == "flat"
+                else None
+                for j, src in enumerate(tools)
+            ]
+            for i, dst in enumerate(tools)
+        ]
+        """``_heave[i][j]``: how far flat tool ``j`` lowers the surface under tool ``i`` over its own depth, by the
+        centres' distance (:func:`~skin_sim_node.model.heave.coupling_table`); None: ``j``'s own field is read."""
 
     @property
     def tissues(self) -> tuple[SkinModel, ...]:
@@ -94,16 +112,27 @@ class SharedSkin:
         return tuple(h.tissue for h in self.hands)
 
     def others_displacement_at(self, i: int, x: float, y: float) -> float:
-        """Downward surface displacement (m) at ``(x, y)`` of every field but tool ``i``'s: ``w_i`` (module docstring).
+        """Downward surface displacement (m) under tool ``i`` at ``(x, y)`` from every tool but ``i``: ``w_i``.
 
-        A field at rest (no active layer) adds nothing and costs nothing.
+        A flat tool ``j`` (a punch, a finger pad) lowers it by its own field's depth at its centre times the heave
+        kernel averaged over tool ``i``'s disk (:mod:`~skin_sim_node.model.heave`: the skin rises beside a flat
+        contact, so ``w_i`` turns negative 5-15 mm out); any other tool by its own field at ``(x, y)``. A field at rest
+        (no active layer) adds nothing and costs nothing.
         """
         w = 0.0
         for j, h in enumerate(self.hands):
-            if j != i and h.tissue.active.any():
+            if j == i or not h.tissue.active.any():
+                continue
+            table = self._heave[i][j]
+            if table is not None and h._xy is not None:
+                xj, yj = h._xy
+                u = h.tissue.surface_displacement_at(xj, yj) * float(
+                    np.interp(math.hypot(x - xj, y - yj), table[0], table[1], right=0.0)
+                )
+            else:
                 u = h.tissue.surface_displacement_at(x, y)
-                if math.isfinite(u):  # a field gone non-finite (its session resets it) never reaches another tool
-                    w += u
+            if math.isfinite(u):  # a field gone non-finite (its session resets it) never reaches another tool
+                w += u
         return w
 
     def others_time_s(self, i: int) -> tuple[float, float]:
