@@ -56,6 +56,9 @@ FINGER_OFFSETS_M = (3e-3, 6e-3)
 """The finger's centre from the needle's entry (m): the issue's 3 and 6 mm (the 2.5 mm disk's edge 0.5 and 3.5 mm from
 the entry)."""
 FINGER_DEPTHS_M = (0.0, 1e-3, 2e-3)
+HEAVE_FROM_M = 5.2e-3
+"""Where the 3D reference's surface beside one 2.5 mm punch rises above rest (m, docs/validation/two_punch.md): a
+finger closer than this lowers the needle's entry, one further out raises it."""
 """The finger's press (m): the issue's 0, 1 and 2 mm."""
 FINGER_SPEED_M_S = 5e-3
 """The finger is ramped in at the needle's speed (m/s)."""
@@ -321,16 +324,20 @@ def study_needle(ncfg, fcfg) -> list[str]:
                 fails.append(f"needle: {tag}: puncture force {r.puncture_n:.4f} N off the needle alone's by > 1 %")
             if abs(r.contact_m - r.surface_m) > CONTACT_TOLERANCE_M + 1e-12:
                 fails.append(f"needle: {tag}: contact at {r.contact_m * 1e3:.3f} mm, the surface at {r.surface_m * 1e3:.3f}")
-    for off in FINGER_OFFSETS_M:
-        if not contacts[off, 0.0] < contacts[off, 1e-3] < contacts[off, 2e-3]:
-            fails.append(f"needle: finger at {off * 1e3:g} mm: contact not lower for a deeper press")
+    for off in FINGER_OFFSETS_M:  # lowered inside the heave's first zero (about 5 mm for this finger), raised beyond
+        sign = 1.0 if contacts[off, 1e-3] > contacts[off, 0.0] else -1.0
+        if not sign * contacts[off, 0.0] < sign * contacts[off, 1e-3] < sign * contacts[off, 2e-3]:
+            fails.append(f"needle: finger at {off * 1e3:g} mm: contact not moved further for a deeper press")
+        if sign != (1.0 if off < HEAVE_FROM_M else -1.0):
+            fails.append(f"needle: finger at {off * 1e3:g} mm: entry {'lowered' if sign > 0 else 'raised'}")
     for dep in FINGER_DEPTHS_M[1:]:
         if not contacts[FINGER_OFFSETS_M[0], dep] > contacts[FINGER_OFFSETS_M[1], dep]:
             fails.append(f"needle: finger {dep * 1e3:g} mm: contact not lower for the closer finger")
     print(
         f"   checks: a finger at 0 mm changes the needle's force by at most {RESTING_REL * 100:g} % of its puncture force;"
         " contact at the finger's dimple within one tick"
-        f" ({CONTACT_TOLERANCE_M * 1e6:g} um), lower for a deeper or closer finger; puncture force within"
+        f" ({CONTACT_TOLERANCE_M * 1e6:g} um), lowered by a finger closer than {HEAVE_FROM_M * 1e3:g} mm and raised"
+        " beyond (the heave), further for a deeper press, lower for the closer finger; puncture force within"
         f" {PUNCTURE_FORCE_REL * 100:g} % of alone (a force threshold: a regression check of the law)"
     )
     return fails

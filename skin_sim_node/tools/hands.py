@@ -7,15 +7,19 @@ edge footprint, anisotropic patch and, for a needle, its track), and the sum of 
 (:meth:`SharedSkin.surface_displacement_at`, :meth:`SharedSkin.heights_m`, :meth:`SharedSkin.cross_section`).
 
 The coupling: each tool's chain (eq 6) acts at a surface that includes the others' deflection. Tool ``i`` at depth
-``d_i`` below the rest surface, where the others have lowered the surface by ``w_i = sum_{j != i} u_j(x_i, y_i)``,
-presses its own field to ``d_i - w_i``: its step runs at ``z_i + w_i`` (:class:`CoupledTool`). A finger pressing 3 mm
-from a needle's entry lowers the skin there, so the needle's dimple starts lower and its puncture comes later along the
-needle's travel, as with a real finger (``skin-sim two-hands``, docs/two_hands.md).
+``d_i`` below the rest surface, where the others have lowered the surface by ``w_i``, presses its own field to
+``d_i - w_i``: its step runs at ``z_i + w_i`` (:class:`CoupledTool`). A flat tool ``j`` (a punch, a finger pad) gives
+``w_i = delta_j G_ij(s)``: its own field's depth at its centre times the heave kernel at the centres' distance, averaged
+over tool ``i``'s disk (:mod:`~skin_sim_node.model.heave`: the skin is nearly incompressible and bonded to a base, so it
+rises 5-15 mm beside a flat contact, as the 3D reference does); a sphere or a needle gives its own field at tool ``i``'s
+place, ``u_j(x_i, y_i)``. A finger pressing 3 mm from a needle's entry lowers the skin there, so the needle's dimple
+starts lower and its puncture comes later along the needle's travel; 6 mm out the skin stands higher and the puncture
+comes earlier (``skin-sim two-hands``, docs/two_hands.md).
 
 Order: the tools step one after another (each tick of each hand, when its pose arrives), each reading the others'
 fields as they stand (the Gauss-Seidel order of a partitioned solve). The loop gain of the coupling is
-``g_ij g_ji``, ``g_ij = u_j(x_i) / u_j(x_j)`` (the other's dimple at this tool over its own, <= 1 and 0.22 at 4 mm for
-2.5 mm punches), so the iteration contracts at every distance above 0. Overlap rule: none is needed. The coupling is the
+``g_ij g_ji``, ``g_ij = w_i / delta_j`` (the lowering at this tool over the other's own depth, |g| <= 1: 0.25 at 4 mm,
+-0.04 at 6 mm and -0.055 at 10 mm for 2.5 mm punches), so the iteration contracts at every distance above 0. Overlap rule: none is needed. The coupling is the
 same continuous superposition at every centre distance, so nothing switches when two contact disks start to overlap and
 the force has no jolt (tests/test_hands.py sweeps the distance through ``r_1 + r_2``). At distance 0, two coincident
 flat punches at one depth share the force of one punch (``w_i`` is the other's whole share of the depth).
@@ -25,9 +29,9 @@ in the tissue frame (the friction anchor lowered back by ``w_i``), and the coupl
 ``K[:, 2] grad(w_i)^T`` (moving sideways along the others' slope), and ``coupling_rate_n_per_s = K[:, 2] dw_i/dt`` is
 the other tools' own motion, which the bridge renders for at most one server period (docs/two_hands.md).
 
-Not modelled: the heave beside a punch. The FEM's surface rises above rest 5-15 mm out (nearly incompressible tissue
-on a rigid base); the membranes on a foundation only dent, so a second punch 6-10 mm away feels the skin softer where the
-FEM has it stiffer (``skin-sim two-punch``, docs/two_hands.md).
+Not modelled: the heave in the drawn surface (the display sums the tools' own fields, which only dent), and contact
+between two overlapping flat disks: at 4 mm the superposition lowers one 2.5 mm punch by 0.25 of the other's depth, where
+the reference's pair (one rigid body of the union footprint) implies 0.07 (``skin-sim two-punch``, docs/two_hands.md).
 
 Limit: :data:`MAX_HANDS` tools.
 """
