@@ -17,12 +17,13 @@ starts lower and its puncture comes later along the needle's travel; 6 mm out th
 comes earlier (``skin-sim two-hands``, docs/two_hands.md).
 
 Order: the tools step one after another (each tick of each hand, when its pose arrives), each reading the others'
-fields as they stand (the Gauss-Seidel order of a partitioned solve). The loop gain of the coupling is
-``g_ij g_ji``, ``g_ij = w_i / delta_j`` (the lowering at this tool over the other's own depth, |g| <= 1: 0.25 at 4 mm,
--0.04 at 6 mm and -0.055 at 10 mm for 2.5 mm punches), so the iteration contracts at every distance above 0. Overlap rule: none is needed. The coupling is the
-same continuous superposition at every centre distance, so nothing switches when two contact disks start to overlap and
-the force has no jolt (tests/test_hands.py sweeps the distance through ``r_1 + r_2``). At distance 0, two coincident
-flat punches at one depth share the force of one punch (``w_i`` is the other's whole share of the depth).
+fields as they stand (the Gauss-Seidel order of a partitioned solve). The loop gain of the coupling is ``g_ij g_ji``,
+``g_ij = w_i / delta_j`` (the lowering at this tool over the other's own depth, ``|g| <= 1``: 0.25 at 4 mm, -0.04 at
+6 mm and -0.055 at 10 mm for 2.5 mm punches), so the iteration contracts at every distance above 0. Overlap rule: none
+switches. The coupling is the same continuous kernel at every centre distance, so nothing changes when two contact
+disks start to overlap and the force has no jolt (tests/test_hands.py sweeps the distance through ``r_1 + r_2``). At
+distance 0, two coincident flat punches at one depth share the force of one punch (``w_i`` is the other's whole share
+of the depth).
 
 The local contact model a device renders (:class:`~skin_sim_node.model.ContactTangent`) is this tool's, with positions
 in the tissue frame (the friction anchor lowered back by ``w_i``), and the coupling to first order: ``K`` gains
