@@ -95,7 +95,7 @@ def localhost_udp_env(env, keep_shm: bool = False) -> tuple[dict[str, str], str]
     return updates, f"LOCALHOST discovery over UDPv4 on this host, no shared memory ({UDP_LOOPBACK_PROFILE.name})"
 
 
-def run_nodes(factories: list[Callable[[], Node]], args=None, executor: str = "events") -> int:
+def run_nodes(factories: list[Callable[[], Node | list[Node]]], args=None, executor: str = "events") -> int:
     """Init rclpy, build the nodes, spin until SIGINT/SIGTERM, then stop and destroy them.
 
     rclpy's default signal handlers shut the context down on SIGINT and SIGTERM. The
@@ -122,7 +122,8 @@ def run_nodes(factories: list[Callable[[], Node]], args=None, executor: str = "e
     code = 0
     try:
         for f in factories:
-            nodes.append(f())
+            made = f()  # a node, or a list of them (a composed bridge: one bridge per hand of the node before it)
+            nodes.extend(made if isinstance(made, list) else [made])
         # Start-up objects (numba, rclpy, messages) move to a permanent generation, so the
         # cyclic GC stops rescanning them: measured, a gen-2 pass stalled the haptic thread 55 ms.
         gc.collect()

@@ -140,3 +140,20 @@ def test_hand_view_and_aims_name_the_hand():
     assert missed_hand_aims({"right": late, "left": late}) == [
         "schedule: kill 4.30 s into its phase (its figures are not a kill's)"
     ]
+
+
+def test_one_process_node_overrides_go_to_a_file_keyed_by_the_node(tmp_path):
+    """``--with-node``: the node's ``-p`` overrides become a parameter file for ``skin_sim_node`` only (a ``-p`` reaches
+    every node of the process, and the bridges stop on a parameter they do not have)."""
+    import yaml
+
+    from skin_sim_lab.perf.device_bench import node_params
+
+    out = node_params(
+        ("-p", "hand_ns:=right", "-p", "second_hand_ns:=left", "-p", "rate_hz:=500.0", "--log-level", "warn"), tmp_path
+    )
+    assert out[0] == "--params-file" and out[2:] == ("--log-level", "warn")
+    assert yaml.safe_load(open(out[1])) == {
+        "/**/skin_sim_node": {"ros__parameters": {"hand_ns": "right", "second_hand_ns": "left", "rate_hz": 500.0}}
+    }
+    assert node_params((), tmp_path) == ()

@@ -55,6 +55,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from msgs_schema.contact_model import DEFAULT_TTL_S
 from skin_sim_node.device.mapping import DEFAULT_OFFSET_M, DEFAULTS, TOUCH_PEAK_FORCE_N
@@ -623,6 +624,25 @@ def hand_key(ns: str) -> str:
     return f"_{ns}" if ns else ""
 
 
+def node_params(node_args: tuple, log_dir: Path) -> tuple:
+    """``node_args`` for a process that holds the node and its bridges (``--with-node``): its ``-p name:=value``
+    pairs go to a parameter file keyed ``skin_sim_node`` (``-p`` would give them to every node of the process, and
+    a bridge stops on a parameter it does not have), the other arguments as they are."""
+    pairs, rest = {}, []
+    it = iter(node_args)
+    for a in it:
+        if a == "-p":
+            k, _, v = next(it).partition(":=")
+            pairs[k] = yaml.safe_load(v)
+        else:
+            rest.append(a)
+    if not pairs:
+        return tuple(rest)
+    path = log_dir / "node_overrides.yaml"
+    path.write_text(yaml.safe_dump({"/**/skin_sim_node": {"ros__parameters": pairs}}))
+    return ("--params-file", str(path), *rest)
+
+
 def run(
     phase_s: float,
     hog: int,
@@ -648,8 +668,6 @@ def run(
     from .cpu_budget import DiagListener, ProcCpu, echo_baseline
     from .soak import _JoiningReader
 
-    if with_node and len(hands) > 1:
-        raise ValueError("--with-node runs one device's bridge with the node: one hand only")
     phase_s = max(DRAG_PERIOD_S, DRAG_PERIOD_S * round(phase_s / DRAG_PERIOD_S))
     hogs = []
     with Scene(log_dir) as scene:
@@ -657,9 +675,10 @@ def run(
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
         shm_flag = ["--localhost-shm"] if bridge_shm else []
         bridges = {}
-        if with_node:  # one process: the bridge with the node linked in memory (skin-sim bridge --with-node)
-            params = ("--ros-args", "--params-file", str(DEFAULT_PARAMS), *node_args)
-            bridges[""] = node = scene.start("bridge", "bridge", "--with-node", *shm_flag, *params)
+        if with_node:  # one process: the bridge(s) with the node linked in memory (skin-sim bridge --with-node)
+            params = ("--ros-args", "--params-file", str(DEFAULT_PARAMS), *node_params(node_args, log_dir))
+            node = scene.start("bridge", "bridge", "--with-node", *shm_flag, *params)
+            bridges = {ns: node for ns, _ in hands}  # a two-hand node: a bridge per hand in its namespace, one process
         elif node_shm:  # the node on rmw's LOCALHOST transports (shared memory), as before it used the UDP profile
             shm = ("--localhost-shm", "--ros-args", "--params-file", str(DEFAULT_PARAMS))
             node = scene.start("skin_sim_node", "node", *shm, *node_args)
@@ -671,7 +690,7 @@ def run(
                 remap = ("--ros-args", "-r", f"__ns:=/{ns}") if ns else ()
                 bridges[ns] = scene.start(f"bridge{hand_key(ns)}", "bridge", *shm_flag, *remap)
             bridge = bridges[ns]
-            scene.wait_for_log(bridge, "bridge crtk")
+            scene.wait_for_log(bridge, f"(hand {ns})" if with_node and len(hands) > 1 else "bridge crtk")
             rt_line = next((ln for ln in bridge.log().splitlines() if "device path" in ln or "SCHED_FIFO refused" in ln), "")
             tr_line = next((ln for ln in bridge.log().splitlines() if "transports:" in ln), "")
             print(f"  bridge{' ' + ns if ns else ''}: {rt_line.split(']: ')[-1]}; {tr_line.split(']: ')[-1]}", flush=True)

@@ -114,19 +114,24 @@ def hand_view(res: dict, ns: str, diag_prefix: str) -> dict:
         return mine
 
     k = hand_key(ns)
-    cpu = {
-        ph: {"node": c.get("node"), "bridge": c.get(f"bridge{k}"), "emulator": c.get(f"emulator{k}")}
+    cpu = {  # --with-node: no bridge process (the bridges' CPU is in the node's)
+        ph: {
+            n: v
+            for n, v in (("node", c.get("node")), ("bridge", c.get(f"bridge{k}")), ("emulator", c.get(f"emulator{k}")))
+            if v is not None
+        }
         for ph, c in res["cpu"].items()
     }
     diag = {tag: {"node": node_diag(d.get("node", {})), "bridge": d.get(f"bridge{k}", {})} for tag, d in res["diag"].items()}
     return res | {"rec": res["recs"][ns], "cpu": cpu, "diag": diag}
 
 
-def missed_hand_aims(phs: dict[str, dict]) -> list[str]:
-    """The :data:`HAND_AIMS` each hand missed, each named with its hand and figure (``answered: left steady 99.1%``)."""
+def missed_hand_aims(phs: dict[str, dict], one_process: bool = False) -> list[str]:
+    """The :data:`HAND_AIMS` each hand missed, each named with its hand and figure (``answered: left steady 99.1%``);
+    ``one_process`` (``--with-node``): node and bridges in one process, no kill phase."""
     out = []
     for i, (ns, ph) in enumerate(phs.items()):
-        for m in missed_aims(ph):
+        for m in missed_aims(ph, one_process=one_process):
             aim, _, rest = m.partition(": ")
             if aim in HAND_AIMS and not (aim == "schedule" and i > 0):  # one schedule for both hands
                 out.append(f"{aim}: {ns} {rest}" if aim != "schedule" else m)
@@ -151,7 +156,7 @@ def print_cpu(res: dict) -> None:
     print(f"{'phase':<9} " + " ".join(f"{n:>16}" for n in names) + f" {'node+bridges':>16}")
     for ph, c in res["cpu"].items():
         vals = [c.get(n, float("nan")) for n in names]
-        nb = vals[0] + vals[1] + vals[2]
+        nb = vals[0] + sum(c.get(n, 0.0) for n in names[1:3])  # --with-node: the bridges are in the node's process
         cells = [f"{v:7.1f} % {v / echo if echo > 0 else float('nan'):5.2f}x" for v in [*vals, nb]]
         print(f"{ph:<9} " + " ".join(f"{c_:>16}" for c_ in cells))
     print(
@@ -169,9 +174,6 @@ def main_hands(args) -> int:
     args : argparse.Namespace
         :func:`skin_sim_lab.perf.device_bench.main`'s options.
     """
-    if args.with_node:
-        print("skin-sim bench-device: --with-node links one bridge with the node; --hands 2 has a bridge per hand")
-        return 2
     log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="skin_sim_device_bench_hands_"))
     log_dir.mkdir(parents=True, exist_ok=True)
     offset_ns = HAND_PHASE_NS if args.hand_phase_us is None else int(args.hand_phase_us * 1e3)
@@ -192,6 +194,7 @@ def main_hands(args) -> int:
         args.driver_shm,
         node_args,
         args.node_shm,
+        args.with_node,
         hands=HANDS,
         hand_offset_ns=offset_ns,
     )
@@ -229,7 +232,7 @@ def main_hands(args) -> int:
                 )
     if args.json:
         args.json.write_text(json.dumps({"hands": phs, "cpu": res["cpu"], "echo_pct": res["echo_pct"]}, indent=2))
-    missed = missed_hand_aims(phs)
+    missed = missed_hand_aims(phs, one_process=args.with_node)
     for m in missed:
         print(f"AIM MISSED: {m} ({AIMS[m.split(':')[0]]})")
     print("aims met (both hands)" if not missed else f"{len(missed)} aims missed")

@@ -113,7 +113,15 @@ class BridgeNode(DeviceNode):
             built.append(SkinSimNode(ros_args=cls.ROS_ARGS))
             return built[0]
 
-        return [node, lambda: cls(overrides, local_node=built[0])]
+        def bridges():
+            hands = built[0].hands
+            if len(hands) == 1:  # one hand: the bridge in this process's namespace, as it always was
+                return cls(overrides, local_node=built[0])
+            # two hands (issue 32): a bridge per hand, each in the hand's namespace (its device under
+            # /<hand>/<device_ns>, as a bridge started with __ns:=/<hand> has it), each linked to its hand in memory
+            return [cls(overrides, local_node=built[0], hand=h.index, namespace=h.ns or None) for h in hands]
+
+        return [node, bridges]
 
     @classmethod
     def add_arguments(cls, ap) -> None:
@@ -129,7 +137,8 @@ class BridgeNode(DeviceNode):
             "--with-node",
             action="store_true",
             help="run skin_sim_node in this process too (its parameters from --ros-args --params-file, keyed "
-            "skin_sim_node): poses and contact models handed over in memory, no DDS hop between them",
+            "skin_sim_node): poses and contact models handed over in memory, no DDS hop between them; a node with two "
+            "hands gets a bridge per hand, each in the hand's namespace",
         )
         ap.add_argument(
             "--forward-twist",
@@ -161,7 +170,7 @@ class BridgeNode(DeviceNode):
         os.environ.update(updates)  # before rclpy creates a participant: both of the bridge's participants
         return None
 
-    def __init__(self, overrides: dict | None = None, local_node=None, **kwargs):
+    def __init__(self, overrides: dict | None = None, local_node=None, hand: int = 0, **kwargs):
         super().__init__(overrides, **kwargs)
         p = self.p
         self.mapping = DeviceMapping(tuple(p.offset_m), p.scale, p.axes, p.force_scale, p.max_force_n)
@@ -236,7 +245,9 @@ class BridgeNode(DeviceNode):
         self.server: ServerLink | LocalLink
         if local_node is not None:
             self.model_source = True  # in memory: the node's contact model itself
-            self.server = LocalLink(self, local_node, link_prio, periodic=(p.diagnostics_period_s, self._publish_diagnostics))
+            self.server = LocalLink(
+                self, local_node, link_prio, periodic=(p.diagnostics_period_s, self._publish_diagnostics), hand=hand
+            )
         else:
             self.server = ServerLink(
                 self,
@@ -282,7 +293,8 @@ class BridgeNode(DeviceNode):
         src = f"{src} rendered per device tick" if self.model_source else src
         tool_pose = self.server.node.resolve_topic_name(TOPICS["tool_pose"].name)
         if local_node is not None:
-            tool_pose, src = "skin_sim_node in this process", "its contact model, in memory, rendered per device tick"
+            who = f" (hand {local_node.hands[hand].ns})" if len(local_node.hands) > 1 else ""
+            tool_pose, src = f"skin_sim_node in this process{who}", "its contact model, in memory, rendered per device tick"
         self.get_logger().info(
             f"bridge {p.convention}: {self.resolve_topic_name(dev(pose_key))} -> {tool_pose}; {src} -> "
             f"{self.resolve_topic_name(dev(force_key))}; "

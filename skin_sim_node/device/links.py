@@ -156,18 +156,27 @@ class ServerLink:
 class LocalLink:
     """The node in this process (``skin-sim bridge --with-node``, issue 27 item 5): no DDS hop between them.
 
-    A due pose goes to the node's :meth:`~skin_sim_node.server.node.SkinSimNode.answer_pose` on this link's thread
-    (a latest-value hand-off, as :class:`ServerLink`), and the node's tick hands each contact model back through its
-    ``local_model_sink``: per answer, four rclpy messages fewer (pose out and in, model out and in). The node still
-    publishes ``tool/wrench`` (and the contact model, for other readers) over DDS.
+    A due pose goes to the node's :meth:`~skin_sim_node.server.node.SkinSimNode.answer_pose` for the link's hand on
+    this link's thread (a latest-value hand-off, as :class:`ServerLink`), and the node's tick hands each contact model
+    back through its ``local_model_sinks`` entry for that hand: per answer, four rclpy messages fewer (pose out and in,
+    model out and in). The node still publishes ``tool/wrench`` (and the contact model, for other readers) over DDS.
     """
 
-    def __init__(self, bridge: BridgeNode, node, rt_priority: int = 0, periodic: tuple[float, Callable[[], None]] | None = None):
+    def __init__(
+        self,
+        bridge: BridgeNode,
+        node,
+        rt_priority: int = 0,
+        periodic: tuple[float, Callable[[], None]] | None = None,
+        hand: int = 0,
+    ):
         self.node = node
+        self.hand = hand
+        """The node's hand this link serves (its index in ``node.hands``)."""
         self._frame = bridge.tissue_frame
         self._periodic = periodic
         self.rt_priority = rt_priority
-        node.local_model_sink = bridge._on_local_model
+        node.local_model_sinks[hand] = bridge._on_local_model
         self._latest: tuple | None = None
         self._lock = threading.Lock()
         self._wake = threading.Event()
@@ -195,8 +204,8 @@ class LocalLink:
             if latest is not None and not self._stop.is_set():
                 (stamp, x, q), tw = latest
                 if tw is not None:
-                    self.node.answer_twist(tw[0], self._frame, tw[1])
-                self.node.answer_pose(stamp, self._frame, x, q)
+                    self.node.answer_twist(tw[0], self._frame, tw[1], hand=self.hand)
+                self.node.answer_pose(stamp, self._frame, x, q, hand=self.hand)
                 self.forwarded += 1
             if self._periodic is not None and time.monotonic_ns() >= next_ns:
                 next_ns = time.monotonic_ns() + period_ns
@@ -207,7 +216,7 @@ class LocalLink:
         self._stop.set()
         self._wake.set()
         self._thread.join(timeout=LINK_JOIN_S)
-        self.node.local_model_sink = None
+        self.node.local_model_sinks.pop(self.hand, None)
 
 
 def _never_called(_msg) -> None:  # pragma: no cover - the wait-set readers' subscriptions are in no executor

@@ -48,10 +48,13 @@ class Hand:
         The node runs on ``use_sim_time`` (pose stamps are not on the system clock).
     log : callable(kind, message)
         The session's event log.
+    index : int
+        Its place in the node's hands (0: the first).
     """
 
-    def __init__(self, node, ns: str, tool: Tool, params: NodeParams, frame: str, sim_time: bool, log: Callable):
+    def __init__(self, node, ns: str, tool: Tool, params: NodeParams, frame: str, sim_time: bool, log: Callable, index: int = 0):
         self.ns = ns
+        self.index = index
         self.session = HapticSession(tool, session_params(params), log=log)
         self.frame = frame
         self.sim_time = sim_time

@@ -150,7 +150,7 @@ class SkinSimNode(Node):
         self.hands: list[Hand] = []
         for i, (ns, tool) in enumerate(zip(names, make_tools(cfgs))):
             log = functools.partial(self._log_event, hand=i)
-            self.hands.append(Hand(self, ns, tool, self.params, self._frame, self._sim_time, log))
+            self.hands.append(Hand(self, ns, tool, self.params, self._frame, self._sim_time, log, index=i))
         self._n_undecodable = 0
         self._diag = DiagnosticArray()
         # statistics (ring buffers, written under the lock)
@@ -164,7 +164,9 @@ class SkinSimNode(Node):
         self._last_diag_ns = time.perf_counter_ns()
         self._display_key: tuple | None = None
         self._pub_diag = publisher(self, "diagnostics")
-        self.local_model_sink: Callable[[ContactModel], None] | None = None
+        self.local_model_sinks: dict[int, Callable[[ContactModel], None]] = {}
+        """Per hand index, the composed bridge's in-memory entry for that hand's contact models (``skin-sim bridge
+        --with-node``: :class:`~skin_sim_node.device.links.LocalLink`)."""
         """A composed bridge's hand-off: called with each contact model in the tick (no DDS hop, no copy kept)."""
         self._accepted: tuple[dict, dict, NodeParams, TissueConfig] | None = None  # on_set's validated set, for post_set
         self.add_on_set_parameters_callback(self._on_set_parameters)  # validate (ros2/demos: on_set checks)
@@ -289,7 +291,7 @@ class SkinSimNode(Node):
         publishes).
 
         The pose callback's work; also the in-process entry of a composed bridge (``skin-sim bridge --with-node``),
-        whose local model then arrives through :attr:`local_model_sink`.
+        whose local model then arrives through :attr:`local_model_sinks` (the hand's).
         """
         h = self.hands[hand]
         with self._lock:
@@ -338,7 +340,7 @@ class SkinSimNode(Node):
             else:
                 self.get_logger().info(msg)
         stamp = r.stamp_ns if pose_driven else self._ros_now_ns()
-        h.publish(r, now_ns, stamp, self.params.idle_heartbeat_hz, self.local_model_sink if h is self.hands[0] else None)
+        h.publish(r, now_ns, stamp, self.params.idle_heartbeat_hz, self.local_model_sinks.get(h.index))
         if now_ns >= self._next_display_ns and self.params.display_rate_hz > 0:
             self._next_display_ns = now_ns + self._display_period_ns()
             self._snapshot_display()  # after the publishes: the wrench never waits for it

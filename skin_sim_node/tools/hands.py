@@ -76,6 +76,12 @@ def receiver_radius_m(cfg) -> float:
     return cfg.tool_radius_m if cfg.tool_shape == "flat" else 0.0
 
 
+def _table(source_cfg, receiver_cfg) -> tuple[float, list[float]]:
+    """:func:`~skin_sim_node.model.heave.coupling_table` of a flat source for a receiver: its step (m) and values."""
+    s, g = coupling_table(source_cfg, source_cfg.tool_radius_m, receiver_radius_m(receiver_cfg))
+    return float(s[1] - s[0]), g.tolist()
+
+
 class SharedSkin:
     """One tissue pressed by several tools: the sum of their modal fields (module docstring).
 
@@ -99,17 +105,13 @@ class SharedSkin:
             if t.cfg.sheet_size_m != first.sheet_size_m or len(t.cfg.layers) != len(first.layers):
                 raise ValueError("the tools of one tissue need the same sheet and layers")
         self.hands = tuple(CoupledTool(t, self, i) for i, t in enumerate(tools))
-        self._heave: list[list[tuple[np.ndarray, np.ndarray] | None]] = [
-            [
-                coupling_table(src.cfg, src.cfg.tool_radius_m, receiver_radius_m(dst.cfg))
-                if j != i and src.cfg.tool_shape == "flat"
-                else None
-                for j, src in enumerate(tools)
-            ]
+        self._heave: list[list[tuple[float, list[float]] | None]] = [
+            [_table(src.cfg, dst.cfg) if j != i and src.cfg.tool_shape == "flat" else None for j, src in enumerate(tools)]
             for i, dst in enumerate(tools)
         ]
         """``_heave[i][j]``: how far flat tool ``j`` lowers the surface under tool ``i`` over its own depth, by the
-        centres' distance (:func:`~skin_sim_node.model.heave.coupling_table`); None: ``j``'s own field is read."""
+        centres' distance: the table's step (m) and values (:func:`~skin_sim_node.model.heave.coupling_table`, a list:
+        the tick reads two entries of it); None: ``j``'s own field is read."""
 
     @property
     def tissues(self) -> tuple[SkinModel, ...]:
@@ -124,20 +126,43 @@ class SharedSkin:
         contact, so ``w_i`` turns negative 5-15 mm out); any other tool by its own field at ``(x, y)``. A field at rest
         (no active layer) adds nothing and costs nothing.
         """
-        w = 0.0
+        return self.displacement_from(self.sources(i), x, y)
+
+    def sources(self, i: int) -> list[tuple]:
+        """What the other tools' fields are now, for :meth:`displacement_from` (one tool's step reads them at up to
+        four places, and they do not change within it): per active other tool, ``(delta_j, x_j, y_j, table_step,
+        table)`` for a flat tool (its depth at its centre and its kernel for tool ``i``, :meth:`others_displacement_at`)
+        or ``(tissue,)`` for another."""
+        out: list[tuple] = []
         for j, h in enumerate(self.hands):
             if j == i or not h.tissue.active.any():
                 continue
             table = self._heave[i][j]
             if table is not None and h._xy is not None:
                 xj, yj = h._xy
-                u = h.tissue.surface_displacement_at(xj, yj) * float(
-                    np.interp(math.hypot(x - xj, y - yj), table[0], table[1], right=0.0)
-                )
+                delta = h.tissue.surface_displacement_at(xj, yj)
+                if math.isfinite(delta):  # a field gone non-finite (its session resets it) never reaches another tool
+                    out.append((delta, xj, yj, *table))
             else:
-                u = h.tissue.surface_displacement_at(x, y)
-            if math.isfinite(u):  # a field gone non-finite (its session resets it) never reaches another tool
-                w += u
+                out.append((h.tissue,))
+        return out
+
+    @staticmethod
+    def displacement_from(sources: list[tuple], x: float, y: float) -> float:
+        """``w`` at ``(x, y)`` from :meth:`sources` (m, downward): each flat source's depth times its kernel,
+        interpolated linearly on its uniform table (zero past its end), each other source's own field there."""
+        w = 0.0
+        for src in sources:
+            if len(src) == 1:
+                u = src[0].surface_displacement_at(x, y)
+                if math.isfinite(u):
+                    w += u
+                continue
+            delta, xj, yj, step, g = src
+            t = math.hypot(x - xj, y - yj) / step
+            k = int(t)
+            if k + 1 < len(g):
+                w += delta * (g[k] + (t - k) * (g[k + 1] - g[k]))
         return w
 
     def others_time_s(self, i: int) -> tuple[float, float]:
@@ -218,7 +243,11 @@ class CoupledTool(Tool):
         self.time_s += max(pose.dt_s, 0.0)
         if pose.restart or pose.dt_s > CONTINUOUS_STEP_S:
             self.jump_time_s = self.time_s
-        others = self.skin.others_displacement_at
+        sources = self.skin.sources(self.index)  # the others' fields do not change within this step
+
+        def others(_i: int, px: float, py: float) -> float:
+            return self.skin.displacement_from(sources, px, py)
+
         w = others(self.index, x, y)
         prev, prev_xy, self.shift_m, self._xy = self.shift_m, self._xy, w, (x, y)
         seen, self._seen = self._seen, self.skin.others_time_s(self.index)
