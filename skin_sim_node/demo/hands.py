@@ -3,9 +3,9 @@
 A nurse's two hands: the right holds a 21 G needle and inserts it vertically at the origin, the left anchors the skin
 with a fingertip pad (``second_tool_radius_m``, 5 mm) pressed beside the entry (centre :data:`FINGER_X_M`, its edge
 3 mm from the entry). One node with ``config/two_hands.yaml``, one bridge and one simulated Touch per hand, each in its
-hand's namespace (``/right``, ``/left``). It prints each hand's peak force and device ticks, checks each hand's
-published forces against the offline two-hand session on the same poses, and draws the tissue at the needle's deepest
-pose with both tools.
+hand's namespace (``/right``, ``/left``; node and bridges in one process, ``skin-sim bridge --with-node``). It prints
+each hand's peak force and device ticks, checks each hand's published forces against the offline two-hand session on
+the same poses, and draws the tissue at the needle's deepest pose with both tools.
 """
 
 from __future__ import annotations
@@ -83,13 +83,21 @@ device paths' 80-90, which it must never delay."""
 
 class HandsRecorder:
     """Each hand's poses and wrenches (stamp-keyed, the first of each stamp), from a node of this process at
-    :data:`READER_RT` (restored to normal in :meth:`close`)."""
+    :data:`READER_RT` (restored to normal in :meth:`close`).
 
-    def __init__(self):
+    ``device_poses``: also each hand's device pose (``/<hand>/device/measured_cp``, CRTK), in the tissue frame by the
+    bridge's default mapping: with node and bridges in one process (``skin-sim bridge --with-node``) the tool poses go
+    to the node in memory, not over DDS, and the bridge forwards the device's stamps, which the answers carry.
+    """
+
+    def __init__(self, device_poses: bool = False):
         import rclpy
 
         from msgs_schema.convert import read_wrench, stamp_ns
         from msgs_schema.qos import subscription
+        from msgs_schema.topics import TOPICS
+
+        from ..device.mapping import CONVENTIONS, DEFAULTS, DeviceMapping
 
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
@@ -105,8 +113,19 @@ class HandsRecorder:
             stamp, _, f = read_wrench(m)
             self.wrench[h].setdefault(stamp, np.asarray(f, dtype=float))
 
+        mapping = DeviceMapping()  # the bridge's defaults (skin-sim bridge with no mapping options)
+
+        def on_device_pose(h, m):
+            p, q = m.pose.position, m.pose.orientation
+            xyz = tuple(mapping.to_tissue((p.x, p.y, p.z)))
+            self.poses[h].setdefault(stamp_ns(m.header), (xyz, tuple(mapping.orientation_to_tissue((q.x, q.y, q.z, q.w)))))
+
+        pose_key = CONVENTIONS["crtk"][0]  # the bridge's default convention
         for h in HANDS:
             subscription(self.node, "tool_pose", lambda m, h=h: on_pose(h, m), name=f"/{h}/tool/pose", depth=1000)
+            if device_poses:
+                name = f"/{h}/{DEFAULTS['device_ns']}/{TOPICS[pose_key].name}"  # the bridge's default device_ns
+                subscription(self.node, pose_key, lambda m, h=h: on_device_pose(h, m), name=name, depth=1000)
             subscription(self.node, "tool_wrench", lambda m, h=h: on_wrench(h, m), name=f"/{h}/tool/wrench", depth=1000)
         self.ex = rclpy.executors.SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
@@ -213,16 +232,16 @@ def main(args) -> int:
         f"left: fingertip pad at x = {FINGER_X_M * 1e3:g} mm ({PATHS['left']})",
         flush=True,
     )
-    rec = HandsRecorder()
     checks: list = []
     devices = {}
     mock = getattr(args, "source", "device") == "mock"  # --source mock: scripted poses, no bridges and devices
+    rec = HandsRecorder(device_poses=not mock)
     try:
-        node = scene.node(params=PARAMS)
+        if mock:
+            node = scene.node(params=PARAMS)
+        else:  # node and a bridge per hand in one process: what 2 cores hold (docs/two_hands.md, "One process")
+            node = scene.start("node_bridges", "bridge", "--with-node", "--ros-args", "--params-file", str(PARAMS))
         scene.wait_for_log(node, "live:", timeout_s=180)
-        if not mock:
-            for h in HANDS:
-                scene.start(f"bridge_{h}", "bridge", "--ros-args", "-r", f"__ns:=/{h}")
         for h in HANDS:
             # the finger first: it anchors before the needle comes (its path starts 0.5 s earlier)
             delay = args.start_delay_s + (0.0 if h == "left" else 0.5)
