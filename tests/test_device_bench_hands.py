@@ -152,8 +152,8 @@ def test_one_process_node_overrides_go_to_a_file_keyed_by_the_node(tmp_path):
     out = node_params(
         ("-p", "hand_ns:=right", "-p", "second_hand_ns:=left", "-p", "rate_hz:=500.0", "--log-level", "warn"), tmp_path
     )
-    assert out[0] == "--params-file" and out[2:] == ("--log-level", "warn")
-    assert yaml.safe_load(open(out[1])) == {
+    assert out[:2] == ("--log-level", "warn") and out[2] == "--params-file"
+    assert yaml.safe_load(open(out[3])) == {
         "/**/skin_sim_node": {"ros__parameters": {"hand_ns": "right", "second_hand_ns": "left", "rate_hz": 500.0}}
     }
     assert node_params((), tmp_path) == ()

@@ -82,3 +82,26 @@ def test_a_punch_lowers_a_needle_by_its_depth_times_the_profile(cfg):
     assert want < 0.0  # 7 mm out: raised
     assert skin.others_displacement_at(0, 0.0, 0.0) == pytest.approx(want, rel=1e-12)
     assert skin.others_displacement_at(1, 7e-3, 0.0) == 0.0  # the needle has not touched
+
+
+def test_the_paper_form_couples_through_its_own_fields(cfg):
+    """The paper form's membranes carry almost no tension (L far below MIN_LENGTH_M): no kernel, the other tool's own
+    field is read, as before the heave."""
+    paper = preset("paper")
+    assert hv.volume_length_m(paper) < hv.MIN_LENGTH_M <= hv.volume_length_m(cfg)
+    assert not hv.uses_kernel(paper) and hv.uses_kernel(cfg)
+    skin = SharedSkin([make_tool(paper), make_tool(paper)])
+    a, b = skin.hands
+    for k in range(100):
+        b.step(ToolPose((4e-3, 0.0, -1e-3 * min(k, 50) / 50), (0.0, 0.0, 0.0), DOWN, 1e-3, k == 0))
+    assert skin.others_displacement_at(0, 3e-3, 0.0) == b.tissue.surface_displacement_at(3e-3, 0.0) > 0.0
+
+
+def test_a_place_that_is_not_finite_gives_nan_and_far_away_nothing(cfg):
+    skin = SharedSkin([make_tool(cfg), make_tool(cfg)])
+    a, b = skin.hands
+    for k in range(50):
+        b.step(ToolPose((6e-3, 0.0, -1e-3 * min(k, 25) / 25), (0.0, 0.0, 0.0), DOWN, 1e-3, k == 0))
+    assert np.isnan(skin.others_displacement_at(0, float("nan"), 0.0))
+    assert skin.others_displacement_at(0, float("inf"), 0.0) == 0.0
+    assert skin.others_displacement_at(0, 6e-3 + 50e-3, 0.0) == 0.0  # past the kernel's 45 mm

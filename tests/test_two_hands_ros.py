@@ -167,3 +167,19 @@ def test_one_process_holds_the_node_and_a_bridge_per_hand_each_closing_its_devic
         # answers may miss by a little more: the two link threads hand their poses to the node in their arrival order,
         # which the offline stamp order stands for only to one answer of the other hand's field
         assert near.mean() >= 0.97 and np.all(err <= 0.2 * size + 0.05), (h, err.max(), near.mean())
+
+
+def test_one_process_keeps_each_hands_bridge_apart_under_a_namespace_remap(tmp_path):
+    """A global ``-r __ns:=/robot`` moves node and bridges together: each hand's bridge reads its own device
+    (``/robot/right/device/...``, ``/robot/left/device/...``), not one device for both."""
+    with Scene(tmp_path / "logs", domain_id=int(os.environ["ROS_DOMAIN_ID"])) as scene:
+        both = scene.start(
+            "bridge", "bridge", "--with-node", "--ros-args", "--params-file", str(REPO / "config" / "two_hands.yaml"),
+            "-r", "__ns:=/robot",
+        )  # fmt: skip
+        scene.wait_for_log(both, "(hand left)", timeout_s=180)
+        log = both.log()
+    for h in HANDS:
+        assert f"[robot.{h}.skin_sim_bridge]: bridge crtk: /robot/{h}/device/measured_cp" in log, log[-3000:]
+        assert f"/robot/{h}/device/servo_cf" in log, log[-3000:]
+    assert "already registered" not in log, log[-3000:]  # each bridge's device readers (its servo node) in its own name

@@ -640,7 +640,7 @@ def node_params(node_args: tuple, log_dir: Path) -> tuple:
         return tuple(rest)
     path = log_dir / "node_overrides.yaml"
     path.write_text(yaml.safe_dump({"/**/skin_sim_node": {"ros__parameters": pairs}}))
-    return ("--params-file", str(path), *rest)
+    return (*rest, "--params-file", str(path))  # last: the overrides win over any parameter file before them, as -p
 
 
 def run(

@@ -56,10 +56,10 @@ FINGER_OFFSETS_M = (3e-3, 6e-3)
 """The finger's centre from the needle's entry (m): the issue's 3 and 6 mm (the 2.5 mm disk's edge 0.5 and 3.5 mm from
 the entry)."""
 FINGER_DEPTHS_M = (0.0, 1e-3, 2e-3)
+"""The finger's press (m): the issue's 0, 1 and 2 mm."""
 HEAVE_FROM_M = 5.2e-3
 """Where the 3D reference's surface beside one 2.5 mm punch rises above rest (m, docs/validation/two_punch.md): a
 finger closer than this lowers the needle's entry, one further out raises it."""
-"""The finger's press (m): the issue's 0, 1 and 2 mm."""
 FINGER_SPEED_M_S = 5e-3
 """The finger is ramped in at the needle's speed (m/s)."""
 FINGER_HOLD_S = 0.5
@@ -401,6 +401,59 @@ def passivity_cases(fcfg, ncfg) -> list[tuple[str, list, list]]:
     return cases
 
 
+LOOP_SPEED_M_S = 1e-3
+"""The loops' speed (m/s): slow (a fifth of the presses'), with :data:`LOOP_HOLD_TICKS` between the moves, so the
+tissue's own dissipation is small beside what a non-reciprocal coupling can return."""
+LOOP_HOLD_TICKS = 300
+"""Ticks held between a loop's moves (0.3 s, past the slow viscoelastic arm's 0.28 s)."""
+KNOWN_ACTIVE_LOOPS = ("needle 1.5 mm + 5 mm pad 1 mm at 6 mm, pad first",)
+KNOWN_ACTIVE_LOOPS_REASON = (
+    "the depth-based coupling is not reciprocal between a needle's tent and a pad (K_i G_ij != K_j G_ji): this loop "
+    "returns about 9 uJ (8 uJ before the heave)"
+)
+"""Loops the coupling is known to return energy on (issue 32, left open; docs/two_hands.md, study 2): a needle's
+tent beside a pad whose rim is 1 mm away, the pad pressed first and lifted first. It did so before the heave too
+(+7.7 uJ at a8ee491, +8.7 uJ now): the coupling is depth-based, ``w_i = G_ij delta_j``, so its cross stiffness is
+``-K_i G_ij`` and it is reciprocal only where ``K_i G_ij = K_j G_ji``: two equal tools, not a needle's tent and a pad."""
+
+
+def loop_cases(fcfg, ncfg) -> list[tuple[str, list, list]]:
+    """Closed loops in the two depths: tool A in, tool B in, A out, B out ("A first"), and B first; at
+    :data:`LOOP_SPEED_M_S` with :data:`LOOP_HOLD_TICKS` holds. The pairs of unequal tools the passivity paths above do
+    not cover (the shipped scene's needle and 5 mm pad at 6 and 8 mm, a punch beside the pad), and two equal punches."""
+    from dataclasses import replace
+
+    pad = replace(fcfg, tool_radius_m=5e-3)
+    pairs = [  # (name, configurations, centre distance, tool A's depth, A's label, B's label); B presses 1 mm
+        ("2.5 mm punch 1 mm + 5 mm pad 1 mm at 8 mm", [fcfg, pad], 8e-3, 1e-3, "punch", "pad"),
+        ("2.5 mm punch 1 mm + 5 mm pad 1 mm at 10 mm", [fcfg, pad], 10e-3, 1e-3, "punch", "pad"),
+        ("needle 1.5 mm + 5 mm pad 1 mm at 6 mm", [ncfg, pad], 6e-3, 1.5e-3, "needle", "pad"),
+        ("needle 1.5 mm + 5 mm pad 1 mm at 8 mm", [ncfg, pad], 8e-3, 1.5e-3, "needle", "pad"),
+        ("needle 1.5 mm + 2.5 mm punch 1 mm at 6 mm", [ncfg, fcfg], 6e-3, 1.5e-3, "needle", "punch"),
+        ("two 2.5 mm punches 1 mm at 6 mm", [fcfg, fcfg], 6e-3, 1e-3, "left", "right"),
+    ]
+    cases = []
+    for name, cfgs, dist, depth_a, label_a, label_b in pairs:
+        a0, a1 = (0.0, 0.0, UP_M), (0.0, 0.0, -depth_a)
+        b0, b1 = (dist, 0.0, UP_M), (dist, 0.0, -1e-3)
+        orders = {
+            label_a: ((0, a0, a1), (1, b0, b1), (0, a1, a0), (1, b1, b0)),
+            label_b: ((1, b0, b1), (0, a0, a1), (1, b1, b0), (0, a1, a0)),
+        }
+        for first, moves in orders.items():
+            pos = [np.asarray(a0, float), np.asarray(b0, float)]
+            rows = [list(pos)]
+            for k, frm, to in moves:
+                for p in _ramp(frm, to, LOOP_SPEED_M_S):
+                    pos[k] = p
+                    rows.append(list(pos))
+                pos[k] = np.asarray(to, float)
+                rows += [list(pos)] * LOOP_HOLD_TICKS
+            rows += [list(pos)] * SETTLE_TICKS
+            cases.append((f"{name}, {first} first", cfgs, [np.array([r[0] for r in rows]), np.array([r[1] for r in rows])]))
+    return cases
+
+
 def study_passivity(fcfg, ncfg) -> list[str]:
     """Print the passivity table; the failed checks."""
     fails = []
@@ -423,6 +476,23 @@ def study_passivity(fcfg, ncfg) -> list[str]:
         )
         if not ok:
             fails.append(f"passivity {name}: returns {total * 1e6:.3g} uJ")
+    print(
+        f"   loops in the two depths at {LOOP_SPEED_M_S * 1e3:g} mm/s, {LOOP_HOLD_TICKS} ticks held between moves (A in, B in,"
+        " A out, B out; or B first):"
+    )
+    for name, cfgs, paths in loop_cases(fcfg, ncfg):
+        skin = SharedSkin([make_tool(c) for c in cfgs])
+        _, works = run_paths(skin.hands, paths)
+        alone = [run_paths([make_tool(c)], [p])[1][0] for c, p in zip(cfgs, paths)]
+        total = sum(works)
+        ok = total <= ENERGY_TOLERANCE_J
+        known = name in KNOWN_ACTIVE_LOOPS
+        print(
+            f"   {name:53s}  {works[0] * 1e6:11.2f}  {works[1] * 1e6:11.2f}  {total * 1e6:8.2f}  {sum(alone) * 1e6:14.2f}"
+            f"  {(total - sum(alone)) * 1e6:13.2f}  {'PASS' if ok else 'FAIL (known, left open)' if known else 'FAIL'}"
+        )
+        if not ok:
+            fails.append(f"passivity {name}: returns {total * 1e6:.3g} uJ" + (" (known, left open)" if known else ""))
     return fails
 
 

@@ -114,12 +114,25 @@ class BridgeNode(DeviceNode):
             return built[0]
 
         def bridges():
-            hands = built[0].hands
-            if len(hands) == 1:  # one hand: the bridge in this process's namespace, as it always was
-                return cls(overrides, local_node=built[0])
-            # two hands (issue 32): a bridge per hand, each in the hand's namespace (its device under
-            # /<hand>/<device_ns>, as a bridge started with __ns:=/<hand> has it), each linked to its hand in memory
-            return [cls(overrides, local_node=built[0], hand=h.index, namespace=h.ns or None) for h in hands]
+            host = built[0]
+            hands = host.hands
+            if len(hands) == 1 and not hands[0].ns:  # one hand, the single-tool names: the process's namespace
+                return cls(overrides, local_node=host)
+            # a bridge per hand (issue 32), each in its hand's namespace under the node's (its device under
+            # /<hand>/<device_ns>, as a bridge started with __ns:=/<hand> has it), linked to its hand in memory. The
+            # namespace is a node-local remap: it wins over a global -r __ns:=, which would otherwise put every hand's
+            # bridge on the same name and device
+            made: list = []
+            try:
+                for h in hands:
+                    ns = "/".join(x for x in (host.get_namespace().strip("/"), h.ns) if x)
+                    made.append(cls(overrides, local_node=host, hand=h.index, cli_args=["--ros-args", "-r", f"__ns:=/{ns}"]))
+            except BaseException:  # a bridge that did not build: the ones that did stop before the error goes on
+                for b in reversed(made):
+                    b.stop()
+                    b.destroy_node()
+                raise
+            return made
 
         return [node, bridges]
 
@@ -212,8 +225,12 @@ class BridgeNode(DeviceNode):
         # The device path's readers sit on a node of their own that no executor spins: the servo thread takes from
         # them in a wait set (serialized CDR, no message objects). Velocity and applied force before the poses they
         # belong to (a burst is taken topic by topic; STAMP_MEMORY pairs them by stamp).
-        self._servo_node = rclpy.create_node(
-            f"{self.get_name()}_servo", namespace=self.get_namespace(), context=self.context, start_parameter_services=False
+        self._servo_node = rclpy.create_node(  # the bridge's namespace as a node-local remap: it wins over a global one
+            f"{self.get_name()}_servo",
+            namespace=self.get_namespace(),
+            cli_args=["--ros-args", "-r", f"__ns:={self.get_namespace()}"],
+            context=self.context,
+            start_parameter_services=False,
         )
         self._servo_subs: list[tuple] = []
         cf_key = MEASURED_FORCE[p.convention]
@@ -293,7 +310,8 @@ class BridgeNode(DeviceNode):
         src = f"{src} rendered per device tick" if self.model_source else src
         tool_pose = self.server.node.resolve_topic_name(TOPICS["tool_pose"].name)
         if local_node is not None:
-            who = f" (hand {local_node.hands[hand].ns})" if len(local_node.hands) > 1 else ""
+            h_ns = local_node.hands[hand].ns
+            who = f" (hand {h_ns or hand})" if len(local_node.hands) > 1 or h_ns else ""
             tool_pose, src = f"skin_sim_node in this process{who}", "its contact model, in memory, rendered per device tick"
         self.get_logger().info(
             f"bridge {p.convention}: {self.resolve_topic_name(dev(pose_key))} -> {tool_pose}; {src} -> "

@@ -166,8 +166,8 @@ class SkinSimNode(Node):
         self._pub_diag = publisher(self, "diagnostics")
         self.local_model_sinks: dict[int, Callable[[ContactModel], None]] = {}
         """Per hand index, the composed bridge's in-memory entry for that hand's contact models (``skin-sim bridge
-        --with-node``: :class:`~skin_sim_node.device.links.LocalLink`)."""
-        """A composed bridge's hand-off: called with each contact model in the tick (no DDS hop, no copy kept)."""
+        --with-node``: :class:`~skin_sim_node.device.links.LocalLink`), called with each contact model in the tick (no
+        DDS hop, no copy kept)."""
         self._accepted: tuple[dict, dict, NodeParams, TissueConfig] | None = None  # on_set's validated set, for post_set
         self.add_on_set_parameters_callback(self._on_set_parameters)  # validate (ros2/demos: on_set checks)
         self.add_post_set_parameters_callback(self._post_set_parameters)  # apply the accepted set

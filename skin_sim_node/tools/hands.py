@@ -47,7 +47,7 @@ import numpy as np
 
 from ..model import SkinModel
 from ..model.grid import assemble_heights
-from ..model.heave import coupling_table
+from ..model.heave import coupling_table, uses_kernel
 from ..model.interfaces import interface_depths_m
 from .base import Tool, ToolPose, ToolStep
 
@@ -107,7 +107,10 @@ class SharedSkin:
                 raise ValueError("the tools of one tissue need the same sheet and layers")
         self.hands = tuple(CoupledTool(t, self, i) for i, t in enumerate(tools))
         self._heave: list[list[tuple[float, list[float]] | None]] = [
-            [_table(src.cfg, dst.cfg) if j != i and src.cfg.tool_shape == "flat" else None for j, src in enumerate(tools)]
+            [
+                _table(src.cfg, dst.cfg) if j != i and src.cfg.tool_shape == "flat" and uses_kernel(src.cfg) else None
+                for j, src in enumerate(tools)
+            ]
             for i, dst in enumerate(tools)
         ]
         """``_heave[i][j]``: how far flat tool ``j`` lowers the surface under tool ``i`` over its own depth, by the
@@ -161,9 +164,11 @@ class SharedSkin:
                 continue
             delta, xj, yj, step, g = src
             t = math.hypot(x - xj, y - yj) / step
-            k = int(t)
-            if k + 1 < len(g):
+            if t < len(g) - 1:  # past the table (or infinitely far): nothing; a NaN place: NaN, as np.interp gives
+                k = int(t)
                 w += delta * (g[k] + (t - k) * (g[k + 1] - g[k]))
+            elif t != t:
+                w = math.nan
         return w
 
     def others_time_s(self, i: int) -> tuple[float, float]:
