@@ -20,14 +20,21 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
+from skin_sim_lab.perf.device_bench import node_params  # noqa: E402
+from skin_sim_lab.perf.device_bench_hands import HAND_PARAMS, hand_configs  # noqa: E402
 from skin_sim_node.demo.hands import HANDS, HandsRecorder, settled_stamps, step_offline  # noqa: E402
-from skin_sim_node.model.config import load_tissue_config  # noqa: E402
 from skin_sim_node.scenes import REPO, Scene  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
 OFFSET_M = 0.008
 """The left hand's press, this far along +x from the right hand's (m): close enough to couple (the pad raises the
 surface under the right punch), apart enough that the disks (2.5 and 5 mm radius) do not meet (0.5 mm between them)."""
+
+
+def two_hand_cfgs() -> list:
+    """Each hand's tool configuration of ``config/default.yaml`` with the two hands (:data:`HAND_PARAMS`), as the node
+    builds them (the second hand's tool: the contract's ``second_tool_*``, a 5 mm pad)."""
+    return list(hand_configs(overrides=HAND_PARAMS)[1])
 
 
 def offline(answered: list[tuple[int, str]], poses: dict, cfgs) -> dict[tuple[str, int], np.ndarray]:
@@ -57,10 +64,7 @@ def test_two_hands_answer_in_their_namespaces_as_the_offline_two_hand_session(tm
         rec.close()
     answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
     assert all(sum(1 for _, h2 in answered if h2 == h) > 100 for h in HANDS), {h: len(rec.wrench[h]) for h in HANDS}
-    base = load_tissue_config(REPO / "config" / "default.yaml")
-    from dataclasses import replace
-
-    cfgs = [base, replace(base, tool_radius_m=0.005)]
+    cfgs = two_hand_cfgs()
     truth = offline(answered, rec.poses, cfgs)
     # compared where this reader saw every answer for the last second (demo.hands.settled_stamps: a reader that missed
     # answers beside busy processes steps a different viscoelastic path offline)
@@ -77,7 +81,7 @@ def test_two_hands_answer_in_their_namespaces_as_the_offline_two_hand_session(tm
     # the stamp order stands for the node's arrival order: one tick of the other hand's field apart at most
     assert worst <= 0.0, f"a hand's force {worst:.4f} N off the offline two-hand answer (5 % + 0.01 N)"
     # the coupling: in the joint hold the right punch feels more than alone (the left pad raised the surface there)
-    alone = offline([(s, h) for s, h in answered if h == "right"], rec.poses, [base])
+    alone = offline([(s, h) for s, h in answered if h == "right"], rec.poses, cfgs[:1])
     left_stamps = np.array(sorted(rec.poses["left"]))
 
     def left_pressed(s: int) -> bool:  # the left hand's newest pose at stamp s holds its full press
@@ -109,11 +113,10 @@ def test_one_process_holds_the_node_and_a_bridge_per_hand_each_closing_its_devic
     rec = HandsRecorder(device_poses=True)
     try:
         with Scene(tmp_path / "logs", domain_id=int(os.environ["ROS_DOMAIN_ID"])) as scene:
-            overrides = tmp_path / "hands.yaml"
-            overrides.write_text("/**/skin_sim_node:\n  ros__parameters:\n    hand_ns: right\n    second_hand_ns: left\n")
+            hands = node_params(tuple(a for k, v in HAND_PARAMS.items() for a in ("-p", f"{k}:={v}")), tmp_path)
             both = scene.start(
                 "bridge", "bridge", "--with-node", "--watchdog-s", "0.5", "--ros-args",
-                "--params-file", str(REPO / "config" / "default.yaml"), "--params-file", str(overrides),
+                "--params-file", str(REPO / "config" / "default.yaml"), *hands,
             )  # fmt: skip
             scene.wait_for_log(both, "(hand left)", timeout_s=180)
             log = both.log()
@@ -149,11 +152,8 @@ def test_one_process_holds_the_node_and_a_bridge_per_hand_each_closing_its_devic
         assert commands > 1000 and nonzero > 100 and 0.005 < peak <= 3.3, (h, m[0])  # the bridge renders every tick
     # the forces: the offline two-hand session on the answered device poses, where this reader saw every answer for
     # the last second (settled_stamps, as the namespaces test above)
-    from dataclasses import replace
-
-    base = load_tissue_config(REPO / "config" / "default.yaml")
     answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
-    truth = offline(answered, rec.poses, [base, replace(base, tool_radius_m=0.005)])
+    truth = offline(answered, rec.poses, two_hand_cfgs())
     for h in HANDS:
         mine = [s for s, hh in answered if hh == h]
         assert mine, f"{h}: no answer carries a device pose's stamp"

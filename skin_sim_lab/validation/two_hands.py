@@ -464,35 +464,26 @@ def study_passivity(fcfg, ncfg) -> list[str]:
     )
     print("   path                                                   tool 0 (uJ)  tool 1 (uJ)  sum (uJ)  alone sum (uJ)"
           "  coupling (uJ)  verdict")  # fmt: skip
-    for name, cfgs, paths in passivity_cases(fcfg, ncfg):
+    cases = passivity_cases(fcfg, ncfg)
+    loops = loop_cases(fcfg, ncfg)
+    for k, (name, cfgs, paths) in enumerate(cases + loops):
+        if k == len(cases):
+            print(
+                f"   loops in the two depths at {LOOP_SPEED_M_S * 1e3:g} mm/s, {LOOP_HOLD_TICKS} ticks held between moves "
+                "(A in, B in, A out, B out; or B first):"
+            )
         skin = SharedSkin([make_tool(c) for c in cfgs])
         _, works = run_paths(skin.hands, paths)
         alone = [run_paths([make_tool(c)], [p])[1][0] for c, p in zip(cfgs, paths)]
         total = sum(works)
         ok = total <= ENERGY_TOLERANCE_J
+        known = " (known, left open)" if name in KNOWN_ACTIVE_LOOPS else ""
         print(
             f"   {name:53s}  {works[0] * 1e6:11.2f}  {works[1] * 1e6:11.2f}  {total * 1e6:8.2f}  {sum(alone) * 1e6:14.2f}"
-            f"  {(total - sum(alone)) * 1e6:13.2f}  {'PASS' if ok else 'FAIL'}"
+            f"  {(total - sum(alone)) * 1e6:13.2f}  {'PASS' if ok else 'FAIL' + known}"
         )
         if not ok:
-            fails.append(f"passivity {name}: returns {total * 1e6:.3g} uJ")
-    print(
-        f"   loops in the two depths at {LOOP_SPEED_M_S * 1e3:g} mm/s, {LOOP_HOLD_TICKS} ticks held between moves (A in, B in,"
-        " A out, B out; or B first):"
-    )
-    for name, cfgs, paths in loop_cases(fcfg, ncfg):
-        skin = SharedSkin([make_tool(c) for c in cfgs])
-        _, works = run_paths(skin.hands, paths)
-        alone = [run_paths([make_tool(c)], [p])[1][0] for c, p in zip(cfgs, paths)]
-        total = sum(works)
-        ok = total <= ENERGY_TOLERANCE_J
-        known = name in KNOWN_ACTIVE_LOOPS
-        print(
-            f"   {name:53s}  {works[0] * 1e6:11.2f}  {works[1] * 1e6:11.2f}  {total * 1e6:8.2f}  {sum(alone) * 1e6:14.2f}"
-            f"  {(total - sum(alone)) * 1e6:13.2f}  {'PASS' if ok else 'FAIL (known, left open)' if known else 'FAIL'}"
-        )
-        if not ok:
-            fails.append(f"passivity {name}: returns {total * 1e6:.3g} uJ" + (" (known, left open)" if known else ""))
+            fails.append(f"passivity {name}: returns {total * 1e6:.3g} uJ{known}")
     return fails
 
 

@@ -32,7 +32,7 @@ bulk tissue's, and the reference it is checked against is isotropic.
 
 from __future__ import annotations
 
-import math
+import functools
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -206,14 +206,22 @@ def coupling_table(cfg: TissueConfig, source_radius_m: float, receiver_radius_m:
         ``s`` every :data:`TABLE_STEP_M` from 0 to :data:`PROFILE_RANGE_M`, and ``G(s)`` (dimensionless; + lowered,
         - raised); zero beyond the last distance.
     """
-    ell, lf = volume_length_m(cfg), cfg.foundation_length_m
-    if not lf > 0:
-        lf = math.inf
+    lf = cfg.foundation_length_m
+    return _coupling_table(volume_length_m(cfg), lf if lf > 0 else NO_FOUNDATION_M, source_radius_m, receiver_radius_m)
+
+
+NO_FOUNDATION_M = 1e3
+"""The Winkler length (m) standing for no foundation (``patch.foundation_length_m`` 0): ``l -> inf``, the volume term
+alone; at 1 km its ``1 / l^2`` is 1e-12 of the volume term's ``1 / L^2`` for any L below a metre."""
+
+
+@functools.lru_cache(maxsize=32)
+def _coupling_table(length_m: float, foundation_length_m: float, source_radius_m: float, receiver_radius_m: float):
+    """:func:`coupling_table` of the thin layer's two lengths (read-only arrays, shared: every
+    :class:`~skin_sim_node.tools.hands.SharedSkin` of one tissue and one pair of radii builds the same table, 0.1 s
+    each, and a study builds dozens)."""
     r = np.arange(0.0, PROFILE_RANGE_M + PROFILE_STEP_M / 2, PROFILE_STEP_M)
-    if math.isinf(lf):
-        prof = combined_profile(r, ell, 1e3, source_radius_m)  # l -> inf: the volume term alone
-    else:
-        prof = combined_profile(r, ell, lf, source_radius_m)
+    prof = combined_profile(r, length_m, foundation_length_m, source_radius_m)
     prof[-1] = 0.0
 
     def field(x, y):
@@ -221,7 +229,12 @@ def coupling_table(cfg: TissueConfig, source_radius_m: float, receiver_radius_m:
 
     s = np.arange(0.0, PROFILE_RANGE_M + TABLE_STEP_M / 2, TABLE_STEP_M)
     if receiver_radius_m <= 0:
-        return s, field(s, 0.0)
-    g = np.array([disk_average(field, (float(d), 0.0), receiver_radius_m, 1.0, DISK_RADIAL_NODES, DISK_ANGLE_NODES) for d in s])
-    g[-1] = 0.0
+        g = field(s, 0.0)
+    else:
+        g = np.array(
+            [disk_average(field, (float(d), 0.0), receiver_radius_m, 1.0, DISK_RADIAL_NODES, DISK_ANGLE_NODES) for d in s]
+        )
+        g[-1] = 0.0
+    s.setflags(write=False)
+    g.setflags(write=False)
     return s, g

@@ -251,10 +251,10 @@ class CoupledTool(Tool):
             self.jump_time_s = self.time_s
         sources = self.skin.sources(self.index)  # the others' fields do not change within this step
 
-        def others(_i: int, px: float, py: float) -> float:
+        def others(px: float, py: float) -> float:
             return self.skin.displacement_from(sources, px, py)
 
-        w = others(self.index, x, y)
+        w = others(x, y)
         prev, prev_xy, self.shift_m, self._xy = self.shift_m, self._xy, w, (x, y)
         seen, self._seen = self._seen, self.skin.others_time_s(self.index)
         if w == 0.0 and prev == 0.0:
@@ -267,7 +267,7 @@ class CoupledTool(Tool):
         elapsed = self._seen[0] - seen[0] if seen is not None else 0.0
         jumped = seen is None or self._seen[1] > seen[0] or pose.restart or pose.dt_s > CONTINUOUS_STEP_S
         if elapsed > 0.0 and not jumped and prev_xy is not None:
-            here_then = others(self.index, prev_xy[0], prev_xy[1]) if prev_xy != (x, y) else w
+            here_then = others(prev_xy[0], prev_xy[1]) if prev_xy != (x, y) else w
             self.shift_rate_m_s = (here_then - prev) / elapsed
         else:
             self.shift_rate_m_s = 0.0
@@ -276,8 +276,8 @@ class CoupledTool(Tool):
             return s
         k = np.asarray(t.stiffness_n_per_m, dtype=float)
         grad = (
-            (others(self.index, x + SLOPE_STEP_M, y) - w) / SLOPE_STEP_M,
-            (others(self.index, x, y + SLOPE_STEP_M) - w) / SLOPE_STEP_M,
+            (others(x + SLOPE_STEP_M, y) - w) / SLOPE_STEP_M,
+            (others(x, y + SLOPE_STEP_M) - w) / SLOPE_STEP_M,
         )
         k = k.copy()
         k[:, 0] += k[:, 2] * grad[0]
