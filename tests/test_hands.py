@@ -65,13 +65,16 @@ def test_a_finger_3_mm_away_lowers_the_entry_and_6_mm_away_raises_it(cfgs):
     assert near > 0.0 > far
 
 
-@pytest.mark.parametrize("offset_m", th.FINGER_OFFSETS_M)
-def test_a_finger_resting_on_the_surface_changes_nothing_beyond_the_model_tolerance(cfgs, alone, offset_m):
+def test_a_finger_resting_on_the_surface_is_touched_only_where_the_needle_heaves_the_skin(cfgs, alone):
+    """A finger resting at 0 mm: 3 mm from the needle the tent pulls the skin away from it, so it is never touched and
+    the needle's force is the needle alone's bit for bit; 6 mm out the needle's heave lifts the skin into it, so it
+    pushes back (and the needle's puncture force stays within 1 %)."""
     fcfg, ncfg = cfgs
-    r = th.insertion(ncfg, fcfg, offset_m, 0.0)
-    assert th.resting_change_n(r, alone) <= th.RESTING_REL * alone.puncture_n
-    if offset_m == th.FINGER_OFFSETS_M[0]:  # at 3 mm the needle's field points down: no contact at all, bit for bit
-        np.testing.assert_array_equal(r.forces_n, alone.forces_n)
+    near, far = (th.insertion(ncfg, fcfg, off, 0.0) for off in th.FINGER_OFFSETS_M)
+    assert not near.finger_touched
+    np.testing.assert_array_equal(near.forces_n, alone.forces_n)
+    assert far.finger_touched and far.finger_at_puncture_n > 0.0
+    assert far.puncture_n == pytest.approx(alone.puncture_n, rel=th.PUNCTURE_FORCE_REL)
 
 
 @pytest.mark.parametrize("case", range(7))
@@ -88,23 +91,45 @@ def test_two_tools_take_no_energy_from_the_tissue_over_closed_paths(cfgs, case):
 LOOPS = [name for name, _, _ in th.loop_cases(preset("default"), preset("needle"))]
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="issue 32: " + th.KNOWN_ACTIVE_LOOPS_REASON))
-        if n in th.KNOWN_ACTIVE_LOOPS
-        else n
-        for n in LOOPS
-    ],
-)
+@pytest.mark.parametrize("name", LOOPS)
 def test_loops_in_the_two_depths_take_no_energy_from_the_tissue(cfgs, name):
     """Slow loops (A in, B in, A out, B out, and B first) for pairs of unequal tools: the energy both take from the
-    tissue is at most 0, except on the loop known to return some (a depth-based coupling is not reciprocal between a
-    needle's tent and a pad: docs/two_hands.md, study 2)."""
+    tissue is at most 0 (the needle's tent beside a pad, pad first, returned 8.8 uJ while the coupling was one-way:
+    docs/two_hands.md, study 2)."""
     fcfg, ncfg = cfgs
     _, tool_cfgs, paths = next(c for c in th.loop_cases(fcfg, ncfg) if c[0] == name)
     _, works = th.run_paths(SharedSkin([make_tool(c) for c in tool_cfgs]).hands, paths)
     assert sum(works) <= th.ENERGY_TOLERANCE_J, (name, works)
+
+
+def test_the_kernel_is_one_table_for_both_directions_of_a_pair(cfgs):
+    """Unequal tools (a needle and a 5 mm pad; a 2.5 mm punch and the pad) read one kernel table both ways (Betti's
+    reciprocity with the chains' near-equal stiffnesses), and two equal punches the source's own table unchanged."""
+    from dataclasses import replace
+
+    fcfg, ncfg = cfgs
+    pad = replace(fcfg, tool_radius_m=5e-3)
+    for a, b in ((ncfg, pad), (fcfg, pad)):
+        skin = SharedSkin([make_tool(a), make_tool(b)])
+        assert skin._heave[0][1] is not None and skin._heave[0][1] == skin._heave[1][0]
+    skin = SharedSkin([make_tool(fcfg), make_tool(fcfg)])
+    assert skin._heave[0][1][1] == coupling_table(fcfg, fcfg.tool_radius_m, fcfg.tool_radius_m)[1].tolist()
+    sphere = replace(fcfg, tool_shape="sphere", tool_radius_m=5e-3)
+    assert SharedSkin([make_tool(sphere), make_tool(fcfg)])._heave == [[None, None], [None, None]]
+
+
+def test_the_needle_and_the_pad_feel_each_other_alike():
+    """The static cross stiffnesses of the needle's tent (1.5 mm) and the 5 mm pad (1 mm) 6 mm apart, relaxed: within
+    15 % of each other (-77.0 and -70.8 N/m; with a one-way kernel they were -145.5 and -9.7 N/m, and a loop returned
+    energy), their difference no more than the two own stiffnesses' difference (574 against 530 N/m) makes of one
+    kernel."""
+    from dataclasses import replace
+
+    pad = replace(preset("default"), tool_radius_m=5e-3)
+    kaa, kbb, kab, kba = th.cross_stiffness([preset("needle"), pad], 6e-3, 1.5e-3, 1e-3)
+    assert np.sign(kab) == np.sign(kba)
+    assert abs(kab - kba) <= 0.15 * 0.5 * (abs(kab) + abs(kba))
+    assert abs(kab - kba) <= 1.5 * abs(kaa - kbb) * max(abs(kab) / kaa, abs(kba) / kbb)
 
 
 def test_no_jolt_when_the_contact_disks_overlap(cfgs):

@@ -11,7 +11,8 @@ shortens the cost's run. Exits 1 when a check fails.
    Printed: where the tip meets the (lowered) surface, the puncture force (the axial peak before the skin's puncture,
    the dermis' rupture, as :func:`skin_sim_lab.validation.needle_angle.puncture` finds it; the epidermis' first
    rupture beside it), the tip's depth at the puncture and its vertical travel from contact to the puncture, against
-   the needle alone. Checked: a finger at 0 mm changes the needle's force by at most RESTING_REL of its puncture;
+   the needle alone. Checked: a finger at 0 mm that the skin never reaches changes the needle's force by at most
+   RESTING_REL of its puncture (the needle's heave lifts the skin into one 6 mm out, which then pushes back);
    the needle meets the surface where the finger's field has lowered it (within one tick's travel), lower for a
    deeper or closer finger; the puncture force
    within 1 % of the needle alone's. The last is a **regression check of the law, not a validation**: the rupture is a
@@ -21,7 +22,8 @@ shortens the cost's run. Exits 1 when a check fails.
 2. **Passivity.** The energy both tools take from the tissue over closed paths (the sum over tools of the trapezoid
    rule's ``integral F . dx``, F the reaction on the tool) is at most :data:`ENERGY_TOLERANCE_J`: two punches pressing
    together, one holding while the other presses (at 4, 6, 10 mm), one sliding toward the other and back, a needle
-   with a finger (a tent only, and through the puncture and out).
+   with a finger (a tent only, and through the puncture and out); slow loops in the two depths for unequal tools,
+   and the static cross stiffnesses at their corners (a coupling that stores energy is reciprocal).
 3. **No jolt through the overlap.** Two punches pressed 1 mm, one swept from 10 mm to 0 at 5 mm/s: the largest force
    change per tick against the per-tick change of one punch pressed at that speed, and the change at ``d = r1 + r2``
    against its neighbourhood.
@@ -213,6 +215,9 @@ class Insertion:
         The tip's vertical travel from contact to that peak.
     finger_before_n, finger_at_puncture_n : float
         The finger's normal force before the needle starts and at the peak (0 without a finger).
+    finger_touched : bool
+        Whether the skin pushed on the finger at any tick (a finger at 0 mm is touched where the needle's heave lifts
+        the skin into it).
     """
 
     forces_n: np.ndarray
@@ -224,6 +229,7 @@ class Insertion:
     travel_m: float
     finger_before_n: float
     finger_at_puncture_n: float
+    finger_touched: bool = False
 
 
 def insertion(ncfg: TissueConfig, fcfg: TissueConfig, offset_m: float | None, depth_m: float) -> Insertion:
@@ -235,6 +241,7 @@ def insertion(ncfg: TissueConfig, fcfg: TissueConfig, offset_m: float | None, de
         skin = SharedSkin([make_tool(ncfg), make_tool(fcfg)])
         needle, finger = skin.hands
     top = (0.0, 0.0, NEEDLE_START_M)
+    touched = False
     if finger is not None:
         f0, f1 = (offset_m, 0.0, 0.0), (offset_m, 0.0, -depth_m)
         fpath = _path(_ramp(f0, f1, FINGER_SPEED_M_S), _hold(f1, int(round(FINGER_HOLD_S / DT_S))))
@@ -242,6 +249,7 @@ def insertion(ncfg: TissueConfig, fcfg: TissueConfig, offset_m: float | None, de
             v = (p - fpath[k - 1]) / DT_S if k else np.zeros(3)
             finger.step(_pose(p, v, restart=k == 0))
             needle.step(_pose(top, restart=k == 0))
+            touched = touched or finger.tissue.force_vector_n[2] != 0.0
         surface = skin.others_displacement_at(0, 0.0, 0.0)
         finger_before = float(finger.tissue.force_vector_n[2])
     else:
@@ -279,6 +287,7 @@ def insertion(ncfg: TissueConfig, fcfg: TissueConfig, offset_m: float | None, de
         travel_m=-zs[i] - contact,
         finger_before_n=finger_before,
         finger_at_puncture_n=fingers[i] if fingers else 0.0,
+        finger_touched=touched or any(fingers),
     )
 
 
@@ -316,7 +325,7 @@ def study_needle(ncfg, fcfg) -> list[str]:
             row(f"{off * 1e3:6.0f} {dep * 1e3:9.0f}   ", r)
             contacts[off, dep] = r.contact_m
             tag = f"finger {off * 1e3:g} mm, {dep * 1e3:g} mm"
-            if dep == 0.0 and resting_change_n(r, alone) > RESTING_REL * alone.puncture_n:
+            if dep == 0.0 and not r.finger_touched and resting_change_n(r, alone) > RESTING_REL * alone.puncture_n:
                 fails.append(
                     f"needle: {tag}: the needle's force differs from the needle alone's by {resting_change_n(r, alone):.2e} N"
                 )
@@ -334,7 +343,8 @@ def study_needle(ncfg, fcfg) -> list[str]:
         if not contacts[FINGER_OFFSETS_M[0], dep] > contacts[FINGER_OFFSETS_M[1], dep]:
             fails.append(f"needle: finger {dep * 1e3:g} mm: contact not lower for the closer finger")
     print(
-        f"   checks: a finger at 0 mm changes the needle's force by at most {RESTING_REL * 100:g} % of its puncture force;"
+        f"   checks: a finger at 0 mm that the skin never reaches changes the needle's force by at most"
+        f" {RESTING_REL * 100:g} % of its puncture force (6 mm out the needle's heave lifts the skin into it);"
         " contact at the finger's dimple within one tick"
         f" ({CONTACT_TOLERANCE_M * 1e6:g} um), lowered by a finger closer than {HEAVE_FROM_M * 1e3:g} mm and raised"
         " beyond (the heave), further for a deeper press, lower for the closer finger; puncture force within"
@@ -344,7 +354,10 @@ def study_needle(ncfg, fcfg) -> list[str]:
 
 
 def resting_change_n(r, alone) -> float:
-    """The largest change (N) of the needle's force vector a finger made against the needle alone, over the run."""
+    """The largest change (N) of the needle's force vector a finger made against the needle alone, over the run (inf if
+    the puncture came at another tick)."""
+    if len(r.forces_n) != len(alone.forces_n):
+        return float("inf")
     return float(np.max(np.abs(np.asarray(r.forces_n) - np.asarray(alone.forces_n))))
 
 
@@ -406,15 +419,30 @@ LOOP_SPEED_M_S = 1e-3
 tissue's own dissipation is small beside what a non-reciprocal coupling can return."""
 LOOP_HOLD_TICKS = 300
 """Ticks held between a loop's moves (0.3 s, past the slow viscoelastic arm's 0.28 s)."""
-KNOWN_ACTIVE_LOOPS = ("needle 1.5 mm + 5 mm pad 1 mm at 6 mm, pad first",)
-KNOWN_ACTIVE_LOOPS_REASON = (
-    "the depth-based coupling is not reciprocal between a needle's tent and a pad (K_i G_ij != K_j G_ji): this loop "
-    "returns about 9 uJ (8 uJ before the heave)"
-)
-"""Loops the coupling is known to return energy on (issue 32, left open; docs/two_hands.md, study 2): a needle's
-tent beside a pad whose rim is 1 mm away, the pad pressed first and lifted first. It did so before the heave too
-(+7.7 uJ at a8ee491, +8.7 uJ now): the coupling is depth-based, ``w_i = G_ij delta_j``, so its cross stiffness is
-``-K_i G_ij`` and it is reciprocal only where ``K_i G_ij = K_j G_ji``: two equal tools, not a needle's tent and a pad."""
+RECIPROCITY_HOLD_TICKS = 1500
+"""Ticks each pair is held at a loop's corner before its forces are read (1.5 s, five times the slow viscoelastic
+arm's 0.28 s: the relaxed, elastic state)."""
+RECIPROCITY_STEP_M = 50e-6
+"""The depth step of the cross stiffnesses' finite difference (m): 50 um, 5 % of the shallower press."""
+
+
+def cross_stiffness(cfgs, distance_m: float, depth_a_m: float, depth_b_m: float) -> tuple[float, float, float, float]:
+    """The relaxed static stiffnesses of two tools in one :class:`SharedSkin` (N/m; ``d`` the depth, down), tool A at
+    the origin pressed ``depth_a_m``, tool B at ``distance_m`` pressed ``depth_b_m``, by forward differences of
+    :data:`RECIPROCITY_STEP_M`: ``(dF_A/dd_A, dF_B/dd_B, dF_A/dd_B, dF_B/dd_A)``. A coupling that stores energy has
+    ``dF_A/dd_B = dF_B/dd_A``; their difference is what a loop through the two depths returns, per unit area."""
+
+    def forces(da: float, db: float) -> np.ndarray:
+        paths = []
+        for x, d in ((0.0, da), (distance_m, db)):
+            top, bottom = (x, 0.0, UP_M), (x, 0.0, -d)
+            paths.append(_path(_hold(top, 1), _ramp(top, bottom, LOOP_SPEED_M_S), _hold(bottom, RECIPROCITY_HOLD_TICKS)))
+        f, _ = run_paths(SharedSkin([make_tool(c) for c in cfgs]).hands, paths)
+        return f[-1, :, 2]
+
+    h = RECIPROCITY_STEP_M
+    base, fa, fb = forces(depth_a_m, depth_b_m), forces(depth_a_m + h, depth_b_m), forces(depth_a_m, depth_b_m + h)
+    return (fa[0] - base[0]) / h, (fb[1] - base[1]) / h, (fb[0] - base[0]) / h, (fa[1] - base[1]) / h
 
 
 def loop_cases(fcfg, ncfg) -> list[tuple[str, list, list]]:
@@ -477,13 +505,30 @@ def study_passivity(fcfg, ncfg) -> list[str]:
         alone = [run_paths([make_tool(c)], [p])[1][0] for c, p in zip(cfgs, paths)]
         total = sum(works)
         ok = total <= ENERGY_TOLERANCE_J
-        known = " (known, left open)" if name in KNOWN_ACTIVE_LOOPS else ""
         print(
             f"   {name:53s}  {works[0] * 1e6:11.2f}  {works[1] * 1e6:11.2f}  {total * 1e6:8.2f}  {sum(alone) * 1e6:14.2f}"
-            f"  {(total - sum(alone)) * 1e6:13.2f}  {'PASS' if ok else 'FAIL' + known}"
+            f"  {(total - sum(alone)) * 1e6:13.2f}  {'PASS' if ok else 'FAIL'}"
         )
         if not ok:
-            fails.append(f"passivity {name}: returns {total * 1e6:.3g} uJ{known}")
+            fails.append(f"passivity {name}: returns {total * 1e6:.3g} uJ")
+    print(
+        "   reciprocity at the loops' corners (each tool at its loop depth, relaxed; N/m): a coupling that stores"
+        " energy has dF_A/dd_B = dF_B/dd_A. The kernel is one table for both directions, so what is left is the"
+        " chains' own stiffnesses differing (K_AA G against K_BB G)"
+    )
+    print("   pair                                         K_AA     K_BB  dF_A/dd_B  dF_B/dd_A  difference  / mean cross")
+    seen = set()
+    for name, cfgs, paths in loops:
+        pair = name.rsplit(",", 1)[0]
+        if pair in seen:
+            continue
+        seen.add(pair)
+        dist, da, db = float(paths[1][0][0]), -float(paths[0].min(axis=0)[2]), -float(paths[1].min(axis=0)[2])
+        kaa, kbb, kab, kba = cross_stiffness(cfgs, dist, da, db)
+        mean = 0.5 * (abs(kab) + abs(kba))
+        print(
+            f"   {pair:42s}  {kaa:7.1f}  {kbb:7.1f}  {kab:9.2f}  {kba:9.2f}  {kab - kba:10.2f}  {abs(kab - kba) / mean:11.1%}"
+        )
     return fails
 
 

@@ -8,13 +8,21 @@ edge footprint, anisotropic patch and, for a needle, its track), and the sum of 
 
 The coupling: each tool's chain (eq 6) acts at a surface that includes the others' deflection. Tool ``i`` at depth
 ``d_i`` below the rest surface, where the others have lowered the surface by ``w_i``, presses its own field to
-``d_i - w_i``: its step runs at ``z_i + w_i`` (:class:`CoupledTool`). A flat tool ``j`` (a punch, a finger pad) gives
-``w_i = delta_j G_ij(s)``: its own field's depth at its centre times the heave kernel at the centres' distance, averaged
-over tool ``i``'s disk (:mod:`~skin_sim_node.model.heave`: the skin is nearly incompressible and bonded to a base, so it
-rises 5-15 mm beside a flat contact, as the 3D reference does); a sphere or a needle gives its own field at tool ``i``'s
-place, ``u_j(x_i, y_i)``. A finger pressing 3 mm from a needle's entry lowers the skin there, so the needle's dimple
-starts lower and its puncture comes later along the needle's travel; 6 mm out the skin stands higher and the puncture
-comes earlier (``skin-sim two-hands``, docs/two_hands.md).
+``d_i - w_i``: its step runs at ``z_i + w_i`` (:class:`CoupledTool`). Where one of the pair is flat (a punch, a finger
+pad) and neither is a sphere, tool ``j`` gives ``w_i = delta_j G_ij(s)``: its own field's depth at its centre times
+the heave kernel at the centres' distance (:mod:`~skin_sim_node.model.heave`: the skin is nearly incompressible and
+bonded to a base, so it rises 5-15 mm beside a contact, as the 3D reference does). The kernel is **one table for both
+directions** (:func:`couples_by_kernel`, ``_table``): the mean of each tool's footprint profile (its kernel's indenter:
+a flat tool's radius, a needle's own 0.41 mm for 21 G) read over the other's receiving disk (a flat tool's radius, a
+needle's point). The cross stiffness is then ``-K_i G`` one way and ``-K_j G`` the other, and the chains' own stiffnesses
+``K`` hardly depend on the tool (525-645 N/m for a 2.5 mm punch, a 5 mm pad and a needle's tent at 1-1.5 mm,
+``skin-sim two-hands``, study 2), so the coupling is reciprocal to their difference and a closed path through the two
+depths takes energy from neither hand (Betti: ``K_i G_ij = K_j G_ji``; a one-way kernel, the pad's heave at the needle
+against the needle's membrane field at the pad, returned 8.8 uJ over one slow loop). Other pairs (a sphere, two
+needles) read the other tool's own field at tool ``i``'s place, ``u_j(x_i, y_i)``: the membranes' Green's function is
+symmetric. A finger pressing 3 mm from a needle's entry lowers the skin there, so the needle's dimple starts lower and
+its puncture comes later along the needle's travel; 6 mm out the skin stands higher and the puncture comes earlier
+(``skin-sim two-hands``, docs/two_hands.md).
 
 Order: the tools step one after another (each tick of each hand, when its pose arrives), each reading the others'
 fields as they stand (the Gauss-Seidel order of a partitioned solve). The loop gain of the coupling is ``g_ij g_ji``,
@@ -73,14 +81,30 @@ with a relative error of order 1e-3 and stays far above round-off (1e-16 m on a 
 
 def receiver_radius_m(cfg) -> float:
     """The radius (m) of the disk over which a tool of ``cfg`` feels another's heave: a flat tool's radius; 0 (its
-    centre) for a sphere, whose contact disk changes with depth, and for a needle, whose contact is its tip."""
+    point) for a needle, whose contact is its tip."""
     return cfg.tool_radius_m if cfg.tool_shape == "flat" else 0.0
 
 
-def _table(source_cfg, receiver_cfg) -> tuple[float, list[float]]:
-    """:func:`~skin_sim_node.model.heave.coupling_table` of a flat source for a receiver: its step (m) and values."""
-    s, g = coupling_table(source_cfg, source_cfg.tool_radius_m, receiver_radius_m(receiver_cfg))
-    return float(s[1] - s[0]), g.tolist()
+def couples_by_kernel(a_cfg, b_cfg) -> bool:
+    """Whether two tools couple through the heave kernel: one of them flat, neither a sphere, on membranes that carry
+    tension (:func:`~skin_sim_node.model.heave.uses_kernel`)."""
+    shapes = {a_cfg.tool_shape, b_cfg.tool_shape}
+    return "flat" in shapes and "sphere" not in shapes and uses_kernel(a_cfg)
+
+
+def source_radius_m(tool: Tool) -> float:
+    """The radius (m) of the footprint whose heave a tool spreads: its kernel's indenter (a flat tool's radius, a
+    needle's own radius: its field is a punch of that radius pressed to the dimple's depth)."""
+    return type(tool).indenter(tool.cfg).radius_m
+
+
+def _table(receiver: Tool, source: Tool) -> tuple[float, list[float]]:
+    """The reciprocal kernel of a pair: the mean of the two directions'
+    :func:`~skin_sim_node.model.heave.coupling_table` (each one's footprint, :func:`source_radius_m`, read over the
+    other's receiving disk, :func:`receiver_radius_m`), its step (m) and values; the same for ``(i, j)`` and ``(j, i)``."""
+    s, g_ij = coupling_table(source.cfg, source_radius_m(source), receiver_radius_m(receiver.cfg))
+    _, g_ji = coupling_table(receiver.cfg, source_radius_m(receiver), receiver_radius_m(source.cfg))
+    return float(s[1] - s[0]), (0.5 * (g_ij + g_ji)).tolist()
 
 
 class SharedSkin:
@@ -108,14 +132,14 @@ class SharedSkin:
         self.hands = tuple(CoupledTool(t, self, i) for i, t in enumerate(tools))
         self._heave: list[list[tuple[float, list[float]] | None]] = [
             [
-                _table(src.cfg, dst.cfg) if j != i and src.cfg.tool_shape == "flat" and uses_kernel(src.cfg) else None
+                _table(dst, src) if j != i and couples_by_kernel(dst.cfg, src.cfg) else None
                 for j, src in enumerate(tools)
             ]
             for i, dst in enumerate(tools)
         ]
-        """``_heave[i][j]``: how far flat tool ``j`` lowers the surface under tool ``i`` over its own depth, by the
-        centres' distance: the table's step (m) and values (:func:`~skin_sim_node.model.heave.coupling_table`, a list:
-        the tick reads two entries of it); None: ``j``'s own field is read."""
+        """``_heave[i][j]``: how far tool ``j`` lowers the surface under tool ``i`` over its own depth, by the centres'
+        distance: the pair's table (the same for ``[j][i]``), its step (m) and values (a list: the tick reads two
+        entries of it); None: ``j``'s own field is read."""
 
     @property
     def tissues(self) -> tuple[SkinModel, ...]:
@@ -125,9 +149,10 @@ class SharedSkin:
     def others_displacement_at(self, i: int, x: float, y: float) -> float:
         """Downward surface displacement (m) under tool ``i`` at ``(x, y)`` from every tool but ``i``: ``w_i``.
 
-        A flat tool ``j`` (a punch, a finger pad) lowers it by its own field's depth at its centre times the heave
-        kernel averaged over tool ``i``'s disk (:mod:`~skin_sim_node.model.heave`: the skin rises beside a flat
-        contact, so ``w_i`` turns negative 5-15 mm out); any other tool by its own field at ``(x, y)``. A field at rest
+        A tool ``j`` on the kernel with tool ``i`` (one of them flat, neither a sphere: :func:`couples_by_kernel`)
+        lowers it by its own field's depth at its centre times the pair's kernel (:mod:`~skin_sim_node.model.heave`:
+        the skin rises beside a contact, so ``w_i`` turns negative 5-15 mm out); any other tool by its own field at
+        ``(x, y)``. A field at rest
         (no active layer) adds nothing and costs nothing.
         """
         return self.displacement_from(self.sources(i), x, y)
@@ -135,7 +160,7 @@ class SharedSkin:
     def sources(self, i: int) -> list[tuple]:
         """What the other tools' fields are now, for :meth:`displacement_from` (one tool's step reads them at up to
         four places, and they do not change within it): per active other tool, ``(delta_j, x_j, y_j, table_step,
-        table)`` for a flat tool (its depth at its centre and its kernel for tool ``i``, :meth:`others_displacement_at`)
+        table)`` for a pair on the kernel (its depth at its centre and the pair's kernel, :meth:`others_displacement_at`)
         or ``(tissue,)`` for another."""
         out: list[tuple] = []
         for j, h in enumerate(self.hands):
