@@ -43,8 +43,9 @@ def test_golden_two_hand_bag_replays_exactly_and_deterministically(tmp_path):
         assert compare.verdict(d, compare.EXACT) == [] and d.matched == 3681 and d.grids_matched == 8
     assert raw(tmp_path / "a", "/tissue/layer_heights") == raw(tmp_path / "b", "/tissue/layer_heights")
     right, left = runs[0]
-    # the needle punctures (the skin's rupture at 1.80 N, as alone) but deeper: the finger's pad lowered the entry
-    assert right.peak_force_n == pytest.approx(1.80, abs=0.01) and right.tool_xyz_m[right.peak_index][2] < -4.5e-3
+    # the needle punctures (the skin's rupture at 1.80 N, as alone) but sooner: the finger's pad, its rim 3 mm from the
+    # entry, heaves the skin there (the needle alone punctures at a tip depth of 3.24 mm: skin-sim two-hands, study 1)
+    assert right.peak_force_n == pytest.approx(1.80, abs=0.01) and -3.2e-3 < right.tool_xyz_m[right.peak_index][2] < 0.0
     assert left.peak_force_n > 2.0 and right.layers_reached == left.layers_reached == ["epidermis", "dermis", "fat"]
 
 

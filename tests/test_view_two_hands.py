@@ -29,7 +29,7 @@ HANDS = ("right", "left")
 GOLDEN = REPO / "tests" / "data" / "two_hands_needle_finger"
 BAG = [Path(os.path.relpath(GOLDEN / p)) for p in ("input", "expected")]  # relative: the page's header names them
 """The golden two-hand bag (``custom_data``: ``skin_sim.hands: right,left``, ``skin_sim.params: two_hands.yaml``): the right
-hand a needle going straight in at (0, 0), the left a 5 mm flat pad pressing at (3 mm, 0)."""
+hand a needle going straight in at (0, 0), the left a 5 mm flat pad pressing at (-8 mm, 0), its rim 3 mm from the entry."""
 OFFSET_M = 0.006
 """The left hand presses this far along +x from the right (m), as in tests/test_two_hands_ros.py. The pads overlap by
 1.5 mm in x (radii 2.5 and 5 mm): the node's overlap rule holds there, and the page draws both where they are."""
@@ -283,7 +283,7 @@ def test_two_hand_bag_frames_carry_each_hands_tool_and_force_and_a_single_hand_b
         for x in h["hands"]:
             assert x["force"][2] == pytest.approx(_recorded_at(rec[x["ns"]], float(t)), abs=1e-12), (t, x)
         assert h["force"] == h["hands"][0]["force"] and h["tool"] == h["hands"][0]["tool"]  # the first hand on top
-        assert h["hands"][1]["tool"][0] == pytest.approx(0.003)  # the left hand pressed 3 mm along +x
+        assert h["hands"][1]["tool"][0] == pytest.approx(-0.008)  # the left hand pressed 8 mm along -x
     info = src.info()
     assert info["hands"] == [
         {"ns": "right", "shape": "needle", "radius_m": 0.0025},

@@ -65,14 +65,13 @@ class GoldenHand:
 HAND_SCENES = {
     "two_hands_needle_finger": (
         GoldenHand("right", "needle_straight"),
-        GoldenHand("left", "press_hold_release", offset_x_m=0.003, phase_ns=500_000),
+        GoldenHand("left", "press_hold_release", offset_x_m=-0.008, phase_ns=500_000),
     ),
 }
 """Two-hand scenes (issue 32), with ``config/two_hands.yaml``: its 21 G needle in the right hand, inserted straight at
-the origin, and the finger (a 5 mm flat pad) in the left pressing 2.5 mm with its centre 3 mm away, both starting
-together. The finger's pad lowers the skin at the entry, so the needle punctures at 5.0 mm of tip depth (3.2 mm alone,
-``config/needle.yaml``), 1.51 s in, as the finger starts to lift. The left hand's samples fall half a period after the
-right's."""
+the origin, and the finger (a 5 mm flat pad) in the left pressing 2.5 mm with its centre 8 mm away (its rim 3 mm from
+the entry, where the two-hand demo anchors it: ``demo.hands.FINGER_X_M``), both starting together. The left hand's
+samples fall half a period after the right's."""
 HAND_SCENE_PARAMS = {"two_hands_needle_finger": DEFAULT_PARAMS.parent / "two_hands.yaml"}
 
 GRID_RATE_HZ = 2.0
