@@ -526,9 +526,7 @@ def study_passivity(fcfg, ncfg) -> list[str]:
         dist, da, db = float(paths[1][0][0]), -float(paths[0].min(axis=0)[2]), -float(paths[1].min(axis=0)[2])
         kaa, kbb, kab, kba = cross_stiffness(cfgs, dist, da, db)
         mean = 0.5 * (abs(kab) + abs(kba))
-        print(
-            f"   {pair:42s}  {kaa:7.1f}  {kbb:7.1f}  {kab:9.2f}  {kba:9.2f}  {kab - kba:10.2f}  {abs(kab - kba) / mean:11.1%}"
-        )
+        print(f"   {pair:42s}  {kaa:7.1f}  {kbb:7.1f}  {kab:9.2f}  {kba:9.2f}  {kab - kba:10.2f}  {abs(kab - kba) / mean:11.1%}")
     return fails
 
 

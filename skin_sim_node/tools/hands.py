@@ -131,10 +131,7 @@ class SharedSkin:
                 raise ValueError("the tools of one tissue need the same sheet and layers")
         self.hands = tuple(CoupledTool(t, self, i) for i, t in enumerate(tools))
         self._heave: list[list[tuple[float, list[float]] | None]] = [
-            [
-                _table(dst, src) if j != i and couples_by_kernel(dst.cfg, src.cfg) else None
-                for j, src in enumerate(tools)
-            ]
+            [_table(dst, src) if j != i and couples_by_kernel(dst.cfg, src.cfg) else None for j, src in enumerate(tools)]
             for i, dst in enumerate(tools)
         ]
         """``_heave[i][j]``: how far tool ``j`` lowers the surface under tool ``i`` over its own depth, by the centres'
