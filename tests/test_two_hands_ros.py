@@ -104,12 +104,12 @@ def test_two_hands_preset_starts_a_needle_and_a_finger(tmp_path):
         assert "hands: right: needle (right/tool/pose), left: flat (left/tool/pose)" in log, log[-1500:]
 
 
-def test_one_process_holds_the_node_and_a_bridge_per_hand_each_closing_its_device_loop(tmp_path):
-    """``skin-sim bridge --with-node`` with a two-hand node: a bridge per hand, each in the hand's namespace and linked
-    to its hand in memory; a simulated Touch per hand (``/right/device``, ``/left/device``, the left's path 8 mm along
-    x) closes each loop. Each hand's node publishes contact forces on its own ``tool/wrench``, within the Touch's
-    3.3 N, equal to the offline two-hand session on the device poses it answered (the tool poses stay in memory: the
-    reader maps each device's ``measured_cp`` as the bridge does), and each device receives its own hand's commands."""
+ONE_PROCESS_ATTEMPTS = 3
+"""Runs of the one-process scene at most, for a reader that kept enough answers to compare (its test)."""
+
+
+def _one_process_run(tmp_path):
+    """One run of the one-process scene: the reader and each device's log."""
     rec = HandsRecorder(device_poses=True)
     try:
         with Scene(tmp_path / "logs", domain_id=int(os.environ["ROS_DOMAIN_ID"])) as scene:
@@ -122,6 +122,8 @@ def test_one_process_holds_the_node_and_a_bridge_per_hand_each_closing_its_devic
             log = both.log()
             for h in HANDS:
                 assert f"skin_sim_node in this process (hand {h})" in log, log[-2000:]
+            if "device path at SCHED_FIFO 80" in log:  # the links wait for the node's lock: its holders run at theirs
+                scene.wait_for_log(both, "node: its tick clock at SCHED_FIFO 79", timeout_s=30)
             devices = [
                 scene.start(
                     f"device_{h}", "device", "--hand-path", "press_hold_release", "--start-delay-s", "3.0",
@@ -136,12 +138,17 @@ def test_one_process_holds_the_node_and_a_bridge_per_hand_each_closing_its_devic
             dev_logs = {h: d.log() for h, d in zip(HANDS, devices)}
     finally:
         rec.close()
+    return rec, dev_logs
+
+
+def _check_device_loops(rec, dev_logs) -> None:
+    """Each hand's node forces and each device's commands (one run of :func:`_one_process_run`)."""
     for h in HANDS:
         f = np.array([w for _, w in sorted(rec.wrench[h].items())])
         assert len(f) > 50, (h, len(f))
         n_contact = int((f[:, 2] > 0.005).sum())  # the node's answers: at its server rate, which follows the machine
         assert n_contact > 20, f"{h}: no contact force through its device: {len(f)} wrenches, peak {f[:, 2].max():.3f} N"
-        assert np.all(np.abs(f[:, 2]) <= 3.3 + 1e-9), h
+        assert np.all(np.abs(f[:, 2]) <= 3.3 + 1e-9), (h, float(np.nanmax(np.abs(f[:, 2]))), int(np.isnan(f).sum()))
         m = re.search(r"(\d+) force commands received, (\d+) of them non-zero \(> [\d.]+ mN\), peak ([\d.]+) N", dev_logs[h])
         assert m is not None, dev_logs[h][-2000:]
         commands, nonzero, peak = int(m[1]), int(m[2]), float(m[3])
@@ -150,19 +157,41 @@ def test_one_process_holds_the_node_and_a_bridge_per_hand_each_closing_its_devic
             f"device: {commands} commands, {nonzero} non-zero, peak {peak} N"
         )
         assert commands > 1000 and nonzero > 100 and 0.005 < peak <= 3.3, (h, m[0])  # the bridge renders every tick
-    # the forces: the offline two-hand session on the answered device poses, where this reader saw every answer for
-    # the last second (settled_stamps, as the namespaces test above)
-    answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
+
+
+def test_one_process_holds_the_node_and_a_bridge_per_hand_each_closing_its_device_loop(tmp_path):
+    """``skin-sim bridge --with-node`` with a two-hand node: a bridge per hand, each in the hand's namespace and linked
+    to its hand in memory; a simulated Touch per hand (``/right/device``, ``/left/device``, the left's path 8 mm along
+    x) closes each loop. Each hand's node publishes contact forces on its own ``tool/wrench``, within the Touch's
+    3.3 N, equal to the offline two-hand session on the device poses it answered (the tool poses stay in memory: the
+    reader maps each device's ``measured_cp`` as the bridge does), and each device receives its own hand's commands.
+
+    The reader loses device poses (best effort, beside node, bridges and devices at real-time priority), and an answer
+    whose pose it lost cannot be replayed offline; after such a gap the offline tissue may have stepped
+    another path, so answers within a second of one are not compared (``settled_stamps``). A run in which that left 20
+    or fewer of a hand's answers (3-20 of 137-321 in 4 of 31 runs, by the scene's timing) is run again, at most
+    :data:`ONE_PROCESS_ATTEMPTS` runs in all; every run's device loops are checked."""
+    for attempt in range(1, ONE_PROCESS_ATTEMPTS + 1):
+        rec, dev_logs = _one_process_run(tmp_path / f"run{attempt}")
+        _check_device_loops(rec, dev_logs)
+        # the forces: the offline two-hand session on the answered device poses, where this reader saw every answer
+        # for the last second (settled_stamps, as the namespaces test above)
+        answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
+        mine = {h: [s for s, hh in answered if hh == h] for h in HANDS}
+        for h in HANDS:
+            assert mine[h], f"{h}: no answer carries a device pose's stamp"
+        usable = {h: settled_stamps(mine[h], started_in_contact=bool(rec.wrench[h][mine[h][0]].any()))[0] for h in HANDS}
+        if all(len(usable[h]) > 20 for h in HANDS):
+            break
+        print(f"run {attempt}: usable answers " + ", ".join(f"{h} {len(usable[h])} of {len(mine[h])}" for h in HANDS))
+    else:
+        pytest.fail(f"the reader kept too few answers in {ONE_PROCESS_ATTEMPTS} runs: {[len(usable[h]) for h in HANDS]}")
     truth = offline(answered, rec.poses, two_hand_cfgs())
     for h in HANDS:
-        mine = [s for s, hh in answered if hh == h]
-        assert mine, f"{h}: no answer carries a device pose's stamp"
-        usable, _ = settled_stamps(mine, started_in_contact=bool(rec.wrench[h][mine[0]].any()))
-        assert len(usable) > 20, f"{h}: {len(usable)} of {len(mine)} answers usable"
-        err = np.array([float(np.linalg.norm(rec.wrench[h][s] - truth[h, s])) for s in usable])
-        size = np.array([float(np.linalg.norm(truth[h, s])) for s in usable])
+        err = np.array([float(np.linalg.norm(rec.wrench[h][s] - truth[h, s])) for s in usable[h]])
+        size = np.array([float(np.linalg.norm(truth[h, s])) for s in usable[h]])
         near = err <= 0.05 * size + 0.01
-        print(f"{h}: {near.sum()} of {len(usable)} compared answers within 5 % + 0.01 N, max |dF| {err.max():.4f} N")
+        print(f"{h}: {near.sum()} of {len(usable[h])} compared answers within 5 % + 0.01 N, max |dF| {err.max():.4f} N")
         # each hand's forces are its own poses' (a hand's answers on the other's poses would miss nearly all); single
         # answers may miss by a little more: the two link threads hand their poses to the node in their arrival order,
         # which the offline stamp order stands for only to one answer of the other hand's field

@@ -140,11 +140,14 @@ def hand(t_s: float, phase_s: float) -> tuple[tuple[float, float, float], tuple[
     )
 
 
-HOLD_XY_M = (0.008, 0.003)
+HOLD_XY_M = (0.008, 0.009)
 """Where the second hand of ``--hands 2`` holds its press (m, tissue frame): beside the first hand's drag (x from 0 to
-10 mm at y = 0), 3 mm from it at its closest (x = 8 mm) and 8.5 mm at its farthest (x = 0), so the two tools couple
-through the tissue over the whole drag (tests/test_two_hands_ros.py's 6 mm lowers the other's surface by about a tenth
-of its depth) without ever standing on the same spot."""
+10 mm at y = 0), 9 mm from it at its closest (x = 8 mm) and 12 mm at its farthest (x = 0): the node's default second
+tool, the 5 mm pad (``second_tool_radius_m``), and the drag's 2.5 mm punch keep 1.5 mm between their rims, so the two
+couple through the tissue over the whole drag (the held pad's force moves 0.84-0.93 N offline) without either standing
+on the other's footprint. Until 2026-12-05 (session 8) it held at (8, 3) mm, placed for a 2.5 mm second tool: with
+the 5 mm pad the disks overlapped over most of the drag, so the drag pressed inside the pad's footprint (the held
+force moved 0.22-1.06 N with a reciprocal coupling, and the drag's force fell to 0 with the one-way one)."""
 
 
 def hold_beside(t_s: float, phase_s: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:

@@ -178,18 +178,30 @@ class LocalLink:
         self.rt_priority = rt_priority
         node.local_model_sinks[hand] = bridge._on_local_model
         self._latest: tuple | None = None
+        self._sent_ns = 0
         self._lock = threading.Lock()
         self._wake = threading.Event()
         self._stop = threading.Event()
         self.forwarded = 0
+        self.longest_ms = {"pickup": 0.0, "answer": 0.0, "periodic": 0.0}
+        """The link's longest waits (ms): a handed pose before its thread took it (``pickup``), the node's answer to
+        it (``answer``: its lock and its tick), the periodic call (``periodic``): where a hand's poses stop reaching
+        the node while its device streams."""
         self._thread = threading.Thread(target=self._run, name="local-link", daemon=True)
         self._thread.start()
 
     def send(self, pose: tuple, twist: tuple | None = None) -> None:
         """Hand the newest due pose ``(stamp, xyz, quat)`` (and twist ``(stamp, linear)``) to the link's thread."""
         with self._lock:
+            if self._latest is None:
+                self._sent_ns = time.monotonic_ns()  # the oldest pose not yet taken: how long the thread kept it waiting
             self._latest = (pose, twist)
         self._wake.set()
+
+    def _longest(self, key: str, since_ns: int) -> None:
+        ms = (time.monotonic_ns() - since_ns) * 1e-6
+        if ms > self.longest_ms[key]:
+            self.longest_ms[key] = ms
 
     def _run(self) -> None:
         if self.rt_priority > 1:
@@ -201,15 +213,21 @@ class LocalLink:
             self._wake.clear()
             with self._lock:
                 latest, self._latest = self._latest, None
+                sent = self._sent_ns
             if latest is not None and not self._stop.is_set():
+                self._longest("pickup", sent)
+                t0 = time.monotonic_ns()
                 (stamp, x, q), tw = latest
                 if tw is not None:
                     self.node.answer_twist(tw[0], self._frame, tw[1], hand=self.hand)
                 self.node.answer_pose(stamp, self._frame, x, q, hand=self.hand)
                 self.forwarded += 1
+                self._longest("answer", t0)
             if self._periodic is not None and time.monotonic_ns() >= next_ns:
-                next_ns = time.monotonic_ns() + period_ns
+                t0 = next_ns = time.monotonic_ns()
+                next_ns += period_ns
                 self._periodic[1]()
+                self._longest("periodic", t0)
 
     def close(self) -> None:
         """Stop the link's thread (the node stops after it: it was built first)."""
