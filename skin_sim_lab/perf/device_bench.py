@@ -196,6 +196,7 @@ def emulate(
     from msgs_schema.convert import PoseCdr, WrenchCdr, read_stamped_vec3_cdr
     from msgs_schema.qos import PROFILES, publisher, subscription
     from skin_sim_node.ros_util import make_executor, set_process_realtime, set_realtime, sleep_until_ns, spin_context
+    from skin_sim_node.server.display import restore_priority
 
     rt = set_realtime(EMULATOR_RT_PRIORITY)
     rclpy.init()
@@ -288,6 +289,9 @@ def emulate(
         slots[k] = (deadline, pub_t, stamp, *x, *v, float(skipped or pub_t - deadline > LATE_SLOT_NS))
         k += 1
     time.sleep(0.2)
+    # the timed loop is over: every thread back to normal scheduling before the teardown, whose waits must never spin
+    # at SCHED_FIFO 90 (one emulator did, 85 % of a core for minutes after its run, taking a core from the next runs)
+    restore_priority(os.getpid())
     stop.set()
     th.join(timeout=1.0)
     gc.enable()
