@@ -23,11 +23,12 @@ Against the reference's single punch at 2 mm (w / depth, 4 / 6 / 8 / 10 mm out):
 against +0.195 / -0.057 / -0.080 / -0.052. Beyond 12 mm it decays more slowly than the reference's (-0.005 against
 -0.002 at 20 mm): thin-layer theory wants lengths well above ``h``, and ``L`` is 0.53 ``h``.
 
-How the coupling uses it (:class:`~skin_sim_node.tools.hands.SharedSkin`): a flat contact ``j`` whose own field is
-``delta_j`` deep at its centre lowers the surface under contact ``i`` by ``delta_j G_ij(s)``, ``s`` the centres'
-distance and ``G_ij`` the profile averaged over contact ``i``'s disk with the weight ``1 - r^2 / a_i^2`` (a rigid
-punch's contact pressure on a thin layer, parabolic: :func:`coupling_table`). The isotropic kernel: the flux is the
-bulk tissue's, and the reference it is checked against is isotropic.
+How the coupling uses it (:class:`~skin_sim_node.tools.hands.SharedSkin`): a contact ``j`` whose own field is
+``delta_j`` deep at its centre lowers the surface under contact ``i`` by ``delta_j G(s)``, ``s`` the centres' distance
+and ``G`` one table for the pair, the mean of the two directions' :func:`coupling_table` (each one's footprint profile
+averaged over the other's disk with the weight ``1 - r^2 / a^2``, a rigid punch's contact pressure on a thin layer,
+parabolic), so the coupling is reciprocal. The isotropic kernel: the flux is the bulk tissue's, and the reference it
+is checked against is isotropic.
 """
 
 from __future__ import annotations
