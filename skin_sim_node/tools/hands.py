@@ -63,7 +63,7 @@ MAX_HANDS = 2
 """Most tools one tissue takes. Two hands is the clinical scene (a hand anchoring or palpating beside a tool in the
 other, issue 32). The bound is the machine's, not the model's: each hand's device path costs about half a core at
 1 kHz with rclpy here (docs/performance.md: a bare echo alone is 56 % of a core), so two hands fill a 2-core machine
-(``skin-sim bench-device --hands 2``: node and both bridges take 79-90 % of a core in one process, 116-123 % as three,
+(``skin-sim bench-device --hands 2``: node and both bridges take 79-90 % of a core in one process, 116-124 % as three,
 docs/two_hands.md); the coupling itself reads each other tool's field once per tick and its kernel at up to four
 places (``skin-sim two-hands``' cost study)."""
 
