@@ -93,9 +93,9 @@ LOOPS = [name for name, _, _ in th.loop_cases(preset("default"), preset("needle"
 
 @pytest.mark.parametrize("name", LOOPS)
 def test_loops_in_the_two_depths_take_no_energy_from_the_tissue(cfgs, name):
-    """Slow loops (A in, B in, A out, B out, and B first) for pairs of unequal tools: the energy both take from the
-    tissue is at most 0 (the needle's tent beside a pad, pad first, returned 8.8 uJ while the coupling was one-way:
-    docs/two_hands.md, study 2)."""
+    """Loops at 1 mm/s (A in, B in, A out, B out, and B first) for pairs of unequal tools: the energy both take from
+    the tissue is at most 0 (the needle's tent beside a pad, pad first, returned 8.8 uJ while the coupling was one-way;
+    at 0.01 mm/s one still returns about 2 uJ: docs/two_hands.md, study 2)."""
     fcfg, ncfg = cfgs
     _, tool_cfgs, paths = next(c for c in th.loop_cases(fcfg, ncfg) if c[0] == name)
     _, works = th.run_paths(SharedSkin([make_tool(c) for c in tool_cfgs]).hands, paths)
@@ -116,6 +116,21 @@ def test_the_kernel_is_one_table_for_both_directions_of_a_pair(cfgs):
     assert skin._heave[0][1][1] == coupling_table(fcfg, fcfg.tool_radius_m, fcfg.tool_radius_m)[1].tolist()
     sphere = replace(fcfg, tool_shape="sphere", tool_radius_m=5e-3)
     assert SharedSkin([make_tool(sphere), make_tool(fcfg)])._heave == [[None, None], [None, None]]
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 32: the pair's one kernel leaves the chains' own stiffness difference, G (K_i - K_j): 8.4 % here, "
+    "and a quasi-static loop (0.01 mm/s) of these two returns about 2 uJ (docs/two_hands.md, study 2)",
+)
+def test_the_needle_and_the_pad_are_exactly_reciprocal():
+    """Exact reciprocity (within 1 %, the finite difference's resolution: two equal punches agree to 0.5 %) is what a
+    coupling that stores energy at any speed needs."""
+    from dataclasses import replace
+
+    pad = replace(preset("default"), tool_radius_m=5e-3)
+    _, _, kab, kba = th.cross_stiffness([preset("needle"), pad], 6e-3, 1.5e-3, 1e-3)
+    assert abs(kab - kba) <= 0.01 * 0.5 * (abs(kab) + abs(kba))
 
 
 def test_the_needle_and_the_pad_feel_each_other_alike():

@@ -117,9 +117,7 @@ class BridgeNode(DeviceNode):
             host = built[0]
             hands = host.hands
             if len(hands) == 1 and not hands[0].ns:  # one hand, the single-tool names: the process's namespace
-                bridge = cls(overrides, local_node=host)
-                cls._share_priority(host, [bridge])
-                return bridge
+                return cls(overrides, local_node=host)
             # a bridge per hand (issue 32), each in its hand's namespace under the node's (its device under
             # /<hand>/<device_ns>, as a bridge started with __ns:=/<hand> has it), linked to its hand in memory. The
             # namespace is a node-local remap: it wins over a global -r __ns:=, which would otherwise put every hand's
@@ -134,20 +132,9 @@ class BridgeNode(DeviceNode):
                     b.stop()
                     b.destroy_node()
                 raise
-            cls._share_priority(host, made)
             return made
 
         return [node, bridges]
-
-    @staticmethod
-    def _share_priority(host, bridges: list) -> None:
-        """The node's lock holders at the node links' priority (:meth:`SkinSimNode.share_priority`): the links wait
-        for its lock, so none of its holders may run below them."""
-        prio = max((b.server.rt_priority - 1 for b in bridges), default=0)  # a link's thread runs one below its bridge's
-        if prio > 0:
-            problem = host.share_priority(prio)
-            msg = problem or f"node: its tick clock at SCHED_FIFO {prio}, the node links' (they wait for its lock)"
-            bridges[0].get_logger().info(msg)
 
     @classmethod
     def add_arguments(cls, ap) -> None:

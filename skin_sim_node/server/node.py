@@ -245,24 +245,6 @@ class SkinSimNode(Node):
         else:
             self.get_logger().info(f"SCHED_FIFO {p.rt_priority} for the haptic threads ({p.rt_scope} scope)")
 
-    def share_priority(self, priority: int) -> str | None:
-        """Raise the tick clock's thread (timer mode's ticks, the watchdog's) to SCHED_FIFO ``priority``.
-
-        A composed bridge (``skin-sim bridge --with-node``) hands poses to the node on threads at ``priority``, which
-        wait for the haptic lock. In timer mode the clock's thread holds it for every tick; at the node's own priority
-        (``rt_priority``, 50) it is preempted by its process's higher threads and the GIL they take (priority
-        inversion): the held hand's link waited up to 42-69 ms for an answer and the node's watchdog released that
-        hand, whose device streamed on, in the throttle phase of 3 of 6 runs; with the clock at the links' priority
-        34-59 ms and 0 of 6 (``skin-sim bench-device --hands 2 --with-node [--hog 1]``, 2026-12-06). The executor
-        thread stays where it is: it takes the lock only for a parameter change or the diagnostics, once a second, and
-        raising it starves every normal-priority reader of the machine. Never lowers a priority. Returns None, or why
-        it was not applied.
-        """
-        tid = self._loop.native_id
-        if priority <= max(self.params.rt_priority, 0) or tid is None:
-            return None
-        return set_realtime(priority, tid=tid, reset_on_fork=self.params.rt_scope != "process")
-
     def _clock_period_ns(self) -> int:
         """The thread clock: rate_hz in timer mode, fallback_rate_hz in input mode."""
         p = self.params

@@ -16,13 +16,15 @@ directions** (:func:`couples_by_kernel`, ``_table``): the mean of each tool's fo
 a flat tool's radius, a needle's own 0.41 mm for 21 G) read over the other's receiving disk (a flat tool's radius, a
 needle's point). The cross stiffness is then ``-K_i G`` one way and ``-K_j G`` the other, and the chains' own stiffnesses
 ``K`` hardly depend on the tool (525-645 N/m for a 2.5 mm punch, a 5 mm pad and a needle's tent at 1-1.5 mm,
-``skin-sim two-hands``, study 2), so the coupling is reciprocal to their difference and a closed path through the two
-depths takes energy from neither hand (Betti: ``K_i G_ij = K_j G_ji``; a one-way kernel, the pad's heave at the needle
-against the needle's membrane field at the pad, returned 8.8 uJ over one slow loop). Other pairs (a sphere, two
-needles) read the other tool's own field at tool ``i``'s place, ``u_j(x_i, y_i)``: the membranes' Green's function is
-symmetric. A finger pressing 3 mm from a needle's entry lowers the skin there, so the needle's dimple starts lower and
-its puncture comes later along the needle's travel; 6 mm out the skin stands higher and the puncture comes earlier
-(``skin-sim two-hands``, docs/two_hands.md).
+``skin-sim two-hands``, study 2), so the coupling is reciprocal to their difference (Betti: ``K_i G_ij = K_j G_ji``; a
+one-way kernel, the pad's heave at the needle against the needle's membrane field at the pad, returned 8.8 uJ over a
+loop at 1 mm/s). What is left of it, ``G (K_i - K_j)``, is not: the tissue's dissipation hides it at 1 mm/s, but a
+quasi-static loop (0.01 mm/s) of the needle's tent and a pad returns about 2 uJ (docs/two_hands.md, study 2). Other
+pairs (a sphere, two needles) read the other tool's own field at tool ``i``'s place, ``u_j(x_i, y_i)``, both ways: not
+reciprocal either (a sphere beside a punch: -12.1 against -39.5 N/m), and without the heave. A finger pressing 3 mm
+from a needle's entry lowers the skin there, so the needle's dimple starts lower and its puncture comes later along
+the needle's travel; 6 mm out the skin stands higher and the puncture comes earlier (``skin-sim two-hands``,
+docs/two_hands.md).
 
 Order: the tools step one after another (each tick of each hand, when its pose arrives), each reading the others'
 fields as they stand (the Gauss-Seidel order of a partitioned solve). The loop gain of the coupling is ``g_ij g_ji``,
@@ -87,9 +89,9 @@ def receiver_radius_m(cfg) -> float:
 
 def couples_by_kernel(a_cfg, b_cfg) -> bool:
     """Whether two tools couple through the heave kernel: one of them flat, neither a sphere, on membranes that carry
-    tension (:func:`~skin_sim_node.model.heave.uses_kernel`)."""
+    tension (:func:`~skin_sim_node.model.heave.uses_kernel`, of both: the pair's one table serves both directions)."""
     shapes = {a_cfg.tool_shape, b_cfg.tool_shape}
-    return "flat" in shapes and "sphere" not in shapes and uses_kernel(a_cfg)
+    return "flat" in shapes and "sphere" not in shapes and uses_kernel(a_cfg) and uses_kernel(b_cfg)
 
 
 def source_radius_m(tool: Tool) -> float:
