@@ -264,3 +264,16 @@ def test_a_non_finite_field_never_reaches_the_other_tool(cfgs):
     b.tissue.active[:] = 1
     s = a.step(ToolPose((0.0, 0.0, -1e-3), (0.0, 0.0, 0.0), DOWN, 1e-3, False))
     assert np.isfinite(s.force_n).all() and s.force_n[2] > 0.1
+
+
+def test_the_loop_option_runs_only_the_named_loops_and_says_when_none_matches(capsys):
+    """``skin-sim two-hands --loop TEXT [--loop-speed-mm-s V]``: the named loops alone (here two equal punches at the
+    study's 1 mm/s, which dissipate), a one-line error for a name no loop has or a speed that is not positive."""
+    assert th.main(["--loop", "two 2.5 mm punches 1 mm at 6 mm, left first"]) == 0
+    out = capsys.readouterr().out
+    assert "two 2.5 mm punches 1 mm at 6 mm, left first at 1 mm/s" in out and "PASS" in out
+    assert th.main(["--loop", "no such loop"]) == 2
+    assert th.main(["--loop", "two", "--loop-speed-mm-s", "0"]) == 2
+    err = capsys.readouterr().out
+    assert "no loop's name contains 'no such loop'" in err and "--loop-speed-mm-s must be above 0" in err
+    assert th.LOOP_SPEED_M_S == 1e-3  # the study's speed again for the other tests

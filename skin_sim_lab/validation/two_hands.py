@@ -905,11 +905,55 @@ def study_cost(fcfg, ncfg, quick: bool) -> None:
         print(f"   {name:37s}  {med:12.2f}  {p99:9.2f}")
 
 
+def run_loops(fcfg, ncfg, text: str, speed_m_s: float) -> int:
+    """``--loop``: the loops of :func:`loop_cases` whose name contains ``text`` at ``speed_m_s``; exits 1 if one
+    returns energy (or none matches)."""
+    global LOOP_SPEED_M_S
+    if not speed_m_s > 0:
+        print(f"skin-sim two-hands: error: --loop-speed-mm-s must be above 0, got {speed_m_s * 1e3:g}")
+        return 2
+    saved, LOOP_SPEED_M_S = LOOP_SPEED_M_S, speed_m_s
+    try:
+        chosen = [c for c in loop_cases(fcfg, ncfg) if text in c[0]]  # the paths are built at this speed
+    finally:
+        LOOP_SPEED_M_S = saved
+    if not chosen:
+        print(f"skin-sim two-hands: error: no loop's name contains {text!r}")
+        return 2
+    bad = 0
+    for name, cfgs, paths in chosen:
+        _, works = run_paths(SharedSkin([make_tool(c) for c in cfgs]).hands, paths)
+        alone = [run_paths([make_tool(c)], [p])[1][0] for c, p in zip(cfgs, paths)]
+        ok = sum(works) <= ENERGY_TOLERANCE_J
+        bad += not ok
+        print(
+            f"{name} at {speed_m_s * 1e3:g} mm/s: tools {works[0] * 1e6:.2f} + {works[1] * 1e6:.2f} = {sum(works) * 1e6:.2f}"
+            f" uJ (each alone: {sum(alone) * 1e6:.2f} uJ)  {'PASS' if ok else 'FAIL: returns energy'}",
+            flush=True,
+        )
+    return 1 if bad else 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="skin-sim two-hands", description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a shorter cost run (the checks are the same)")
+    ap.add_argument(
+        "--loop",
+        metavar="TEXT",
+        help="only the passivity loops whose name contains TEXT (e.g. 'needle 1.5 mm + 5 mm pad 1 mm at 6 mm'), each "
+        "with the energy its tools take alone, at --loop-speed-mm-s; the other studies are not run",
+    )
+    ap.add_argument(
+        "--loop-speed-mm-s",
+        type=float,
+        default=LOOP_SPEED_M_S * 1e3,
+        help=f"the loops' speed with --loop (mm/s; default {LOOP_SPEED_M_S * 1e3:g}: a quasi-static loop, 0.01 mm/s, "
+        "simulates 500 s of moves and takes minutes)",
+    )
     args = ap.parse_args(argv)
     fcfg, ncfg = preset("default"), preset("needle")
+    if args.loop is not None:
+        return run_loops(fcfg, ncfg, args.loop, args.loop_speed_mm_s * 1e-3)
     fails = []
     fails += study_needle(ncfg, fcfg)
     fails += study_passivity(fcfg, ncfg)
