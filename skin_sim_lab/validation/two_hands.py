@@ -445,10 +445,19 @@ def cross_stiffness(cfgs, distance_m: float, depth_a_m: float, depth_b_m: float)
     return (fa[0] - base[0]) / h, (fb[1] - base[1]) / h, (fb[0] - base[0]) / h, (fa[1] - base[1]) / h
 
 
-def loop_cases(fcfg, ncfg) -> list[tuple[str, list, list]]:
+def loop_energies(cfgs, paths) -> tuple[list[float], list[float]]:
+    """Each tool's energy (J, :func:`run_paths`) along ``paths`` in one :class:`SharedSkin`, and each alone on its own
+    tissue along the same path."""
+    _, works = run_paths(SharedSkin([make_tool(c) for c in cfgs]).hands, paths)
+    alone = [run_paths([make_tool(c)], [p])[1][0] for c, p in zip(cfgs, paths)]
+    return works, alone
+
+
+def loop_cases(fcfg, ncfg, speed_m_s: float = LOOP_SPEED_M_S) -> list[tuple[str, list, list]]:
     """Closed loops in the two depths: tool A in, tool B in, A out, B out ("A first"), and B first; at
-    :data:`LOOP_SPEED_M_S` with :data:`LOOP_HOLD_TICKS` holds. The pairs of unequal tools the passivity paths above do
-    not cover (the shipped scene's needle and 5 mm pad at 6 and 8 mm, a punch beside the pad), and two equal punches."""
+    ``speed_m_s`` (:data:`LOOP_SPEED_M_S`, the study's) with :data:`LOOP_HOLD_TICKS` holds. The pairs of unequal tools
+    the passivity paths above do not cover (the shipped scene's needle and 5 mm pad at 6 and 8 mm, a punch beside the
+    pad), and two equal punches."""
     from dataclasses import replace
 
     pad = replace(fcfg, tool_radius_m=5e-3)
@@ -472,7 +481,7 @@ def loop_cases(fcfg, ncfg) -> list[tuple[str, list, list]]:
             pos = [np.asarray(a0, float), np.asarray(b0, float)]
             rows = [list(pos)]
             for k, frm, to in moves:
-                for p in _ramp(frm, to, LOOP_SPEED_M_S):
+                for p in _ramp(frm, to, speed_m_s):
                     pos[k] = p
                     rows.append(list(pos))
                 pos[k] = np.asarray(to, float)
@@ -500,9 +509,7 @@ def study_passivity(fcfg, ncfg) -> list[str]:
                 f"   loops in the two depths at {LOOP_SPEED_M_S * 1e3:g} mm/s, {LOOP_HOLD_TICKS} ticks held between moves "
                 "(A in, B in, A out, B out; or B first):"
             )
-        skin = SharedSkin([make_tool(c) for c in cfgs])
-        _, works = run_paths(skin.hands, paths)
-        alone = [run_paths([make_tool(c)], [p])[1][0] for c, p in zip(cfgs, paths)]
+        works, alone = loop_energies(cfgs, paths)
         total = sum(works)
         ok = total <= ENERGY_TOLERANCE_J
         print(
@@ -908,22 +915,16 @@ def study_cost(fcfg, ncfg, quick: bool) -> None:
 def run_loops(fcfg, ncfg, text: str, speed_m_s: float) -> int:
     """``--loop``: the loops of :func:`loop_cases` whose name contains ``text`` at ``speed_m_s``; exits 1 if one
     returns energy (or none matches)."""
-    global LOOP_SPEED_M_S
     if not speed_m_s > 0:
         print(f"skin-sim two-hands: error: --loop-speed-mm-s must be above 0, got {speed_m_s * 1e3:g}")
         return 2
-    saved, LOOP_SPEED_M_S = LOOP_SPEED_M_S, speed_m_s
-    try:
-        chosen = [c for c in loop_cases(fcfg, ncfg) if text in c[0]]  # the paths are built at this speed
-    finally:
-        LOOP_SPEED_M_S = saved
+    chosen = [c for c in loop_cases(fcfg, ncfg, speed_m_s) if text in c[0]]
     if not chosen:
         print(f"skin-sim two-hands: error: no loop's name contains {text!r}")
         return 2
     bad = 0
     for name, cfgs, paths in chosen:
-        _, works = run_paths(SharedSkin([make_tool(c) for c in cfgs]).hands, paths)
-        alone = [run_paths([make_tool(c)], [p])[1][0] for c, p in zip(cfgs, paths)]
+        works, alone = loop_energies(cfgs, paths)
         ok = sum(works) <= ENERGY_TOLERANCE_J
         bad += not ok
         print(

@@ -151,8 +151,7 @@ class SharedSkin:
         A tool ``j`` on the kernel with tool ``i`` (one of them flat, neither a sphere: :func:`couples_by_kernel`)
         lowers it by its own field's depth at its centre times the pair's kernel (:mod:`~skin_sim_node.model.heave`:
         the skin rises beside a contact, so ``w_i`` turns negative 5-15 mm out); any other tool by its own field at
-        ``(x, y)``. A field at rest
-        (no active layer) adds nothing and costs nothing.
+        ``(x, y)``. A field at rest (no active layer) adds nothing and costs nothing.
         """
         return self.displacement_from(self.sources(i), x, y)
 
@@ -177,7 +176,7 @@ class SharedSkin:
 
     @staticmethod
     def displacement_from(sources: list[tuple], x: float, y: float) -> float:
-        """``w`` at ``(x, y)`` from :meth:`sources` (m, downward): each flat source's depth times its kernel,
+        """``w`` at ``(x, y)`` from :meth:`sources` (m, downward): each kernel source's depth times the pair's kernel,
         interpolated linearly on its uniform table (zero past its end), each other source's own field there."""
         w = 0.0
         for src in sources:
