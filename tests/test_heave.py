@@ -70,8 +70,10 @@ def test_the_coupling_table_heaves_where_the_reference_does(cfg):
 
 
 def test_a_punch_lowers_a_needle_by_its_depth_times_the_profile(cfg):
-    """The coupling reads a flat tool's own depth at its centre times the pair's kernel at the other tool's place: the
-    mean of the punch's profile at the needle's point and the needle's footprint's profile over the punch's disk."""
+    """The coupling reads a flat tool's own depth at its centre, through the pair's load maps (the needle untouched:
+    ``Psi_needle'(0) Psi_punch(e)``, :mod:`skin_sim_node.tools.reciprocal`), times the pair's kernel at the other
+    tool's place: the mean of the punch's profile at the needle's point and the needle's footprint's profile over the
+    punch's disk."""
     ncfg = preset("needle")
     skin = SharedSkin([make_tool(ncfg), make_tool(cfg)])
     needle, punch = skin.hands
@@ -80,7 +82,9 @@ def test_a_punch_lowers_a_needle_by_its_depth_times_the_profile(cfg):
     depth = punch.tissue.surface_displacement_at(7e-3, 0.0)
     s, g = hv.coupling_table(cfg, cfg.tool_radius_m, 0.0)
     _, g_back = hv.coupling_table(ncfg, 0.5 * ncfg.needle_outer_diameter_m, cfg.tool_radius_m)
-    want = depth * float(np.interp(7e-3, s, 0.5 * (g + g_back)))
+    lowering = needle.load_map.lowering(0.0, punch.load_map, depth)
+    assert lowering > depth  # an untouched needle's chain is softer than the pressed punch's: Betti gives it more
+    want = lowering * float(np.interp(7e-3, s, 0.5 * (g + g_back)))
     assert want < 0.0  # 7 mm out: raised
     assert skin.others_displacement_at(0, 0.0, 0.0) == pytest.approx(want, rel=1e-12)
     assert skin.others_displacement_at(1, 7e-3, 0.0) == 0.0  # the needle has not touched

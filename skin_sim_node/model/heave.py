@@ -24,11 +24,12 @@ against +0.195 / -0.057 / -0.080 / -0.052. Beyond 12 mm it decays more slowly th
 -0.002 at 20 mm): thin-layer theory wants lengths well above ``h``, and ``L`` is 0.53 ``h``.
 
 How the coupling uses it (:class:`~skin_sim_node.tools.hands.SharedSkin`): a contact ``j`` whose own field is
-``delta_j`` deep at its centre lowers the surface under contact ``i`` by ``delta_j G(s)``, ``s`` the centres' distance
-and ``G`` one table for the pair, the mean of the two directions' :func:`coupling_table` (each one's footprint profile
-averaged over the other's disk with the weight ``1 - r^2 / a^2``, a rigid punch's contact pressure on a thin layer,
-parabolic), so the coupling is reciprocal. The isotropic kernel: the flux is the bulk tissue's, and the reference it
-is checked against is isotropic.
+``e_j`` deep at its centre lowers the surface under contact ``i`` by ``G(s) Psi_i'(e_i) Psi_j(e_j)`` (``e_j`` when the
+two are in one state; :mod:`~skin_sim_node.tools.reciprocal`, the load maps that make it a potential's), ``s`` the
+centres' distance and ``G`` one table for the pair, the mean of the two directions' :func:`coupling_table` (each
+one's footprint profile averaged over the other's disk with the weight ``1 - r^2 / a^2``, a rigid punch's contact
+pressure on a thin layer, parabolic), held at its value where the footprints touch when they overlap. The isotropic
+kernel: the flux is the bulk tissue's, and the reference it is checked against is isotropic.
 """
 
 from __future__ import annotations

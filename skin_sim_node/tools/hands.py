@@ -8,32 +8,36 @@ edge footprint, anisotropic patch and, for a needle, its track), and the sum of 
 
 The coupling: each tool's chain (eq 6) acts at a surface that includes the others' deflection. Tool ``i`` at depth
 ``d_i`` below the rest surface, where the others have lowered the surface by ``w_i``, presses its own field to
-``d_i - w_i``: its step runs at ``z_i + w_i`` (:class:`CoupledTool`). Where one of the pair is flat (a punch, a finger
-pad) and neither is a sphere, tool ``j`` gives ``w_i = delta_j G_ij(s)``: its own field's depth at its centre times
-the heave kernel at the centres' distance (:mod:`~skin_sim_node.model.heave`: the skin is nearly incompressible and
-bonded to a base, so it rises 5-15 mm beside a contact, as the 3D reference does). The kernel is **one table for both
-directions** (:func:`couples_by_kernel`, ``_table``): the mean of each tool's footprint profile (its kernel's indenter:
-a flat tool's radius, a needle's own 0.41 mm for 21 G) read over the other's receiving disk (a flat tool's radius, a
-needle's point). The cross stiffness is then ``-K_i G`` one way and ``-K_j G`` the other, and the chains' own stiffnesses
-``K`` hardly depend on the tool (525-645 N/m for a 2.5 mm punch, a 5 mm pad and a needle's tent at 1-1.5 mm,
-``skin-sim two-hands``, study 2), so the coupling is reciprocal to their difference (Betti: ``K_i G_ij = K_j G_ji``; a
-one-way kernel, the pad's heave at the needle against the needle's membrane field at the pad, returned 8.8 uJ over a
-loop at 1 mm/s). What is left of it, ``G (K_i - K_j)``, is not: the tissue's dissipation hides it at 1 mm/s, but a
-quasi-static loop (0.01 mm/s) of the needle's tent and a pad returns about 2 uJ (docs/two_hands.md, study 2). Other
-pairs (a sphere, two needles) read the other tool's own field at tool ``i``'s place, ``u_j(x_i, y_i)``, both ways: not
-reciprocal either (a sphere beside a punch: -12.1 against -39.5 N/m), and without the heave. A finger pressing 3 mm
-from a needle's entry lowers the skin there, so the needle's dimple starts lower and its puncture comes later along
-the needle's travel; 6 mm out the skin stands higher and the puncture comes earlier (``skin-sim two-hands``,
+``e_i = d_i - w_i``: its step runs at ``z_i + w_i`` (:class:`CoupledTool`). Tool ``j`` (a flat punch or finger pad, a
+sphere, a needle) gives ``w_i = G_ij(s) Psi_i'(e_i) Psi_j(e_j)``: the heave kernel at
+the centres' distance (:mod:`~skin_sim_node.model.heave`: the skin is nearly incompressible and bonded to a base, so
+it rises 5-15 mm beside a contact, as the 3D reference does) times the pair's load maps at the two tools' own depths,
+each read from its own field at its centre (:mod:`~skin_sim_node.tools.reciprocal`: the gradient of one complementary
+energy ``G Psi_i Psi_j``, so the coupling does no net work over a closed path and the cross stiffnesses are equal,
+Betti; in one state ``Psi_i' Psi_j = e_j``, the depth kernel the FEM two-punch rows validate). The kernel is **one
+table for both directions** (:func:`couples_by_kernel`, ``_table``): the mean of each tool's footprint profile (its
+kernel's indenter: a flat tool's radius, a needle's own 0.41 mm for 21 G, a sphere's contact disk at 1 mm) read over
+the other's receiving disk (a flat tool's radius, a sphere's disk, a needle's point). With the depth kernel alone (``w_i = G e_j``) the cross stiffnesses were ``-K_i G``
+and ``-K_j G``, and a quasi-static loop (0.01 mm/s) of a needle's tent and a pad returned 2.3 uJ; with the load maps it
+takes -2.00 uJ, the two chains' own dissipation (``skin-sim two-hands --loop``, docs/two_hands.md). Only the paper
+form, whose membranes carry almost no tension and so no heave (:func:`~skin_sim_node.model.heave.uses_kernel`),
+reads the other tool's own field at tool ``i``'s place, ``u_j(x_i, y_i)``, both ways (not reciprocal). A finger pressing 3 mm from a
+needle's entry lowers the skin there, so the needle's dimple starts lower and its puncture comes later along the
+needle's travel; 6 mm out the skin stands higher and the puncture comes earlier (``skin-sim two-hands``,
 docs/two_hands.md).
 
 Order: the tools step one after another (each tick of each hand, when its pose arrives), each reading the others'
-fields as they stand (the Gauss-Seidel order of a partitioned solve). The loop gain of the coupling is ``g_ij g_ji``,
-``g_ij = w_i / delta_j`` (the lowering at this tool over the other's own depth, ``|g| <= 1``: 0.25 at 4 mm, -0.04 at
-6 mm and -0.055 at 10 mm for 2.5 mm punches), so the iteration contracts at every distance above 0. Overlap rule: none
-switches. The coupling is the same continuous kernel at every centre distance, so nothing changes when two contact
-disks start to overlap and the force has no jolt (tests/test_hands.py sweeps the distance through ``r_1 + r_2``). At
-distance 0, two coincident flat punches at one depth share the force of one punch (``w_i`` is the other's whole share
-of the depth).
+fields as they stand (the Gauss-Seidel order of a partitioned solve). The loop gain of the coupling is about
+``g_ij g_ji``, ``g_ij = dw_i / de_j`` (about ``G`` times the chains' tangent over secant stiffness, 1.1-1.2; ``|G| <=
+0.051`` for two 2.5 mm punches: 0.051 where they touch and closer, -0.04 at 6 mm, -0.055 at 10 mm), so the iteration
+contracts at every distance. Overlap rule: where two footprints overlap (centres closer than the sum of their kernel
+radii: a flat tool's radius, a needle's 0.41 mm) the kernel is held at its value where they touch. The superposed
+kernel there (0.25 of the depth at 4 mm for two 2.5 mm punches) counts the shared lens twice, where the reference's
+pair (one rigid body of the union footprint) implies 0.065-0.072, and with the load maps' tangent gain it would pass
+1 near coincidence (two tools snapping into one's share). Held, the kernel is continuous (a kink, no step: the force
+has no jolt, tests/test_hands.py sweeps the distance through ``r_1 + r_2`` to 0) and at 4 mm gives 0.051 (the FEM
+rows at 4 mm: interaction -0.062 / -0.070 of the single force against the FEM's -0.092 / -0.093, docs/validation/two_punch.md).
+Two coincident tools are not one tool: each keeps its chain (two hands cannot hold one place).
 
 The local contact model a device renders (:class:`~skin_sim_node.model.ContactTangent`) is this tool's, with positions
 in the tissue frame (the friction anchor lowered back by ``w_i``), and the coupling to first order: ``K`` gains
@@ -41,8 +45,7 @@ in the tissue frame (the friction anchor lowered back by ``w_i``), and the coupl
 the other tools' own motion, which the bridge renders for at most one server period (docs/two_hands.md).
 
 Not modelled: the heave in the drawn surface (the display sums the tools' own fields, which only dent), and contact
-between two overlapping flat disks: at 4 mm the superposition lowers one 2.5 mm punch by 0.25 of the other's depth, where
-the reference's pair (one rigid body of the union footprint) implies 0.07 (``skin-sim two-punch``, docs/two_hands.md).
+between two overlapping flat disks beyond the held kernel (the overlap rule above).
 
 Limit: :data:`MAX_HANDS` tools.
 """
@@ -60,6 +63,7 @@ from ..model.grid import assemble_heights
 from ..model.heave import coupling_table, uses_kernel
 from ..model.interfaces import interface_depths_m
 from .base import Tool, ToolPose, ToolStep
+from .reciprocal import LoadMap, load_map
 
 MAX_HANDS = 2
 """Most tools one tissue takes. Two hands is the clinical scene (a hand anchoring or palpating beside a tool in the
@@ -81,23 +85,37 @@ SLOPE_STEP_M = 10e-6
 with a relative error of order 1e-3 and stays far above round-off (1e-16 m on a 1e-4 m field)."""
 
 
+SPHERE_DEPTH_M = 1e-3
+"""The depth (m) at which a sphere's footprint is taken for the kernel: its Hertz contact radius ``sqrt(R d)`` at the
+issue's shallower press (1 mm; 2.24 mm for a 5 mm ball, 3.16 mm at 2 mm). The kernel's footprint is fixed per pair (one
+table); the depth-dependent part of a sphere's coupling, its stiffness, is in its load map
+(:mod:`~skin_sim_node.tools.reciprocal`). Beyond a few millimetres the heave depends little on the footprint's radius
+(a 2.5 mm punch's and a 5 mm pad's kernels at 8 mm: -0.072 and -0.081 of the depth)."""
+
+
+def _footprint_m(cfg, radius_m: float) -> float:
+    """A sphere's kernel footprint radius (m, :data:`SPHERE_DEPTH_M`) or ``radius_m``."""
+    return math.sqrt(cfg.tool_radius_m * SPHERE_DEPTH_M) if cfg.tool_shape == "sphere" else radius_m
+
+
 def receiver_radius_m(cfg) -> float:
-    """The radius (m) of the disk over which a tool of ``cfg`` feels another's heave: a flat tool's radius; 0 (its
-    point) for a needle, whose contact is its tip."""
-    return cfg.tool_radius_m if cfg.tool_shape == "flat" else 0.0
+    """The radius (m) of the disk over which a tool of ``cfg`` feels another's heave: a flat tool's radius, a sphere's
+    footprint (:data:`SPHERE_DEPTH_M`); 0 (its point) for a needle, whose contact is its tip."""
+    return 0.0 if cfg.tool_shape == "needle" else _footprint_m(cfg, cfg.tool_radius_m)
 
 
 def couples_by_kernel(a_cfg, b_cfg) -> bool:
-    """Whether two tools couple through the heave kernel: one of them flat, neither a sphere, on membranes that carry
-    tension (:func:`~skin_sim_node.model.heave.uses_kernel`, of both: the pair's one table serves both directions)."""
-    shapes = {a_cfg.tool_shape, b_cfg.tool_shape}
-    return "flat" in shapes and "sphere" not in shapes and uses_kernel(a_cfg) and uses_kernel(b_cfg)
+    """Whether two tools couple through the heave kernel: on membranes that carry tension
+    (:func:`~skin_sim_node.model.heave.uses_kernel`, of both: the pair's one table serves both directions). Any two
+    tools do (flat, sphere, needle); the paper form's membranes do not."""
+    return uses_kernel(a_cfg) and uses_kernel(b_cfg)
 
 
 def source_radius_m(tool: Tool) -> float:
     """The radius (m) of the footprint whose heave a tool spreads: its kernel's indenter (a flat tool's radius, a
-    needle's own radius: its field is a punch of that radius pressed to the dimple's depth)."""
-    return type(tool).indenter(tool.cfg).radius_m
+    needle's own radius: its field is a punch of that radius pressed to the dimple's depth; a sphere's footprint,
+    :data:`SPHERE_DEPTH_M`)."""
+    return _footprint_m(tool.cfg, type(tool).indenter(tool.cfg).radius_m)
 
 
 def _table(receiver: Tool, source: Tool) -> tuple[float, list[float]]:
@@ -106,7 +124,10 @@ def _table(receiver: Tool, source: Tool) -> tuple[float, list[float]]:
     other's receiving disk, :func:`receiver_radius_m`), its step (m) and values; the same for ``(i, j)`` and ``(j, i)``."""
     s, g_ij = coupling_table(source.cfg, source_radius_m(source), receiver_radius_m(receiver.cfg))
     _, g_ji = coupling_table(receiver.cfg, source_radius_m(receiver), receiver_radius_m(source.cfg))
-    return float(s[1] - s[0]), (0.5 * (g_ij + g_ji)).tolist()
+    g = 0.5 * (g_ij + g_ji)
+    touch = source_radius_m(source) + source_radius_m(receiver)
+    g[s < touch] = np.interp(touch, s, g)  # overlapping footprints: held where they touch (module docstring)
+    return float(s[1] - s[0]), g.tolist()
 
 
 class SharedSkin:
@@ -132,6 +153,9 @@ class SharedSkin:
             if t.cfg.sheet_size_m != first.sheet_size_m or len(t.cfg.layers) != len(first.layers):
                 raise ValueError("the tools of one tissue need the same sheet and layers")
         self.hands = tuple(CoupledTool(t, self, i) for i, t in enumerate(tools))
+        for i, h in enumerate(self.hands):
+            if any(j != i and couples_by_kernel(h.cfg, o.cfg) for j, o in enumerate(tools)):
+                h.load_map = load_map(type(h.inner), h.cfg)
         self._heave: list[list[tuple[float, list[float]] | None]] = [
             [_table(dst, src) if j != i and couples_by_kernel(dst.cfg, src.cfg) else None for j, src in enumerate(tools)]
             for i, dst in enumerate(tools)
@@ -149,7 +173,8 @@ class SharedSkin:
         """Downward surface displacement (m) under tool ``i`` at ``(x, y)`` from every tool but ``i``: ``w_i``.
 
         A tool ``j`` on the kernel with tool ``i`` (one of them flat, neither a sphere: :func:`couples_by_kernel`)
-        lowers it by its own field's depth at its centre times the pair's kernel (:mod:`~skin_sim_node.model.heave`:
+        lowers it by the two load maps at their own depths (:mod:`~skin_sim_node.tools.reciprocal`) times the pair's
+        kernel (:mod:`~skin_sim_node.model.heave`:
         the skin rises beside a contact, so ``w_i`` turns negative 5-15 mm out); any other tool by its own field at
         ``(x, y)``. A field at rest (no active layer) adds nothing and costs nothing.
         """
@@ -157,26 +182,29 @@ class SharedSkin:
 
     def sources(self, i: int) -> list[tuple]:
         """What the other tools' fields are now, for :meth:`displacement_from` (one tool's step reads them at up to
-        four places, and they do not change within it): per active other tool, ``(delta_j, x_j, y_j, table_step,
-        table)`` for a pair on the kernel (its depth at its centre and the pair's kernel, :meth:`others_displacement_at`)
-        or ``(tissue,)`` for another."""
+        four places, and they do not change within it): per active other tool, ``(load, x_j, y_j, table_step, table)``
+        for a pair on the kernel (``Psi_i'(e_i) Psi_j(e_j)``, the two load maps at each one's own depth at its centre,
+        and the pair's kernel, :meth:`others_displacement_at`) or ``(tissue,)`` for another."""
         out: list[tuple] = []
+        me = self.hands[i]
         for j, h in enumerate(self.hands):
             if j == i or not h.tissue.active.any():
                 continue
             table = self._heave[i][j]
-            if table is not None and h._xy is not None:
-                xj, yj = h._xy
-                delta = h.tissue.surface_displacement_at(xj, yj)
-                if math.isfinite(delta):  # a field gone non-finite (its session resets it) never reaches another tool
-                    out.append((delta, xj, yj, *table))
+            if table is not None:
+                if h._xy is not None and me.load_map is not None and h.load_map is not None:
+                    xj, yj = h._xy
+                    own = me.tissue.surface_displacement_at(*me._xy) if me._xy is not None else 0.0
+                    delta = me.load_map.lowering(own, h.load_map, h.tissue.surface_displacement_at(xj, yj))
+                    if math.isfinite(delta):  # a field gone non-finite (its session resets it) never reaches another
+                        out.append((delta, xj, yj, *table))
             else:
                 out.append((h.tissue,))
         return out
 
     @staticmethod
     def displacement_from(sources: list[tuple], x: float, y: float) -> float:
-        """``w`` at ``(x, y)`` from :meth:`sources` (m, downward): each kernel source's depth times the pair's kernel,
+        """``w`` at ``(x, y)`` from :meth:`sources` (m, downward): each kernel source's load times the pair's kernel,
         interpolated linearly on its uniform table (zero past its end), each other source's own field there."""
         w = 0.0
         for src in sources:
@@ -261,6 +289,9 @@ class CoupledTool(Tool):
         self.jump_time_s = 0.0
         """:attr:`time_s` at its last jump (a restart, a release or reset, a step over :data:`CONTINUOUS_STEP_S`)."""
         self._seen: tuple[float, float] | None = None  # the others' (time, jump time) at this tool's last step
+        self.load_map: LoadMap | None = None
+        """Its :class:`~skin_sim_node.tools.reciprocal.LoadMap` when it couples to another by the kernel (set by the
+        :class:`SharedSkin`)."""
 
     def step(self, pose: ToolPose) -> ToolStep:
         """The inner tool's step at ``z + w_i``; its record, with positions back in the tissue frame and the coupling
