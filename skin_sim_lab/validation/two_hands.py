@@ -827,7 +827,8 @@ def study_cross(fcfg) -> list[str]:
                 fails.append(f"cross term {d * 1e3:g} mm tool {i}: {c.cross[i] * 1e-3:.4f} N/mm against {pred * 1e-3:.4f}")
     print(
         f"   aim: the cross term within {CROSS_PREDICTION_REL * 100:g} % of the coupling's K_ii g_ij (g_ij = dw_i/de_j:"
-        " the lowering times the load map's Psi_j'/Psi_j) where the dimple u_j(x_i) is at least lod.tolerance_m (10 um); below it (the mode levels'"
+        " the lowering times the load map's Psi_j'/Psi_j) where the dimple u_j(x_i) is at least lod.tolerance_m"
+        " (10 um); below it (the mode levels'"
         f" truncation) the cross term is below {CROSS_NEGLIGIBLE_REL * 100:g} % of the own stiffness"
     )
     print(

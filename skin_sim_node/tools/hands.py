@@ -7,24 +7,24 @@ edge footprint, anisotropic patch and, for a needle, its track), and the sum of 
 (:meth:`SharedSkin.surface_displacement_at`, :meth:`SharedSkin.heights_m`, :meth:`SharedSkin.cross_section`).
 
 The coupling: each tool's chain (eq 6) acts at a surface that includes the others' deflection. Tool ``i`` at depth
-``d_i`` below the rest surface, where the others have lowered the surface by ``w_i``, presses its own field to
-``e_i = d_i - w_i``: its step runs at ``z_i + w_i`` (:class:`CoupledTool`). Tool ``j`` (a flat punch or finger pad, a
-sphere, a needle) gives ``w_i = G_ij(s) Psi_i'(e_i) Psi_j(e_j)``: the heave kernel at
-the centres' distance (:mod:`~skin_sim_node.model.heave`: the skin is nearly incompressible and bonded to a base, so
-it rises 5-15 mm beside a contact, as the 3D reference does) times the pair's load maps at the two tools' own depths,
-each read from its own field at its centre (:mod:`~skin_sim_node.tools.reciprocal`: the gradient of one complementary
-energy ``G Psi_i Psi_j``, so the coupling does no net work over a closed path and the cross stiffnesses are equal,
-Betti; in one state ``Psi_i' Psi_j = e_j``, the depth kernel the FEM two-punch rows validate). The kernel is **one
-table for both directions** (:func:`couples_by_kernel`, ``_table``): the mean of each tool's footprint profile (its
-kernel's indenter: a flat tool's radius, a needle's own 0.41 mm for 21 G, a sphere's contact disk at 1 mm) read over
-the other's receiving disk (a flat tool's radius, a sphere's disk, a needle's point). With the depth kernel alone (``w_i = G e_j``) the cross stiffnesses were ``-K_i G``
-and ``-K_j G``, and a quasi-static loop (0.01 mm/s) of a needle's tent and a pad returned 2.3 uJ; with the load maps it
-takes -2.00 uJ, the two chains' own dissipation (``skin-sim two-hands --loop``, docs/two_hands.md). Only the paper
-form, whose membranes carry almost no tension and so no heave (:func:`~skin_sim_node.model.heave.uses_kernel`),
-reads the other tool's own field at tool ``i``'s place, ``u_j(x_i, y_i)``, both ways (not reciprocal). A finger pressing 3 mm from a
-needle's entry lowers the skin there, so the needle's dimple starts lower and its puncture comes later along the
-needle's travel; 6 mm out the skin stands higher and the puncture comes earlier (``skin-sim two-hands``,
-docs/two_hands.md).
+``d_i`` below the rest surface, where the others have lowered the surface by ``w_i``, presses its own field to ``e_i =
+d_i - w_i``: its step runs at ``z_i + w_i`` (:class:`CoupledTool`). Tool ``j`` (a flat punch or finger pad, a sphere, a
+needle) gives ``w_i = G_ij(s) Psi_i'(e_i) Psi_j(e_j)``: the heave kernel at the centres' distance
+(:mod:`~skin_sim_node.model.heave`: the skin is nearly incompressible and bonded to a base, so it rises 5-15 mm beside a
+contact, as the 3D reference does) times the pair's load maps at the two tools' own depths, each read from its own field
+at its centre (:mod:`~skin_sim_node.tools.reciprocal`: the gradient of one complementary energy ``G Psi_i Psi_j``, so
+the coupling does no net work over a closed path and the cross stiffnesses are equal, Betti; in one state ``Psi_i' Psi_j
+= e_j``, the depth kernel the FEM two-punch rows validate). The kernel is **one table for both directions**
+(:func:`couples_by_kernel`, ``_table``): the mean of each tool's footprint profile (its kernel's indenter: a flat tool's
+radius, a needle's own 0.41 mm for 21 G, a sphere's contact disk at 1 mm) read over the other's receiving disk (a flat
+tool's radius, a sphere's disk, a needle's point). With the depth kernel alone (``w_i = G e_j``) the cross stiffnesses
+were ``-K_i G`` and ``-K_j G``, and a quasi-static loop (0.01 mm/s) of a needle's tent and a pad returned 2.3 uJ; with
+the load maps it takes -2.00 uJ, the two chains' own dissipation (``skin-sim two-hands --loop``, docs/two_hands.md).
+Only the paper form, whose membranes carry almost no tension and so no heave
+(:func:`~skin_sim_node.model.heave.uses_kernel`), reads the other tool's own field at tool ``i``'s place, ``u_j(x_i,
+y_i)``, both ways (not reciprocal). A finger pressing 3 mm from a needle's entry lowers the skin there, so the needle's
+dimple starts lower and its puncture comes later along the needle's travel; 6 mm out the skin stands higher and the
+puncture comes earlier (``skin-sim two-hands``, docs/two_hands.md).
 
 Order: the tools step one after another (each tick of each hand, when its pose arrives), each reading the others'
 fields as they stand (the Gauss-Seidel order of a partitioned solve). The loop gain of the coupling is about

@@ -40,7 +40,6 @@ depth kernel did.
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
@@ -63,31 +62,35 @@ past a needle's puncture (the force falls), ``p`` stays at its last value."""
 
 
 def static_law(tool_type: type[Tool], cfg: TissueConfig) -> tuple[np.ndarray, np.ndarray]:
-    """The relaxed static law of a tool of ``cfg``: depths (m) and vertical forces (N), from 0, rising.
+    """The relaxed static law of a tool of ``cfg``: depths (m) and vertical forces (N), from 0, rising (read-only).
 
     A fresh tool (its own tissue) pressed straight down at the origin to each of :data:`LAW_DEPTHS_M`, each held
     :data:`STATIC_STEPS` steps of :data:`STATIC_DT_S`; the nodes stop where the force stops rising (a needle's
-    puncture, a form whose force saturates)."""
-    return _static_law(tool_type, cfg)
+    puncture, a form whose force saturates). Cached per tool type and tissue (a few ms each)."""
+    key = (tool_type, cfg)
+    if key not in _LAWS:
+        tool = tool_type(cfg)
+        depths, forces = [0.0], [0.0]
+        first = True
+        for d in LAW_DEPTHS_M:
+            f = 0.0
+            for _ in range(STATIC_STEPS):
+                pose = ToolPose((0.0, 0.0, -d), (0.0, 0.0, 0.0), DOWN, STATIC_DT_S, first)
+                f = float(tool.step(pose).force_n[2])
+                first = False
+            if not (math.isfinite(f) and f > forces[-1]):
+                break
+            depths.append(d)
+            forces.append(f)
+        e_arr, f_arr = np.array(depths), np.array(forces)
+        e_arr.setflags(write=False)
+        f_arr.setflags(write=False)
+        _LAWS[key] = (e_arr, f_arr)
+    return _LAWS[key]
 
 
-@functools.lru_cache(maxsize=16)
-def _static_law(tool_type: type[Tool], cfg: TissueConfig) -> tuple[np.ndarray, np.ndarray]:
-    tool = tool_type(cfg)
-    depths, forces = [0.0], [0.0]
-    first = True
-    for d in LAW_DEPTHS_M:
-        for _ in range(STATIC_STEPS):
-            f = float(tool.step(ToolPose((0.0, 0.0, -d), (0.0, 0.0, 0.0), DOWN, STATIC_DT_S, first)).force_n[2])
-            first = False
-        if not (math.isfinite(f) and f > forces[-1]):
-            break
-        depths.append(d)
-        forces.append(f)
-    e, f = np.array(depths), np.array(forces)
-    e.setflags(write=False)
-    f.setflags(write=False)
-    return e, f
+_LAWS: dict[tuple[type[Tool], TissueConfig], tuple[np.ndarray, np.ndarray]] = {}
+_MAPS: dict[tuple[type[Tool], TissueConfig], LoadMap] = {}
 
 
 class LoadMap:
@@ -156,7 +159,9 @@ class LoadMap:
         return self.slope(own_depth_m) * other.value(other_depth_m)
 
 
-@functools.lru_cache(maxsize=16)
 def load_map(tool_type: type[Tool], cfg: TissueConfig) -> LoadMap:
     """The :class:`LoadMap` of a tool of ``cfg`` (:func:`static_law`; shared by every tissue of that tool)."""
-    return LoadMap(*static_law(tool_type, cfg))
+    key = (tool_type, cfg)
+    if key not in _MAPS:
+        _MAPS[key] = LoadMap(*static_law(tool_type, cfg))
+    return _MAPS[key]
