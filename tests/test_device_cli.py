@@ -99,3 +99,10 @@ def test_node_ns_moves_only_the_node_topics():
         bridge.destroy_node()
         rclpy.try_shutdown(context=ctx)
         BridgeNode.ROS_ARGS = []
+
+
+def test_a_journal_without_the_node_is_a_one_line_error(capsys):
+    """``--journal`` is the composed node's (``--with-node``); alone it stops the command with one line."""
+    assert BridgeNode.main(["--journal", "/tmp/x.npz"]) == 2
+    out = capsys.readouterr().out
+    assert "--journal needs --with-node" in out and out.count("\n") == 1

@@ -219,6 +219,9 @@ class Insertion:
     finger_touched : bool
         Whether the skin pushed on the finger at any tick (a finger at 0 mm is touched where the needle's heave lifts
         the skin into it).
+    finger_step_n : float
+        The finger's largest per-tick force change during the insertion (N): at the puncture the needle's own field is
+        lifted in one tick, and the finger loses the needle's lowering (or heave) with it.
     """
 
     forces_n: np.ndarray
@@ -231,6 +234,7 @@ class Insertion:
     finger_before_n: float
     finger_at_puncture_n: float
     finger_touched: bool = False
+    finger_step_n: float = 0.0
 
 
 def insertion(ncfg: TissueConfig, fcfg: TissueConfig, offset_m: float | None, depth_m: float) -> Insertion:
@@ -289,6 +293,7 @@ def insertion(ncfg: TissueConfig, fcfg: TissueConfig, offset_m: float | None, de
         finger_before_n=finger_before,
         finger_at_puncture_n=fingers[i] if fingers else 0.0,
         finger_touched=touched or any(fingers),
+        finger_step_n=float(np.abs(np.diff(fingers)).max()) if len(fingers) > 1 else 0.0,
     )
 
 
@@ -303,11 +308,11 @@ def study_needle(ncfg, fcfg) -> list[str]:
     print("   puncture: the axial peak before the dermis ruptures (needle-angle's); the epidermis' first rupture beside it")
     print(
         "   finger            finger F (N)   surface at   contact   epidermis   puncture  [vs alone]  tip depth at  travel"
-        "        finger F at"
+        "        finger F at  finger's largest"
     )
     print(
         "   at (mm) press(mm)  before needle  entry (mm)   (mm)      peak (N)    force (N)             puncture (mm) to it (mm)"
-        "  puncture (N)"
+        "  puncture (N)  step (N/tick)"
     )
 
     def row(name, r):
@@ -315,7 +320,7 @@ def study_needle(ncfg, fcfg) -> list[str]:
         print(
             f"   {name}  {r.finger_before_n:13.3f}  {r.surface_m * 1e3:10.3f}  {r.contact_m * 1e3:7.3f}  {r.epidermis_n:10.3f}"
             f"  {r.puncture_n:9.4f}  [{rel * 100:+5.2f} %]  {r.puncture_depth_m * 1e3:12.3f}  {r.travel_m * 1e3:10.3f}"
-            f"  {r.finger_at_puncture_n:11.3f}"
+            f"  {r.finger_at_puncture_n:11.3f}  {r.finger_step_n:13.3f}"
         )
 
     row("alone            ", alone)

@@ -76,6 +76,11 @@ def settled_stamps(
     return [int(s) for s in seen[ok]], int(gap_ends.size)
 
 
+MIN_DELIVERED = 50
+"""Wrenches a hand's DDS reader must have received, and found in the journal, for the transport check: a best-effort
+reader beside two 1 kHz device paths keeps a part (392-780 of a hand's answers in session 8's demo runs); 50 is 50 ms
+of a hand's answers, enough that a wrong topic or a stale message would show."""
+
 READER_RT = 10
 """SCHED_FIFO priority of the demo's reader threads (DDS ones included): above normal work, below the node's 50 and the
 device paths' 80-90, which it must never delay."""
@@ -83,21 +88,15 @@ device paths' 80-90, which it must never delay."""
 
 class HandsRecorder:
     """Each hand's poses and wrenches (stamp-keyed, the first of each stamp), from a node of this process at
-    :data:`READER_RT` (restored to normal in :meth:`close`).
+    :data:`READER_RT` (restored to normal in :meth:`close`). With node and bridges in one process (``skin-sim bridge
+    --with-node``) the tool poses go to the node in memory, not over DDS: there the node's journal has them
+    (:class:`Answers`), and this reader checks what DDS delivered against it."""
 
-    ``device_poses``: also each hand's device pose (``/<hand>/device/measured_cp``, CRTK), in the tissue frame by the
-    bridge's default mapping: with node and bridges in one process (``skin-sim bridge --with-node``) the tool poses go
-    to the node in memory, not over DDS, and the bridge forwards the device's stamps, which the answers carry.
-    """
-
-    def __init__(self, device_poses: bool = False):
+    def __init__(self):
         import rclpy
 
         from msgs_schema.convert import read_wrench, stamp_ns
         from msgs_schema.qos import subscription
-        from msgs_schema.topics import TOPICS
-
-        from ..device.mapping import CONVENTIONS, DEFAULTS, DeviceMapping
 
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
@@ -113,19 +112,8 @@ class HandsRecorder:
             stamp, _, f = read_wrench(m)
             self.wrench[h].setdefault(stamp, np.asarray(f, dtype=float))
 
-        mapping = DeviceMapping()  # the bridge's defaults (skin-sim bridge with no mapping options)
-
-        def on_device_pose(h, m):
-            p, q = m.pose.position, m.pose.orientation
-            xyz = tuple(mapping.to_tissue((p.x, p.y, p.z)))
-            self.poses[h].setdefault(stamp_ns(m.header), (xyz, tuple(mapping.orientation_to_tissue((q.x, q.y, q.z, q.w)))))
-
-        pose_key = CONVENTIONS["crtk"][0]  # the bridge's default convention
         for h in HANDS:
             subscription(self.node, "tool_pose", lambda m, h=h: on_pose(h, m), name=f"/{h}/tool/pose", depth=1000)
-            if device_poses:
-                name = f"/{h}/{DEFAULTS['device_ns']}/{TOPICS[pose_key].name}"  # the bridge's default device_ns
-                subscription(self.node, pose_key, lambda m, h=h: on_device_pose(h, m), name=name, depth=1000)
             subscription(self.node, "tool_wrench", lambda m, h=h: on_wrench(h, m), name=f"/{h}/tool/wrench", depth=1000)
         self.ex = rclpy.executors.SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
@@ -150,20 +138,84 @@ class HandsRecorder:
         rclpy.try_shutdown(context=self.ctx)
 
 
-def offline(rec: HandsRecorder, until_ns: int | None = None):
-    """The two-hand session of :data:`PARAMS` stepped on every pose the reader saw answered (:func:`step_offline`).
+class Answers:
+    """What a check compares: each hand's answered poses in the order the node (or the reader) has them, and the force
+    answered for each.
+
+    Attributes
+    ----------
+    answered : list of (int, str)
+        ``(stamp, hand)`` in the order the offline session steps them.
+    poses : dict
+        ``{hand: {stamp: (xyz, quat or None)}}``.
+    forces : dict
+        ``{hand: {stamp: force vector (N)}}``.
+    complete : bool
+        Every answer the node gave (its journal), not what a reader happened to receive.
+    """
+
+    def __init__(self, answered, poses, forces, complete: bool):
+        self.answered, self.poses, self.forces, self.complete = answered, poses, forces, complete
+
+    @classmethod
+    def from_reader(cls, rec: HandsRecorder) -> Answers:
+        """The answers whose pose the reader also received, in stamp order (a reader has no other)."""
+        answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
+        return cls(answered, rec.poses, rec.wrench, complete=False)
+
+    @classmethod
+    def from_journal(cls, path) -> Answers:
+        """Every answer of the node's journal (``skin-sim bridge --with-node --journal``), in the node's order."""
+        from ..server.journal import load_journal
+
+        j = load_journal(path)
+        rows: list[tuple[int, int, str]] = []
+        poses: dict[str, dict[int, tuple]] = {h: {} for h in HANDS}
+        forces: dict[str, dict[int, np.ndarray]] = {h: {} for h in HANDS}
+        for i, h in enumerate(HANDS):
+            if i not in j:
+                continue
+            d = j[i]
+            for order, stamp, xyz, quat, f in zip(
+                d["order"], d["stamp_ns"], d["position_m"], d["orientation_xyzw"], d["force_n"]
+            ):
+                stamp = int(stamp)
+                if stamp in poses[h]:  # the first answer of a stamp, as a reader keeps it
+                    continue
+                q = None if np.isnan(quat).any() else tuple(float(v) for v in quat)
+                poses[h][stamp] = (tuple(float(v) for v in xyz), q)
+                forces[h][stamp] = np.asarray(f, dtype=float)
+                rows.append((int(order), stamp, h))
+        rows.sort()
+        return cls([(s, h) for _, s, h in rows], poses, forces, complete=True)
+
+
+def offline(ans: Answers, until_ns: int | None = None):
+    """The two-hand session of :data:`PARAMS` stepped on every answered pose (:func:`step_offline`), in the answers'
+    order.
 
     Returns ``({(hand, stamp): force}, tools)``: the answers, and the tools (their fields) after the last pose stepped
     (up to ``until_ns`` if given).
     """
     from ..bags.offline import hand_configs
 
-    answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
-    return step_offline(answered, rec.poses, hand_configs(PARAMS), HANDS, until_ns)
+    return step_offline(ans.answered, ans.poses, hand_configs(PARAMS), HANDS, until_ns)
+
+
+def delivered(rec: HandsRecorder, ans: Answers) -> dict[str, tuple[int, int, float]]:
+    """Per hand, what DDS delivered against the journal: ``(received, of them in the journal, largest |difference|
+    (N))``; a wrench that DDS delivered is the journal's force for its stamp, to the bit."""
+    out = {}
+    for h in HANDS:
+        got = rec.wrench[h]
+        both = [s for s in got if s in ans.forces[h]]
+        worst = max((float(np.linalg.norm(got[s] - ans.forces[h][s])) for s in both), default=0.0)
+        out[h] = (len(got), len(both), worst)
+    return out
 
 
 def step_offline(answered, poses: dict, cfgs: list, hands=HANDS, until_ns: int | None = None):
-    """The hands' session stepped on ``answered`` (``(stamp, hand)``, in stamp order), each hand its own
+    """The hands' session stepped on ``answered`` (``(stamp, hand)``, in that order), each hand its own
     :class:`~skin_sim_node.session.HapticSession` of :func:`~skin_sim_node.tools.make_tools` (``cfgs``, one per hand
     of ``hands``), the stamp age not checked.
 
@@ -235,12 +287,17 @@ def main(args) -> int:
     checks: list = []
     devices = {}
     mock = getattr(args, "source", "device") == "mock"  # --source mock: scripted poses, no bridges and devices
-    rec = HandsRecorder(device_poses=not mock)
+    rec = HandsRecorder()
+    journal = args.out / "journal.npz"
+    journal.unlink(missing_ok=True)
     try:
         if mock:
             node = scene.node(params=PARAMS)
         else:  # node and a bridge per hand in one process: what 2 cores hold (docs/two_hands.md, "One process")
-            node = scene.start("node_bridges", "bridge", "--with-node", "--ros-args", "--params-file", str(PARAMS))
+            node = scene.start(
+                "node_bridges", "bridge", "--with-node", "--journal", str(journal),
+                "--ros-args", "--params-file", str(PARAMS),
+            )  # fmt: skip
         scene.wait_for_log(node, "live:", timeout_s=180)
         for h in HANDS:
             # the finger first: it anchors before the needle comes (its path starts 0.5 s earlier)
@@ -279,27 +336,45 @@ def main(args) -> int:
             + (f", {ticks.group(1)} device ticks ({ticks.group(2)} overruns)" if ticks else "")
         )
         checks.append((peak > 0.0, f"{h} device felt a force (peak {peak:.3f} N)"))
-    truth, _ = offline(rec)
+    if mock:
+        ans = Answers.from_reader(rec)
+    elif journal.exists():
+        ans = Answers.from_journal(journal)
+        for h, (got, known, worst) in delivered(rec, ans).items():
+            print(f"  {h}: DDS delivered {got} wrenches to this reader, {known} of them in the journal, max |dF| {worst:.3g} N")
+            checks.append(
+                (
+                    known >= MIN_DELIVERED and worst <= 1e-9,
+                    f"{h}: the wrenches DDS delivered are the journal's ({known} compared, max |dF| {worst:.3g} N)"
+                    if known >= MIN_DELIVERED
+                    else f"{h}: DDS delivered too few wrenches to check ({known}, at least {MIN_DELIVERED})",
+                )
+            )
+    else:
+        ans = Answers([], rec.poses, rec.wrench, complete=True)
+        checks.append((False, f"the node wrote no journal ({journal})"))
+    truth, _ = offline(ans)
     for h in HANDS:
         stamps = [s for (hh, s) in truth if hh == h]
         if not stamps:
-            checks.append((False, f"{h}: no published force answers a recorded pose"))
+            checks.append((False, f"{h}: no answer to check"))
             continue
         n_all = len(stamps)
-        stamps, n_gaps = settled_stamps(stamps, started_in_contact=bool(np.any(rec.wrench[h][min(stamps)])))
+        first = ans.forces[h][stamps[0]] if ans.complete else ans.forces[h][min(stamps)]
+        stamps, n_gaps = settled_stamps(stamps, started_in_contact=not ans.complete and bool(np.any(first)))
         if len(stamps) < 0.5 * n_all:
             checks.append((False, f"{h}: this reader missed too much to check ({n_all - len(stamps)} of {n_all} left out)"))
             continue
-        diff = [float(np.linalg.norm(rec.wrench[h][s] - truth[h, s])) for s in stamps]
+        diff = [float(np.linalg.norm(ans.forces[h][s] - truth[h, s])) for s in stamps]
         lim = [AGREE_REL * float(np.linalg.norm(truth[h, s])) + AGREE_ABS_N for s in stamps]
         worst = max(d - b for d, b in zip(diff, lim))
-        peak = max(float(np.linalg.norm(f)) for f in rec.wrench[h].values())  # every answer received
+        peak = max(float(np.linalg.norm(f)) for f in ans.forces[h].values())
         w = int(np.argmax(np.array(diff) - np.array(lim)))
+        source = "answers in the node's journal" if ans.complete else "answered poses received"
         print(
-            f"  {h}: {n_all} answered poses received, {len(stamps)} compared ({n_gaps} gaps over {GAP_S * 1e3:g} ms in "
-            f"what this reader received), peak published {peak:.3f} N, max |live - offline| {max(diff):.4f} N; "
-            f"worst at {(stamps[w] - stamps[0]) * 1e-9:.3f} s: live {np.round(rec.wrench[h][stamps[w]], 4).tolist()} N, "
-            f"offline {np.round(truth[h, stamps[w]], 4).tolist()} N"
+            f"  {h}: {n_all} {source}, {len(stamps)} compared ({n_gaps} gaps over {GAP_S * 1e3:g} ms in them), peak "
+            f"{peak:.3f} N, max |live - offline| {max(diff):.4f} N; worst at {(stamps[w] - stamps[0]) * 1e-9:.3f} s: live "
+            f"{np.round(ans.forces[h][stamps[w]], 4).tolist()} N, offline {np.round(truth[h, stamps[w]], 4).tolist()} N"
         )
         checks.append(
             (
@@ -309,11 +384,11 @@ def main(args) -> int:
                 else f"{h}: published forces DISAGREE with the offline two-hand answer (max |dF| {max(diff):.3g} N)",
             )
         )
-    needle = [(s, rec.poses["right"][s][0]) for (hh, s) in truth if hh == "right"]
+    needle = [(s, ans.poses["right"][s][0]) for (hh, s) in truth if hh == "right"]
     if needle:
         s_deep, tip = min(needle, key=lambda p: p[1][2])
-        finger = [rec.poses["left"][s][0] for s in sorted(rec.poses["left"]) if s <= s_deep]
-        _, tools = offline(rec, until_ns=s_deep)
+        finger = [ans.poses["left"][s][0] for s in sorted(ans.poses["left"]) if s <= s_deep]
+        _, tools = offline(ans, until_ns=s_deep)
         pic = figure(
             tools,
             tip,

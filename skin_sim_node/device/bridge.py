@@ -99,6 +99,7 @@ class BridgeNode(DeviceNode):
 
     TRANSPORT_NOTE = ""  # what localhost_udp_env decided before rclpy started (logged at start)
     WITH_NODE = False  # --with-node: skin_sim_node in this process, linked in memory (LocalLink)
+    JOURNAL: str | None = None  # --journal FILE: the composed node's answer journal (skin_sim_node.server.journal)
 
     @classmethod
     def factories(cls, overrides: dict) -> list:
@@ -111,6 +112,10 @@ class BridgeNode(DeviceNode):
 
         def node():
             built.append(SkinSimNode(ros_args=cls.ROS_ARGS))
+            if cls.JOURNAL is not None:
+                from ..server.journal import AnswerJournal
+
+                built[0].journal = AnswerJournal(cls.JOURNAL)
             return built[0]
 
         def bridges():
@@ -154,6 +159,13 @@ class BridgeNode(DeviceNode):
             "hands gets a bridge per hand, each in the hand's namespace",
         )
         ap.add_argument(
+            "--journal",
+            metavar="FILE",
+            default=None,
+            help="with --with-node: write every pose each hand answered and the force it published to FILE (.npz) at "
+            "exit (skin_sim_node.server.journal; what the two-hand demo checks against the offline tissue)",
+        )
+        ap.add_argument(
             "--forward-twist",
             dest="forward_twist",
             action="store_true",
@@ -179,6 +191,10 @@ class BridgeNode(DeviceNode):
             print(f"skin-sim bridge: {exc}")
             return 2
         cls.WITH_NODE = bool(opts.with_node)
+        if opts.journal is not None and not cls.WITH_NODE:
+            print("skin-sim bridge: --journal needs --with-node (the journal is the composed node's)")
+            return 2
+        cls.JOURNAL = opts.journal
         updates, cls.TRANSPORT_NOTE = localhost_udp_env(os.environ, keep_shm=opts.localhost_shm)
         os.environ.update(updates)  # before rclpy creates a participant: both of the bridge's participants
         return None

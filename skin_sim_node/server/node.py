@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import math
 import os
 import sys
 import threading
@@ -57,6 +58,7 @@ from ..startup import start_line
 from ..tools import make_tools, warm_up
 from .display import DisplayProcess
 from .hand import Hand
+from .journal import AnswerJournal
 
 STATS_LEN = 16384
 
@@ -168,6 +170,8 @@ class SkinSimNode(Node):
         """Per hand index, the composed bridge's in-memory entry for that hand's contact models (``skin-sim bridge
         --with-node``: :class:`~skin_sim_node.device.links.LocalLink`), called with each contact model in the tick (no
         DDS hop, no copy kept)."""
+        self.journal: AnswerJournal | None = None
+        """Every answered pose and its force, written at :meth:`stop` (``skin-sim bridge --with-node --journal``)."""
         self._accepted: tuple[dict, dict, NodeParams, TissueConfig] | None = None  # on_set's validated set, for post_set
         self.add_on_set_parameters_callback(self._on_set_parameters)  # validate (ros2/demos: on_set checks)
         self.add_post_set_parameters_callback(self._post_set_parameters)  # apply the accepted set
@@ -209,6 +213,9 @@ class SkinSimNode(Node):
     def stop(self) -> None:
         self._loop.stop()
         self._display.close()
+        if self.journal is not None:
+            path = self.journal.save()
+            self.get_logger().info(f"journal: {len(self.journal)} answers written to {path}")
 
     def _warn(self, message: str) -> None:
         self.get_logger().warning(message)
@@ -299,6 +306,8 @@ class SkinSimNode(Node):
             rejected = h.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx, quat=quat)
             if rejected is None and self.params.loop_mode == "input" and h.rate.due(stamp, rx):
                 self._tick(h, rx, pose_driven=True)
+                if self.journal is not None and h.last is not None:
+                    self.journal.append(hand, stamp, xyz, quat if quat is not None else (math.nan,) * 4, h.last.force_n)
 
     def _on_twist(self, data: bytes, hand: int = 0) -> None:
         if (twist := self._decode("tool_twist", data)) is None:

@@ -40,6 +40,7 @@ depth kernel did.
 
 from __future__ import annotations
 
+import bisect
 import math
 
 import numpy as np
@@ -131,7 +132,7 @@ class LoadMap:
         """The node ``k`` at or below ``|depth_m|``, the segment's fraction past it and its force step (N)."""
         e = self.depths_m
         a = abs(depth_m)
-        k = min(int(np.searchsorted(e, a, side="right")) - 1, len(e) - 2)
+        k = min(bisect.bisect_right(e, a) - 1, len(e) - 2)
         tau = (a - e[k]) / (e[k + 1] - e[k])
         return k, tau, self.forces_n[k + 1] - self.forces_n[k]
 
