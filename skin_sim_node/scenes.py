@@ -107,8 +107,9 @@ class Scene:
         self.procs.append(proc)
         return proc
 
-    def node(self, *extra: str, params: Path = DEFAULT_PARAMS) -> Proc:
-        """Start ``skin_sim_node`` with the parameter file ``params`` and extra ``--ros-args``.
+    def node(self, *extra: str, params: Path = DEFAULT_PARAMS, options: tuple[str, ...] = ()) -> Proc:
+        """Start ``skin_sim_node`` with the parameter file ``params``, the node command's ``options`` (before its ROS
+        arguments, e.g. ``("--journal", path)``) and extra ``--ros-args``.
 
         Raises
         ------
@@ -120,7 +121,7 @@ class Scene:
         from .model.config import load_yaml
 
         validate_parameters(load_yaml(params))  # one line through the command's error, not a node's failed start
-        return self.start("skin_sim_node", "node", "--ros-args", "--params-file", str(params), *extra)
+        return self.start("skin_sim_node", "node", *options, "--ros-args", "--params-file", str(params), *extra)
 
     def wait_for_log(self, proc: Proc, text: str, timeout_s: float = 60.0) -> None:
         """Wait until ``text`` appears in ``proc``'s log.

@@ -3,9 +3,11 @@
 A nurse's two hands: the right holds a 21 G needle and inserts it vertically at the origin, the left anchors the skin
 with a fingertip pad (``second_tool_radius_m``, 5 mm) pressed beside the entry (centre :data:`FINGER_X_M`, its edge
 3 mm from the entry). One node with ``config/two_hands.yaml``, one bridge and one simulated Touch per hand, each in its
-hand's namespace (``/right``, ``/left``; node and bridges in one process, ``skin-sim bridge --with-node``). It prints
-each hand's peak force and device ticks, checks each hand's published forces against the offline two-hand session on
-the same poses, and draws the tissue at the needle's deepest pose with both tools.
+hand's namespace (``/right``, ``/left``; node and bridges in one process, ``skin-sim bridge --with-node``), or with
+``--source mock`` scripted poses and the node alone. It prints each hand's peak force and device ticks, checks each
+hand's forces against the offline two-hand session stepped on every pose the node answered, in its order (the node's
+answer journal, ``--journal``: :class:`Answers`), checks that every wrench DDS delivered to this process is the
+journal's, and draws the tissue at the needle's deepest pose with both tools.
 """
 
 from __future__ import annotations
@@ -33,14 +35,18 @@ FINGER_X_M = -8e-3
 """The finger's centre (m, along x): its 5 mm pad's edge 3 mm from the needle's entry at the origin (issue 32's nearer
 anchoring distance)."""
 AGREE_REL, AGREE_ABS_N = 0.05, 0.01
-"""A published force agrees with the offline two-hand answer within 5 % + 0.01 N: the node steps the hands in arrival
-order, the offline session in stamp order, one tick of the other hand's field apart at most."""
+"""A published force agrees with the offline two-hand answer within 5 % + 0.01 N (the issue's render aim and the
+command bound's margin). The offline session steps the node's journal in the node's order, so the two agree to the
+printed 0.0000 N (session 9: 4 runs, every answer); the tolerance is for what the order does not fix, the ticks' time
+steps (the node's from its clock, the offline's from the stamps), and is kept at the aim rather than at what was
+measured."""
+
 GAP_S, SETTLE_S = 0.05, 1.0
-"""The offline session steps only the poses whose answers this process received. After a gap over ``GAP_S`` (the
-watchdog) in what it received, the offline tissue may have stepped a different path than the node (the node answered
-poses this reader missed, its queue overrun beside busy processes: seen as 0.37-1.3 s gaps and 0.23 N differences in
-the chain's viscoelastic memory, 2026-12-03), so answers within ``SETTLE_S`` after such a gap (3.5 x the slow Prony
-arm's 0.28 s) are not compared; how many were left out is printed."""
+"""The offline session steps the node's answered poses only. After a gap over ``GAP_S`` (the watchdog) in a hand's
+answers the node's own fallback ticks have stepped its tissue where the offline one did not (and a reader that missed
+answers had stepped a different path: 0.37-1.3 s gaps and 0.23 N differences in the chain's viscoelastic memory,
+2026-12-03), so answers within ``SETTLE_S`` after such a gap (3.5 x the slow Prony arm's 0.28 s) are not compared; how
+many were left out is printed."""
 
 
 def settled_stamps(
@@ -139,8 +145,8 @@ class HandsRecorder:
 
 
 class Answers:
-    """What a check compares: each hand's answered poses in the order the node (or the reader) has them, and the force
-    answered for each.
+    """What a check compares: each hand's answered poses in the order the node answered them, and the force answered
+    for each (:meth:`from_journal`).
 
     Attributes
     ----------
@@ -150,18 +156,10 @@ class Answers:
         ``{hand: {stamp: (xyz, quat or None)}}``.
     forces : dict
         ``{hand: {stamp: force vector (N)}}``.
-    complete : bool
-        Every answer the node gave (its journal), not what a reader happened to receive.
     """
 
-    def __init__(self, answered, poses, forces, complete: bool):
-        self.answered, self.poses, self.forces, self.complete = answered, poses, forces, complete
-
-    @classmethod
-    def from_reader(cls, rec: HandsRecorder) -> Answers:
-        """The answers whose pose the reader also received, in stamp order (a reader has no other)."""
-        answered = sorted((s, h) for h in HANDS for s in rec.wrench[h] if s in rec.poses[h])
-        return cls(answered, rec.poses, rec.wrench, complete=False)
+    def __init__(self, answered, poses, forces):
+        self.answered, self.poses, self.forces = answered, poses, forces
 
     @classmethod
     def from_journal(cls, path) -> Answers:
@@ -187,7 +185,7 @@ class Answers:
                 forces[h][stamp] = np.asarray(f, dtype=float)
                 rows.append((int(order), stamp, h))
         rows.sort()
-        return cls([(s, h) for _, s, h in rows], poses, forces, complete=True)
+        return cls([(s, h) for _, s, h in rows], poses, forces)
 
 
 def offline(ans: Answers, until_ns: int | None = None):
@@ -292,7 +290,7 @@ def main(args) -> int:
     journal.unlink(missing_ok=True)
     try:
         if mock:
-            node = scene.node(params=PARAMS)
+            node = scene.node(params=PARAMS, options=("--journal", str(journal)))
         else:  # node and a bridge per hand in one process: what 2 cores hold (docs/two_hands.md, "One process")
             node = scene.start(
                 "node_bridges", "bridge", "--with-node", "--journal", str(journal),
@@ -336,9 +334,7 @@ def main(args) -> int:
             + (f", {ticks.group(1)} device ticks ({ticks.group(2)} overruns)" if ticks else "")
         )
         checks.append((peak > 0.0, f"{h} device felt a force (peak {peak:.3f} N)"))
-    if mock:
-        ans = Answers.from_reader(rec)
-    elif journal.exists():
+    if journal.exists():
         ans = Answers.from_journal(journal)
         for h, (got, known, worst) in delivered(rec, ans).items():
             print(f"  {h}: DDS delivered {got} wrenches to this reader, {known} of them in the journal, max |dF| {worst:.3g} N")
@@ -351,7 +347,7 @@ def main(args) -> int:
                 )
             )
     else:
-        ans = Answers([], rec.poses, rec.wrench, complete=True)
+        ans = Answers([], {h: {} for h in HANDS}, {h: {} for h in HANDS})
         checks.append((False, f"the node wrote no journal ({journal})"))
     truth, _ = offline(ans)
     for h in HANDS:
@@ -360,21 +356,25 @@ def main(args) -> int:
             checks.append((False, f"{h}: no answer to check"))
             continue
         n_all = len(stamps)
-        first = ans.forces[h][stamps[0]] if ans.complete else ans.forces[h][min(stamps)]
-        stamps, n_gaps = settled_stamps(stamps, started_in_contact=not ans.complete and bool(np.any(first)))
+        stamps, n_gaps = settled_stamps(stamps)  # the node's own fallback ticks after a gap: not stepped offline
         if len(stamps) < 0.5 * n_all:
-            checks.append((False, f"{h}: this reader missed too much to check ({n_all - len(stamps)} of {n_all} left out)"))
+            left = f"{n_all - len(stamps)} of {n_all}"
+            checks.append((False, f"{h}: too many answers follow a gap in the node's answers ({left})"))
             continue
         diff = [float(np.linalg.norm(ans.forces[h][s] - truth[h, s])) for s in stamps]
         lim = [AGREE_REL * float(np.linalg.norm(truth[h, s])) + AGREE_ABS_N for s in stamps]
         worst = max(d - b for d, b in zip(diff, lim))
         peak = max(float(np.linalg.norm(f)) for f in ans.forces[h].values())
         w = int(np.argmax(np.array(diff) - np.array(lim)))
-        source = "answers in the node's journal" if ans.complete else "answered poses received"
+        at = (
+            f"; worst at {(stamps[w] - stamps[0]) * 1e-9:.3f} s: live {np.round(ans.forces[h][stamps[w]], 4).tolist()} N, "
+            f"offline {np.round(truth[h, stamps[w]], 4).tolist()} N"
+            if max(diff) > 0.0
+            else ""
+        )
         print(
-            f"  {h}: {n_all} {source}, {len(stamps)} compared ({n_gaps} gaps over {GAP_S * 1e3:g} ms in them), peak "
-            f"{peak:.3f} N, max |live - offline| {max(diff):.4f} N; worst at {(stamps[w] - stamps[0]) * 1e-9:.3f} s: live "
-            f"{np.round(ans.forces[h][stamps[w]], 4).tolist()} N, offline {np.round(truth[h, stamps[w]], 4).tolist()} N"
+            f"  {h}: {n_all} answers in the node's journal, {len(stamps)} compared ({n_gaps} gaps over "
+            f"{GAP_S * 1e3:g} ms in them), peak {peak:.3f} N, max |live - offline| {max(diff):.4f} N{at}"
         )
         checks.append(
             (

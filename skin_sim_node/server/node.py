@@ -589,11 +589,25 @@ def main(argv=None) -> int:
         help="under ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST keep rmw_fastrtps's shared memory (default: UDPv4 on this "
         "host only, no multicast: a joining reader's shared-memory port froze the node's receive path for ~335 ms)",
     )
+    ap.add_argument(
+        "--journal",
+        metavar="FILE",
+        default=None,
+        help="write every pose each hand answered and the force it published to FILE (.npz) at exit "
+        "(skin_sim_node.server.journal; what the two-hand demo checks against the offline tissue)",
+    )
     args, rest = ap.parse_known_args(argv)
     sys.setswitchinterval(args.switch_interval_s)
     updates, SkinSimNode.TRANSPORT_NOTE = localhost_udp_env(os.environ, keep_shm=args.localhost_shm)
     os.environ.update(updates)  # before rclpy creates a participant (the display worker inherits it)
-    return run_nodes([lambda: SkinSimNode(ros_args=rest)], args=rest, executor=args.executor)
+
+    def build() -> SkinSimNode:
+        node = SkinSimNode(ros_args=rest)
+        if args.journal is not None:
+            node.journal = AnswerJournal(args.journal)
+        return node
+
+    return run_nodes([build], args=rest, executor=args.executor)
 
 
 if __name__ == "__main__":
