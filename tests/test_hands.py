@@ -15,7 +15,7 @@ import pytest
 from skin_sim_lab.validation import two_hands as th
 from skin_sim_node.model import preset
 from skin_sim_node.model.heave import TABLE_STEP_M, coupling_table
-from skin_sim_node.tools import DOWN, ToolPose, make_tool
+from skin_sim_node.tools import DOWN, ToolPose, hands, make_tool
 from skin_sim_node.tools.hands import MAX_HANDS, SharedSkin
 
 
@@ -117,8 +117,13 @@ def test_the_kernel_is_one_table_for_both_directions_of_a_pair(cfgs):
     s, g = coupling_table(fcfg, fcfg.tool_radius_m, fcfg.tool_radius_m)
     apart = s >= 2 * fcfg.tool_radius_m
     assert np.array(skin._heave[0][1][1])[apart].tolist() == g[apart].tolist()  # apart: the source's own table
-    held = np.array(skin._heave[0][1][1])[~apart]  # overlapping: held at its value where the disks touch
-    assert np.all(held == held[0]) and held[0] == pytest.approx(float(np.interp(2 * fcfg.tool_radius_m, s, g)))
+    held = np.array(skin._heave[0][1][1])[~apart]  # overlapping: held from where the disks touch, its slope eased
+    touch = float(np.interp(2 * fcfg.tool_radius_m, s, g))
+    deep = s[~apart] <= 2 * fcfg.tool_radius_m - hands.OVERLAP_EASE_M
+    assert np.all(held[deep] == held[0]) and np.all(np.diff(held) <= 1e-15)  # flat deep inside, falling to the rim
+    step = float(s[1] - s[0])
+    assert abs(held[-1] - touch) <= abs(float(np.interp(2 * fcfg.tool_radius_m + step, s, g)) - touch) * 1.5
+    assert touch < held[0] < touch + 0.5 * hands.OVERLAP_EASE_M / 1e-3 * 0.2  # held above the touching value
     sphere = replace(fcfg, tool_shape="sphere", tool_radius_m=5e-3)
     for a, b in ((sphere, fcfg), (ncfg, ncfg), (sphere, ncfg)):  # a sphere and two needles: on the kernel too
         skin = SharedSkin([make_tool(a), make_tool(b)])
@@ -279,3 +284,24 @@ def test_the_loop_option_runs_only_the_named_loops_and_says_when_none_matches(ca
     err = capsys.readouterr().out
     assert "no loop's name contains 'no such loop'" in err and "--loop-speed-mm-s must be above 0" in err
     assert th.LOOP_SPEED_M_S == 1e-3  # the study's speed again for the other tests
+
+
+def test_a_slow_sliding_loop_beside_a_held_punch_takes_no_energy(cfgs):
+    """Punch A held 2 mm; punch B around a loop 5.0-5.5 mm out between 0.8 and 1.8 mm deep at 0.05 mm/s: the pair
+    takes at least the two chains' own dissipation's share. Without the coupling's lateral force (``L_i grad(w_i)``)
+    this loop returned +34 uJ (an independent review: the depth was lowered by the others' field, the tool not pushed
+    along its slope)."""
+    fcfg, _ = cfgs
+    v, x0, dx, d1, d2, da = 0.05e-3, 5.0e-3, 0.5e-3, 0.8e-3, 1.8e-3, 2e-3
+    up = th.UP_M
+    a, b, c, d = (x0, 0, -d1), (x0, 0, -d2), (x0 + dx, 0, -d2), (x0 + dx, 0, -d1)
+    parts = [th._hold((x0, 0, up), 1), th._ramp((x0, 0, up), a, v), th._hold(a, 300)]
+    for p, q in zip((a, b, c, d), (b, c, d, a)):
+        parts += [th._ramp(p, q, v), th._hold(q, 300)]
+    parts += [th._ramp(a, (x0, 0, up), v), th._hold((x0, 0, up), 300)]
+    pa = th._path(th._hold((0, 0, up), 1), th._ramp((0, 0, up), (0, 0, -da), v), th._hold((0, 0, -da), 500))
+    pb = th._path(th._hold((x0, 0, up), len(pa)), th._path(*parts))
+    pa = th._path(pa, th._hold((0, 0, -da), len(pb) - len(pa)), th._ramp((0, 0, -da), (0, 0, up), v), th._hold((0, 0, up), 300))
+    works, alone = th.loop_energies([fcfg, fcfg], [pa, pb])
+    assert sum(works) <= th.ENERGY_TOLERANCE_J, works
+    assert sum(works) - sum(alone) <= 0.1 * abs(sum(alone)), (works, alone)  # the coupling's share: within 10 %

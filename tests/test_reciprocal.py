@@ -15,14 +15,6 @@ def maps():
     return load_map(TOOLS["flat"], preset("default")), load_map(TOOLS["needle"], preset("needle"))
 
 
-def _law(m: LoadMap, e: float) -> float:
-    """The interpolated relaxed force at depth ``e`` (N), extended along the last segment."""
-    d, f = m.depths_m, m.forces_n
-    if e <= d[-1]:
-        return float(np.interp(e, d, f))
-    return f[-1] + (f[-1] - f[-2]) / (d[-1] - d[-2]) * (e - d[-1])
-
-
 def test_the_static_law_is_the_relaxed_hold():
     """The static law at 1 mm is a 2.5 mm punch's force after 1.5 s held at 1 mm (433.7 N/m: docs/two_hands.md), the
     chain stiffening with depth; a needle's stops before its puncture."""
@@ -38,10 +30,10 @@ def test_the_static_law_is_the_relaxed_hold():
 @pytest.mark.parametrize("e", [0.03e-3, 0.25e-3, 0.55e-3, 1e-3, 1.95e-3, 2.5e-3, 3.4e-3, 5e-3])
 def test_psi_prime_is_the_derivative_of_psi_along_the_law(maps, e):
     """``Psi'`` is exactly ``dPsi/dF`` along the interpolated law (what makes ``phi = G Psi_i Psi_j`` a potential),
-    inside the nodes, between them and past the last."""
+    inside the nodes, between them and past the last; the law's slope is continuous at the nodes (a cubic)."""
     for m in maps:
         h = 1e-9
-        num = (m.value(e + h) - m.value(e - h)) / (_law(m, e + h) - _law(m, e - h))
+        num = (m.value(e + h) - m.value(e - h)) / (m.force_n(e + h) - m.force_n(e - h))
         assert num == pytest.approx(m.slope(e), rel=1e-6)
 
 
@@ -54,7 +46,7 @@ def test_two_tools_in_one_state_feel_the_depth_kernel(maps):
     punch, needle = maps
     small = 0.1e-3
     k_needle = needle.forces_n[1] / needle.depths_m[1]
-    k_punch = _law(punch, small) / small
+    k_punch = punch.force_n(small) / small
     assert needle.lowering(0.0, punch, small) == pytest.approx(small * np.sqrt(k_punch / k_needle), rel=0.02)
 
 
@@ -67,6 +59,11 @@ def test_psi_is_odd_and_continuous(maps):
             lo, hi = node * (1 - 1e-9), node * (1 + 1e-9)
             assert m.value(hi) == pytest.approx(m.value(lo), rel=1e-6)
             assert m.slope(hi) == pytest.approx(m.slope(lo), rel=1e-6)
+        for node in m.depths_m[1:-1]:  # the law's stiffness: no chord jump across a node
+            h = 1e-7
+            left = (m.force_n(node) - m.force_n(node - h)) / h
+            right = (m.force_n(node + h) - m.force_n(node)) / h
+            assert right == pytest.approx(left, rel=1e-3)
         assert m.value(0.0) == 0.0 and m.slope(0.0) == m.slopes[0]
 
 

@@ -60,7 +60,7 @@ import numpy as np
 
 from ..model import SkinModel
 from ..model.grid import assemble_heights
-from ..model.heave import coupling_table, uses_kernel
+from ..model.heave import TABLE_STEP_M, coupling_table, uses_kernel
 from ..model.interfaces import interface_depths_m
 from .base import Tool, ToolPose, ToolStep
 from .reciprocal import LoadMap, load_map
@@ -125,9 +125,39 @@ def _table(receiver: Tool, source: Tool) -> tuple[float, list[float]]:
     s, g_ij = coupling_table(source.cfg, source_radius_m(source), receiver_radius_m(receiver.cfg))
     _, g_ji = coupling_table(receiver.cfg, source_radius_m(receiver), receiver_radius_m(source.cfg))
     g = 0.5 * (g_ij + g_ji)
-    touch = source_radius_m(source) + source_radius_m(receiver)
-    g[s < touch] = np.interp(touch, s, g)  # overlapping footprints: held where they touch (module docstring)
+    hold = overlap_hold_m(s, g, source_radius_m(source) + source_radius_m(receiver))
+    if hold > 0.0:  # overlapping footprints: held, its slope eased to 0 over OVERLAP_EASE_M (module docstring)
+        g_hold = float(np.interp(hold, s, g))
+        slope = (float(np.interp(hold + TABLE_STEP_M, s, g)) - g_hold) / TABLE_STEP_M  # from outside
+        b = min(OVERLAP_EASE_M, hold)
+        u = np.clip(s - (hold - b), 0.0, b)  # 0 inside the ease, b at the hold
+        inside = s < hold
+        g[inside] = g_hold - slope / (2 * b) * (b * b - u[inside] ** 2)
     return float(s[1] - s[0]), g.tolist()
+
+
+OVERLAP_EASE_M = 0.5e-3
+"""Over this distance inside the hold (m) the held kernel's slope eases from the kernel's own to 0 (a quadratic), so
+the kernel and its slope are continuous and so are the coupling's vertical and lateral forces (``L grad(w)``: a kink
+in the kernel is a step in the lateral force, 28 mN in one tick at 5 mm/s where two 2.5 mm punches touch). 0.5 mm is
+the smallest of 0.25, 0.5 and 1 mm whose overlap sweep (``skin-sim two-hands``, study 3) stays below one punch's
+per-tick change pressing in at the same speed (4.1 mN: 5.7, 2.9 and 1.5 mN); the wider the ease, the higher the held
+value (0.051 + 0.17 b / 2 for two 2.5 mm punches). It was chosen by the sweep; it also moves the FEM's 4 mm rows
+(interaction +9 / +23 % of the FEM's with it, -32 / -23 % with the flat hold), which were seen before the choice."""
+
+
+def overlap_hold_m(s, g, touch_m: float) -> float:
+    """Where a pair's kernel ``g`` (at distances ``s``) is held for every distance inside: where the two footprints
+    touch (``touch_m``, the sum of their kernel radii) if the kernel lowers the skin there, else where it crosses zero
+    inside that (large footprints touch in each other's heave: overlapping, they would raise each other, 20 % more
+    force for two coincident 5 mm pads); 0 if it never does."""
+    if np.interp(touch_m, s, g) >= 0.0:
+        return touch_m
+    inside = np.flatnonzero((s < touch_m) & (g >= 0.0))
+    if inside.size == 0:
+        return 0.0
+    k = int(inside[-1])  # the last distance inside that lowers; the next one raises
+    return float(s[k] + (s[k + 1] - s[k]) * g[k] / (g[k] - g[k + 1]))
 
 
 class SharedSkin:
@@ -294,11 +324,16 @@ class CoupledTool(Tool):
         :class:`SharedSkin`)."""
 
     def step(self, pose: ToolPose) -> ToolStep:
-        """The inner tool's step at ``z + w_i``; its record, with positions back in the tissue frame and the coupling
-        in its tangent, to first order: ``K`` gains ``K[:, 2] grad(w_i)^T`` (moving this tool sideways along the other
-        fields' slope changes its depth into its own), and :attr:`ContactTangent.coupling_rate_n_per_s` is
-        ``K[:, 2] dw_i/dt`` at this tool's place (the other tools' own motion, which a device renders for one server
-        period)."""
+        """The inner tool's step at ``z + w_i``; its record, with positions back in the tissue frame, the coupling's
+        lateral force and the coupling in its tangent.
+
+        The lateral force is ``L_i grad(w_i)`` (:meth:`lateral_load_n`): the pair's complementary energy depends on
+        the centres' distance, so a tool on the others' slope is pushed down it (toward a neighbour's dimple, away
+        from its heave); without it a tool sliding a closed loop beside another took energy from the tissue (+34 uJ
+        at 0.05 mm/s, an independent review). To first order: ``K`` gains ``K[:, 2] grad(w_i)^T`` (moving sideways
+        along the slope changes this tool's own depth) and ``grad(w_i) K[2, :]`` in its lateral rows (the lateral
+        force follows the load), and :attr:`ContactTangent.coupling_rate_n_per_s` is ``K[:, 2] dw_i/dt`` at this
+        tool's place (the other tools' own motion, which a device renders for one server period)."""
         x, y, z = pose.position_m
         self.time_s += max(pose.dt_s, 0.0)
         if pose.restart or pose.dt_s > CONTINUOUS_STEP_S:
@@ -326,22 +361,47 @@ class CoupledTool(Tool):
         else:
             self.shift_rate_m_s = 0.0
         t = s.tangent
-        if t is None:
+        fz = float(s.force_n[2])
+        if t is None and not fz > 0.0:
             return s
-        k = np.asarray(t.stiffness_n_per_m, dtype=float)
         grad = (
             (others(x + SLOPE_STEP_M, y) - w) / SLOPE_STEP_M,
             (others(x, y + SLOPE_STEP_M) - w) / SLOPE_STEP_M,
         )
-        k = k.copy()
-        k[:, 0] += k[:, 2] * grad[0]
+        if not (math.isfinite(grad[0]) and math.isfinite(grad[1])):
+            return s
+        if fz > 0.0:  # the lateral force of the coupling's potential: d phi / d x_i = L_i grad(w_i)
+            load = self.lateral_load_n(fz, x, y)
+            force = np.array(s.force_n, dtype=float)
+            force[0] += load * grad[0]
+            force[1] += load * grad[1]
+            s = replace(s, force_n=force)
+        if t is None:
+            return s
+        k = np.asarray(t.stiffness_n_per_m, dtype=float).copy()
+        k[:, 0] += k[:, 2] * grad[0]  # moving sideways along the others' slope changes this tool's own depth
         k[:, 1] += k[:, 2] * grad[1]
+        k[0, :] += grad[0] * k[2, :]  # the lateral force follows the load, to first order (L ~ F_z)
+        k[1, :] += grad[1] * k[2, :]
         changes: dict = {"stiffness_n_per_m": k, "coupling_rate_n_per_s": k[:, 2] * self.shift_rate_m_s}
         if t.friction_anchor_m is not None:
             anchor = np.asarray(t.friction_anchor_m, dtype=float).copy()
             anchor[2] -= w
             changes["friction_anchor_m"] = anchor
         return replace(s, tangent=replace(t, **changes))
+
+    def lateral_load_n(self, force_z_n: float, x: float, y: float) -> float:
+        """``L_i = Psi_i(e_i) / Psi_i'(e_i)`` (N): what turns the others' slope under this tool into its lateral force,
+        ``L_i grad(w_i)``, the derivative of the pair's complementary energy ``G Psi_i Psi_j`` in this tool's place
+        (:mod:`~skin_sim_node.tools.reciprocal`), ``e_i`` its own field's depth at ``(x, y)``; the vertical force
+        ``force_z_n`` for a linear law, and without a load map (the paper form: the others' own fields)."""
+        m = self.load_map
+        if m is None:
+            return force_z_n
+        e = self.tissue.surface_displacement_at(x, y)
+        if not (math.isfinite(e) and e > 0.0):
+            return 0.0
+        return m.value(e) / m.slope(e)
 
     def release(self) -> None:
         self.inner.release()
