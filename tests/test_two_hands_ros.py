@@ -22,7 +22,15 @@ rclpy = pytest.importorskip("rclpy")
 
 from skin_sim_lab.perf.device_bench import node_params  # noqa: E402
 from skin_sim_lab.perf.device_bench_hands import HAND_PARAMS, hand_configs  # noqa: E402
-from skin_sim_node.demo.hands import HANDS, Answers, HandsRecorder, delivered, settled_stamps, step_offline  # noqa: E402
+from skin_sim_node.demo.hands import (  # noqa: E402
+    AGREE_N,
+    HANDS,
+    Answers,
+    HandsRecorder,
+    delivered,
+    settled_stamps,
+    step_offline,
+)
 from skin_sim_node.scenes import REPO, Scene  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.usefixtures("ros_domain")]
@@ -144,7 +152,10 @@ def _check_device_loops(ans, dev_logs) -> None:
         assert len(f) > 50, (h, len(f))
         n_contact = int((f[:, 2] > 0.005).sum())  # the node's answers: at its server rate, which follows the machine
         assert n_contact > 20, f"{h}: no contact force through its device: {len(f)} answers, peak {f[:, 2].max():.3f} N"
-        assert np.all(np.abs(f[:, 2]) <= 3.3 + 1e-9), (h, float(np.nanmax(np.abs(f[:, 2]))), int(np.isnan(f).sum()))
+        # the node's force is the tissue's at the stylus: finite and within its own clamp (max_force_n, 10 N). It is
+        # not bounded by the Touch's 3.3 N: a device loop starved beside a contended host (session 9: the stylus
+        # jumping 2 mm between answers) pressed to 3.1-7.5 N; the device's commands stay within 3.3 N (below)
+        assert np.all(np.isfinite(f)) and np.all(np.linalg.norm(f, axis=1) <= 10.0 + 1e-9), (h, float(np.abs(f).max()))
         m = re.search(r"(\d+) force commands received, (\d+) of them non-zero \(> [\d.]+ mN\), peak ([\d.]+) N", dev_logs[h])
         assert m is not None, dev_logs[h][-2000:]
         commands, nonzero, peak = int(m[1]), int(m[2]), float(m[3])
@@ -158,32 +169,28 @@ def _check_device_loops(ans, dev_logs) -> None:
 def test_one_process_holds_the_node_and_a_bridge_per_hand_each_closing_its_device_loop(tmp_path):
     """``skin-sim bridge --with-node`` with a two-hand node: a bridge per hand, each in the hand's namespace and linked
     to its hand in memory; a simulated Touch per hand (``/right/device``, ``/left/device``, the left's path 8 mm along
-    x) closes each loop. Each hand's node answers contact forces within the Touch's 3.3 N, equal to the offline
-    two-hand session on the poses it answered, and each device receives its own hand's commands.
+    x) closes each loop. Each hand's node answers contact forces within its clamp, each device's commands within the
+    Touch's 3.3 N, the forces equal to the offline two-hand session on the poses it answered, and each device receives
+    its own hand's commands.
 
     The tool poses stay in memory (no DDS hop), so the node's journal (``--journal``) has every pose each hand
-    answered and its force, in the node's order: the offline session steps all of them (a best-effort reader kept
-    3-20 of 137-321 of a hand's answers in 6 of 61 runs, and an answer whose pose it lost cannot be replayed). What DDS
-    delivered is checked against the journal: every wrench this reader received is the journal's for its stamp."""
+    answered and its force, in the node's order, and each tick of its clock: the offline session steps all of them and
+    every answer agrees to round-off (a best-effort reader kept 3-20 of 137-321 of a hand's answers in 6 of 61 runs,
+    and an answer whose pose it lost cannot be replayed). What DDS delivered is checked against the journal: every
+    wrench this reader received is in it, with its force to the bit."""
     rec, dev_logs, ans = _one_process_run(tmp_path)
     _check_device_loops(ans, dev_logs)
     for h, (got, known, worst) in delivered(rec, ans).items():
         print(f"{h}: DDS delivered {got} wrenches to this reader, {known} in the journal, max |dF| {worst:.3g} N")
-        assert known >= 50 and worst <= 1e-9, (h, got, known, worst)
+        assert known >= 50 and known == got and worst == 0.0, (h, got, known, worst)  # every one, to the bit
     truth = offline(ans.answered, ans.poses, two_hand_cfgs())
     for h in HANDS:
-        # the node's own fallback ticks (its watchdog, a gap over 50 ms in a hand's answers) step its tissue where the
-        # offline session does not: answers within a second after such a gap are not compared (settled_stamps)
-        usable, gaps = settled_stamps([s for s, hh in ans.answered if hh == h])
-        err = np.array([float(np.linalg.norm(ans.forces[h][s] - truth[h, s])) for s in usable])
-        size = np.array([float(np.linalg.norm(truth[h, s])) for s in usable])
-        near = err <= 0.05 * size + 0.01
-        print(f"{h}: {near.sum()} of {len(usable)} compared ({gaps} gaps) within 5 % + 0.01 N, max |dF| {err.max():.4f} N")
-        assert len(usable) >= 0.5 * len(ans.forces[h]), (h, len(usable), len(ans.forces[h]), gaps)
-        # each hand's forces are its own poses' (a hand's answers on the other's poses would miss nearly all); single
-        # answers may miss by a little more: the offline session steps the node's order of answers, but its ticks'
-        # time steps are the stamps' and the node's its clock's
-        assert near.mean() >= 0.97 and np.all(err <= 0.2 * size + 0.05), (h, err.max(), near.mean())
+        # every answer: the offline session steps the node's poses in its order, over the same stamp gaps (a stall's
+        # resume included), so the two agree to round-off (demo.hands.AGREE_N)
+        stamps = [s for s, hh in ans.answered if hh == h]
+        err = np.array([float(np.linalg.norm(ans.forces[h][s] - truth[h, s])) for s in stamps])
+        print(f"{h}: {len(stamps)} answers compared, max |dF| {err.max():.3g} N")
+        assert err.max() <= AGREE_N, (h, err.max())
 
 
 def test_one_process_keeps_each_hands_bridge_apart_under_a_namespace_remap(tmp_path):

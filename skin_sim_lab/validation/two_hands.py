@@ -667,8 +667,8 @@ def study_sweep(fcfg) -> list[str]:
         f"   reference, one punch alone at {PRESS_SPEED_M_S * 1e3:g} mm/s: pressing in, at {SWEEP_DEPTH_M * 1e3:g} mm"
         f" {vertical * 1e3:.3f} mN/tick (the aim's bound); sliding at that depth, largest {sideways * 1e3:.3f} mN/tick"
     )
-    print("   lod            tool  largest |dF| (mN)  at d (mm)  level change there  at r1+r2=5 mm: max/median (mN)"
-          "  at r=2.5 mm: max/median (mN)  verdict")  # fmt: skip
+    print("   lod            tool  largest |dF| (mN)  at d (mm)  level change there  at r1+r2=5 mm: step/neighbours (mN)"
+          "  at r=2.5 mm: step/neighbours (mN)  verdict")  # fmt: skip
     for name, kw in (("adaptive (cfg)", {}), ("fixed basis", {"adaptive_modes": False})):
         sw = sweep(fcfg, **kw)
         for tool in (0, 1):

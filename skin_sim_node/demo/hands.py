@@ -34,19 +34,19 @@ the needle starts and held until it is out."""
 FINGER_X_M = -8e-3
 """The finger's centre (m, along x): its 5 mm pad's edge 3 mm from the needle's entry at the origin (issue 32's nearer
 anchoring distance)."""
-AGREE_REL, AGREE_ABS_N = 0.05, 0.01
-"""A published force agrees with the offline two-hand answer within 5 % + 0.01 N (the issue's render aim and the
-command bound's margin). The offline session steps the node's journal in the node's order, so the two agree to the
-printed 0.0000 N (session 9: 4 runs, every answer); the tolerance is for what the order does not fix, the ticks' time
-steps (the node's from its clock, the offline's from the stamps), and is kept at the aim rather than at what was
-measured."""
+AGREE_N = 1e-4
+"""A published force agrees with the offline two-hand answer within 0.1 mN. The offline session steps every pose the
+node answered, in the node's order (its journal), and the stamps define the model's time on both sides (a stall's
+resume is stepped over its whole stamp gap, live and offline alike), so the two agree to round-off: 0 N, and once
+1.3e-6 N, over every answer of session 9's runs. 0.1 mN is two orders above that and far below what a hand tells
+apart (the Touch resolves about 10 mN); the issue's render aim (5 % + 0.01 N) would hide a real difference."""
 
 GAP_S, SETTLE_S = 0.05, 1.0
-"""The offline session steps the node's answered poses only. After a gap over ``GAP_S`` (the watchdog) in a hand's
-answers the node's own fallback ticks have stepped its tissue where the offline one did not (and a reader that missed
-answers had stepped a different path: 0.37-1.3 s gaps and 0.23 N differences in the chain's viscoelastic memory,
-2026-12-03), so answers within ``SETTLE_S`` after such a gap (3.5 x the slow Prony arm's 0.28 s) are not compared; how
-many were left out is printed."""
+"""For a reader's answers (not the journal's): after a gap over ``GAP_S`` (the watchdog) in what a reader received,
+the offline tissue may have stepped a different path than the node (it answered poses the reader missed: 0.37-1.3 s
+gaps and 0.23 N differences in the chain's viscoelastic memory, 2026-12-03), so answers within ``SETTLE_S`` after such
+a gap (3.5 x the slow Prony arm's 0.28 s) are not compared (:func:`settled_stamps`; tests/test_two_hands_ros.py's
+reader-based test). The journal's answers are all compared: it has every one."""
 
 
 def settled_stamps(
@@ -178,7 +178,10 @@ class Answers:
                 d["order"], d["stamp_ns"], d["position_m"], d["orientation_xyzw"], d["force_n"]
             ):
                 stamp = int(stamp)
-                if stamp in poses[h]:  # the first answer of a stamp, as a reader keeps it
+                if stamp in forces[h]:  # the first answer of a stamp, as a reader keeps it
+                    continue
+                if np.isnan(xyz).any():  # a tick of the node's clock: its wrench (delivered), no pose to step
+                    forces[h][stamp] = np.asarray(f, dtype=float)
                     continue
                 q = None if np.isnan(quat).any() else tuple(float(v) for v in quat)
                 poses[h][stamp] = (tuple(float(v) for v in xyz), q)
@@ -202,7 +205,8 @@ def offline(ans: Answers, until_ns: int | None = None):
 
 def delivered(rec: HandsRecorder, ans: Answers) -> dict[str, tuple[int, int, float]]:
     """Per hand, what DDS delivered against the journal: ``(received, of them in the journal, largest |difference|
-    (N))``; a wrench that DDS delivered is the journal's force for its stamp, to the bit."""
+    (N))``; every wrench that DDS delivered is in the journal (an answer or a tick of the node's clock) with the
+    journal's force for its stamp, to the bit."""
     out = {}
     for h in HANDS:
         got = rec.wrench[h]
@@ -340,8 +344,8 @@ def main(args) -> int:
             print(f"  {h}: DDS delivered {got} wrenches to this reader, {known} of them in the journal, max |dF| {worst:.3g} N")
             checks.append(
                 (
-                    known >= MIN_DELIVERED and worst <= 1e-9,
-                    f"{h}: the wrenches DDS delivered are the journal's ({known} compared, max |dF| {worst:.3g} N)"
+                    known >= MIN_DELIVERED and known == got and worst == 0.0,
+                    f"{h}: the wrenches DDS delivered are the journal's ({known} of {got}, max |dF| {worst:.3g} N)"
                     if known >= MIN_DELIVERED
                     else f"{h}: DDS delivered too few wrenches to check ({known}, at least {MIN_DELIVERED})",
                 )
@@ -355,33 +359,26 @@ def main(args) -> int:
         if not stamps:
             checks.append((False, f"{h}: no answer to check"))
             continue
-        n_all = len(stamps)
-        stamps, n_gaps = settled_stamps(stamps)  # the node's own fallback ticks after a gap: not stepped offline
-        if len(stamps) < 0.5 * n_all:
-            left = f"{n_all - len(stamps)} of {n_all}"
-            checks.append((False, f"{h}: too many answers follow a gap in the node's answers ({left})"))
-            continue
+        n_gaps = int(np.sum(np.diff(np.array(sorted(stamps), dtype=np.int64)) > int(GAP_S * 1e9)))
         diff = [float(np.linalg.norm(ans.forces[h][s] - truth[h, s])) for s in stamps]
-        lim = [AGREE_REL * float(np.linalg.norm(truth[h, s])) + AGREE_ABS_N for s in stamps]
-        worst = max(d - b for d, b in zip(diff, lim))
         peak = max(float(np.linalg.norm(f)) for f in ans.forces[h].values())
-        w = int(np.argmax(np.array(diff) - np.array(lim)))
+        w = int(np.argmax(diff))
         at = (
-            f"; worst at {(stamps[w] - stamps[0]) * 1e-9:.3f} s: live {np.round(ans.forces[h][stamps[w]], 4).tolist()} N, "
+            f"; worst at {(stamps[w] - min(stamps)) * 1e-9:.3f} s: live {np.round(ans.forces[h][stamps[w]], 4).tolist()} N, "
             f"offline {np.round(truth[h, stamps[w]], 4).tolist()} N"
-            if max(diff) > 0.0
+            if diff[w] > 0.0
             else ""
         )
         print(
-            f"  {h}: {n_all} answers in the node's journal, {len(stamps)} compared ({n_gaps} gaps over "
-            f"{GAP_S * 1e3:g} ms in them), peak {peak:.3f} N, max |live - offline| {max(diff):.4f} N{at}"
+            f"  {h}: {len(stamps)} answers in the node's journal, all compared ({n_gaps} gaps over {GAP_S * 1e3:g} ms in "
+            f"them), peak {peak:.3f} N, max |live - offline| {diff[w]:.3g} N{at}"
         )
         checks.append(
             (
-                worst <= 0.0,
-                f"{h}: published forces are the offline two-hand answer (5 % + 0.01 N)"
-                if worst <= 0.0
-                else f"{h}: published forces DISAGREE with the offline two-hand answer (max |dF| {max(diff):.3g} N)",
+                diff[w] <= AGREE_N,
+                f"{h}: published forces are the offline two-hand answer ({diff[w]:.2g} N, aim {AGREE_N:g} N)"
+                if diff[w] <= AGREE_N
+                else f"{h}: published forces DISAGREE with the offline two-hand answer (max |dF| {diff[w]:.3g} N)",
             )
         )
     needle = [(s, ans.poses["right"][s][0]) for (hh, s) in truth if hh == "right"]
