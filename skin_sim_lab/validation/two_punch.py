@@ -854,11 +854,13 @@ def findings(rs: list[Row], c: Checks) -> str:
             "draws) decays monotonically and never rises; the coupling between tools carries the heave instead "
             "(skin_sim_node.model.heave: the thin-layer volume term beside the membranes' Winkler term, no fitted "
             "constant, averaged over the receiving disk), so the model's interaction has the FEM's sign at 6 and 10 mm.",
-            "- What still misses: at 4 mm the disks overlap and the coupling is still a superposition of one punch's "
-            "field over the other's disk (+0.25 of the depth where the FEM's pair implies +0.065-0.072: overlapping "
-            "disks are one union-shaped contact, not two), and at 20 mm the thin-layer heave decays more slowly than "
-            "the FEM's (-0.005 of the depth against -0.002), an interaction of +0.7% against the FEM's +0.0%: within "
-            "the issue's far-field 1%, outside this table's absolute rule (0.4%).",
+            "- What still misses: at 4 mm the disks overlap; superposing one punch's field over the other's disk would "
+            "lower it by +0.25 of the depth where the FEM's pair implies +0.065-0.072 (overlapping disks are one "
+            "union-shaped contact, not two), and the coupling holds the kernel from where the disks touch, its slope "
+            "eased over 0.5 mm (skin_sim_node.tools.hands.OVERLAP_EASE_M: +0.084 at 4 mm), 2 mm deep 23% over the "
+            "FEM's interaction; and at 20 mm the thin-layer heave decays more slowly than the FEM's (-0.005 of the "
+            "depth against -0.002), an interaction of +0.7% against the FEM's +0.0%: within the issue's far-field 1%, "
+            "outside this table's absolute rule (0.4%).",
         ]
     return "\n".join(lines)
 
