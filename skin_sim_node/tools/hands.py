@@ -28,20 +28,26 @@ puncture comes earlier (``skin-sim two-hands``, docs/two_hands.md).
 
 Order: the tools step one after another (each tick of each hand, when its pose arrives), each reading the others'
 fields as they stand (the Gauss-Seidel order of a partitioned solve). The loop gain of the coupling is about
-``g_ij g_ji``, ``g_ij = dw_i / de_j`` (about ``G`` times the chains' tangent over secant stiffness, 1.1-1.2; ``|G| <=
-0.051`` for two 2.5 mm punches: 0.051 where they touch and closer, -0.04 at 6 mm, -0.055 at 10 mm), so the iteration
-contracts at every distance. Overlap rule: where two footprints overlap (centres closer than the sum of their kernel
-radii: a flat tool's radius, a needle's 0.41 mm) the kernel is held at its value where they touch. The superposed
-kernel there (0.25 of the depth at 4 mm for two 2.5 mm punches) counts the shared lens twice, where the reference's
-pair (one rigid body of the union footprint) implies 0.065-0.072, and with the load maps' tangent gain it would pass
-1 near coincidence (two tools snapping into one's share). Held, the kernel is continuous (a kink, no step: the force
-has no jolt, tests/test_hands.py sweeps the distance through ``r_1 + r_2`` to 0) and at 4 mm gives 0.051 (the FEM
-rows at 4 mm: interaction -0.062 / -0.070 of the single force against the FEM's -0.092 / -0.093, docs/validation/two_punch.md).
-Two coincident tools are not one tool: each keeps its chain (two hands cannot hold one place).
+``g_ij g_ji``, ``g_ij = dw_i / de_j`` (about ``G`` times the chains' tangent over secant stiffness, 1.1-1.2; for two
+2.5 mm punches ``G`` is at most 0.084, held inside the overlap, and -0.038 / -0.072 / -0.055 at 6 / 8 / 10 mm), so the
+iteration contracts at every distance.
+
+Overlap rule (:func:`overlap_hold_m`, :data:`OVERLAP_EASE_M`): where two footprints overlap (centres closer than the
+sum of their kernel radii: a flat tool's radius, a needle's 0.41 mm, a sphere's disk at 1 mm) the kernel is held from
+where they touch inward, its slope eased to 0 over 0.5 mm; where large footprints touch in each other's heave, from
+where the kernel crosses zero instead, so overlapping tools never raise each other. The superposed kernel there (0.25
+of the depth at 4 mm for two 2.5 mm punches) counts the shared lens twice, where the reference's pair (one rigid body
+of the union footprint) implies 0.065-0.072, and with the load maps' tangent gain it would pass 1 near coincidence
+(two tools snapping into one's share). Held and eased, the kernel and its slope are continuous, so the vertical and
+the lateral forces have no jolt (tests/test_hands.py sweeps the distance through ``r_1 + r_2`` to 0); at 4 mm it gives
+0.084 (the FEM rows at 4 mm: interaction +9 / +23 % of the FEM's, docs/validation/two_punch.md). Two coincident tools
+are not one tool: each keeps its chain (two hands cannot hold one place).
 
 The local contact model a device renders (:class:`~skin_sim_node.model.ContactTangent`) is this tool's, with positions
-in the tissue frame (the friction anchor lowered back by ``w_i``), and the coupling to first order: ``K`` gains
-``K[:, 2] grad(w_i)^T`` (moving sideways along the others' slope), and ``coupling_rate_n_per_s = K[:, 2] dw_i/dt`` is
+in the tissue frame (the friction anchor lowered back by ``w_i``), the coupling's lateral force ``L_i grad(w_i)`` in
+its force (:meth:`CoupledTool.step`), and the coupling to first order: ``K`` gains ``K[:, 2] grad(w_i)^T`` (moving
+sideways along the others' slope) and ``grad(w_i) K[2, :]`` (the lateral force following the load), and
+``coupling_rate_n_per_s = K[:, 2] dw_i/dt`` is
 the other tools' own motion, which the bridge renders for at most one server period (docs/two_hands.md).
 
 Not modelled: the heave in the drawn surface (the display sums the tools' own fields, which only dent), and contact
@@ -202,7 +208,7 @@ class SharedSkin:
     def others_displacement_at(self, i: int, x: float, y: float) -> float:
         """Downward surface displacement (m) under tool ``i`` at ``(x, y)`` from every tool but ``i``: ``w_i``.
 
-        A tool ``j`` on the kernel with tool ``i`` (one of them flat, neither a sphere: :func:`couples_by_kernel`)
+        A tool ``j`` on the kernel with tool ``i`` (both on membranes that carry tension: :func:`couples_by_kernel`)
         lowers it by the two load maps at their own depths (:mod:`~skin_sim_node.tools.reciprocal`) times the pair's
         kernel (:mod:`~skin_sim_node.model.heave`:
         the skin rises beside a contact, so ``w_i`` turns negative 5-15 mm out); any other tool by its own field at
