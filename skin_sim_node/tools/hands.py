@@ -376,25 +376,26 @@ class CoupledTool(Tool):
         )
         if not (math.isfinite(grad[0]) and math.isfinite(grad[1])):
             return s
+        changes: dict = {}
         if fz > 0.0:  # the lateral force of the coupling's potential: d phi / d x_i = L_i grad(w_i)
             load = self.lateral_load_n(fz, x, y)
             force = np.array(s.force_n, dtype=float)
             force[0] += load * grad[0]
             force[1] += load * grad[1]
-            s = replace(s, force_n=force)
+            changes["force_n"] = force
         if t is None:
-            return s
+            return replace(s, **changes)
         k = np.asarray(t.stiffness_n_per_m, dtype=float).copy()
         k[:, 0] += k[:, 2] * grad[0]  # moving sideways along the others' slope changes this tool's own depth
         k[:, 1] += k[:, 2] * grad[1]
         k[0, :] += grad[0] * k[2, :]  # the lateral force follows the load, to first order (L ~ F_z)
         k[1, :] += grad[1] * k[2, :]
-        changes: dict = {"stiffness_n_per_m": k, "coupling_rate_n_per_s": k[:, 2] * self.shift_rate_m_s}
+        tangent: dict = {"stiffness_n_per_m": k, "coupling_rate_n_per_s": k[:, 2] * self.shift_rate_m_s}
         if t.friction_anchor_m is not None:
             anchor = np.asarray(t.friction_anchor_m, dtype=float).copy()
             anchor[2] -= w
-            changes["friction_anchor_m"] = anchor
-        return replace(s, tangent=replace(t, **changes))
+            tangent["friction_anchor_m"] = anchor
+        return replace(s, tangent=replace(t, **tangent), **changes)
 
     def lateral_load_n(self, force_z_n: float, x: float, y: float) -> float:
         """``L_i = Psi_i(e_i) / Psi_i'(e_i)`` (N): what turns the others' slope under this tool into its lateral force,
@@ -407,7 +408,7 @@ class CoupledTool(Tool):
         e = self.tissue.surface_displacement_at(x, y)
         if not (math.isfinite(e) and e > 0.0):
             return 0.0
-        return m.value(e) / m.slope(e)
+        return m.ratio(e)
 
     def release(self) -> None:
         self.inner.release()

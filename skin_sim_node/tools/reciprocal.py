@@ -174,6 +174,16 @@ class LoadMap:
             v = psi[k] + (p[k] + 0.5 * (p[k + 1] - p[k]) * u / (f[k + 1] - f[k])) * u
         return math.copysign(v, depth_m)
 
+    def ratio(self, depth_m: float) -> float:
+        """``Psi / Psi'`` at depth ``depth_m`` (N; one lookup for both): a tool's load ``L`` in its lateral force."""
+        k, force = self._locate(depth_m)
+        p, psi, f = self.slopes, self.values, self.forces_n
+        u = force - f[k]
+        if k == len(f) - 1:
+            return (psi[k] + p[k] * u) / p[k]
+        slope = p[k] + (p[k + 1] - p[k]) * u / (f[k + 1] - f[k])
+        return (psi[k] + 0.5 * (p[k] + slope) * u) / slope
+
     def lowering(self, own_depth_m: float, other: LoadMap, other_depth_m: float) -> float:
         """``Psi_i'(e_i) Psi_j(e_j)`` (m): how far another tool at its own depth ``other_depth_m`` lowers the surface
         under this one at ``own_depth_m``, over the pair's kernel ``G``; ``e_j`` when the two are in one state."""
