@@ -28,8 +28,9 @@ How the coupling uses it (:class:`~skin_sim_node.tools.hands.SharedSkin`): a con
 two are in one state; :mod:`~skin_sim_node.tools.reciprocal`, the load maps that make it a potential's), ``s`` the
 centres' distance and ``G`` one table for the pair, the mean of the two directions' :func:`coupling_table` (each
 one's footprint profile averaged over the other's disk with the weight ``1 - r^2 / a^2``, a rigid punch's contact
-pressure on a thin layer, parabolic), held at its value where the footprints touch when they overlap. The isotropic
-kernel: the flux is the bulk tissue's, and the reference it is checked against is isotropic.
+pressure on a thin layer, parabolic), held with its slope eased where the footprints overlap
+(``hands.overlap_hold_m``). The isotropic kernel: the flux is the bulk tissue's, and the reference it is checked
+against is isotropic.
 """
 
 from __future__ import annotations
