@@ -189,9 +189,6 @@ class SharedSkin:
             if t.cfg.sheet_size_m != first.sheet_size_m or len(t.cfg.layers) != len(first.layers):
                 raise ValueError("the tools of one tissue need the same sheet and layers")
         self.hands = tuple(CoupledTool(t, self, i) for i, t in enumerate(tools))
-        for i, h in enumerate(self.hands):
-            if any(j != i and couples_by_kernel(h.cfg, o.cfg) for j, o in enumerate(tools)):
-                h.load_map = load_map(type(h.inner), h.cfg)
         self._heave: list[list[tuple[float, list[float]] | None]] = [
             [_table(dst, src) if j != i and couples_by_kernel(dst.cfg, src.cfg) else None for j, src in enumerate(tools)]
             for i, dst in enumerate(tools)
@@ -199,6 +196,9 @@ class SharedSkin:
         """``_heave[i][j]``: how far tool ``j`` lowers the surface under tool ``i`` over its own depth, by the centres'
         distance: the pair's table (the same for ``[j][i]``), its step (m) and values (a list: the tick reads two
         entries of it); None: ``j``'s own field is read."""
+        for h, row in zip(self.hands, self._heave):
+            if any(table is not None for table in row):  # on the kernel with another: its load map
+                h.load_map = load_map(type(h.inner), h.cfg)
 
     @property
     def tissues(self) -> tuple[SkinModel, ...]:
@@ -223,6 +223,7 @@ class SharedSkin:
         and the pair's kernel, :meth:`others_displacement_at`) or ``(tissue,)`` for another."""
         out: list[tuple] = []
         me = self.hands[i]
+        own: float | None = None  # this tool's own depth at its centre: read once, for every other tool on the kernel
         for j, h in enumerate(self.hands):
             if j == i or not h.tissue.active.any():
                 continue
@@ -230,7 +231,8 @@ class SharedSkin:
             if table is not None:
                 if h._xy is not None and me.load_map is not None and h.load_map is not None:
                     xj, yj = h._xy
-                    own = me.tissue.surface_displacement_at(*me._xy) if me._xy is not None else 0.0
+                    if own is None:
+                        own = me.tissue.surface_displacement_at(*me._xy) if me._xy is not None else 0.0
                     delta = me.load_map.lowering(own, h.load_map, h.tissue.surface_displacement_at(xj, yj))
                     if math.isfinite(delta):  # a field gone non-finite (its session resets it) never reaches another
                         out.append((delta, xj, yj, *table))

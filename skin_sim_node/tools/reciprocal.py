@@ -155,34 +155,28 @@ class LoadMap:
         """The relaxed law's force at ``|depth_m|`` (N): the cubic, or its last tangent past the nodes."""
         return self._locate(depth_m)[1]
 
+    def _psi(self, depth_m: float) -> tuple[float, float]:
+        """``|Psi|`` and ``Psi'`` at the relaxed force of depth ``|depth_m|``, from one lookup."""
+        k, force = self._locate(depth_m)
+        p, psi, f = self.slopes, self.values, self.forces_n
+        u = force - f[k]
+        if k == len(f) - 1:  # past the last node: p constant
+            return psi[k] + p[k] * u, p[k]
+        df = f[k + 1] - f[k]
+        return psi[k] + (p[k] + 0.5 * (p[k + 1] - p[k]) * u / df) * u, p[k] + (p[k + 1] - p[k]) * u / df
+
     def slope(self, depth_m: float) -> float:
         """``Psi'`` at the relaxed force of depth ``depth_m`` (1 / sqrt(N/m), even)."""
-        k, force = self._locate(depth_m)
-        p, f = self.slopes, self.forces_n
-        if k == len(f) - 1:  # past the last node
-            return p[k]
-        return p[k] + (p[k + 1] - p[k]) * (force - f[k]) / (f[k + 1] - f[k])
+        return self._psi(depth_m)[1]
 
     def value(self, depth_m: float) -> float:
         """``Psi`` at the relaxed force of depth ``depth_m`` (sqrt(N m), odd)."""
-        k, force = self._locate(depth_m)
-        p, psi, f = self.slopes, self.values, self.forces_n
-        u = force - f[k]
-        if k == len(f) - 1:
-            v = psi[k] + p[k] * u
-        else:
-            v = psi[k] + (p[k] + 0.5 * (p[k + 1] - p[k]) * u / (f[k + 1] - f[k])) * u
-        return math.copysign(v, depth_m)
+        return math.copysign(self._psi(depth_m)[0], depth_m)
 
     def ratio(self, depth_m: float) -> float:
-        """``Psi / Psi'`` at depth ``depth_m`` (N; one lookup for both): a tool's load ``L`` in its lateral force."""
-        k, force = self._locate(depth_m)
-        p, psi, f = self.slopes, self.values, self.forces_n
-        u = force - f[k]
-        if k == len(f) - 1:
-            return (psi[k] + p[k] * u) / p[k]
-        slope = p[k] + (p[k + 1] - p[k]) * u / (f[k + 1] - f[k])
-        return (psi[k] + 0.5 * (p[k] + slope) * u) / slope
+        """``Psi / Psi'`` at depth ``depth_m`` (N, for ``depth_m`` >= 0): a tool's load ``L`` in its lateral force."""
+        v, slope = self._psi(depth_m)
+        return v / slope
 
     def lowering(self, own_depth_m: float, other: LoadMap, other_depth_m: float) -> float:
         """``Psi_i'(e_i) Psi_j(e_j)`` (m): how far another tool at its own depth ``other_depth_m`` lowers the surface
