@@ -93,12 +93,13 @@ device paths' 80-90, which it must never delay."""
 
 
 class HandsRecorder:
-    """Each hand's poses and wrenches (stamp-keyed, the first of each stamp), from a node of this process at
-    :data:`READER_RT` (restored to normal in :meth:`close`). With node and bridges in one process (``skin-sim bridge
-    --with-node``) the tool poses go to the node in memory, not over DDS: there the node's journal has them
-    (:class:`Answers`), and this reader checks what DDS delivered against it."""
+    """Each hand's wrenches and, with ``poses``, its tool poses (stamp-keyed, the first of each stamp), from a node of
+    this process at :data:`READER_RT` (restored to normal in :meth:`close`). A check that reads the node's journal
+    (:class:`Answers`) has every pose there and reads only the wrenches here, to check what DDS delivered: a 1 kHz pose
+    stream per hand would cost this reader about 0.3 ms of CPU a message for nothing (with node and bridges in one
+    process, ``skin-sim bridge --with-node``, the tool poses do not cross DDS at all)."""
 
-    def __init__(self):
+    def __init__(self, poses: bool = True):
         import rclpy
 
         from msgs_schema.convert import read_wrench, stamp_ns
@@ -119,7 +120,8 @@ class HandsRecorder:
             self.wrench[h].setdefault(stamp, np.asarray(f, dtype=float))
 
         for h in HANDS:
-            subscription(self.node, "tool_pose", lambda m, h=h: on_pose(h, m), name=f"/{h}/tool/pose", depth=1000)
+            if poses:
+                subscription(self.node, "tool_pose", lambda m, h=h: on_pose(h, m), name=f"/{h}/tool/pose", depth=1000)
             subscription(self.node, "tool_wrench", lambda m, h=h: on_wrench(h, m), name=f"/{h}/tool/wrench", depth=1000)
         self.ex = rclpy.executors.SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
@@ -289,7 +291,7 @@ def main(args) -> int:
     checks: list = []
     devices = {}
     mock = getattr(args, "source", "device") == "mock"  # --source mock: scripted poses, no bridges and devices
-    rec = HandsRecorder()
+    rec = HandsRecorder(poses=False)  # the poses: the node's journal
     journal = args.out / "journal.npz"
     journal.unlink(missing_ok=True)
     try:

@@ -53,6 +53,8 @@ from msgs_schema.topics import FRAMES, TOPICS
 
 from ..rate import AnswerThrottle
 from ..ros_util import localhost_udp_env, ros_now_ns, set_pid_realtime, set_realtime
+from ..server.journal import HELP as JOURNAL_HELP
+from ..server.journal import AnswerJournal
 from .base import DeviceNode, publish_while_ok
 from .bridge_params import BRIDGE_PARAMS, FRICTION_RENDERS, RT_PRIORITY, SOURCES, STABILISERS  # noqa: F401
 from .links import LINK_JOIN_S, LocalLink, ServerLink, _never_called
@@ -113,8 +115,6 @@ class BridgeNode(DeviceNode):
         def node():
             built.append(SkinSimNode(ros_args=cls.ROS_ARGS))
             if cls.JOURNAL is not None:
-                from ..server.journal import AnswerJournal
-
                 built[0].journal = AnswerJournal(cls.JOURNAL)
             return built[0]
 
@@ -162,9 +162,7 @@ class BridgeNode(DeviceNode):
             "--journal",
             metavar="FILE",
             default=None,
-            help="with --with-node: write every pose each hand answered and the force it published, and each tick of "
-            "the node's clock's force, to FILE (.npz) at exit (skin_sim_node.server.journal; what the two-hand demo "
-            "checks against the offline tissue; about 0.25 kB per answer in memory: for test and demo runs)",
+            help=f"with --with-node: {JOURNAL_HELP}",
         )
         ap.add_argument(
             "--forward-twist",

@@ -26,6 +26,14 @@ its stamp the node's clock, which its wrench carries. Memory: about 0.25 kB per 
 1 kHz): the journal is for test and demo runs."""
 
 
+HELP = (
+    "write every pose each hand answered and the force it published, and each tick of the node's clock's force, to FILE "
+    "(.npz) at exit (skin_sim_node.server.journal; what the two-hand demo checks against the offline tissue; about "
+    "0.25 kB per answer in memory: for test and demo runs)"
+)
+"""The ``--journal FILE`` option's help, for ``skin-sim node`` and ``skin-sim bridge --with-node``."""
+
+
 class AnswerJournal:
     """Per hand, every answered pose and its force, in the node's order (thread-safe; the node calls it under its
     lock, the lock here keeps a stand-alone use safe).

@@ -58,6 +58,7 @@ from ..startup import start_line
 from ..tools import make_tools, warm_up
 from .display import DisplayProcess
 from .hand import Hand
+from .journal import HELP as JOURNAL_HELP
 from .journal import AnswerJournal
 
 STATS_LEN = 16384
@@ -601,9 +602,7 @@ def main(argv=None) -> int:
         "--journal",
         metavar="FILE",
         default=None,
-        help="write every pose each hand answered and the force it published, and each tick of its clock's force, to "
-        "FILE (.npz) at exit (skin_sim_node.server.journal; what the two-hand demo checks against the offline tissue; "
-        "about 0.25 kB per answer in memory: for test and demo runs)",
+        help=JOURNAL_HELP,
     )
     args, rest = ap.parse_known_args(argv)
     sys.setswitchinterval(args.switch_interval_s)
