@@ -156,8 +156,10 @@ class ServerLink:
 class LocalLink:
     """The node in this process (``skin-sim bridge --with-node``, issue 27 item 5): no DDS hop between them.
 
-    A due pose goes to the node's :meth:`~skin_sim_node.server.node.SkinSimNode.answer_pose` for the link's hand on
-    this link's thread (a latest-value hand-off, as :class:`ServerLink`), and the node's tick hands each contact model
+    A due pose is queued in the node's hand by the servo thread itself (``SkinSimNode.post_pose``: no lock, a few us)
+    and answered on this link's thread (``SkinSimNode.take_inputs``), or by the node's clock when this thread is held
+    off (it runs one priority below the servo threads, and the GIL goes to the higher priority first): a starved link
+    thread delays an answer but never hides a pose from the node's watchdog. The node's tick hands each contact model
     back through its ``local_model_sinks`` entry for that hand: per answer, four rclpy messages fewer (pose out and in,
     model out and in). The node still publishes ``tool/wrench`` (and the contact model, for other readers) over DDS.
     """
@@ -177,7 +179,7 @@ class LocalLink:
         self._periodic = periodic
         self.rt_priority = rt_priority
         node.local_model_sinks[hand] = bridge._on_local_model
-        self._latest: tuple | None = None
+        self._pending = False
         self._sent_ns = 0
         self._lock = threading.Lock()
         self._wake = threading.Event()
@@ -191,11 +193,17 @@ class LocalLink:
         self._thread.start()
 
     def send(self, pose: tuple, twist: tuple | None = None) -> None:
-        """Hand the newest due pose ``(stamp, xyz, quat)`` (and twist ``(stamp, linear)``) to the link's thread."""
+        """Queue the due pose ``(stamp, xyz, quat)`` (and twist ``(stamp, linear)``) in the node's hand (no lock: the
+        node's clock takes it if this link's thread is held off) and wake the link's thread to answer it."""
+        if twist is not None:
+            self.node.post_twist(twist[0], self._frame, twist[1], hand=self.hand)
+        stamp, x, q = pose
+        self.node.post_pose(stamp, self._frame, x, q, hand=self.hand)
+        self.forwarded += 1
         with self._lock:
-            if self._latest is None:
-                self._sent_ns = time.monotonic_ns()  # the oldest pose not yet taken: how long the thread kept it waiting
-            self._latest = (pose, twist)
+            if not self._pending:
+                self._sent_ns = time.monotonic_ns()  # the oldest pose not yet answered: how long the thread kept it waiting
+            self._pending = True
         self._wake.set()
 
     def _longest(self, key: str, since_ns: int) -> None:
@@ -212,16 +220,12 @@ class LocalLink:
             self._wake.wait(max(next_ns - time.monotonic_ns(), 0) * 1e-9 if period_ns else 0.05)
             self._wake.clear()
             with self._lock:
-                latest, self._latest = self._latest, None
+                pending, self._pending = self._pending, False
                 sent = self._sent_ns
-            if latest is not None and not self._stop.is_set():
+            if pending and not self._stop.is_set():
                 self._longest("pickup", sent)
                 t0 = time.monotonic_ns()
-                (stamp, x, q), tw = latest
-                if tw is not None:
-                    self.node.answer_twist(tw[0], self._frame, tw[1], hand=self.hand)
-                self.node.answer_pose(stamp, self._frame, x, q, hand=self.hand)
-                self.forwarded += 1
+                self.node.take_inputs(self.hand)  # answered here, or already by the node's clock
                 self._longest("answer", t0)
             if self._periodic is not None and time.monotonic_ns() >= next_ns:
                 t0 = next_ns = time.monotonic_ns()

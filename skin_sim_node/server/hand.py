@@ -9,6 +9,7 @@ names. The node's lock orders every hand's ticks, so the tools step one after an
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Callable
 
 from sensor_msgs.msg import JointState
@@ -28,6 +29,11 @@ READERS_CHECK_NS = 100_000_000
 Neither is published while nobody reads it, as image_transport's lazy publishers do: measured here, the two
 publishes were most of what a tick costs beyond the wrench. A reader that joins gets them from the next check on;
 ``tool/wrench`` is always published."""
+
+INBOX_LEN = 256
+"""Inputs a hand keeps for the next holder of the node's lock (:attr:`Hand.inbox`): 0.26 s of 1 kHz poses, longer
+than the 50 ms watchdog and the 200 ms stall the stall tests hold, so only a node stalled past its watchdog drops any
+(the oldest, counted in :attr:`Hand.inbox_dropped`; DDS's keep-last queue drops the same way)."""
 
 
 class Hand:
@@ -74,12 +80,26 @@ class Hand:
         self.readers_checked_ns = -READERS_CHECK_NS
         self.contact_read = self.model_read = True
         self.readouts: dict = {}  # a tool's own read-out topic (ToolNeeds.readout): key -> (publisher, message)
+        self.inbox: deque = deque(maxlen=INBOX_LEN)
+        """The hand's inputs not yet taken, in arrival order: ``("pose", stamp, frame, xyz, quat, rx_ns, ros_now_ns)``
+        and ``("twist", stamp, frame, linear)``. Posted without the node's lock (a deque's append is atomic), taken
+        by whichever thread next holds it, before any tick of this hand: a thread that waits for the lock never
+        holds back the poses the watchdog sees."""
+        self.inbox_dropped = 0
+        self.poses_superseded = 0
+        """Poses a newer pose of the same hand replaced in the inbox before any thread took them."""
         self._node = node
         self.add_readout()
 
     def topic(self, key: str) -> str:
         """The relative name of contract topic ``key`` for this hand."""
         return hand_topic(key, self.ns)
+
+    def post(self, item: tuple) -> None:
+        """Queue one input for the next holder of the node's lock (:attr:`inbox`); no lock taken."""
+        if len(self.inbox) == INBOX_LEN:
+            self.inbox_dropped += 1
+        self.inbox.append(item)
 
     def subscribe(self, on_pose: Callable[[bytes], None], on_twist: Callable[[bytes], None], depth: int) -> None:
         """Its pose and twist readers, serialized (no rclpy message objects on the 1 kHz path)."""

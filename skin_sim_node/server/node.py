@@ -302,13 +302,54 @@ class SkinSimNode(Node):
         The pose callback's work; also the in-process entry of a composed bridge (``skin-sim bridge --with-node``),
         whose local model then arrives through :attr:`local_model_sinks` (the hand's).
         """
-        h = self.hands[hand]
+        self.post_pose(stamp, frame, xyz, quat, hand)
+        self.take_inputs(hand)
+
+    def post_pose(self, stamp: int, frame: str, xyz, quat, hand: int = 0) -> None:
+        """Queue one tool pose of hand ``hand`` for its session (:attr:`Hand.inbox`), stamped with its arrival; takes
+        no lock (a composed bridge's servo thread calls it). :meth:`take_inputs` or the clock's next tick takes it."""
+        self.hands[hand].post(("pose", stamp, frame, xyz, quat, time.perf_counter_ns(), self._ros_now_ns()))
+
+    def post_twist(self, stamp: int, frame: str, lin, hand: int = 0) -> None:
+        """Queue one tool twist of hand ``hand`` (as :meth:`post_pose`), taken before the pose that follows it."""
+        self.hands[hand].post(("twist", stamp, frame, lin))
+
+    def take_inputs(self, hand: int = 0) -> None:
+        """In input mode, take hand ``hand``'s queued inputs under the lock and answer each due pose at once; in timer
+        mode nothing (the clock's next tick takes them: no thread waits for the lock for them)."""
+        if self.params.loop_mode != "input":
+            return
         with self._lock:
-            rx = time.perf_counter_ns()
-            rejected = h.session.on_pose(stamp, frame, xyz, now_ns=self._ros_now_ns(), rx_ns=rx, quat=quat)
+            self._take_inputs(self.hands[hand], answer=True)
+
+    def _take_inputs(self, h: Hand, answer: bool) -> None:
+        """Give hand ``h``'s queued inputs (:attr:`Hand.inbox`) to its session, under the lock: every twist in arrival
+        order, and the newest pose (a newer pose supersedes an older one not yet taken, as the latest-value hand-offs
+        and the keep-last queues before it do; counted in :attr:`Hand.poses_superseded`); with ``answer`` (input
+        mode), a tick at once when that pose is due, as its own thread would have made.
+
+        Whichever thread holds the lock takes them: the clock's tick, or the thread of another input. So a thread kept
+        waiting for the lock (with two hands, the other hand's tick and the clock take it in turn, and a lock is not
+        fair) does not hold its poses back from the session, and the watchdog fires only when no pose reached the node
+        (:meth:`post_pose`), not when one waited for the lock.
+        """
+        inbox = h.inbox
+        items = []
+        while inbox:
+            items.append(inbox.popleft())
+        newest = max((i for i, item in enumerate(items) if item[0] == "pose"), default=-1)
+        for i, item in enumerate(items):
+            if item[0] == "twist":
+                h.session.on_twist(*item[1:])
+                continue
+            if i != newest:
+                h.poses_superseded += 1
+                continue
+            _, stamp, frame, xyz, quat, rx, ros_now = item
+            rejected = h.session.on_pose(stamp, frame, xyz, now_ns=ros_now, rx_ns=rx, quat=quat)
             if rejected is None and self.journal is not None:  # what the tick that answers this stamp stepped
-                self._journal_pose[hand] = (stamp, xyz, quat if quat is not None else (math.nan,) * 4)
-            if rejected is None and self.params.loop_mode == "input" and h.rate.due(stamp, rx):
+                self._journal_pose[h.index] = (stamp, xyz, quat if quat is not None else (math.nan,) * 4)
+            if rejected is None and answer and h.rate.due(stamp, rx):
                 self._tick(h, rx, pose_driven=True)
 
     def _on_twist(self, data: bytes, hand: int = 0) -> None:
@@ -318,14 +359,16 @@ class SkinSimNode(Node):
         self.answer_twist(stamp, frame, lin, hand=hand)
 
     def answer_twist(self, stamp: int, frame: str, lin, hand: int = 0) -> None:
-        """Take one tool twist of hand ``hand`` (the twist callback's work; a composed bridge's in-process entry)."""
-        with self._lock:
-            self.hands[hand].session.on_twist(stamp, frame, lin)
+        """Take one tool twist of hand ``hand`` (the twist callback's work): queued for the session with the hand's next
+        pose or tick (:meth:`post_twist`), in arrival order."""
+        self.post_twist(stamp, frame, lin, hand)
 
     def _on_clock(self, now_ns: int, _elapsed_ns: int) -> None:
         with self._lock:
+            answer = self.params.loop_mode == "input"
             for h in self.hands:  # each hand's fallback tick: its poses stopped (watchdog), or timer mode
-                if self.params.loop_mode == "input" and now_ns - h.last_tick_ns < 1.5 * self._clock_period_ns():
+                self._take_inputs(h, answer)  # a pose queued while its thread waits for the lock is answered here
+                if answer and now_ns - h.last_tick_ns < 1.5 * self._clock_period_ns():
                     continue
                 self._tick(h, now_ns, pose_driven=False)
 
@@ -443,6 +486,8 @@ class SkinSimNode(Node):
             "kernel_us_max": f"{kern.max():.1f}" if kern.size else "nan",
             "input_age_ms": f"{age_ms:.1f}",
             "input_stale": str(stale),
+            "inputs_dropped": str(self.hands[0].inbox_dropped),
+            "poses_superseded": str(self.hands[0].poses_superseded),
             "force_n": f"{force:.4f}",
             "n_affected_layers": str(n_aff),
             "model_flags": str(flags),
@@ -487,6 +532,8 @@ class SkinSimNode(Node):
             key + "input_age_ms": f"{age_ms:.1f}",
             key + "input_stale": str(s.stale),
             key + "force_n": f"{s.force_n:.4f}",
+            key + "inputs_dropped": str(h.inbox_dropped),
+            key + "poses_superseded": str(h.poses_superseded),
             **{key + f"count_{k}": str(v) for k, v in sorted(s.counts.items())},
         }
 
