@@ -11,6 +11,7 @@ import ctypes.util
 import gc
 import os
 import signal
+import struct
 import sys
 import threading
 import time
@@ -233,6 +234,34 @@ def set_pid_realtime(pid: int, priority: int, reset_on_fork: bool = True) -> str
     """:func:`set_realtime` for every thread of process ``pid``."""
     errors = [set_realtime(priority, int(tid), reset_on_fork) for tid in os.listdir(f"/proc/{pid}/task")]
     return next((e for e in errors if e), None)
+
+
+CPU_LATENCY_DEVICE = "/dev/cpu_dma_latency"
+_cpu_latency: tuple[int, int] | None = None  # (fd, us): this process's one PM QoS request, held until it exits
+
+
+def hold_cpu_latency(us: int) -> str | None:
+    """Hold a PM QoS CPU latency request of ``us`` microseconds for the rest of this process (Linux
+    ``Documentation/power/pm_qos_interface.rst``: the request stands while ``/dev/cpu_dma_latency`` is open): idle
+    CPUs stay out of idle states slower than that to leave. cyclictest (rt-tests) holds 0 while it measures, for the
+    same reason. One request per process, the lowest asked. Returns None, or why it is not held (no permission, no
+    such device)."""
+    global _cpu_latency
+    if _cpu_latency is not None and _cpu_latency[1] <= us:
+        return None
+    try:
+        fd = os.open(CPU_LATENCY_DEVICE, os.O_WRONLY | os.O_CLOEXEC)
+    except OSError as exc:
+        return f"CPU latency request not held ({exc.strerror}: {CPU_LATENCY_DEVICE})"
+    try:
+        os.write(fd, struct.pack("i", int(us)))  # the kernel reads a native s32
+    except OSError as exc:
+        os.close(fd)
+        return f"CPU latency request not held ({exc.strerror})"
+    if _cpu_latency is not None:
+        os.close(_cpu_latency[0])
+    _cpu_latency = (fd, int(us))
+    return None
 
 
 def set_affinity(cpus, tid: int = 0) -> str | None:

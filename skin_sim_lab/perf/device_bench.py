@@ -698,8 +698,14 @@ def run(
                 bridges[ns] = scene.start(f"bridge{hand_key(ns)}", "bridge", *shm_flag, *remap)
             bridge = bridges[ns]
             scene.wait_for_log(bridge, f"(hand {ns})" if with_node and len(hands) > 1 else "bridge crtk")
-            rt_line = next((ln for ln in bridge.log().splitlines() if "device path" in ln or "SCHED_FIFO refused" in ln), "")
-            tr_line = next((ln for ln in bridge.log().splitlines() if "transports:" in ln), "")
+            tag = f"{ns + '.' if ns else ''}skin_sim_bridge]: "  # this hand's bridge's lines (one log, two bridges)
+            try:  # its last start line: the scheduling and transport lines follow the one waited for
+                scene.wait_for_log(bridge, tag + "transports:", timeout_s=10.0)
+            except TimeoutError:
+                pass
+            lines = [ln for ln in bridge.log().splitlines() if tag in ln]
+            rt_line = next((ln for ln in lines if "device path" in ln or "SCHED_FIFO refused" in ln), "")
+            tr_line = next((ln for ln in lines if "transports:" in ln), "")
             print(f"  bridge{' ' + ns if ns else ''}: {rt_line.split(']: ')[-1]}; {tr_line.split(']: ')[-1]}", flush=True)
         emu_env = dict(scene.env)
         updates, why = localhost_udp_env(emu_env, keep_shm=driver_shm)

@@ -52,7 +52,7 @@ from msgs_schema.qos import PROFILES, publisher, subscription
 from msgs_schema.topics import FRAMES, TOPICS
 
 from ..rate import AnswerThrottle
-from ..ros_util import localhost_udp_env, ros_now_ns, set_pid_realtime, set_realtime
+from ..ros_util import hold_cpu_latency, localhost_udp_env, ros_now_ns, set_pid_realtime, set_realtime
 from ..server.journal import HELP as JOURNAL_HELP
 from ..server.journal import AnswerJournal
 from .base import DeviceNode, publish_while_ok
@@ -294,6 +294,9 @@ class BridgeNode(DeviceNode):
         self._servo_stop = threading.Event()
         self._servo_wake = GuardCondition(None, None, context=self.context)
         self.rt_message = self._device_path_realtime(p.rt_priority)
+        if p.cpu_latency_us >= 0:  # the device path's wake-ups (bridge_params.CPU_LATENCY_US)
+            why = hold_cpu_latency(p.cpu_latency_us)
+            self.rt_message += f"; CPU wake-up latency held at {p.cpu_latency_us} us" if why is None else f"; {why}"
         self.node_ns = normalize_namespace(p.node_ns)
         self._ages_ms = np.zeros(AGE_RING)
         self._n_age = 0

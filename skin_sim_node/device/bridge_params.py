@@ -16,6 +16,14 @@ RT_PRIORITY = 80
 DDS threads); the node link's threads run one below. 80 sits above the kernel's threaded IRQs (50 on PREEMPT_RT),
 as the node's ``rt_priority`` documents for servo loops."""
 
+CPU_LATENCY_US = 0
+"""The PM QoS CPU wake-up latency the bridge holds while it runs (``/dev/cpu_dma_latency``, us). 0 is what cyclictest
+holds while it measures: an idle CPU polls instead of entering a state it must be woken from. On this project's
+2-core VMs the deeper state is a halt that exits to the host (the haltpoll cpuidle driver), and the device path wakes
+2000 times a second per device: alternating two-hand device benches with and without it, 4 pairs, 2026-12-06, missed
+3-9 aims against 7-10 and had 3-9 command gaps over 5 ms against 4-27 (docs/two_hands.md). The cost: idle CPUs stay
+busy polling, as the host and a laptop's battery see them."""
+
 BRIDGE_PARAMS: tuple[Param, ...] = (
     Param(
         "device",
@@ -104,6 +112,14 @@ BRIDGE_PARAMS: tuple[Param, ...] = (
         "SCHED_FIFO priority of the device path, 1-99 (0: normal scheduling); refused without root/CAP_SYS_NICE",
         0,
         99,
+    ),
+    Param(
+        "cpu_latency_us",
+        CPU_LATENCY_US,
+        "PM QoS CPU wake-up latency held while the bridge runs (/dev/cpu_dma_latency, us; 0: idle CPUs poll, as "
+        "cyclictest holds; -1: no request); refused without root",
+        -1,
+        1_000_000,
     ),
     Param(
         "force_source",
