@@ -88,30 +88,6 @@ NO_NODE_HINT_NS = 3_000_000_000
 takes well under 2 s): the bridge says once that the node seems missing."""
 
 
-def composed_priorities(node, bridges: list) -> None:
-    """In one process (``--with-node``), the device path above everything else in it.
-
-    Each bridge's start sets every thread that exists then to its ``rt_priority`` (its device-side DDS threads, which
-    here are the node's too), so the node's clock, the main thread (the executor: parameter services, the node's
-    diagnostics) and an earlier bridge's node link would be left at the servo threads' priority, where SCHED_FIFO never
-    preempts them: a node tick of two hands (about a millisecond of Python, more while it waits for the GIL) on one
-    core while a driver holds the other kept a servo thread off the CPU. They go one below, as each link already
-    starts; the servo threads and the DDS threads that bring the device's poses keep ``rt_priority``.
-    """
-    live = [b for b in bridges if b.p.rt_priority > 1 and not b.rt_message.startswith("SCHED_FIFO refused")]
-    if not live:
-        return
-    prio = min(b.p.rt_priority for b in live) - 1
-    tids = [node._loop.native_id, threading.main_thread().native_id] + [b.server.native_id for b in bridges]
-    problems = [set_realtime(prio, tid) for tid in tids if tid]
-    problem = next((m for m in problems if m), None)
-    log = bridges[0].get_logger()
-    if problem:
-        log.warning(f"the node's clock and the links not moved below the servo threads: {problem}")
-    else:
-        log.info(f"one process: the node's clock, the main thread and the node links at SCHED_FIFO {prio}, below the servos")
-
-
 class BridgeNode(DeviceNode):
     """Device driver topics <-> node topics; renders the local contact model every device tick."""
 
@@ -146,9 +122,7 @@ class BridgeNode(DeviceNode):
             host = built[0]
             hands = host.hands
             if len(hands) == 1 and not hands[0].ns:  # one hand, the single-tool names: the process's namespace
-                one = cls(overrides, local_node=host)
-                composed_priorities(host, [one])
-                return one
+                return cls(overrides, local_node=host)
             # a bridge per hand (issue 32), each in its hand's namespace under the node's (its device under
             # /<hand>/<device_ns>, as a bridge started with __ns:=/<hand> has it), linked to its hand in memory. The
             # namespace is a node-local remap: it wins over a global -r __ns:=, which would otherwise put every hand's
@@ -163,7 +137,6 @@ class BridgeNode(DeviceNode):
                     b.stop()
                     b.destroy_node()
                 raise
-            composed_priorities(host, made)
             return made
 
         return [node, bridges]

@@ -86,11 +86,6 @@ class ServerLink:
         self._thread = threading.Thread(target=self._run, name="server-link", daemon=True)
         self._thread.start()
 
-    @property
-    def native_id(self) -> int | None:
-        """The link thread's kernel id (its scheduling is set by id)."""
-        return self._thread.native_id
-
     def send(self, pose: tuple, twist: tuple | None = None) -> None:
         """Hand the newest due pose ``(stamp, xyz, quat)`` (and the device's twist ``(stamp, linear)``) to the thread."""
         with self._lock:
@@ -210,11 +205,6 @@ class LocalLink:
                 self._sent_ns = time.monotonic_ns()  # the oldest pose not yet answered: how long the thread kept it waiting
             self._pending = True
         self._wake.set()
-
-    @property
-    def native_id(self) -> int | None:
-        """The link thread's kernel id (its scheduling is set by id)."""
-        return self._thread.native_id
 
     def _longest(self, key: str, since_ns: int) -> None:
         ms = (time.monotonic_ns() - since_ns) * 1e-6

@@ -10,9 +10,7 @@ Loop modes (parameter ``loop_mode``):
 - ``timer``: a ``rate_hz`` thread ticks with the newest pose held (zero-order hold); its
   wrenches carry the node's clock.
 
-The model kernels are ``nogil``; one lock orders ticks, parameter swaps and display snapshots. Inputs reach it
-through each hand's queue (:attr:`Hand.inbox`), taken by whichever thread next holds the lock, so a thread kept
-waiting for the lock never hides its poses from the watchdog.
+The model kernels are ``nogil``; one lock orders ticks, parameter swaps and display snapshots.
 
 Size (issue 28: over 500 lines, with a reason): the node is the server's whole ROS surface, its parameter
 declarations and live sets, its I/O, the haptic tick's publishes and its diagnostics; the physics, the session, the
