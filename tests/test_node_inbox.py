@@ -9,6 +9,7 @@ its tick called with chosen times), so nothing depends on scheduling.
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -38,9 +39,11 @@ def node():
             Parameter("second_hand_ns", value="left"),
             Parameter("max_stamp_age_s", value=0.0),  # stamps are the test's, not the clock's
             Parameter("display_rate_hz", value=0.0),
+            Parameter("rt_priority", value=0),  # no SCHED_FIFO for the test process (it would be the whole pytest run's)
         ]
         n = SkinSimNode(context=ctx, parameter_overrides=overrides)
         n._loop.stop()
+        assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the pytest process keeps normal scheduling
         yield n
     finally:
         if n is not None:
