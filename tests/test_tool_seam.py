@@ -9,6 +9,7 @@ thread is stopped and every pose is fed to its subscription callback with stamps
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -117,9 +118,14 @@ def test_a_toy_tool_runs_through_the_node(monkeypatch):
     node = None
     try:
         # the stamp-age check off, the watchdog at its largest: no stall between two fed poses fires it
-        overrides = [Parameter("max_stamp_age_s", value=0.0), Parameter("watchdog_s", value=10.0)]
+        overrides = [
+            Parameter("max_stamp_age_s", value=0.0),
+            Parameter("watchdog_s", value=10.0),
+            Parameter("rt_priority", value=0),  # no SCHED_FIFO for the test process (it would be the whole pytest run's)
+        ]
         node = SkinSimNode(context=ctx, parameter_overrides=overrides)
         node._loop.stop()  # no clock thread: only the poses below tick the session
+        assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the pytest process keeps normal scheduling
         assert type(node.session.tool) is RigidPlane and node.hands[0].readouts == {}
         pose = PoseStamped()
         base = time.time_ns() - 1_000_000_000  # stamps in the past: the stamp-age check is off (max_stamp_age_s 0)
