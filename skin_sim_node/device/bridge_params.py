@@ -21,7 +21,8 @@ CPU_LATENCY_US = 0
 holds while it measures: an idle CPU polls instead of entering a state it must be woken from. On this project's
 2-core VMs the deeper state is a halt that exits to the host (the haltpoll cpuidle driver), and the device path wakes
 2000 times a second per device: alternating two-hand device benches with and without it, 4 pairs, 2026-12-06, missed
-3-9 aims against 7-10 and had 3-9 command gaps over 5 ms against 4-27 (docs/two_hands.md). The cost: idle CPUs stay
+3-9 aims against 7-10 and had 3-9 command gaps over 5 ms against 4-27 (both arms with a thread-priority trial since
+reverted; docs/two_hands.md, "Session 10"). The cost: idle CPUs stay
 busy polling, as the host and a laptop's battery see them."""
 
 BRIDGE_PARAMS: tuple[Param, ...] = (

@@ -31,9 +31,10 @@ publishes were most of what a tick costs beyond the wrench. A reader that joins 
 ``tool/wrench`` is always published."""
 
 INBOX_LEN = 256
-"""Inputs a hand keeps for the next holder of the node's lock (:attr:`Hand.inbox`): 0.26 s of 1 kHz poses, longer
-than the 50 ms watchdog and the 200 ms stall the stall tests hold, so only a node stalled past its watchdog drops any
-(the oldest, counted in :attr:`Hand.inbox_dropped`; DDS's keep-last queue drops the same way)."""
+"""Inputs a hand keeps for the next holder of the node's lock (:attr:`Hand.inbox`): 0.26 s of 1 kHz poses, five times
+the 50 ms watchdog. It fills only while poses keep arriving and no thread takes them for that long; then the oldest
+go (counted in :attr:`Hand.inbox_dropped`; DDS's keep-last queue drops the same way), which the newest pose and twist
+supersede anyway."""
 
 
 class Hand:

@@ -356,12 +356,7 @@ class SkinSimNode(Node):
         if (twist := self._decode("tool_twist", data)) is None:
             return
         stamp, frame, lin = twist[:3]
-        self.answer_twist(stamp, frame, lin, hand=hand)
-
-    def answer_twist(self, stamp: int, frame: str, lin, hand: int = 0) -> None:
-        """Take one tool twist of hand ``hand`` (the twist callback's work): queued for the session with the hand's next
-        pose or tick (:meth:`post_twist`), in arrival order."""
-        self.post_twist(stamp, frame, lin, hand)
+        self.post_twist(stamp, frame, lin, hand=hand)  # taken with the hand's next pose or tick, in arrival order
 
     def _on_clock(self, now_ns: int, _elapsed_ns: int) -> None:
         with self._lock:
