@@ -176,9 +176,18 @@ def test_a_stalled_node_keeps_the_needles_track_and_resumes_without_a_jolt(scene
     if start is not None:
         dips.append((start, len(s_arr)))  # never recovered
     long = [(a, b) for a, b in dips if b == len(s_arr) or (s_arr[b] - s_arr[a] >= RAMP_S * 1e9 and b - a > RAMP_ANSWERS)]
-    # the node saw the gap: as a stall (its watchdog fired first) or as a long stamp interval stepped in parts
+    # the node met the stall in one of three ways, as its threads happened to resume: as a stall (its clock ran first
+    # and its watchdog fired), as a long stamp interval stepped in parts (DDS's depth-1 history kept only the newest
+    # pose of the backlog), or by answering poses of the backlog at intervals of max_dt_s or less, none stepped in
+    # parts (a pose callback ran before the clock and the executor took more than one buffered pose: a CI run,
+    # 2026-12-06). Whichever, the checks above and below hold; the third leaves no log line, and the answers show it
     log = node.log()
-    assert "poses resumed after" in log or "stepped in parts" in log, log[-2000:]
+    max_dt_s = SessionParams().max_dt_s
+    seen = "poses resumed after" in log or "stepped in parts" in log
+    assert seen or gaps.max() <= max_dt_s * 1e9, (
+        f"an in-contact interval of {gaps.max() * 1e-6:.0f} ms between answers, more than max_dt_s = "
+        f"{max_dt_s * 1e3:.0f} ms, and the node logged neither a stall nor a stepped interval: " + log[-2000:]
+    )
     print(
         f"answered {len(stamps)} poses (as recorded); max live - offline {np.max(t_live - t_off):+.4f} N; "
         f"{len(dips)} dips below the offline answer, the longest "
@@ -203,6 +212,9 @@ def test_a_stalled_node_keeps_the_needles_track_and_resumes_without_a_jolt(scene
         near = np.abs(s_arr - t) <= 20e6
         if near.any():
             worst = max(worst, float(np.linalg.norm((fx, fy, fz)) - (1.2 * t_off[near].max() + 0.05)))
-    print(f"longest in-contact gap {gaps.max() * 1e-6:.0f} ms; {len(c)} device commands in the 200 ms after it")
+    print(
+        f"longest in-contact gap {gaps.max() * 1e-6:.0f} ms; {len(c)} device commands in the 200 ms after it; the node "
+        + ("logged the stall" if seen else "answered buffered poses at intervals of max_dt_s or less")
+    )
     # (the observer is a DDS reader: under load it misses commands)
     assert len(c) >= 3 and worst <= 0.0, f"a device command {worst:.3f} N above 1.2 x the true force + 0.05 N"
