@@ -146,6 +146,7 @@ class SkinSimNode(Node):
             warm_up(c)
         self._warmup_s = time.perf_counter() - t0
         self._lock = threading.Lock()
+        self._stopped = False  # set under the lock by stop(): no tick, so no publish, after it
         self._frame = FRAMES["tissue"]
         self._sim_time = bool(self.get_parameter("use_sim_time").value)
         # the hands: each its session (a tool of the one tissue), server rate and topics (issue 32)
@@ -214,6 +215,8 @@ class SkinSimNode(Node):
     # --- lifecycle --------------------------------------------------------------------
     def stop(self) -> None:
         self._loop.stop()
+        with self._lock:  # no tick after this (a composed bridge's link thread may still post and take): the journal
+            self._stopped = True  # written below holds every wrench published (a CI run: 868 delivered, 867 in it)
         self._display.close()
         if self.journal is not None:
             path = self.journal.save()
@@ -320,7 +323,8 @@ class SkinSimNode(Node):
         if self.params.loop_mode != "input":
             return
         with self._lock:
-            self._take_inputs(self.hands[hand], answer=True)
+            if not self._stopped:
+                self._take_inputs(self.hands[hand], answer=True)
 
     def _take_inputs(self, h: Hand, answer: bool) -> None:
         """Give hand ``h``'s queued inputs (:attr:`Hand.inbox`) to its session, under the lock: every twist in arrival
@@ -360,6 +364,8 @@ class SkinSimNode(Node):
 
     def _on_clock(self, now_ns: int, _elapsed_ns: int) -> None:
         with self._lock:
+            if self._stopped:
+                return
             answer = self.params.loop_mode == "input"
             for h in self.hands:  # each hand's fallback tick: its poses stopped (watchdog), or timer mode
                 self._take_inputs(h, answer)  # a pose queued while its thread waits for the lock is answered here
