@@ -63,6 +63,8 @@ from skin_sim_node.device.render import FADE_S
 from skin_sim_node.ros_util import localhost_udp_env
 from skin_sim_node.scenes import DEFAULT_PARAMS, REPO, Scene
 
+from . import stall_probe
+
 PERIOD_NS = 1_000_000
 """The emulator's servo period: a Touch's OpenHaptics servo loop runs at 1 kHz."""
 EMULATOR_RT_PRIORITY = 90
@@ -105,7 +107,8 @@ AIMS = {
     "over_true": "0 commands above 1.2 x |F_true| + 0.05 N (every phase)",
     "over_limit": f"0 commands above the device limit {TOUCH_PEAK_FORCE_N} N (every phase)",
     "answered": f"at least {ANSWERED_MIN:.1%} of device poses answered (steady, join, throttle)",
-    "gaps_5ms": "0 command gaps over 5 ms in steady and join, the emulator's own late slots not counted",
+    "gaps_5ms": "0 command gaps over 5 ms in steady and join, the emulator's own late slots not counted, nor a gap within "
+    "5 ms once the machine's own stalls inside it (the stall probe's) are taken out",
     "render_p99": f"render p99 <= {RENDER_P99_MAX_PCT} % of peak in steady and throttle",
     "render_vs_hold": "render p99 below hold-last's in throttle",
     "kill_zero": f"below {KILL_ZERO_N} N within TTL + fade + {KILL_MARGIN_S * 1e3:.0f} ms of the kill",
@@ -379,9 +382,15 @@ def ground_truth_hands(slot_sets: list[np.ndarray], cfgs: list, sp) -> list[np.n
 
 
 # --- analysis -----------------------------------------------------------------------------------------
-def analyse(rec: dict, phase_s: float, kill_ns: int | None, truth: np.ndarray | None = None) -> dict:
+def analyse(
+    rec: dict, phase_s: float, kill_ns: int | None, truth: np.ndarray | None = None, probe: np.ndarray | None = None
+) -> dict:
     """Per-phase figures from the emulator's records (see the module docstring); ``truth``: the true force per slot
-    (default: :func:`ground_truth` of the single device; a second hand's run gives :func:`ground_truth_hands`')."""
+    (default: :func:`ground_truth` of the single device; a second hand's run gives :func:`ground_truth_hands`');
+    ``probe``: the machine stall probe's records (:mod:`~skin_sim_lab.perf.stall_probe`): a gap over 5 ms that is
+    within 5 ms once the stalls it saw inside the gap are taken out is the machine's (``gaps_5ms_machine``), not
+    counted in ``gaps_5ms``."""
+    probe = np.zeros((0, 3), dtype=np.int64) if probe is None else probe
     slots, cmds, wr = rec["slots"], rec["cmds"], rec["wrenches"]
     t0 = int(rec["t0"])
     sent = slots[:, 2] > 0
@@ -423,6 +432,11 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None, truth: np.ndarray | 
         ct = np.sort(cmds[(cmds[:, 0] >= lo) & (cmds[:, 0] < hi), 0])
         gaps = np.diff(ct)
         own_late = np.array([np.any((late_slot_t > ct[i]) & (late_slot_t < ct[i + 1])) for i in range(len(gaps))], dtype=bool)
+        machine = np.array(
+            [g > 5e6 and g - stall_probe.stall_overlap_ns(probe, ct[i], ct[i + 1]) <= 5e6 for i, g in enumerate(gaps)],
+            dtype=bool,
+        )
+        n_stalls, longest_stall_ms = stall_probe.summary(probe, lo, hi)
         mag = np.linalg.norm(ans_f, axis=1)
         tmag = np.linalg.norm(truth, axis=1)
         a_pre = answered & sel_pre
@@ -441,10 +455,14 @@ def analyse(rec: dict, phase_s: float, kill_ns: int | None, truth: np.ndarray | 
             "answered": float(answered.sum() / max(sel.sum(), 1)),
             "emulator_late_slots": int(np.sum(slots[sel, 9] > 0)),
             "gaps_2ms": int(np.sum(gaps > 2e6)),
-            "gaps_5ms": int(np.sum((gaps > 5e6) & ~own_late)),
+            "gaps_5ms": int(np.sum((gaps > 5e6) & ~own_late & ~machine)),
+            "gaps_5ms_machine": int(np.sum((gaps > 5e6) & ~own_late & machine)),
             "gaps_5ms_with_own_late": int(np.sum(gaps > 5e6)),
             "gap_max_ms": float(gaps.max() * 1e-6) if gaps.size else float("nan"),
-            "gaps_5ms_where": gap_sources(ct, gaps, own_late, slots, lo),
+            "gaps_5ms_where": gap_sources(ct, gaps, own_late | machine, slots, lo),
+            "gaps_5ms_machine_where": gap_sources(ct, gaps, own_late | ~machine, slots, lo),
+            "machine_stalls": n_stalls,
+            "machine_stall_max_ms": longest_stall_ms,
             "over_true": over_true,
             "over_limit": int(np.sum(mag[answered] > TOUCH_PEAK_FORCE_N * (1 + 1e-9))),
             "max_over_true": float(np.max(mag[big] / tmag[big])) if big.any() else float("nan"),
@@ -615,6 +633,14 @@ def print_table(ph: dict) -> None:
             f"{p['render_p50_pct']:7.2f} / {p['render_p99_pct']:6.2f} {p['hold_p50_pct']:6.2f} / {p['hold_p99_pct']:6.2f} "
             f"{ratio:5.2f}x | {p['render_normal_p99_pct']:9.2f} / {p['hold_normal_p99_pct']:9.2f} | {p['server_p99_pct']:12.2f}"
         )
+    print(
+        "machine stalls (a SCHED_FIFO 99 probe per CPU woke >= 1 ms late; gaps within 5 ms without them not counted): "
+        + ", ".join(
+            f"{name} {p.get('machine_stalls', 0)} (longest {p.get('machine_stall_max_ms', 0.0):.1f} ms; "
+            f"{p.get('gaps_5ms_machine', 0)} gaps>5 taken out)"
+            for name, p in ph.items()
+        )
+    )
     k = ph["kill"]
     if "kill_zero_ms" in k:
         print(
@@ -745,6 +771,7 @@ def run(
                 if emu.poll() is not None:
                     raise RuntimeError(f"emulator{hand_key(ns)} exited: {text[-2000:]}")
         throttler = Throttler()  # its discovery before the emulators' start, not in the throttle phase
+        probes = stall_probe.start(log_dir, env=dict(os.environ, PYTHONPATH=str(REPO)))  # the machine's own stalls
         t0 = time.monotonic_ns() + 200_000_000
         (log_dir / "emulator_t0.tmp").write_text(f"{t0}\n")
         (log_dir / "emulator_t0.tmp").replace(t0_path)  # whole or absent: an emulator never reads half of it
@@ -806,6 +833,7 @@ def run(
             snapshot(f"{name}_end")
             wait_until(b)
         throttler.close()
+        probe = stall_probe.stop(probes, log_dir)
         for name_, emu in emus.items():
             try:
                 emu.wait(timeout=30)
@@ -835,6 +863,7 @@ def run(
         "diag": snaps,
         "with_node": with_node,
         "schedule": schedule,
+        "probe": probe,
     }
 
 
@@ -934,7 +963,7 @@ def main(argv=None) -> int:
     node_args = tuple(a for p in args.node_param for a in ("-p", p))
     res = run(args.phase_s, args.hog, log_dir, args.bridge_shm, args.driver_shm, node_args, args.node_shm, args.with_node)
     print(f"  analysing (offline ground truth on {int((res['rec']['slots'][:, 2] > 0).sum())} poses) ...", flush=True)
-    ph = analyse(res["rec"], res["phase_s"], res["kill_ns"])
+    ph = analyse(res["rec"], res["phase_s"], res["kill_ns"], probe=res["probe"])
     budget_figures(ph, res)
     print(f"  machine after: {_machine()}")
     print_table(ph)
@@ -951,6 +980,8 @@ def main(argv=None) -> int:
                 f"  gap {name} +{t_s:.3f} s: {gap_ms:.1f} ms without a command; {n_pub} device poses published on time in it, "
                 f"the first command after it {lat_ms:.1f} ms after the first of them"
             )
+        for t_s, gap_ms, _, _ in p.get("gaps_5ms_machine_where", []):
+            print(f"  gap {name} +{t_s:.3f} s: {gap_ms:.1f} ms, the machine's (a CPU stall inside it; not counted)")
     if args.json:
         args.json.write_text(json.dumps(ph, indent=2))
     missed = missed_aims(ph, one_process=args.with_node)

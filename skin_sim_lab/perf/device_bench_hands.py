@@ -205,7 +205,7 @@ def main_hands(args) -> int:
     truths = ground_truth_hands([recs[ns]["slots"] for ns, _ in HANDS], cfgs, sp)
     phs = {}
     for i, ((ns, _), truth) in enumerate(zip(HANDS, truths)):
-        ph = analyse(recs[ns], res["phase_s"], res["kill_ns"], truth=truth)
+        ph = analyse(recs[ns], res["phase_s"], res["kill_ns"], truth=truth, probe=res["probe"])
         budget_figures(ph, hand_view(res, ns, "" if i == 0 else f"hand_{ns}_"))
         phs[ns] = ph
     print(f"  machine after: {_machine()}")
@@ -230,6 +230,8 @@ def main_hands(args) -> int:
                     f"  gap {ns} {name} +{t_s:.3f} s: {gap_ms:.1f} ms without a command; {n_pub} device poses published "
                     f"on time in it, the first command after it {lat_ms:.1f} ms after the first of them"
                 )
+            for t_s, gap_ms, _, _ in p.get("gaps_5ms_machine_where", []):
+                print(f"  gap {ns} {name} +{t_s:.3f} s: {gap_ms:.1f} ms, the machine's (a CPU stall inside it; not counted)")
     if args.json:
         args.json.write_text(json.dumps({"hands": phs, "cpu": res["cpu"], "echo_pct": res["echo_pct"]}, indent=2))
     missed = missed_hand_aims(phs, one_process=args.with_node)

@@ -1,0 +1,52 @@
+"""The machine stall probe of the device benchmarks (skin_sim_lab.perf.stall_probe): what it records and how a command
+gap is judged against it."""
+
+import time
+
+import numpy as np
+
+from skin_sim_lab.perf import stall_probe as sp
+
+
+def test_the_overlap_is_the_union_of_stalls_on_every_cpu_clipped_to_the_gap():
+    ms = 1_000_000
+    rows = np.array(
+        [
+            (0, 10 * ms, 13 * ms),  # 3 ms stall on CPU 0
+            (1, 12 * ms, 15 * ms),  # 3 ms on CPU 1, overlapping it: the union is 10-15 ms
+            (0, 30 * ms, 30 * ms + 500_000),  # recorded late, but under STALL_NS: not a stall
+            (1, 40 * ms, 42 * ms),
+        ],
+        dtype=np.int64,
+    )
+    assert sp.stall_overlap_ns(rows, 9 * ms, 20 * ms) == 5 * ms
+    assert sp.stall_overlap_ns(rows, 11 * ms, 14 * ms) == 3 * ms  # clipped at both ends
+    assert sp.stall_overlap_ns(rows, 29 * ms, 33 * ms) == 0.0  # the short one does not count
+    assert sp.stall_overlap_ns(rows, 0, 100 * ms) == 7 * ms
+    assert sp.summary(rows, 0, 35 * ms) == (2, 3.0)
+    assert sp.summary(rows, 35 * ms, 100 * ms) == (1, 2.0)
+    assert sp.summary(rows[:0], 0, 100 * ms) == (0, 0.0)
+
+
+def test_a_gap_is_the_machines_only_when_the_stall_takes_it_within_the_aim(tmp_path):
+    """analyse's rule, on the probe's numbers: a 6.4 ms gap with a 5.07 ms stall inside is the machine's (1.3 ms
+    left); a 6.4 ms gap with a 1.2 ms stall is not (5.2 ms left)."""
+    ms = 1_000_000
+    big = np.array([(1, 101 * ms, 101 * ms + 5_070_000)], dtype=np.int64)
+    small = np.array([(1, 101 * ms, 101 * ms + 1_200_000)], dtype=np.int64)
+    a, b = 100 * ms, 100 * ms + 6_400_000
+    assert (b - a) - sp.stall_overlap_ns(big, a, b) <= 5 * ms
+    assert (b - a) - sp.stall_overlap_ns(small, a, b) > 5 * ms
+
+
+def test_the_probes_run_on_each_cpu_and_write_their_records(tmp_path):
+    procs = sp.start(tmp_path)
+    time.sleep(1.5)  # its imports, then some periods
+    rows = sp.stop(procs, tmp_path)
+    for p in procs:
+        assert p.returncode == 0
+    logs = sorted(tmp_path.glob("stall_probe_cpu*.log"))
+    assert len(logs) == len(procs) >= 1
+    assert all("PROBE cpu" in f.read_text() for f in logs)
+    assert len(sorted(tmp_path.glob("stall_probe_cpu*.npy"))) == len(procs)
+    assert rows.shape[1] == 3 and np.all(rows[:, 2] - rows[:, 1] > sp.RECORD_NS)  # only late wake-ups are kept
