@@ -1,9 +1,14 @@
 """The machine stall probe of the device benchmarks (skin_sim_lab.perf.stall_probe): what it records and how a command
 gap is judged against it."""
 
+import os
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from skin_sim_lab.perf import stall_probe as sp
 
@@ -12,10 +17,11 @@ def test_the_overlap_is_the_union_of_stalls_on_every_cpu_clipped_to_the_gap():
     ms = 1_000_000
     rows = np.array(
         [
-            (0, 10 * ms, 13 * ms),  # 3 ms stall on CPU 0
-            (1, 12 * ms, 15 * ms),  # 3 ms on CPU 1, overlapping it: the union is 10-15 ms
-            (0, 30 * ms, 30 * ms + 500_000),  # recorded late, but under STALL_NS: not a stall
-            (1, 40 * ms, 42 * ms),
+            (0, 10 * ms, 13 * ms, 0),  # 3 ms stall on CPU 0
+            (1, 12 * ms, 15 * ms, 100_000),  # 3 ms on CPU 1, overlapping it: the union is 10-15 ms
+            (0, 30 * ms, 30 * ms + 500_000, 0),  # recorded late, but under STALL_NS: not a stall
+            (1, 40 * ms, 42 * ms, 0),
+            (0, 50 * ms, 98 * ms, 47 * ms),  # 48 ms late, 47 of them runnable: held off (RT throttling), not a stall
         ],
         dtype=np.int64,
     )
@@ -26,14 +32,16 @@ def test_the_overlap_is_the_union_of_stalls_on_every_cpu_clipped_to_the_gap():
     assert sp.summary(rows, 0, 35 * ms) == (2, 3.0)
     assert sp.summary(rows, 35 * ms, 100 * ms) == (1, 2.0)
     assert sp.summary(rows[:0], 0, 100 * ms) == (0, 0.0)
+    assert sp.stall_overlap_ns(rows, 45 * ms, 100 * ms) == 0.0  # the held one is never taken out of a gap
+    assert len(sp.held(rows)) == 1 and sp.held(rows)[0, 1] == 50 * ms
 
 
 def test_a_gap_is_the_machines_only_when_the_stall_takes_it_within_the_aim(tmp_path):
     """analyse's rule, on the probe's numbers: a 6.4 ms gap with a 5.07 ms stall inside is the machine's (1.3 ms
     left); a 6.4 ms gap with a 1.2 ms stall is not (5.2 ms left)."""
     ms = 1_000_000
-    big = np.array([(1, 101 * ms, 101 * ms + 5_070_000)], dtype=np.int64)
-    small = np.array([(1, 101 * ms, 101 * ms + 1_200_000)], dtype=np.int64)
+    big = np.array([(1, 101 * ms, 101 * ms + 5_070_000, 0)], dtype=np.int64)
+    small = np.array([(1, 101 * ms, 101 * ms + 1_200_000, 0)], dtype=np.int64)
     a, b = 100 * ms, 100 * ms + 6_400_000
     assert (b - a) - sp.stall_overlap_ns(big, a, b) <= 5 * ms
     assert (b - a) - sp.stall_overlap_ns(small, a, b) > 5 * ms
@@ -49,4 +57,31 @@ def test_the_probes_run_on_each_cpu_and_write_their_records(tmp_path):
     assert len(logs) == len(procs) >= 1
     assert all("PROBE cpu" in f.read_text() for f in logs)
     assert len(sorted(tmp_path.glob("stall_probe_cpu*.npy"))) == len(procs)
-    assert rows.shape[1] == 3 and np.all(rows[:, 2] - rows[:, 1] > sp.RECORD_NS)  # only late wake-ups are kept
+    assert rows.shape[1] == 4 and np.all(rows[:, 2] - rows[:, 1] > sp.RECORD_NS)  # only late wake-ups are kept
+    assert np.all(rows[:, 3] >= 0)  # the run-queue wait since the wake-up before
+
+
+def test_a_probe_held_off_by_rt_throttling_is_not_counted_as_the_machines(tmp_path):
+    """A real-time thread spinning on CPU 1 for 2.2 s uses up the CPU's real-time share (sched_rt_runtime_us), and
+    the kernel throttles every real-time thread there, the probe's too, for the rest of each second: a probe late by
+    tens of ms that waited runnable all along. That is the benchmark's own load, never a stall of the machine."""
+    runtime = Path("/proc/sys/kernel/sched_rt_runtime_us")
+    if not runtime.exists() or int(runtime.read_text()) < 0 or 1 not in os.sched_getaffinity(0):
+        pytest.skip("no RT throttling on this kernel, or no CPU 1")
+    code = (
+        "import os, time\n"
+        "os.sched_setaffinity(0, {1})\n"
+        "try:\n    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(10))\nexcept OSError:\n    raise SystemExit(3)\n"
+        "t = time.monotonic() + 2.2\n"
+        "while time.monotonic() < t:\n    pass\n"
+    )
+    procs = sp.start(tmp_path)
+    time.sleep(1.0)
+    spinner = subprocess.run([sys.executable, "-c", code], check=False)
+    rows = sp.stop(procs, tmp_path)
+    if spinner.returncode == 3:
+        pytest.skip("SCHED_FIFO not permitted")
+    held = sp.held(rows)
+    assert len(held) >= 1 and set(held[:, 0]) == {1}, rows  # throttled on CPU 1, runnable while late
+    assert np.all(held[:, 3] >= (held[:, 2] - held[:, 1]) / 2)
+    assert sp.stall_overlap_ns(rows[rows[:, 0] == 1], float(held[0, 1]), float(held[0, 2])) < held[0, 2] - held[0, 1]

@@ -390,7 +390,7 @@ def analyse(
     ``probe``: the machine stall probe's records (:mod:`~skin_sim_lab.perf.stall_probe`): a gap over 5 ms that is
     within 5 ms once the stalls it saw inside the gap are taken out is the machine's (``gaps_5ms_machine``), not
     counted in ``gaps_5ms``."""
-    probe = np.zeros((0, 3), dtype=np.int64) if probe is None else probe
+    probe = np.zeros((0, 4), dtype=np.int64) if probe is None else probe
     slots, cmds, wr = rec["slots"], rec["cmds"], rec["wrenches"]
     t0 = int(rec["t0"])
     sent = slots[:, 2] > 0
@@ -463,6 +463,7 @@ def analyse(
             "gaps_5ms_machine_where": gap_sources(ct, gaps, own_late | ~machine, slots, lo),
             "machine_stalls": n_stalls,
             "machine_stall_max_ms": longest_stall_ms,
+            "probe_held": len(stall_probe.held(probe, lo, hi)),
             "over_true": over_true,
             "over_limit": int(np.sum(mag[answered] > TOUCH_PEAK_FORCE_N * (1 + 1e-9))),
             "max_over_true": float(np.max(mag[big] / tmag[big])) if big.any() else float("nan"),
@@ -637,7 +638,7 @@ def print_table(ph: dict) -> None:
         "machine stalls (a SCHED_FIFO 99 probe per CPU woke >= 1 ms late; gaps within 5 ms without them not counted): "
         + ", ".join(
             f"{name} {p.get('machine_stalls', 0)} (longest {p.get('machine_stall_max_ms', 0.0):.1f} ms; "
-            f"{p.get('gaps_5ms_machine', 0)} gaps>5 taken out)"
+            f"{p.get('gaps_5ms_machine', 0)} gaps>5 taken out; probe held off a present CPU {p.get('probe_held', 0)})"
             for name, p in ph.items()
         )
     )

@@ -9,8 +9,16 @@ CPU (the guest's ``/proc/stat`` reports no steal time here), or the kernel with 
 scheduling event at all for 5.07 and 5.17 ms, the 1 kHz emulator on it silent, and the bridge process's GIL holder
 frozen on it, so both devices' commands stopped (6.4 and 5.6 ms gaps) while the other CPU ran.
 
-Each probe records every wake-up more than :data:`RECORD_NS` late as ``(cpu, deadline_ns, wake_ns)``; it stops on
-SIGTERM or SIGINT and writes its records (``np.save``). :func:`stall_overlap_ns` gives how much of an interval the
+A late wake-up is not always the machine's. The kernel's RT throttling (``sched_rt_runtime_us``, 950 ms of every
+second for real-time threads) stops every real-time thread of a CPU, the probe's too, once they have used their share:
+that is the benchmark's own load, and the trace of a trial that raised the node's threads to 79 beside two bridges
+showed late wake-ups of up to 47 ms. A throttled (or preempted) probe is runnable while it waits; a probe whose CPU
+was away is not even woken. So each probe reads its own ``run_delay`` (``/proc/thread-self/schedstat``: the time it
+waited on a run queue while runnable) at each wake-up, and a late wake-up is a stall of the machine only when it spent
+less than half of its lateness waiting to run (:func:`stalls`).
+
+Each probe records every wake-up more than :data:`RECORD_NS` late as ``(cpu, deadline_ns, wake_ns, waited_ns)``; it
+stops on SIGTERM or SIGINT and writes its records (``np.save``). :func:`stall_overlap_ns` gives how much of an interval the
 recorded stalls cover, which the device benchmark takes out of a command gap before it counts the gap (a gap that is
 within the aim once the machine's own absence is taken out is the machine's, reported apart).
 
@@ -44,7 +52,8 @@ MAX_RECORDS = 100_000
 
 def probe(cpu: int, out: Path) -> int:
     """Run one probe on ``cpu`` until SIGTERM or SIGINT; write its late wake-ups to ``out`` (.npy, rows ``(cpu,
-    deadline_ns, wake_ns)``). Returns the exit code."""
+    deadline_ns, wake_ns, waited_ns)``, ``waited_ns`` the run-queue wait since the wake-up before). Returns the exit
+    code."""
     from skin_sim_node.ros_util import set_realtime, sleep_until_ns
 
     stop = [False]
@@ -57,8 +66,10 @@ def probe(cpu: int, out: Path) -> int:
     os.sched_setaffinity(0, {cpu})
     why = set_realtime(PROBE_PRIORITY)
     print(f"PROBE cpu {cpu} rt={'granted' if why is None else why}", flush=True)
-    rows = np.zeros((MAX_RECORDS, 3), dtype=np.int64)
+    rows = np.zeros((MAX_RECORDS, 4), dtype=np.int64)
     n = 0
+    stat = os.open("/proc/thread-self/schedstat", os.O_RDONLY)  # "<on-CPU ns> <run-queue wait ns> <slices>"
+    waited = int(os.pread(stat, 64, 0).split()[1])
     gc.collect()
     gc.freeze()
     gc.disable()  # no collector pass in the loop: it allocates nothing that lives
@@ -66,9 +77,11 @@ def probe(cpu: int, out: Path) -> int:
     while not stop[0]:
         sleep_until_ns(deadline)
         now = time.monotonic_ns()
+        w = int(os.pread(stat, 64, 0).split()[1])
         if now - deadline > RECORD_NS and n < MAX_RECORDS:
-            rows[n] = (cpu, deadline, now)
+            rows[n] = (cpu, deadline, now, w - waited)
             n += 1
+        waited = w
         deadline += PERIOD_NS
         if deadline < now:  # a stall longer than a period: the next deadline after now (one record per stall)
             deadline = now + PERIOD_NS - (now - deadline) % PERIOD_NS
@@ -88,7 +101,7 @@ def start(log_dir: Path, env: dict | None = None) -> list[subprocess.Popen]:
 
 
 def stop(procs: list[subprocess.Popen], log_dir: Path) -> np.ndarray:
-    """Stop the probes and return every CPU's records, rows ``(cpu, deadline_ns, wake_ns)`` sorted by deadline."""
+    """Stop the probes and return every CPU's records, rows ``(cpu, deadline_ns, wake_ns, waited_ns)`` by deadline."""
     for p in procs:
         p.send_signal(signal.SIGTERM)
     for p in procs:
@@ -101,23 +114,34 @@ def stop(procs: list[subprocess.Popen], log_dir: Path) -> np.ndarray:
 
 
 def load(log_dir: Path) -> np.ndarray:
-    """The probes' records in ``log_dir`` (rows ``(cpu, deadline_ns, wake_ns)``, by deadline; none: shape (0, 3))."""
+    """The probes' records in ``log_dir`` (rows ``(cpu, deadline_ns, wake_ns, waited_ns)``, by deadline; none: shape
+    (0, 4))."""
     parts = [np.load(f) for f in sorted(Path(log_dir).glob("stall_probe_cpu*.npy"))]
-    rows = np.concatenate(parts) if parts else np.zeros((0, 3), dtype=np.int64)
-    return rows[np.argsort(rows[:, 1], kind="stable")] if len(rows) else rows.reshape(0, 3)
+    rows = np.concatenate(parts) if parts else np.zeros((0, 4), dtype=np.int64)
+    return rows[np.argsort(rows[:, 1], kind="stable")] if len(rows) else rows.reshape(0, 4)
 
 
 def stalls(rows: np.ndarray, lo_ns: float = -np.inf, hi_ns: float = np.inf) -> np.ndarray:
-    """The records that are stalls (:data:`STALL_NS` or later) with their deadline in ``[lo_ns, hi_ns)``."""
-    late = rows[:, 2] - rows[:, 1] >= STALL_NS
-    return rows[late & (rows[:, 1] >= lo_ns) & (rows[:, 1] < hi_ns)]
+    """The records that are stalls of the machine, with their deadline in ``[lo_ns, hi_ns)``: :data:`STALL_NS` late
+    or more, less than half of it spent runnable on a run queue (module docstring)."""
+    late = rows[:, 2] - rows[:, 1]
+    machine = (late >= STALL_NS) & (rows[:, 3] < late / 2)
+    return rows[machine & (rows[:, 1] >= lo_ns) & (rows[:, 1] < hi_ns)]
+
+
+def held(rows: np.ndarray, lo_ns: float = -np.inf, hi_ns: float = np.inf) -> np.ndarray:
+    """Late wake-ups (:data:`STALL_NS` or more) spent mostly runnable: the probe held off a CPU that was there (RT
+    throttling, the kernel): not the machine's, never taken out of a gap."""
+    late = rows[:, 2] - rows[:, 1]
+    mine = (late >= STALL_NS) & (rows[:, 3] >= late / 2)
+    return rows[mine & (rows[:, 1] >= lo_ns) & (rows[:, 1] < hi_ns)]
 
 
 def stall_overlap_ns(rows: np.ndarray, a_ns: float, b_ns: float) -> float:
     """How long (ns) the stalls in ``rows`` cover of ``[a_ns, b_ns]``: the union over every CPU of each stall's
     ``[deadline, wake]`` (a lower bound of the CPU's absence, which may have begun before the deadline)."""
     s = stalls(rows)
-    iv = sorted((max(float(d), a_ns), min(float(w), b_ns)) for _, d, w in s if w > a_ns and d < b_ns)
+    iv = sorted((max(float(d), a_ns), min(float(w), b_ns)) for _, d, w, _ in s if w > a_ns and d < b_ns)
     total, end = 0.0, -np.inf
     for lo, hi in iv:
         if hi <= end:
