@@ -21,6 +21,8 @@ from skin_sim_node.device.render import (
     FADE_S,
     FRICTION_CONE_FLOOR,
     MAX_TICK_S,
+    PASSIVITY_DELAY_TICKS,
+    SERVO_PERIOD_S,
     ContactRenderer,
     cap_spectral_norm,
     clamp_vec,
@@ -274,3 +276,36 @@ def test_the_profile_keeps_discovery_on_this_host_without_multicast():
     assert peers == ["127.0.0.1"]
     kinds = [t.find("p:type", ns).text for t in root.findall("p:transport_descriptors/p:transport_descriptor", ns)]
     assert kinds == ["UDPv4"]
+
+
+def test_the_passivity_controller_ticks_on_the_servo_period_not_on_stamp_jitter():
+    """bench-device, 2026-12-06: the emulated driver, a whole period late once, published its next pose 0.144 ms
+    after (stamps are publish times) while the pose had moved a whole period's 13 um. The passivity controller took
+    dx / 0.144 ms as the velocity and mass / 0.144 ms as its bound, and its damping commanded the device's 3.3 N for
+    one tick against a true 0.91 N. Its tick is the servo period: the damping it may add stays what a 1 ms tick
+    allows."""
+    mass = 0.045
+    speed = 13e-3  # m/s along -x: the drag's speed there
+
+    def run(stamps):
+        r = ContactRenderer(max_force_n=TOUCH_PEAK_FORCE_N, passivity_mass_kg=mass)
+        # an environment that pushes the stylus along its motion (-x): it feeds energy, so the controller acts
+        f0 = (-0.5, 0.0, 0.9)
+        m = LocalModel(1, 0, "tissue", (0.0, 0.0, -1e-3), np.zeros(3), f0, np.zeros((3, 3)), np.zeros((3, 3)), Z, 1.0, 10.0)
+        r.set_model(m, 0.0)
+        damping = []  # what the controller added to the rendered force, each tick
+        for k, t in enumerate(stamps):
+            x = (-speed * k * 1e-3, 0.0, -1e-3)  # the pose of slot k: its position at the slot's deadline
+            damping.append(np.linalg.norm(r.render(t, x) - r._last_out))
+        return np.array(damping), r
+
+    regular = np.arange(40) * 1e-3
+    jittered = regular.copy()
+    jittered[30] += 0.921e-3  # a late slot...
+    jittered[31] = jittered[30] + 0.144e-3  # ...and the next one published right after it
+    d_reg, r_reg = run(regular)
+    d_jit, _ = run(jittered)
+    assert r_reg.passivity.active_ticks > 0 and d_reg.max() > 0.0  # the controller is acting in this scene
+    bound = mass / (PASSIVITY_DELAY_TICKS + 1) / SERVO_PERIOD_S * speed  # its damping at most m/T times the speed
+    assert d_reg.max() <= bound * (1 + 1e-9)
+    assert d_jit.max() <= bound * (1 + 1e-9), d_jit[28:34]

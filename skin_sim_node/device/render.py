@@ -105,7 +105,9 @@ one count per window (``slip_speed_floor_m_s``, as a Touch would need) 37/31/26 
 --device-drag``, issue 19 closing note). A device that reports no velocity is better served by the linear form."""
 
 SERVO_PERIOD_S = 1e-3
-"""The device's servo period the bridge's chatter guard assumes (s): a Touch's OpenHaptics servo loop runs at 1 kHz."""
+"""The device's servo period the bridge's chatter guard and passivity controller assume (s): a Touch's OpenHaptics
+servo loop runs at 1 kHz. The controller's tick is never shorter (stamps closer than it are a driver's publish
+jitter, not a shorter tick)."""
 
 CHATTER_WINDOW_S = 0.01
 """The chatter guard's window (s): :data:`CHATTER_FLIPS` reversals of the device's tangential velocity within 10 ms
@@ -631,6 +633,12 @@ class ContactRenderer:
         applied = f
         if self.passivity is not None and finite_x:
             dt = raw - self._last_t if self._last_t is not None else 0.0
+            # the controller's tick is the device's servo period, not the stamps' difference (Hannaford & Ryu's
+            # sampling period): a driver's stamp is its publish time, and after a late slot the next pose came 0.14 ms
+            # after it while its position had moved a whole period's worth (13 um at 13 mm/s); dx / 0.14 ms and the
+            # bound mass / 0.14 ms rendered a 9.4 N damping spike, the device's 3.3 N for one tick (bench-device,
+            # 2026-12-06). A longer interval (a gap) is kept: it only lowers the bound
+            dt = max(dt, SERVO_PERIOD_S) if dt > 0.0 else 0.0
             if self._last_x is not None:
                 dx = x - self._last_x
                 if applied_over_dx is not None and _finite(applied_over_dx):  # the device said what it applied
