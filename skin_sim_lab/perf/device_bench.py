@@ -482,20 +482,32 @@ def analyse(
     return out
 
 
-def gap_sources(ct: np.ndarray, gaps: np.ndarray, own_late: np.ndarray, slots: np.ndarray, phase_start_ns: float) -> list:
-    """Where each counted gap over 5 ms came from: ``[t_s, gap_ms, poses_published, first_answer_latency_ms]`` with
+def gap_sources(ct: np.ndarray, gaps: np.ndarray, excluded: np.ndarray, slots: np.ndarray, phase_start_ns: float) -> list:
+    """Where each gap over 5 ms not ``excluded`` came from: ``[t_s, gap_ms, poses_published, first_answer_latency_ms]`` with
     ``t_s`` from the phase's start, the emulator's poses published on time inside the gap (0: the emulator itself
     published nothing, e.g. a stall it did not flag) and how long after its pose the first command after the gap
     arrived (the bridge and DDS path's delay)."""
     out = []
     pub = slots[slots[:, 2] > 0]
-    for i in np.flatnonzero((gaps > 5e6) & ~own_late):
+    for i in np.flatnonzero((gaps > 5e6) & ~excluded):
         inside = pub[(pub[:, 1] > ct[i]) & (pub[:, 1] < ct[i + 1])]
         first = float((ct[i + 1] - inside[0, 1]) * 1e-6) if len(inside) else float("nan")
         out.append(
             [round(float((ct[i] - phase_start_ns) * 1e-9), 3), round(float(gaps[i] * 1e-6), 1), len(inside), round(first, 1)]
         )
     return out
+
+
+def print_gaps(label: str, p: dict) -> None:
+    """Print one phase's gaps over 5 ms (``label``: the phase, or the hand and the phase): each counted one with where
+    it came from (:func:`gap_sources`), then each one the machine's stalls took out."""
+    for t_s, gap_ms, n_pub, lat_ms in p.get("gaps_5ms_where", []):
+        print(
+            f"  gap {label} +{t_s:.3f} s: {gap_ms:.1f} ms without a command; {n_pub} device poses published on time in it, "
+            f"the first command after it {lat_ms:.1f} ms after the first of them"
+        )
+    for t_s, gap_ms, _, _ in p.get("gaps_5ms_machine_where", []):
+        print(f"  gap {label} +{t_s:.3f} s: {gap_ms:.1f} ms, the machine's (a CPU stall inside it; not counted)")
 
 
 def kill_fade(cmds: np.ndarray, kill_ns: int) -> dict:
@@ -976,13 +988,7 @@ def main(argv=None) -> int:
         "is the friction's); kill: render error before the kill"
     )
     for name, p in ph.items():
-        for t_s, gap_ms, n_pub, lat_ms in p.get("gaps_5ms_where", []):
-            print(
-                f"  gap {name} +{t_s:.3f} s: {gap_ms:.1f} ms without a command; {n_pub} device poses published on time in it, "
-                f"the first command after it {lat_ms:.1f} ms after the first of them"
-            )
-        for t_s, gap_ms, _, _ in p.get("gaps_5ms_machine_where", []):
-            print(f"  gap {name} +{t_s:.3f} s: {gap_ms:.1f} ms, the machine's (a CPU stall inside it; not counted)")
+        print_gaps(name, p)
     if args.json:
         args.json.write_text(json.dumps(ph, indent=2))
     missed = missed_aims(ph, one_process=args.with_node)

@@ -42,6 +42,7 @@ from .device_bench import (
     missed_aims,
     parser,
     phase_windows,
+    print_gaps,
     print_table,
     run,
 )
@@ -225,13 +226,7 @@ def main_hands(args) -> int:
     )
     for ns, ph in phs.items():
         for name, p in ph.items():
-            for t_s, gap_ms, n_pub, lat_ms in p.get("gaps_5ms_where", []):
-                print(
-                    f"  gap {ns} {name} +{t_s:.3f} s: {gap_ms:.1f} ms without a command; {n_pub} device poses published "
-                    f"on time in it, the first command after it {lat_ms:.1f} ms after the first of them"
-                )
-            for t_s, gap_ms, _, _ in p.get("gaps_5ms_machine_where", []):
-                print(f"  gap {ns} {name} +{t_s:.3f} s: {gap_ms:.1f} ms, the machine's (a CPU stall inside it; not counted)")
+            print_gaps(f"{ns} {name}", p)
     if args.json:
         args.json.write_text(json.dumps({"hands": phs, "cpu": res["cpu"], "echo_pct": res["echo_pct"]}, indent=2))
     missed = missed_hand_aims(phs, one_process=args.with_node)

@@ -73,8 +73,9 @@ def probe(cpu: int, out: Path) -> int:
     gc.collect()
     gc.freeze()
     gc.disable()  # no collector pass in the loop: it allocates nothing that lives
+    parent = os.getppid()
     deadline = time.monotonic_ns() + PERIOD_NS
-    while not stop[0]:
+    while not stop[0] and os.getppid() == parent:  # it ends with the benchmark, however that ends (no FIFO 99 orphan)
         sleep_until_ns(deadline)
         now = time.monotonic_ns()
         w = int(os.pread(stat, 64, 0).split()[1])
@@ -121,20 +122,24 @@ def load(log_dir: Path) -> np.ndarray:
     return rows[np.argsort(rows[:, 1], kind="stable")] if len(rows) else rows.reshape(0, 4)
 
 
+def _late(rows: np.ndarray, lo_ns: float, hi_ns: float, away: bool) -> np.ndarray:
+    """The records :data:`STALL_NS` late or more with their deadline in ``[lo_ns, hi_ns)``: with ``away`` those that
+    spent less than half of it runnable on a run queue (the CPU was away), else the others (module docstring)."""
+    late = rows[:, 2] - rows[:, 1]
+    was_away = rows[:, 3] < late / 2
+    return rows[(late >= STALL_NS) & (was_away == away) & (rows[:, 1] >= lo_ns) & (rows[:, 1] < hi_ns)]
+
+
 def stalls(rows: np.ndarray, lo_ns: float = -np.inf, hi_ns: float = np.inf) -> np.ndarray:
     """The records that are stalls of the machine, with their deadline in ``[lo_ns, hi_ns)``: :data:`STALL_NS` late
     or more, less than half of it spent runnable on a run queue (module docstring)."""
-    late = rows[:, 2] - rows[:, 1]
-    machine = (late >= STALL_NS) & (rows[:, 3] < late / 2)
-    return rows[machine & (rows[:, 1] >= lo_ns) & (rows[:, 1] < hi_ns)]
+    return _late(rows, lo_ns, hi_ns, away=True)
 
 
 def held(rows: np.ndarray, lo_ns: float = -np.inf, hi_ns: float = np.inf) -> np.ndarray:
     """Late wake-ups (:data:`STALL_NS` or more) spent mostly runnable: the probe held off a CPU that was there (RT
     throttling, the kernel): not the machine's, never taken out of a gap."""
-    late = rows[:, 2] - rows[:, 1]
-    mine = (late >= STALL_NS) & (rows[:, 3] >= late / 2)
-    return rows[mine & (rows[:, 1] >= lo_ns) & (rows[:, 1] < hi_ns)]
+    return _late(rows, lo_ns, hi_ns, away=False)
 
 
 def stall_overlap_ns(rows: np.ndarray, a_ns: float, b_ns: float) -> float:
