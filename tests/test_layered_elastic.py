@@ -1,0 +1,60 @@
+"""skin_sim_lab/validation/layered_elastic.py: the layered block's linear surface response against closed forms and
+the linear 3D FEM."""
+
+import numpy as np
+import pytest
+
+from skin_sim_lab.validation import fem
+from skin_sim_lab.validation import layered_elastic as le
+from skin_sim_lab.validation.hyperelastic import layer_moduli_pa
+from skin_sim_lab.validation.references import FINEST_LEVEL
+from skin_sim_node.model import preset
+
+CFG = preset("default")
+
+
+def test_a_thick_layer_is_a_half_space_and_a_thin_one_a_lubricated_compressible_film():
+    e, nu = 20e3, 0.48
+    mu = e / (2 * (1 + nu))
+    k = np.array([1e3, 1e4, 1e5])
+    half = (1 - nu) / (mu * k)
+    np.testing.assert_allclose(le.surface_compliance(k, ((1.0, e),), nu), half, rtol=1e-9)
+    # thin: the layer's flux (h^3 / (3 mu)) k^2 plus its own compression h / M, M = lam + 2 mu (confined)
+    h = 5e-3
+    lam = 2 * mu * nu / (1 - 2 * nu)
+    k = np.array([2.0, 5.0, 10.0])  # k h = 0.01-0.05
+    thin = k**2 * h**3 / (3 * mu) + h / (lam + 2 * mu)
+    np.testing.assert_allclose(le.surface_compliance(k, ((h, e),), nu), thin, rtol=0.01)
+
+
+def test_a_rigid_punch_on_a_half_space_has_sneddons_stiffness_and_surface():
+    e, nu, a = 20e3, 0.48, 2.5e-3
+    p = le.rigid_punch(((0.5, e),), a, nu)  # 200 radii deep: a half-space to the punch
+    assert p.stiffness_n_per_m == pytest.approx(2 * e * a / (1 - nu**2), rel=0.015)
+    r = np.array([1.5, 2.0, 4.0]) * a
+    np.testing.assert_allclose(p.profile(r), 2 / np.pi * np.arcsin(a / r), atol=0.01)
+    np.testing.assert_allclose(p.profile([0.0, 0.5 * a]), 1.0, atol=0.01)  # flat under the punch
+
+
+def test_the_coupling_is_reciprocal():
+    stack = le.layers(CFG)
+    small, big = le.rigid_punch(stack, 1.5e-3), le.rigid_punch(stack, 4e-3)
+    s = np.array([6e-3, 8e-3, 12e-3])
+    # Betti: the force one punch's unit depth takes from the other is the same both ways, G_ij F_i = G_ji F_j
+    np.testing.assert_allclose(
+        small.coupling(big, s) * small.stiffness_n_per_m, big.coupling(small, s) * big.stiffness_n_per_m, rtol=1e-3
+    )
+
+
+def test_the_layers_agree_with_the_linear_3d_fem():
+    """The project's linear FEM (egg-carton interfaces, mesh level FINEST_LEVEL, cached under docs/validation) against
+    the exact flat-layered solution: the two solve one problem but for the interfaces' corrugation."""
+    p = le.rigid_punch(le.layers(CFG), CFG.tool_radius_m)
+    setup = fem.mesh_levels(FINEST_LEVEL, fem.FemSetup(moduli_pa=layer_moduli_pa(CFG), tissue=fem._geometry_key(CFG)))
+    res = fem.reference(setup, progress=False)
+    assert p.stiffness_n_per_m == pytest.approx(res.stiffness_n_per_m, rel=0.02)
+    r = np.array([4, 6, 8, 10, 13, 20]) * 1e-3
+    row = res.surface_per_depth[int(np.argmin(np.abs(res.sample_y_m)))]
+    np.testing.assert_allclose(p.profile(r), np.interp(r, res.sample_x_m, row), atol=0.004)
+    # the heave: the surface rises above rest beside the punch in both
+    assert p.profile([7e-3])[0] < -0.05
