@@ -58,3 +58,16 @@ def test_the_layers_agree_with_the_linear_3d_fem():
     np.testing.assert_allclose(p.profile(r), np.interp(r, res.sample_x_m, row), atol=0.004)
     # the heave: the surface rises above rest beside the punch in both
     assert p.profile([7e-3])[0] < -0.05
+
+
+def test_the_pair_solve_meets_first_order_apart_and_halves_the_force_of_coincident_punches():
+    stack = le.layers(CFG)
+    a = CFG.tool_radius_m
+    p = le.rigid_punch(stack, a)
+    # apart, the full solve and Betti's first order agree (coarse cells: the check's own grid is 0.1 mm)
+    assert le.rigid_pair_interaction(stack, a, 10e-3, cell_m=0.2e-3) == pytest.approx(-p.coupling(p, 10e-3)[0], abs=0.003)
+    # nearly coincident: one footprint shared by two punches, each carries about half of it (0.2 mm apart the union
+    # is 10 % larger in area than one disk, about 5 % stiffer: Sneddon's force grows as the radius)
+    assert le.rigid_pair_interaction(stack, a, 0.2e-3, cell_m=0.2e-3) == pytest.approx(-0.5 + 0.025, abs=0.02)
+    # overlapping 4 mm apart: softer than single, as the FEM's pair
+    assert -0.1 < le.rigid_pair_interaction(stack, a, 4e-3, cell_m=0.2e-3) < -0.08
