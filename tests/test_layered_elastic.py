@@ -19,12 +19,15 @@ def test_a_thick_layer_is_a_half_space_and_a_thin_one_a_lubricated_compressible_
     k = np.array([1e3, 1e4, 1e5])
     half = (1 - nu) / (mu * k)
     np.testing.assert_allclose(le.surface_compliance(k, ((1.0, e),), nu), half, rtol=1e-9)
-    # thin: the layer's flux (h^3 / (3 mu)) k^2 plus its own compression h / M, M = lam + 2 mu (confined)
-    h = 5e-3
+    # thin, nearly incompressible: the layer's flux (h^3 / (3 mu)) k^2 (lubrication) plus its own compression h / M,
+    # M = lam + 2 mu (confined); at k h = 0.05-0.1 the flux term is 80-94 % of C, so this checks its coefficient
+    nu = 0.4999
+    mu = e / (2 * (1 + nu))
     lam = 2 * mu * nu / (1 - 2 * nu)
-    k = np.array([2.0, 5.0, 10.0])  # k h = 0.01-0.05
+    h = 5e-3
+    k = np.array([10.0, 20.0])  # higher orders in k h: 0.4-1.7 %
     thin = k**2 * h**3 / (3 * mu) + h / (lam + 2 * mu)
-    np.testing.assert_allclose(le.surface_compliance(k, ((h, e),), nu), thin, rtol=0.01)
+    np.testing.assert_allclose(le.surface_compliance(k, ((h, e),), nu), thin, rtol=0.03)
 
 
 def test_a_rigid_punch_on_a_half_space_has_sneddons_stiffness_and_surface():
@@ -34,16 +37,6 @@ def test_a_rigid_punch_on_a_half_space_has_sneddons_stiffness_and_surface():
     r = np.array([1.5, 2.0, 4.0]) * a
     np.testing.assert_allclose(p.profile(r), 2 / np.pi * np.arcsin(a / r), atol=0.01)
     np.testing.assert_allclose(p.profile([0.0, 0.5 * a]), 1.0, atol=0.01)  # flat under the punch
-
-
-def test_the_coupling_is_reciprocal():
-    stack = le.layers(CFG)
-    small, big = le.rigid_punch(stack, 1.5e-3), le.rigid_punch(stack, 4e-3)
-    s = np.array([6e-3, 8e-3, 12e-3])
-    # Betti: the force one punch's unit depth takes from the other is the same both ways, G_ij F_i = G_ji F_j
-    np.testing.assert_allclose(
-        small.coupling(big, s) * small.stiffness_n_per_m, big.coupling(small, s) * big.stiffness_n_per_m, rtol=1e-3
-    )
 
 
 def test_the_layers_agree_with_the_linear_3d_fem():
@@ -56,8 +49,8 @@ def test_the_layers_agree_with_the_linear_3d_fem():
     r = np.array([4, 6, 8, 10, 13, 20]) * 1e-3
     row = res.surface_per_depth[int(np.argmin(np.abs(res.sample_y_m)))]
     np.testing.assert_allclose(p.profile(r), np.interp(r, res.sample_x_m, row), atol=0.004)
-    # the heave: the surface rises above rest beside the punch in both
-    assert p.profile([7e-3])[0] < -0.05
+    # the heave: the surface rises above rest beside the punch, in both
+    assert p.profile([7e-3])[0] < -0.04 and np.interp(7e-3, res.sample_x_m, row) < -0.04
 
 
 def test_the_pair_solve_meets_first_order_apart_and_halves_the_force_of_coincident_punches():
@@ -66,8 +59,8 @@ def test_the_pair_solve_meets_first_order_apart_and_halves_the_force_of_coincide
     p = le.rigid_punch(stack, a)
     # apart, the full solve and Betti's first order agree (coarse cells: the check's own grid is 0.1 mm)
     assert le.rigid_pair_interaction(stack, a, 10e-3, cell_m=0.2e-3) == pytest.approx(-p.coupling(p, 10e-3)[0], abs=0.003)
-    # nearly coincident: one footprint shared by two punches, each carries about half of it (0.2 mm apart the union
-    # is 10 % larger in area than one disk, about 5 % stiffer: Sneddon's force grows as the radius)
-    assert le.rigid_pair_interaction(stack, a, 0.2e-3, cell_m=0.2e-3) == pytest.approx(-0.5 + 0.025, abs=0.02)
+    # nearly coincident: one footprint shared by two punches, each carries half of it; 0.2 mm apart the union is 5 %
+    # larger in area than one disk, 2-3 % stiffer (a flat punch's force grows about as its radius)
+    assert -0.5 < le.rigid_pair_interaction(stack, a, 0.2e-3, cell_m=0.2e-3) < -0.47
     # overlapping 4 mm apart: softer than single, as the FEM's pair
     assert -0.1 < le.rigid_pair_interaction(stack, a, 4e-3, cell_m=0.2e-3) < -0.08
