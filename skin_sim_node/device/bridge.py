@@ -113,9 +113,7 @@ class BridgeNode(DeviceNode):
         built: list = []
 
         def node():
-            built.append(SkinSimNode(ros_args=cls.ROS_ARGS))
-            if cls.JOURNAL is not None:
-                built[0].journal = AnswerJournal(cls.JOURNAL)
+            built.append(SkinSimNode(ros_args=cls.ROS_ARGS, journal=None if cls.JOURNAL is None else AnswerJournal(cls.JOURNAL)))
             return built[0]
 
         def bridges():

@@ -127,7 +127,7 @@ class SkinSimNode(Node):
 
     TRANSPORT_NOTE = ""  # what localhost_udp_env decided before rclpy started (logged at start)
 
-    def __init__(self, ros_args: list[str] | None = None, **kwargs):
+    def __init__(self, ros_args: list[str] | None = None, journal: AnswerJournal | None = None, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         # Every override rcl resolved for this node (matching file entries, -p) is checked against the contract before
         # anything is declared: rclpy would silently ignore an unknown name (the node then runs on the defaults) and
@@ -172,8 +172,10 @@ class SkinSimNode(Node):
         """Per hand index, the composed bridge's in-memory entry for that hand's contact models (``skin-sim bridge
         --with-node``: :class:`~skin_sim_node.device.links.LocalLink`), called with each contact model in the tick (no
         DDS hop, no copy kept)."""
-        self.journal: AnswerJournal | None = None
-        """Every answered pose and its force, written at :meth:`stop` (``skin-sim bridge --with-node --journal``)."""
+        self.journal: AnswerJournal | None = journal
+        """Every answered pose and its force, written at :meth:`stop` (``skin-sim bridge --with-node --journal``).
+        Given to the constructor, so it holds the clock's first ticks too: set after it, a heartbeat wrench published
+        before could reach a reader and not the journal (a CI-equivalent run: 549 delivered, 548 in it)."""
         self._journal_pose: dict[int, tuple] = {}  # per hand, the last accepted pose (stamp, xyz, quat), for the journal
         self._accepted: tuple[dict, dict, NodeParams, TissueConfig] | None = None  # on_set's validated set, for post_set
         self.add_on_set_parameters_callback(self._on_set_parameters)  # validate (ros2/demos: on_set checks)
@@ -658,10 +660,7 @@ def main(argv=None) -> int:
     os.environ.update(updates)  # before rclpy creates a participant (the display worker inherits it)
 
     def build() -> SkinSimNode:
-        node = SkinSimNode(ros_args=rest)
-        if args.journal is not None:
-            node.journal = AnswerJournal(args.journal)
-        return node
+        return SkinSimNode(ros_args=rest, journal=None if args.journal is None else AnswerJournal(args.journal))
 
     return run_nodes([build], args=rest, executor=args.executor)
 
