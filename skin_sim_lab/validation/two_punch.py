@@ -815,7 +815,8 @@ def linear_layers(cfg: TissueConfig, prof: Profiles, progress: bool = True) -> L
     from .fem import reference as linear_reference
 
     a = cfg.tool_radius_m
-    punch = layered_elastic.rigid_punch(layered_elastic.layers(cfg), a)
+    stack = layered_elastic.layers(cfg)
+    punch = layered_elastic.rigid_punch(stack, a)
     setup = replace(FemSetup(), moduli_pa=layer_moduli_pa(cfg), tissue=_geometry_key(cfg))
     res = linear_reference(mesh_levels(FINEST_LEVEL, setup), progress=progress)
     row = res.surface_per_depth[int(np.argmin(np.abs(res.sample_y_m)))]
@@ -825,7 +826,7 @@ def linear_layers(cfg: TissueConfig, prof: Profiles, progress: bool = True) -> L
     close = [d for d in DISTANCES_M if d < 2 * a]
     overlap = {}
     for d in tqdm(close, desc="linear pair, overlapping footprints (2D solve)", disable=not progress, leave=False):
-        overlap[d] = layered_elastic.rigid_pair_interaction(layered_elastic.layers(cfg), a, d)
+        overlap[d] = layered_elastic.rigid_pair_interaction(stack, a, d)
     first = {}
     for d in DISTANCES_M:
         pair, single = (fem_solve(fem_setup(cfg, d, partner), progress=progress) for partner in (True, False))
