@@ -82,6 +82,11 @@ def test_a_probe_held_off_by_rt_throttling_is_not_counted_as_the_machines(tmp_pa
     if spinner.returncode == 3:
         pytest.skip("SCHED_FIFO not permitted")
     held = sp.held(rows)
-    assert len(held) >= 1 and set(held[:, 0]) == {1}, rows  # throttled on CPU 1, runnable while late
-    assert np.all(held[:, 3] >= (held[:, 2] - held[:, 1]) / 2)
-    assert sp.stall_overlap_ns(rows[rows[:, 0] == 1], float(held[0, 1]), float(held[0, 2])) < held[0, 2] - held[0, 1]
+    assert np.all(held[:, 3] >= (held[:, 2] - held[:, 1]) / 2)  # every row it calls held waited runnable
+    # The throttled period on CPU 1 is the rest of a second beyond sched_rt_runtime_us (50 ms by default): at least one
+    # held row there late by over 20 ms. Other CPUs are not asserted on: a busy host (CI beside other jobs) can hold a
+    # probe there too, and those rows are held by the same rule (a CI run had one on CPU 0, 8.7 ms late, 8.6 runnable).
+    throttled = held[(held[:, 0] == 1) & (held[:, 2] - held[:, 1] > 20_000_000)]
+    assert len(throttled) >= 1, rows
+    late = throttled[0]
+    assert sp.stall_overlap_ns(rows[rows[:, 0] == 1], float(late[1]), float(late[2])) < late[2] - late[1]
