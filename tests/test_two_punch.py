@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -33,8 +35,9 @@ def test_the_reference_is_consistent(rows, checks):
         # overlapping punches (4 mm) share the dimple: each needs less force than alone
         assert by[4e-3, depth].fem_pair_n < by[4e-3, depth].fem_single_n
         # the single punch at x = 2 mm and at x = 3 mm stand on mirror images of the egg carton (cos(0.8 pi) =
-        # cos(1.2 pi), both on rete-ridge peaks): one force, from two meshes, within 1 %
-        assert by[4e-3, depth].fem_single_n == pytest.approx(by[6e-3, depth].fem_single_n, rel=0.01)
+        # cos(1.2 pi), both on rete-ridge peaks): one force, from two meshes, within 0.2 % (1.1 % apart when the 4 mm
+        # single stood on the mirror of the pair's mesh, its disk's edge on a staircase beyond x = 0)
+        assert by[4e-3, depth].fem_single_n == pytest.approx(by[6e-3, depth].fem_single_n, rel=0.002)
         # 20 mm apart the punches barely feel each other in the reference too
         assert abs(by[20e-3, depth].fem_fraction) < tp.MIN_INTERACTION_FRACTION
         # the block is wide enough: the single punch 10 mm off centre is the centred one within 2 % (mesh change too)
@@ -43,9 +46,35 @@ def test_the_reference_is_consistent(rows, checks):
     assert checks.fem_profile[10e-3] < 0 < checks.fem_profile[4e-3]
 
 
+@pytest.mark.parametrize("level", [-2, -1])
+def test_the_single_of_an_overlapping_pair_has_a_mesh_conforming_to_its_disk(level):
+    """The single punch of the 4 mm pair crosses x = 0; the pair's mirrored mesh conforms to the union of the two disks,
+    so it gets its own: every top node at the rim on the circle, none just outside, every element's volume positive,
+    the whole half block covered. The pair's quarter mesh is unchanged (x = 0 a mesh plane)."""
+    from skfem import Basis, ElementHex1
+
+    from skin_sim_lab.validation.fem import FemSetup, build_offset_mesh, mesh_levels
+
+    base = replace(mesh_levels(level, FemSetup()), tissue=tp.fem_base(CFG).tissue)
+    r0, a, w = base.tissue[2], 2e-3, base.half_width_m
+    mesh = build_offset_mesh(base, a, mirror=True)
+    p = mesh.p
+    top = np.abs(p[2]) < 1e-12
+    r = np.hypot(p[0][top] - a, p[1][top])
+    h = r0 / base.n_tool
+    assert np.sum(np.abs(r - r0) < 1e-12) == 4 * base.n_tool + 1  # the half ring: two nodes per element edge
+    assert not np.any((r > r0 + 1e-12) & (r < r0 + 0.5 * h))  # no node just outside the rim (a staircase)
+    assert p[0].min() == -w and p[0].max() == w and p[1].min() == 0 and p[1].max() == pytest.approx(w)
+    vol = np.asarray(Basis(mesh, ElementHex1()).dx).sum(axis=1)
+    assert np.all(vol > 0)
+    assert vol.sum() == pytest.approx(2 * w * w * -p[2].min(), rel=1e-9)
+    quarter = build_offset_mesh(base, a, mirror=False)
+    assert quarter.p[0].min() == 0.0
+
+
 @pytest.mark.xfail(
     strict=True,
-    reason="issue 32: 6 and 10 mm pass, and 4 mm 1 mm deep with the eased overlap hold; 4 mm 2 mm deep interacts 23 % "
+    reason="issue 32: 6 and 10 mm pass, and 4 mm 1 mm deep with the eased overlap hold; 4 mm 2 mm deep interacts 29 % "
     "over the FEM's (aim 20 %), and at 20 mm the thin-layer heave's tail leaves +0.7 % where the FEM has +0.0 % (the "
     "table's absolute rule is 0.4 %; docs/two_hands.md)",
 )
@@ -118,8 +147,9 @@ def test_the_implied_coupling(implied):
         assert 0.05 < four.lowering_ratio < 0.09
         assert -0.06 < six.lowering_ratio < -0.03
         assert -0.06 < ten.lowering_ratio < -0.04
-    # the earlier attempt's figures: the FEM's own single-punch curve at 1 mm (+0.075, -0.043, -0.050)
-    earlier = dict(zip(tp.IMPLIED_DISTANCES_M, (0.075, -0.043, -0.050)))
+    # the earlier attempt's figures: the FEM's own single-punch curve at 1 mm (-0.043, -0.050 at 6, 10 mm; at 4 mm
+    # +0.075 then, +0.070 since the overlapping single has a mesh conforming to its disk)
+    earlier = dict(zip(tp.IMPLIED_DISTANCES_M, (0.070, -0.043, -0.050)))
     for d, w in earlier.items():
         assert implied[d, 1e-3].fem_curve == pytest.approx(w, abs=0.002)
     deep = {d: implied[d, tp.MAX_DEPTH_M] for d in tp.IMPLIED_DISTANCES_M}

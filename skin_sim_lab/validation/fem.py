@@ -212,11 +212,19 @@ def build_offset_mesh(setup: FemSetup, centre_x_m: float, mirror: bool) -> MeshH
       this disk), the columns left of the centre are stretched along y only (the ring node of column ``u`` goes to
       ``y = sqrt(r0^2 - u^2)``, the band above is stretched to meet the unmapped grid), and the right side uses the
       O-grid blend; both are the identity on the column through the centre.
+
+    A single tool (``mirror``) that crosses ``x = 0`` (``centre_x_m < r0``: the single of an overlapping pair) is the
+    exception: the mirror image of the quarter's mesh conforms to the union of the two disks, not to the one disk, so
+    the sliver of the disk beyond ``x = 0`` would end on a staircase of nodes, and its force would move with the mesh
+    level (the 4 mm single at 0.25 mm: 0.0856, 0.0894, 0.0862 N at levels -2, -1, 0). It gets a mesh of its own,
+    :func:`_single_overlap_mesh`.
     """
     r0 = setup.tissue[2]
     n_band = 3
     h = r0 / setup.n_tool
     a = float(centre_x_m)
+    if mirror and a < r0:
+        return _single_overlap_mesh(setup, a, n_band)
     xs = offset_axis_nodes(r0, setup.n_tool, a, setup.half_width_m, setup.n_out, n_band)
     ys = axis_nodes(r0, setup.n_tool, setup.half_width_m, setup.n_out, n_band)
     zs = z_nodes(setup.tissue, setup.nz)
@@ -244,6 +252,33 @@ def build_offset_mesh(setup: FemSetup, centre_x_m: float, mirror: bool) -> MeshH
         new_y = np.where(left, y_str, new_y)
     new_x = np.where(ax < 1e-15, 0.0, new_u + a)  # the plane x = 0 exactly
     p[0], p[1] = sign * new_x, new_y
+    return MeshHex(p, mesh.t)
+
+
+def _single_overlap_mesh(setup: FemSetup, centre_x_m: float, n_band: int) -> MeshHex:
+    """The half model ``y >= 0``, ``-half_width_m <= x <= half_width_m``, of one tool at ``(centre_x_m, 0)`` that
+    crosses ``x = 0``: :func:`build_mesh`'s O-grid centred on the tool (its disk conforms all round), the graded nodes
+    running from the tool's band to each side (``half_width_m - centre_x_m`` to the right, ``half_width_m +
+    centre_x_m`` to the left, ``setup.n_out`` elements each). Nothing keeps ``x = 0`` a mesh plane: the half
+    model has no symmetry plane there."""
+    r0 = setup.tissue[2]
+    a = float(centre_x_m)
+    w_half = setup.half_width_m
+    right = a + axis_nodes(r0, setup.n_tool, w_half - a, setup.n_out, n_band)
+    left = a - axis_nodes(r0, setup.n_tool, w_half + a, setup.n_out, n_band)[:0:-1]
+    xs = np.concatenate([left, right])
+    ys = axis_nodes(r0, setup.n_tool, w_half, setup.n_out, n_band)
+    zs = z_nodes(setup.tissue, setup.nz)
+    mesh = MeshHex.init_tensor(xs, ys, zs[::-1])
+    p = mesh.p.copy()
+    u, y = p[0] - a, p[1]
+    rho = np.maximum(np.abs(u), y)
+    rad = np.hypot(u, y)
+    k_tool, k_band = r0, r0 * (1 + n_band / setup.n_tool)
+    w = np.where(rho <= k_tool, rho / k_tool, np.clip((k_band - rho) / (k_band - k_tool), 0.0, 1.0))
+    blend = (1 - w) + w * np.where(rad > 0, rho / np.where(rad > 0, rad, 1.0), 1.0)
+    p[0], p[1] = a + u * blend, y * blend
+    p[0] = np.where(np.abs(np.abs(p[0]) - w_half) < 1e-12, np.sign(p[0]) * w_half, p[0])  # the outer planes exactly
     return MeshHex(p, mesh.t)
 
 

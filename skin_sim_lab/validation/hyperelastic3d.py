@@ -66,7 +66,8 @@ class PunchLayout:
     The punch is centred at ``(centre_x_m, 0)`` in the frame of the mesh (the tissue frame shifted by the FEM setup's
     ``contact_xy_m``). With ``partner`` a second, equal punch at ``(-centre_x_m, 0)`` presses to the same depth, and
     the problem is the quarter ``x, y >= 0`` (symmetry planes ``x = 0`` and ``y = 0``); without it, the half ``y >= 0``
-    on the mirrored mesh (:func:`.fem.build_offset_mesh`), so the single punch and the pair share one mesh. The force
+    on the mirrored mesh (:func:`.fem.build_offset_mesh`), so the single punch and the pair share one mesh (except
+    where the pair's disks overlap: the single then has a mesh conforming to its own disk). The force
     is one punch's: twice the quarter's reaction (the pair's total is four quarters, two per punch), or twice the
     half's.
     """
@@ -91,6 +92,8 @@ class Setup3D:
         d = asdict(self)
         if d["layout"] is None:
             del d["layout"]
+        elif not self.layout.partner and self.layout.centre_x_m < self.fem.tissue[2]:
+            d["mesh"] = "single-overlap"  # its own conforming mesh (fem._single_overlap_mesh), not the pair's mirror
         blob = json.dumps({"v": HYPER_VERSION, "3d": 1, **d}, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
