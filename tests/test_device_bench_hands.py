@@ -157,3 +157,59 @@ def test_one_process_node_overrides_go_to_a_file_keyed_by_the_node(tmp_path):
         "/**/skin_sim_node": {"ros__parameters": {"hand_ns": "right", "second_hand_ns": "left", "rate_hz": 500.0}}
     }
     assert node_params((), tmp_path) == ()
+
+
+def test_a_run_that_raises_leaves_no_process_behind(tmp_path, monkeypatch):
+    """The benchmark starts hogs, emulators (SCHED_FIFO 90) and stall probes outside its scene; a run that raises must
+    not leave one of them running beside every later run (an emulator left spinning in its teardown did, session 11).
+    Here the bare echo's baseline raises after a hog has started: the hog is gone when ``run`` has raised."""
+    import subprocess
+
+    from skin_sim_lab.perf import cpu_budget, device_bench
+
+    class Proc:
+        popen = type("P", (), {"pid": 1})()
+
+        def log(self) -> str:
+            return ""
+
+    class FakeScene:  # stands for the ROS scene: node and bridge started, their logs empty
+        env = {"ROS_DOMAIN_ID": "0", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+
+        def __init__(self, log_dir):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def node(self, *args):
+            return Proc()
+
+        def start(self, *args):
+            return Proc()
+
+        def wait_for_log(self, *args, **kwargs):
+            return None
+
+    started = []
+
+    class Recorded(subprocess.Popen):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            started.append(self)
+
+    def boom(scene):
+        raise RuntimeError("the echo baseline failed")
+
+    for var, value in FakeScene.env.items():
+        monkeypatch.setenv(var, value)  # run() sets them from the scene; restored after the test
+    monkeypatch.setattr(device_bench, "Scene", FakeScene)
+    monkeypatch.setattr(cpu_budget, "echo_baseline", boom)
+    monkeypatch.setattr(subprocess, "Popen", Recorded)
+    with pytest.raises(RuntimeError, match="echo baseline"):
+        device_bench.run(2.0, 1, tmp_path)
+    assert len(started) == 1  # the hog
+    assert all(p.poll() is not None for p in started)

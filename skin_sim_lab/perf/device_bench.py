@@ -710,6 +710,24 @@ def run(
     has its bridge (``__ns:=/<namespace>``) and its emulator, the ``i``-th emulator's slots ``i * hand_offset_ns``
     after the first's (one shared start). Process names (CPU, records) take :func:`hand_key`'s suffix.
     """
+    phase_s = max(DRAG_PERIOD_S, DRAG_PERIOD_S * round(phase_s / DRAG_PERIOD_S))
+    hogs: list[subprocess.Popen] = []
+    spawned: list[subprocess.Popen] = []  # every process started here, outside the scene: none outlives the run
+    try:
+        return _run(
+            phase_s, hog, log_dir, bridge_shm, driver_shm, node_args, node_shm, with_node, hands, hand_offset_ns, hogs, spawned
+        )
+    finally:
+        for proc in (*hogs, *spawned):
+            if proc.poll() is None:  # a run that raised: an emulator at SCHED_FIFO 90 or a hog must not stay behind
+                proc.kill()
+                proc.wait()
+
+
+def _run(
+    phase_s, hog, log_dir, bridge_shm, driver_shm, node_args, node_shm, with_node, hands, hand_offset_ns, hogs, spawned
+) -> dict:
+    """:func:`run`'s body; ``hogs`` and ``spawned`` collect the processes it starts outside the scene."""
     import psutil
 
     from msgs_schema.topics import hand_topic
@@ -717,8 +735,6 @@ def run(
     from .cpu_budget import DiagListener, ProcCpu, echo_baseline
     from .soak import _JoiningReader
 
-    phase_s = max(DRAG_PERIOD_S, DRAG_PERIOD_S * round(phase_s / DRAG_PERIOD_S))
-    hogs = []
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
@@ -755,7 +771,7 @@ def run(
         print(f"  emulator transports: {why}", flush=True)
         if hog:
             code = "while True: pass"
-            hogs = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(hog)]
+            hogs += [subprocess.Popen([sys.executable, "-c", code]) for _ in range(hog)]
             print(f"  CPU hog: {len(hogs)} busy processes at normal priority", flush=True)
         echo_pct = echo_baseline(scene)
         print(f"  bare rclpy echo (SingleThreadedExecutor, 1 kHz poses in, wrenches out): {echo_pct:.1f} % of a core", flush=True)
@@ -773,6 +789,7 @@ def run(
             argv += ["--phase-s", str(phase_s), "--t0-file", str(t0_path), "--t0-offset-ns", str(i * hand_offset_ns)]
             argv += ["--ns", ns, "--path", path] if ns else ["--path", path]
             emus[ns] = subprocess.Popen(argv, stdout=emu_logs[-1], stderr=subprocess.STDOUT, env=emu_env, cwd=REPO)
+            spawned.append(emus[ns])
         ready: dict[str, str] = {}
         while len(ready) < len(hands):  # every emulator up and discovered: then one start for all
             time.sleep(0.05)
@@ -785,6 +802,7 @@ def run(
                     raise RuntimeError(f"emulator{hand_key(ns)} exited: {text[-2000:]}")
         throttler = Throttler()  # its discovery before the emulators' start, not in the throttle phase
         probes = stall_probe.start(log_dir, env=dict(os.environ, PYTHONPATH=str(REPO)))  # the machine's own stalls
+        spawned += probes
         t0 = time.monotonic_ns() + 200_000_000
         (log_dir / "emulator_t0.tmp").write_text(f"{t0}\n")
         (log_dir / "emulator_t0.tmp").replace(t0_path)  # whole or absent: an emulator never reads half of it
