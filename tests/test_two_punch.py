@@ -15,7 +15,7 @@ CFG = tp.load_tissue_config(tp.CONFIG)
 def cached(value, missing: str):
     """``value`` (a result read from the committed FEM solves), or skip the test naming the ``missing`` solve."""
     if value is None:
-        pytest.skip(f"{missing}: run `skin-sim two-punch` (about an hour for every solve)")
+        pytest.skip(f"{missing}: run `skin-sim two-punch` (about 40 min for every solve with the fem extra)")
     return value
 
 
@@ -35,9 +35,10 @@ def test_the_reference_is_consistent(rows, checks):
         # overlapping punches (4 mm) share the dimple: each needs less force than alone
         assert by[4e-3, depth].fem_pair_n < by[4e-3, depth].fem_single_n
         # the single punch at x = 2 mm and at x = 3 mm stand on mirror images of the egg carton (cos(0.8 pi) =
-        # cos(1.2 pi), both on rete-ridge peaks): one force, from two meshes, within 0.2 % (1.1 % apart when the 4 mm
-        # single stood on the mirror of the pair's mesh, its disk's edge on a staircase beyond x = 0)
-        assert by[4e-3, depth].fem_single_n == pytest.approx(by[6e-3, depth].fem_single_n, rel=0.002)
+        # cos(1.2 pi), both on rete-ridge peaks): one force, from two meshes, within 0.3 % (0.05 / 0.22 % at 1 / 2 mm;
+        # 1.1 % apart at level -2 when the 4 mm single stood on the mirror of the pair's mesh, its disk's edge on a
+        # staircase beyond x = 0)
+        assert by[4e-3, depth].fem_single_n == pytest.approx(by[6e-3, depth].fem_single_n, rel=0.003)
         # 20 mm apart the punches barely feel each other in the reference too
         assert abs(by[20e-3, depth].fem_fraction) < tp.MIN_INTERACTION_FRACTION
         # the block is wide enough: the single punch 10 mm off centre is the centred one within 2 % (mesh change too)
@@ -74,9 +75,9 @@ def test_the_single_of_an_overlapping_pair_has_a_mesh_conforming_to_its_disk(lev
 
 @pytest.mark.xfail(
     strict=True,
-    reason="issue 32: 6 and 10 mm pass, and 4 mm 1 mm deep with the eased overlap hold; 4 mm 2 mm deep interacts 29 % "
-    "over the FEM's (aim 20 %), and at 20 mm the thin-layer heave's tail leaves +0.7 % where the FEM has +0.0 % (the "
-    "table's absolute rule is 0.4 %; docs/two_hands.md)",
+    reason="issue 32: 6 and 10 mm pass, and 4 mm 1 mm deep with the eased overlap hold; 4 mm 2 mm deep interacts 21 % "
+    "over the FEM's (aim 20 %; +19 % against level 0), and at 20 mm the thin-layer heave's tail leaves +0.7 % where "
+    "the FEM has +0.0 % (the table's absolute rule is 0.4 %; docs/two_hands.md)",
 )
 def test_the_model_meets_the_aims(rows):
     failed = [f"{r.distance_m * 1e3:g} mm, {r.depth_m * 1e3:g} mm" for r in rows if not r.ok]
@@ -143,13 +144,14 @@ def test_the_implied_coupling(implied):
     for depth in tp.DEPTHS_M:
         four, six, ten = (implied[d, depth] for d in tp.IMPLIED_DISTANCES_M)
         for m in (four, six, ten):
-            assert m.lowering == pytest.approx(m.lowering_ratio, abs=0.025)  # the model's single error, 0.7-2.7 %
+            # the model's single error (0.4-3.7 %) over the force's growth with depth (about 1.4): up to 0.026
+            assert m.lowering == pytest.approx(m.lowering_ratio, abs=0.03)
         assert 0.05 < four.lowering_ratio < 0.09
         assert -0.06 < six.lowering_ratio < -0.03
         assert -0.06 < ten.lowering_ratio < -0.04
-    # the earlier attempt's figures: the FEM's own single-punch curve at 1 mm (-0.043, -0.050 at 6, 10 mm; at 4 mm
-    # +0.075 then, +0.070 since the overlapping single has a mesh conforming to its disk)
-    earlier = dict(zip(tp.IMPLIED_DISTANCES_M, (0.070, -0.043, -0.050)))
+    # the earlier attempt's figures: the FEM's own single-punch curve at 1 mm, +0.075, -0.043, -0.050 (level -2, the
+    # 4 mm single on the pair's mirrored mesh); at level -1 with the 4 mm single on its own mesh the same within 0.001
+    earlier = dict(zip(tp.IMPLIED_DISTANCES_M, (0.075, -0.043, -0.050)))
     for d, w in earlier.items():
         assert implied[d, 1e-3].fem_curve == pytest.approx(w, abs=0.002)
     deep = {d: implied[d, tp.MAX_DEPTH_M] for d in tp.IMPLIED_DISTANCES_M}

@@ -3,8 +3,8 @@
 The layers' membranes on their foundation (eq 2-3) dent under a contact and decay away from it, but never rise. Skin
 does rise: the tissue is nearly incompressible (Poisson's ratio 0.48, :data:`~.calibration.POISSON_RATIO`) and bonded
 to a base, so the volume a punch presses down comes up around it. The project's 3D neo-Hookean reference of one flat
-punch (``skin-sim two-punch``, docs/validation/two_punch.md) has the surface above rest from 5.2 mm out, lowest at
-about 7 mm (8 % of the depth), and a second punch 6-10 mm away needs 6-7 % *more* force, where a coupling through the
+punch (``skin-sim two-punch``, docs/validation/two_punch.md) has the surface above rest from 5.3 mm out, lowest at
+about 7.5 mm (9 % of the depth), and a second punch 6-10 mm away needs 6-7 % *more* force, where a coupling through the
 membranes' own fields gives it 1-9 % less.
 
 The thin-layer model that gives the heave, with no fitted constant:
@@ -20,8 +20,8 @@ The thin-layer model that gives the heave, with no fitted constant:
   (:func:`combined_profile`).
 
 Against the reference's single punch at 2 mm (w / depth, 4 / 6 / 8 / 10 mm out): +0.178 / -0.060 / -0.076 / -0.056
-against +0.195 / -0.057 / -0.080 / -0.052. Beyond 12 mm it decays more slowly than the reference's (-0.005 against
--0.002 at 20 mm): thin-layer theory wants lengths well above ``h``, and ``L`` is 0.53 ``h``.
+against +0.204 / -0.052 / -0.081 / -0.054. Beyond 12 mm it decays more slowly than the reference's (-0.005 against
+-0.0004 at 20 mm): thin-layer theory wants lengths well above ``h``, and ``L`` is 0.53 ``h``.
 
 How the coupling uses it (:class:`~skin_sim_node.tools.hands.SharedSkin`): a contact ``j`` whose own field is
 ``e_j`` deep at its centre lowers the surface under contact ``i`` by ``G(s) Psi_i'(e_i) Psi_j(e_j)`` (``e_j`` when the
