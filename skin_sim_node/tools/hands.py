@@ -40,7 +40,7 @@ of the depth at 4 mm for two 2.5 mm punches) counts the shared lens twice, where
 of the union footprint) implies 0.062-0.068, and with the load maps' tangent gain it would pass 1 near coincidence
 (two tools snapping into one's share). Held and eased, the kernel and its slope are continuous, so the vertical and
 the lateral forces have no jolt (tests/test_hands.py sweeps the distance through ``r_1 + r_2`` to 0); at 4 mm it gives
-0.084 (the FEM rows at 4 mm: interaction +17 / +29 % of the FEM's, docs/validation/two_punch.md). Two coincident tools
+0.084 (the FEM rows at 4 mm: interaction +10 / +21 % of the FEM's, docs/validation/two_punch.md). Two coincident tools
 are not one tool: each keeps its chain (two hands cannot hold one place).
 
 The local contact model a device renders (:class:`~skin_sim_node.model.ContactTangent`) is this tool's, with positions
@@ -150,8 +150,8 @@ the smallest of 0.25, 0.5 and 1 mm whose overlap sweep (``skin-sim two-hands``, 
 per-tick change pressing in at the same speed (4.1 mN: 5.7, 2.9 and 1.5 mN); the wider the ease, the higher the held
 value (0.051 + 0.17 b / 2 for two 2.5 mm punches). It was chosen by the sweep; it also moves the FEM's 4 mm rows
 (interaction +9 / +23 % of the FEM's with it, -32 / -23 % with the flat hold), which were seen before the choice.
-Since the reference's overlapping single has a mesh conforming to its disk (session 13) the rows are +17 / +29 %
-with it."""
+Session 13 gave the reference's overlapping single a mesh conforming to its disk and solved the reference one mesh
+level finer (level -1, converged within 0.001 of level 0 there): the rows are +10 / +21 % with it."""
 
 
 def overlap_hold_m(s, g, touch_m: float) -> float:
