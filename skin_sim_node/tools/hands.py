@@ -37,7 +37,7 @@ sum of their kernel radii: a flat tool's radius, a needle's 0.41 mm, a sphere's 
 where they touch inward, its slope eased to 0 over 0.5 mm; where large footprints touch in each other's heave, from
 where the kernel crosses zero instead, so overlapping tools never raise each other. The superposed kernel there (0.25
 of the depth at 4 mm for two 2.5 mm punches) counts the shared lens twice, where the reference's pair (one rigid body
-of the union footprint) implies 0.062-0.068, and with the load maps' tangent gain it would pass 1 near coincidence
+of the union footprint) implies 0.067-0.072, and with the load maps' tangent gain it would pass 1 near coincidence
 (two tools snapping into one's share). Held and eased, the kernel and its slope are continuous, so the vertical and
 the lateral forces have no jolt (tests/test_hands.py sweeps the distance through ``r_1 + r_2`` to 0); at 4 mm it gives
 0.084 (the FEM rows at 4 mm: interaction +10 / +21 % of the FEM's, docs/validation/two_punch.md). Two coincident tools
