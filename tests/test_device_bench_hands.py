@@ -209,7 +209,13 @@ def test_a_run_that_raises_leaves_no_process_behind(tmp_path, monkeypatch):
     monkeypatch.setattr(device_bench, "Scene", FakeScene)
     monkeypatch.setattr(cpu_budget, "echo_baseline", boom)
     monkeypatch.setattr(subprocess, "Popen", Recorded)
-    with pytest.raises(RuntimeError, match="echo baseline"):
-        device_bench.run(2.0, 1, tmp_path)
-    assert len(started) == 1  # the hog
-    assert all(p.poll() is not None for p in started)
+    try:
+        with pytest.raises(RuntimeError, match="echo baseline"):
+            device_bench.run(2.0, 1, tmp_path)
+        assert len(started) == 1  # the hog
+        assert all(p.poll() is not None for p in started)
+    finally:
+        for p in started:  # never leave a busy loop behind this test, whatever it found
+            if p.poll() is None:
+                p.kill()
+                p.wait()

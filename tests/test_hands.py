@@ -42,7 +42,7 @@ def test_a_tissue_takes_one_or_two_tools(cfgs):
 def test_a_finger_moves_the_entry_and_leaves_the_puncture_force(cfgs, alone, offset_m):
     """The needle meets the surface where the finger moved it (within one tick's travel), further for a deeper press:
     lowered 3 mm from the finger's centre, raised 6 mm out (the heave, skin_sim_node.model.heave: the reference's
-    surface is above rest from 5.2 mm); the tip goes deeper before the skin gives where the entry is lowered, less deep
+    surface is above rest from 5.3 mm); the tip goes deeper before the skin gives where the entry is lowered, less deep
     where it is raised; the puncture force (a force threshold) within 1 % of the needle alone's."""
     fcfg, ncfg = cfgs
     sign = float(np.sign(coupling_table(fcfg, fcfg.tool_radius_m, 0.0)[1][round(offset_m / TABLE_STEP_M)]))

@@ -166,16 +166,21 @@ def echo_baseline(scene, seconds: float = ECHO_S) -> float:
         env=scene.env,
         cwd=REPO,
     )
-    while "FEED start" not in (scene.log_dir / "echo_feed.log").read_text():
-        if fd.poll() is not None:
-            raise RuntimeError(f"echo feed exited: {(scene.log_dir / 'echo_feed.log').read_text()[-1000:]}")
-        time.sleep(0.01)
-    time.sleep(0.3)  # the first poses' discovery hand-shake
-    cpu.mark()
-    time.sleep(max(seconds - 0.6, 0.5))
-    cpu.mark()
-    fd.wait(timeout=seconds + 30)
-    log.close()
+    try:
+        while "FEED start" not in (scene.log_dir / "echo_feed.log").read_text():
+            if fd.poll() is not None:
+                raise RuntimeError(f"echo feed exited: {(scene.log_dir / 'echo_feed.log').read_text()[-1000:]}")
+            time.sleep(0.01)
+        time.sleep(0.3)  # the first poses' discovery hand-shake
+        cpu.mark()
+        time.sleep(max(seconds - 0.6, 0.5))
+        cpu.mark()
+        fd.wait(timeout=seconds + 30)
+    finally:
+        if fd.poll() is None:  # raised (or timed out): the feed is not left publishing beside what follows
+            fd.kill()
+            fd.wait()
+        log.close()
     echo.popen.terminate()
     echo.popen.wait(timeout=10)
     return cpu.pct(0, 1)

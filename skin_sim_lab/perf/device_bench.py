@@ -771,7 +771,8 @@ def _run(
         print(f"  emulator transports: {why}", flush=True)
         if hog:
             code = "while True: pass"
-            hogs += [subprocess.Popen([sys.executable, "-c", code]) for _ in range(hog)]
+            for _ in range(hog):  # each recorded as it starts: a later one failing leaves none unrecorded
+                hogs.append(subprocess.Popen([sys.executable, "-c", code]))
             print(f"  CPU hog: {len(hogs)} busy processes at normal priority", flush=True)
         echo_pct = echo_baseline(scene)
         print(f"  bare rclpy echo (SingleThreadedExecutor, 1 kHz poses in, wrenches out): {echo_pct:.1f} % of a core", flush=True)
