@@ -711,23 +711,18 @@ def run(
     after the first's (one shared start). Process names (CPU, records) take :func:`hand_key`'s suffix.
     """
     phase_s = max(DRAG_PERIOD_S, DRAG_PERIOD_S * round(phase_s / DRAG_PERIOD_S))
-    hogs: list[subprocess.Popen] = []
     spawned: list[subprocess.Popen] = []  # every process started here, outside the scene: none outlives the run
     try:
-        return _run(
-            phase_s, hog, log_dir, bridge_shm, driver_shm, node_args, node_shm, with_node, hands, hand_offset_ns, hogs, spawned
-        )
+        return _run(phase_s, hog, log_dir, bridge_shm, driver_shm, node_args, node_shm, with_node, hands, hand_offset_ns, spawned)
     finally:
-        for proc in (*hogs, *spawned):
+        for proc in spawned:
             if proc.poll() is None:  # a run that raised: an emulator at SCHED_FIFO 90 or a hog must not stay behind
                 proc.kill()
                 proc.wait()
 
 
-def _run(
-    phase_s, hog, log_dir, bridge_shm, driver_shm, node_args, node_shm, with_node, hands, hand_offset_ns, hogs, spawned
-) -> dict:
-    """:func:`run`'s body; ``hogs`` and ``spawned`` collect the processes it starts outside the scene."""
+def _run(phase_s, hog, log_dir, bridge_shm, driver_shm, node_args, node_shm, with_node, hands, hand_offset_ns, spawned) -> dict:
+    """:func:`run`'s body; ``spawned`` collects the processes it starts outside the scene, as each starts."""
     import psutil
 
     from msgs_schema.topics import hand_topic
@@ -735,6 +730,7 @@ def _run(
     from .cpu_budget import DiagListener, ProcCpu, echo_baseline
     from .soak import _JoiningReader
 
+    hogs: list[subprocess.Popen] = []
     with Scene(log_dir) as scene:
         os.environ["ROS_DOMAIN_ID"] = scene.env["ROS_DOMAIN_ID"]
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", scene.env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
@@ -773,6 +769,7 @@ def _run(
             code = "while True: pass"
             for _ in range(hog):  # each recorded as it starts: a later one failing leaves none unrecorded
                 hogs.append(subprocess.Popen([sys.executable, "-c", code]))
+                spawned.append(hogs[-1])
             print(f"  CPU hog: {len(hogs)} busy processes at normal priority", flush=True)
         echo_pct = echo_baseline(scene)
         print(f"  bare rclpy echo (SingleThreadedExecutor, 1 kHz poses in, wrenches out): {echo_pct:.1f} % of a core", flush=True)

@@ -160,17 +160,18 @@ def build_mesh(setup: FemSetup) -> MeshHex:
     zs = z_nodes(setup.tissue, setup.nz)
     mesh = MeshHex.init_tensor(xs, s_y, zs[::-1])
     p = mesh.p.copy()
-    # O-grid blend: the ring of max-norm radius r0 maps onto the circle r = r0.
-    ax, ay = np.abs(p[0]), p[1]
-    rho = np.maximum(ax, ay)
-    rad = np.hypot(ax, ay)
-    k_tool, k_band = r0, r0 * (1 + n_band / setup.n_tool)
-    w = np.where(rho <= k_tool, rho / k_tool, np.clip((k_band - rho) / (k_band - k_tool), 0.0, 1.0))
-    scale = np.where(rad > 0, rho / np.where(rad > 0, rad, 1.0), 1.0)
-    blend = (1 - w) + w * scale
-    p[0] = p[0] * blend
-    p[1] = p[1] * blend
+    p[0], p[1] = _o_grid(p[0], p[1], r0, r0 * (1 + n_band / setup.n_tool))
     return MeshHex(p, mesh.t)
+
+
+def _o_grid(u: np.ndarray, y: np.ndarray, r0: float, k_band: float) -> tuple[np.ndarray, np.ndarray]:
+    """The O-grid blend about a tool's centre (``u`` across, ``y`` along, from the centre): the ring of max-norm radius
+    ``r0`` maps onto the circle ``r = r0``, the blend's weight falling linearly to 0 (the identity) at ``k_band``."""
+    rho = np.maximum(np.abs(u), y)
+    rad = np.hypot(u, y)
+    w = np.where(rho <= r0, rho / r0, np.clip((k_band - rho) / (k_band - r0), 0.0, 1.0))
+    blend = (1 - w) + w * np.where(rad > 0, rho / np.where(rad > 0, rad, 1.0), 1.0)
+    return u * blend, y * blend
 
 
 def offset_axis_nodes(r0: float, n_tool: int, centre_m: float, extent: float, n_out: int, n_band: int = 3) -> np.ndarray:
@@ -271,13 +272,8 @@ def _single_overlap_mesh(setup: FemSetup, centre_x_m: float, n_band: int) -> Mes
     zs = z_nodes(setup.tissue, setup.nz)
     mesh = MeshHex.init_tensor(xs, ys, zs[::-1])
     p = mesh.p.copy()
-    u, y = p[0] - a, p[1]
-    rho = np.maximum(np.abs(u), y)
-    rad = np.hypot(u, y)
-    k_tool, k_band = r0, r0 * (1 + n_band / setup.n_tool)
-    w = np.where(rho <= k_tool, rho / k_tool, np.clip((k_band - rho) / (k_band - k_tool), 0.0, 1.0))
-    blend = (1 - w) + w * np.where(rad > 0, rho / np.where(rad > 0, rad, 1.0), 1.0)
-    p[0], p[1] = a + u * blend, y * blend
+    u, p[1] = _o_grid(p[0] - a, p[1], r0, r0 * (1 + n_band / setup.n_tool))
+    p[0] = a + u
     p[0] = np.where(np.abs(np.abs(p[0]) - w_half) < 1e-12, np.sign(p[0]) * w_half, p[0])  # the outer planes exactly
     return MeshHex(p, mesh.t)
 

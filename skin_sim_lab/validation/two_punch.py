@@ -903,6 +903,7 @@ def linear_findings(lin: Linear, rs: list[Row]) -> str:
     dev = {r: abs(lin.profile[r] - lin.fem_profile[r]) for r in LINEAR_RADII_M}
     near = min(LINEAR_RADII_M)
     one = {r.distance_m: r for r in rs if r.depth_m == min(DEPTHS_M)}
+    two = {r.distance_m: r for r in rs if r.depth_m == max(DEPTHS_M)}
     hyper_1mm = one[FAR_DISTANCE_M].fem_single_n
     d_mid = (6e-3, 10e-3)
     return "\n".join(
@@ -939,10 +940,10 @@ def linear_findings(lin: Linear, rs: list[Row]) -> str:
             *[
                 f"- Overlapping at {d * 1e3:g} mm, the whole linear pair gives {v:+.4f} of the single force; the reference "
                 f"{one[d].fem_fraction:+.4f} at {min(DEPTHS_M) * 1e3:g} mm, "
-                f"{[r for r in rs if r.distance_m == d][-1].fem_fraction:+.4f} at {max(DEPTHS_M) * 1e3:g} mm and "
+                f"{two[d].fem_fraction:+.4f} at {max(DEPTHS_M) * 1e3:g} mm and "
                 f"{lin.first_stop[d][1]:+.4f} at its first load stop (nearly independent of the depth); "
                 f"the model {one[d].model_fraction:+.4f}, "
-                f"{[r for r in rs if r.distance_m == d][-1].model_fraction:+.4f}."
+                f"{two[d].model_fraction:+.4f}."
                 for d, v in lin.overlap.items()
             ],
         ]
@@ -1001,8 +1002,9 @@ coarse band between the punches limits how small an interaction the reference re
 """
 
 
-def findings(rs: list[Row], c: Checks) -> str:
-    """What the numbers say: the sign and size of each interaction, and the surface profile behind them."""
+def findings(rs: list[Row], c: Checks, prof: Profiles | None = None) -> str:
+    """What the numbers say: the sign and size of each interaction, and the surface profile behind them (the coupling's
+    kernel at :data:`FAR_DISTANCE_M` from ``prof``, :func:`foundation_profiles`, when given)."""
     lines = ["## Findings", ""]
     for depth in DEPTHS_M:
         sel = [r for r in rs if r.depth_m == depth]
@@ -1012,18 +1014,15 @@ def findings(rs: list[Row], c: Checks) -> str:
     single = max(abs(r.force_errors[1]) for r in rs)
     lines.append(f"- The model's single punch is within {single:.1%} of the FEM's at every position and depth.")
     heave = [r for r in PROFILE_RADII_M if c.fem_profile[r] < 0]
+    closest = min(r.distance_m for r in rs)  # the overlapping pair (4 mm, disks of 2.5 mm)
     overlap = ", ".join(
-        f"{r.depth_m * 1e3:g} mm deep {r.interaction_error:+.0%} of the FEM's interaction"
-        for r in rs
-        if r.distance_m == min(x.distance_m for x in rs)  # the overlapping pair (4 mm, disks of 2.5 mm)
+        f"{r.depth_m * 1e3:g} mm deep {r.interaction_error:+.0%} of the FEM's interaction" for r in rs if r.distance_m == closest
     )
     far = [r for r in rs if abs(r.distance_m - FAR_DISTANCE_M) < 1e-9]
     far_model = " / ".join(f"{r.model_fraction:+.1%}" for r in far)
     far_fem = " / ".join(f"{r.fem_fraction:+.1%}" for r in far)
-    cfg = load_tissue_config(CONFIG)
-    kernel_far = float(
-        combined_profile(FAR_DISTANCE_M, volume_length_m(cfg), cfg.foundation_length_m, cfg.tool_radius_m)
-    )  # the coupling's rigid-punch profile over the depth, + lowered, - raised, as the FEM's
+    kernel_far = None if prof is None else prof.values.get(COMBINED, {}).get(FAR_DISTANCE_M)  # the coupling's profile
+    tail = "" if kernel_far is None else f" ({kernel_far:+.4f} of the depth against {c.fem_profile[FAR_DISTANCE_M]:+.4f})"
     if heave:
         lo = min(c.fem_profile.values())
         lines += [
@@ -1040,8 +1039,8 @@ def findings(rs: list[Row], c: Checks) -> str:
             "overlapping disks are one union-shaped contact, not two), and the coupling holds the kernel from where the "
             "disks touch, its slope eased over 0.5 mm (skin_sim_node.tools.hands.OVERLAP_EASE_M: +0.084 at 4 mm): "
             + overlap
-            + f"; and at 20 mm the thin-layer heave decays more slowly than the FEM's ({kernel_far:+.4f} of the depth "
-            f"against {c.fem_profile[FAR_DISTANCE_M]:+.4f}), an interaction of {far_model} against the FEM's {far_fem}: "
+            + f"; and at 20 mm the thin-layer heave decays more slowly than the FEM's{tail}, an interaction of "
+            f"{far_model} against the FEM's {far_fem}: "
             f"within the issue's far-field {FAR_TOL:.0%}, outside this table's absolute rule "
             f"({INTERACTION_TOL * MIN_INTERACTION_FRACTION:.1%}).",
         ]
@@ -1116,7 +1115,7 @@ def markdown(
             "",
             checks_text(c),
             "",
-            findings(rs, c),
+            findings(rs, c, prof),
             "",
             *([] if imps is None else [IMPLIED_INTRO, "", implied_text(imps), "", implied_findings(imps), ""]),
             *([] if prof is None else [VOLUME_INTRO, "", profiles_text(prof), "", volume_findings(prof), ""]),
@@ -1155,7 +1154,7 @@ def main(argv=None) -> int:
     print()
     print(checks_text(c))
     print()
-    print(findings(rs, c))
+    print(findings(rs, c, prof))
     print()
     print(implied_text(imps))
     print()
