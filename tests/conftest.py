@@ -57,6 +57,32 @@ def ros_domain():
 
 
 @contextmanager
+def node_in_process(**params):
+    """The node class in this process with rclpy, in a context of its own, its clock thread stopped (the test ticks it)
+    and no SCHED_FIFO (``rt_priority`` 0: it would be the whole pytest run's). ``params``: the node's parameter
+    overrides."""
+    rclpy = pytest.importorskip("rclpy")
+    from rclpy.parameter import Parameter
+
+    from skin_sim_node.server.node import SkinSimNode
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    node = None
+    try:
+        overrides = [Parameter(k, value=v) for k, v in {**params, "rt_priority": 0}.items()]
+        node = SkinSimNode(context=ctx, parameter_overrides=overrides)
+        node._loop.stop()
+        assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the pytest process keeps normal scheduling
+        yield node
+    finally:
+        if node is not None:
+            node.stop()
+            node.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
+@contextmanager
 def served(src, duration_s: float = 180.0):
     """A view server for the source ``src`` (a bag or live source) with its player thread running, yielding the server;
     on exit the source stops, its thread is joined and the server closed."""

@@ -9,11 +9,11 @@ its tick called with chosen times), so nothing depends on scheduling.
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 
 import pytest
+from conftest import node_in_process
 
 from skin_sim_node.session import WATCHDOG
 
@@ -25,31 +25,13 @@ MS = 1_000_000
 @pytest.fixture
 def node():
     """The two-hand node in-process, its clock thread stopped (each test calls its tick itself)."""
-    rclpy = pytest.importorskip("rclpy")
-    from rclpy.parameter import Parameter
-
-    from skin_sim_node.server.node import SkinSimNode
-
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx)
-    n = None
-    try:
-        overrides = [
-            Parameter("hand_ns", value="right"),
-            Parameter("second_hand_ns", value="left"),
-            Parameter("max_stamp_age_s", value=0.0),  # stamps are the test's, not the clock's
-            Parameter("display_rate_hz", value=0.0),
-            Parameter("rt_priority", value=0),  # no SCHED_FIFO for the test process (it would be the whole pytest run's)
-        ]
-        n = SkinSimNode(context=ctx, parameter_overrides=overrides)
-        n._loop.stop()
-        assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the pytest process keeps normal scheduling
+    with node_in_process(
+        hand_ns="right",
+        second_hand_ns="left",
+        max_stamp_age_s=0.0,  # stamps are the test's, not the clock's
+        display_rate_hz=0.0,
+    ) as n:
         yield n
-    finally:
-        if n is not None:
-            n.stop()
-            n.destroy_node()
-        rclpy.shutdown(context=ctx)
 
 
 def _press(n, hand: int, stamp: int, depth_m: float = 1e-3) -> None:
@@ -107,3 +89,25 @@ def test_in_timer_mode_a_pose_never_waits_for_the_lock(node):
     assert delivered
     node._on_clock(time.perf_counter_ns(), 0)
     assert h.last.answered and h.last.stamp_ns == stamp and not h.session.stale
+
+
+def test_a_servo_thread_answers_only_when_the_lock_is_free_and_never_waits_for_it(node):
+    """A composed bridge's servo thread answers its due pose itself when the node's lock is free
+    (``take_inputs(hand, blocking=False)``); while another thread holds the lock it returns at once, the pose stays
+    queued for whoever takes the lock next (the link's thread, the clock), and nothing is lost."""
+    h = node.hands[1]
+    stamp = time.time_ns()
+    ticks = h.n_ticks
+    _press(node, 1, stamp)
+    results: list[bool] = []
+    with node._lock:  # the other hand's tick, say
+        t = threading.Thread(target=lambda: results.append(node.take_inputs(1, blocking=False)))
+        t.start()
+        t.join(timeout=30.0)  # a liveness check, not a timing one: a blocking take would never end here
+        returned = not t.is_alive()
+    t.join()
+    assert returned and results == [False]
+    assert h.n_ticks == ticks and len(h.inbox) == 1  # not answered, still queued
+    assert node.take_inputs(1, blocking=False)  # the lock free: answered at once
+    assert h.n_ticks == ticks + 1 and not h.inbox
+    assert h.last.answered and h.last.stamp_ns == stamp

@@ -94,3 +94,23 @@ def test_a_probe_held_off_by_rt_throttling_is_not_counted_as_the_machines(tmp_pa
     assert len(throttled) >= 1, rows
     late = throttled[0]
     assert sp.stall_overlap_ns(rows[rows[:, 0] == 1], float(late[1]), float(late[2])) < late[2] - late[1]
+
+
+def test_a_probe_that_fails_to_start_leaves_no_other_probe_running(tmp_path, monkeypatch):
+    """The second CPU's probe fails to start: the first one, already running, is stopped before the error goes on."""
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("needs two CPUs")
+    started: list[subprocess.Popen] = []
+    real = subprocess.Popen
+
+    def popen(*args, **kwargs):
+        if started:
+            raise OSError("no such interpreter")
+        started.append(real(*args, **kwargs))
+        return started[-1]
+
+    monkeypatch.setattr(sp.subprocess, "Popen", popen)
+    with pytest.raises(OSError, match="no such interpreter"):
+        sp.start(tmp_path)
+    assert len(started) == 1
+    assert started[0].poll() is not None  # killed and reaped, not left at SCHED_FIFO 99

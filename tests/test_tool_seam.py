@@ -9,11 +9,11 @@ thread is stopped and every pose is fed to its subscription callback with stamps
 
 from __future__ import annotations
 
-import os
 import time
 
 import numpy as np
 import pytest
+from conftest import node_in_process
 
 from msgs_schema.contact_model import fill_contact_model_from_tick, read_contact_model
 from msgs_schema.parameters import SessionParams
@@ -104,28 +104,15 @@ def test_a_toy_tool_runs_through_the_session_and_the_bridge_law():
 def test_a_toy_tool_runs_through_the_node(monkeypatch):
     """The node class in-process with rclpy: it builds, warms up and ticks the toy tool through its pose callback, and
     creates no read-out publisher for a tool that declares none."""
-    rclpy = pytest.importorskip("rclpy")
+    pytest.importorskip("rclpy")
     from geometry_msgs.msg import PoseStamped
-    from rclpy.parameter import Parameter
     from rclpy.serialization import serialize_message
 
     from msgs_schema import convert as cv
-    from skin_sim_node.server.node import SkinSimNode
 
     monkeypatch.setitem(tools.TOOLS, "flat", RigidPlane)  # the registry entry a tools/ module would add
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx)
-    node = None
-    try:
-        # the stamp-age check off, the watchdog at its largest: no stall between two fed poses fires it
-        overrides = [
-            Parameter("max_stamp_age_s", value=0.0),
-            Parameter("watchdog_s", value=10.0),
-            Parameter("rt_priority", value=0),  # no SCHED_FIFO for the test process (it would be the whole pytest run's)
-        ]
-        node = SkinSimNode(context=ctx, parameter_overrides=overrides)
-        node._loop.stop()  # no clock thread: only the poses below tick the session
-        assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the pytest process keeps normal scheduling
+    # the stamp-age check off, the watchdog at its largest: no stall between two fed poses fires it
+    with node_in_process(max_stamp_age_s=0.0, watchdog_s=10.0) as node:
         assert type(node.session.tool) is RigidPlane and node.hands[0].readouts == {}
         pose = PoseStamped()
         base = time.time_ns() - 1_000_000_000  # stamps in the past: the stamp-age check is off (max_stamp_age_s 0)
@@ -139,8 +126,3 @@ def test_a_toy_tool_runs_through_the_node(monkeypatch):
         r = res[-1]
         assert r.answered and r.force_n == pytest.approx((0.0, 0.0, K_PLANE_N_PER_M * 2e-3), abs=1e-12)
         assert _render_at(r, 1e-4) == pytest.approx([0.0, 0.0, K_PLANE_N_PER_M * 2.1e-3], abs=1e-9)
-    finally:
-        if node is not None:
-            node.stop()
-            node.destroy_node()
-        rclpy.shutdown(context=ctx)

@@ -91,13 +91,20 @@ def probe(cpu: int, out: Path) -> int:
 
 
 def start(log_dir: Path, env: dict | None = None) -> list[subprocess.Popen]:
-    """One probe per CPU this process may use, writing ``stall_probe_cpu<N>.npy`` in ``log_dir``."""
-    procs = []
-    for cpu in sorted(os.sched_getaffinity(0)):
-        argv = [sys.executable, "-m", "skin_sim_lab.perf.stall_probe", "--cpu", str(cpu)]
-        argv += ["--out", str(log_dir / f"stall_probe_cpu{cpu}.npy")]
-        log = open(log_dir / f"stall_probe_cpu{cpu}.log", "w")
-        procs.append(subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env=env, cwd=Path(__file__).parents[2]))
+    """One probe per CPU this process may use, writing ``stall_probe_cpu<N>.npy`` in ``log_dir``. A probe that does not
+    start stops the ones that did before the error goes on (no SCHED_FIFO 99 process is left behind)."""
+    procs: list[subprocess.Popen] = []
+    try:
+        for cpu in sorted(os.sched_getaffinity(0)):
+            argv = [sys.executable, "-m", "skin_sim_lab.perf.stall_probe", "--cpu", str(cpu)]
+            argv += ["--out", str(log_dir / f"stall_probe_cpu{cpu}.npy")]
+            with open(log_dir / f"stall_probe_cpu{cpu}.log", "w") as log:  # the child keeps its own copy
+                procs.append(subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env=env, cwd=Path(__file__).parents[2]))
+    except BaseException:
+        for p in procs:
+            p.kill()
+            p.wait()
+        raise
     return procs
 
 

@@ -683,9 +683,11 @@ class BridgeNode(DeviceNode):
             f"{c['zeros']} watchdog zero commands, {c['non_finite_pose']} non-finite poses; force scale {self.p.force_scale:g}, "
             f"{self.renderer.counts_clamped} ticks clamped at {self.p.max_force_n:g} N"
         )
-        if (longest := getattr(self.server, "longest_ms", None)) is not None:
+        if isinstance(self.server, LocalLink):
+            longest = self.server.longest_ms
             self.say(
-                f"node link (in this process): {self.server.forwarded} poses handed to the node; longest wait for the link's"
+                f"node link (in this process): {self.server.forwarded} poses handed to the node "
+                f"({self.server.answered_inline} answered on the servo thread); longest wait for the link's"
                 f" thread {longest['pickup']:.1f} ms, for the node's answer {longest['answer']:.1f} ms, for diagnostics"
                 f" {longest['periodic']:.1f} ms"
             )

@@ -319,14 +319,20 @@ class SkinSimNode(Node):
         """Queue one tool twist of hand ``hand`` (as :meth:`post_pose`), taken before the pose that follows it."""
         self.hands[hand].post(("twist", stamp, frame, lin))
 
-    def take_inputs(self, hand: int = 0) -> None:
+    def take_inputs(self, hand: int = 0, blocking: bool = True) -> bool:
         """In input mode, take hand ``hand``'s queued inputs under the lock and answer each due pose at once; in timer
-        mode nothing (the clock's next tick takes them: no thread waits for the lock for them)."""
+        mode nothing (the clock's next tick takes them: no thread waits for the lock for them). Without ``blocking``,
+        only if the lock is free now. Returns whether the inputs were taken (or need no taking: timer mode)."""
         if self.params.loop_mode != "input":
-            return
-        with self._lock:
+            return True
+        if not self._lock.acquire(blocking):
+            return False
+        try:
             if not self._stopped:
                 self._take_inputs(self.hands[hand], answer=True)
+        finally:
+            self._lock.release()
+        return True
 
     def _take_inputs(self, h: Hand, answer: bool) -> None:
         """Give hand ``h``'s queued inputs (:attr:`Hand.inbox`) to its session, under the lock: every twist in arrival
