@@ -91,10 +91,10 @@ def test_in_timer_mode_a_pose_never_waits_for_the_lock(node):
     assert h.last.answered and h.last.stamp_ns == stamp and not h.session.stale
 
 
-def test_a_servo_thread_answers_only_when_the_lock_is_free_and_never_waits_for_it(node):
-    """A composed bridge's servo thread answers its due pose itself when the node's lock is free
-    (``take_inputs(hand, blocking=False)``); while another thread holds the lock it returns at once, the pose stays
-    queued for whoever takes the lock next (the link's thread, the clock), and nothing is lost."""
+def test_a_non_blocking_take_answers_only_when_the_lock_is_free_and_never_waits_for_it(node):
+    """``take_inputs(hand, blocking=False)`` (what a composed bridge's servo thread calls, tests/test_local_link.py):
+    while another thread holds the lock it returns False at once and the pose stays queued, nothing lost; with the
+    lock free it answers the pose."""
     h = node.hands[1]
     stamp = time.time_ns()
     ticks = h.n_ticks

@@ -97,20 +97,31 @@ def test_a_probe_held_off_by_rt_throttling_is_not_counted_as_the_machines(tmp_pa
 
 
 def test_a_probe_that_fails_to_start_leaves_no_other_probe_running(tmp_path, monkeypatch):
-    """The second CPU's probe fails to start: the first one, already running, is stopped before the error goes on."""
+    """The second CPU's probe fails to start: the first one, already started, is killed and reaped before the error
+    goes on (a stand-in process object: no real SCHED_FIFO 99 probe is started)."""
     if len(os.sched_getaffinity(0)) < 2:
         pytest.skip("needs two CPUs")
-    started: list[subprocess.Popen] = []
-    real = subprocess.Popen
+
+    class Started:
+        def __init__(self):
+            self.calls: list[str] = []
+
+        def kill(self):
+            self.calls.append("kill")
+
+        def wait(self, timeout=None):
+            self.calls.append("wait")
+            return -9
+
+    started: list[Started] = []
 
     def popen(*args, **kwargs):
         if started:
             raise OSError("no such interpreter")
-        started.append(real(*args, **kwargs))
+        started.append(Started())
         return started[-1]
 
     monkeypatch.setattr(sp.subprocess, "Popen", popen)
     with pytest.raises(OSError, match="no such interpreter"):
         sp.start(tmp_path)
-    assert len(started) == 1
-    assert started[0].poll() is not None  # killed and reaped, not left at SCHED_FIFO 99
+    assert len(started) == 1 and started[0].calls == ["kill", "wait"]

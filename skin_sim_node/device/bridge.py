@@ -687,9 +687,9 @@ class BridgeNode(DeviceNode):
             longest = self.server.longest_ms
             self.say(
                 f"node link (in this process): {self.server.forwarded} poses handed to the node "
-                f"({self.server.answered_inline} answered on the servo thread); longest wait for the link's"
-                f" thread {longest['pickup']:.1f} ms, for the node's answer {longest['answer']:.1f} ms, for diagnostics"
-                f" {longest['periodic']:.1f} ms"
+                f"({self.server.served_here} without the link's thread); longest wait for the link's"
+                f" thread {longest['pickup']:.1f} ms, for the node's answer {longest['answer']:.1f} ms on it and"
+                f" {longest['here']:.1f} ms on the servo thread, for diagnostics {longest['periodic']:.1f} ms"
             )
 
 

@@ -157,13 +157,14 @@ class LocalLink:
     """The node in this process (``skin-sim bridge --with-node``, issue 27 item 5): no DDS hop between them.
 
     A due pose is queued in the node's hand by the servo thread itself (``SkinSimNode.post_pose``: no lock, a few us)
-    and answered at once on that thread when the node's lock is free (``SkinSimNode.take_inputs`` without blocking,
-    after the device's command is out), else on this link's thread, or by the node's clock when this thread is held
-    off (it runs one priority below the servo threads, and the GIL goes to the higher priority first): a starved link
-    thread delays an answer but never hides a pose from the node's watchdog, and the servo thread never waits for the
-    node. Answering on the servo thread saves a thread wake-up and a GIL hand-over per answer (the process's CPU with
-    two hands 74-77 % of a core against 82-88 %, four alternating pairs of ``skin-sim bench-device --hands 2
-    --with-node``; docs/two_hands.md, "Session 14"). The node's tick hands each contact model
+    and, once the device's command is out, answered on that thread when the node's lock is free
+    (``SkinSimNode.take_inputs`` without blocking), else on this link's thread, or by the node's clock when this thread
+    is held off (it runs one priority below the servo threads, and the GIL goes to the higher priority first): a
+    starved link thread delays an answer but never hides a pose from the node's watchdog, and the servo thread never
+    waits for the node's lock (it does run its own hand's tick, after its device's command). Answering on the servo
+    thread saves a thread wake-up and a GIL hand-over per answer (docs/two_hands.md, "Session 14": node and bridges
+    used less CPU in 12 of 15 alternating quiet pairs, medians 78.4 % of a core against 85.4 %). The node's tick hands
+    each contact model
     back through its ``local_model_sinks`` entry for that hand: per answer, four rclpy messages fewer (pose out and in,
     model out and in). The node still publishes ``tool/wrench`` (and the contact model, for other readers) over DDS.
     """
@@ -189,28 +190,39 @@ class LocalLink:
         self._wake = threading.Event()
         self._stop = threading.Event()
         self.forwarded = 0
-        self.answered_inline = 0
-        """Poses answered on the servo thread itself (the node's lock was free), of :attr:`forwarded`."""
-        self.longest_ms = {"pickup": 0.0, "answer": 0.0, "periodic": 0.0}
+        self.served_here = 0
+        """Poses of :attr:`forwarded` that needed no link thread: answered on the servo thread (the node's lock was
+        free), or left to the node's clock (timer mode)."""
+        self.longest_ms = {"pickup": 0.0, "answer": 0.0, "here": 0.0, "periodic": 0.0}
         """The link's longest waits (ms): a handed pose before its thread took it (``pickup``), the node's answer to
-        it (``answer``: its lock and its tick), the periodic call (``periodic``): where a hand's poses stop reaching
+        it on the link's thread (``answer``: its lock and its tick), on the servo thread (``here``: how long the
+        servo thread was away from its device), the periodic call (``periodic``): where a hand's poses stop reaching
         the node while its device streams."""
+        self._failed = False
         self._thread = threading.Thread(target=self._run, name="local-link", daemon=True)
         self._thread.start()
 
     def send(self, pose: tuple, twist: tuple | None = None) -> None:
         """Queue the due pose ``(stamp, xyz, quat)`` (and twist ``(stamp, linear)``) in the node's hand (no lock: the
         node's clock takes it if this link's thread is held off) and answer it here if the node's lock is free, else
-        wake the link's thread to answer it."""
+        wake the link's thread to answer it. A failure of the node's tick here is reported once and does not reach
+        the servo loop."""
         if twist is not None:
             self.node.post_twist(twist[0], self._frame, twist[1], hand=self.hand)
         stamp, x, q = pose
         self.node.post_pose(stamp, self._frame, x, q, hand=self.hand)
         self.forwarded += 1
         t0 = time.monotonic_ns()
-        if self.node.take_inputs(self.hand, blocking=False):  # answered on the caller's (the servo) thread
-            self.answered_inline += 1
-            self._longest("answer", t0)
+        try:
+            done = self.node.take_inputs(self.hand, blocking=False)  # answered on the caller's (the servo) thread
+        except Exception as exc:  # the node's tick failed: the device's command is out; say so once, serve on
+            done = True  # its inputs were taken with it
+            if not self._failed:
+                self._failed = True
+                print(f"skin-sim bridge: node tick failed for hand {self.hand}: {exc!r} (reported once)", flush=True)
+        if done:
+            self.served_here += 1
+            self._longest("here", t0)
             return
         with self._lock:
             if not self._pending:

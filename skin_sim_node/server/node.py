@@ -322,7 +322,8 @@ class SkinSimNode(Node):
     def take_inputs(self, hand: int = 0, blocking: bool = True) -> bool:
         """In input mode, take hand ``hand``'s queued inputs under the lock and answer each due pose at once; in timer
         mode nothing (the clock's next tick takes them: no thread waits for the lock for them). Without ``blocking``,
-        only if the lock is free now. Returns whether the inputs were taken (or need no taking: timer mode)."""
+        only if the lock is free now. Returns False only when the lock was held by another thread (the inputs stay
+        queued); True when they were taken, or need no taking here (timer mode; after :meth:`stop`)."""
         if self.params.loop_mode != "input":
             return True
         if not self._lock.acquire(blocking):

@@ -1,0 +1,105 @@
+"""A composed bridge's link to the node in its process (``skin_sim_node.device.links.LocalLink``): the servo thread
+answers its own due pose when the node's lock is free, else the link's thread does; a failing node tick never
+reaches the servo loop. The node here is a stand-in that records its calls (no DDS, no model); nothing depends on
+timing beyond waiting, with a generous bound, for the link's thread to act."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from skin_sim_node.device.links import LocalLink
+
+WAIT_S = 10.0
+
+
+class _Node:
+    """What a LocalLink needs of ``SkinSimNode``: its hands' queues, the non-blocking and the blocking take."""
+
+    def __init__(self, lock_free: bool = True, fail: bool = False):
+        self.local_model_sinks: dict = {}
+        self.lock_free = lock_free
+        self.fail = fail
+        self.posted: list[tuple] = []
+        self.takes: list[tuple[str, int]] = []  # (thread name, hand) of each take that answered
+
+    def post_pose(self, stamp, frame, xyz, quat, hand=0):
+        self.posted.append(("pose", stamp, hand))
+
+    def post_twist(self, stamp, frame, lin, hand=0):
+        self.posted.append(("twist", stamp, hand))
+
+    def take_inputs(self, hand=0, blocking=True):
+        if not blocking and not self.lock_free:
+            return False
+        if self.fail:
+            raise RuntimeError("tick failed")
+        self.takes.append((threading.current_thread().name, hand))
+        return True
+
+
+class _Bridge:
+    tissue_frame = "tissue"
+
+    def _on_local_model(self, msg):  # pragma: no cover - the stand-in node never ticks
+        pass
+
+
+def _link(node, hand=1):
+    return LocalLink(_Bridge(), node, hand=hand)
+
+
+def _until(cond) -> bool:
+    t_end = time.monotonic() + WAIT_S
+    while time.monotonic() < t_end and not cond():
+        time.sleep(0.005)
+    return cond()
+
+
+def test_the_lock_free_the_pose_is_answered_on_the_callers_thread_and_the_link_stays_asleep():
+    node = _Node(lock_free=True)
+    link = _link(node)
+    try:
+        link.send((5, (0.0, 0.0, -1e-3), (0.0, 0.0, 0.0, 1.0)), (5, (0.0, 0.0, 0.0)))
+        assert node.posted == [("twist", 5, 1), ("pose", 5, 1)]  # the twist first, then its pose, in the hand's queue
+        assert node.takes == [(threading.current_thread().name, 1)]  # answered here, once
+        assert link.served_here == 1 and link.forwarded == 1
+        time.sleep(0.1)  # the link's thread would have answered by now had it been woken
+        assert len(node.takes) == 1
+    finally:
+        link.close()
+
+
+def test_the_lock_held_the_links_thread_answers_and_the_caller_returns_at_once():
+    node = _Node(lock_free=False)
+    link = _link(node)
+    try:
+        link.send((7, (0.0, 0.0, -1e-3), (0.0, 0.0, 0.0, 1.0)))
+        assert link.served_here == 0
+        assert _until(lambda: node.takes == [("local-link", 1)])  # answered on the link's thread, for its hand
+    finally:
+        link.close()
+
+
+def test_a_failing_node_tick_is_reported_once_and_never_reaches_the_servo_loop(capsys):
+    node = _Node(lock_free=True, fail=True)
+    link = _link(node)
+    try:
+        for k in range(3):
+            link.send((k, (0.0, 0.0, -1e-3), (0.0, 0.0, 0.0, 1.0)))  # does not raise
+        out = capsys.readouterr().out
+        assert out.count("node tick failed for hand 1: RuntimeError('tick failed') (reported once)") == 1
+        assert link.served_here == 3  # its inputs were taken with the failed tick: no link thread woken for them
+    finally:
+        link.close()
+
+
+@pytest.mark.parametrize("lock_free", [True, False])
+def test_close_removes_the_hands_model_sink(lock_free):
+    node = _Node(lock_free=lock_free)
+    link = _link(node, hand=0)
+    assert 0 in node.local_model_sinks
+    link.close()
+    assert 0 not in node.local_model_sinks
