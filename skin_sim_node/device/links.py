@@ -164,9 +164,9 @@ class LocalLink:
     waits for the node's lock (it does run its own hand's tick, after its device's command). Answering on the servo
     thread saves a thread wake-up and a GIL hand-over per answer (docs/two_hands.md, "Session 14": node and bridges
     used less CPU in 12 of 15 alternating quiet pairs, medians 78.4 % of a core against 85.4 %). The node's tick hands
-    each contact model
-    back through its ``local_model_sinks`` entry for that hand: per answer, four rclpy messages fewer (pose out and in,
-    model out and in). The node still publishes ``tool/wrench`` (and the contact model, for other readers) over DDS.
+    each contact model back through its ``local_model_sinks`` entry for that hand: per answer, four rclpy messages
+    fewer (pose out and in, model out and in). The node still publishes ``tool/wrench`` (and the contact model, for
+    other readers) over DDS.
     """
 
     def __init__(
