@@ -305,3 +305,58 @@ def test_a_slow_sliding_loop_beside_a_held_punch_takes_no_energy(cfgs):
     works, alone = th.loop_energies([fcfg, fcfg], [pa, pb])
     assert sum(works) <= th.ENERGY_TOLERANCE_J, works
     assert sum(works) - sum(alone) <= 0.1 * abs(sum(alone)), (works, alone)  # the coupling's share: within 10 %
+
+
+def _fresh_lowering(skin, i):
+    """Tool ``i``'s load-map lowering from every other tool on the kernel, read afresh (no cached read):
+    ``LoadMap.lowering`` at each one's own depth at its centre, as the coupling defines it."""
+    me = skin.hands[i]
+    own = me.tissue.surface_displacement_at(*me._xy) if me._xy is not None else 0.0
+    out = []
+    for j, h in enumerate(skin.hands):
+        if j != i and h.tissue.active.any() and h._xy is not None:
+            out.append(me.load_map.lowering(own, h.load_map, h.tissue.surface_displacement_at(*h._xy)))
+    return out
+
+
+def test_the_coupling_reads_each_centre_once_per_field_state_and_gets_the_fresh_value(cfgs):
+    """Each tool's own depth and load map are read once per state of its field (``CoupledTool.centre_load``) and
+    shared by the coupled tick's three readers; along presses, a slide, a release, a reset and a restored state the
+    lowering each tool feels is exactly (bit for bit) the one read afresh."""
+    fcfg = cfgs[0]
+    skin = SharedSkin([make_tool(fcfg), make_tool(fcfg)])
+    a, b = skin.hands
+    path_a = [(-5e-3 + 1e-5 * k, 0.0, -min(k, 150) * 1e-5) for k in range(400)]
+    path_b = [(3e-3, 0.0, -min(k, 100) * 1e-5) for k in range(400)]
+    checked = 0
+    saved = None
+    for k, (pa, pb) in enumerate(zip(path_a, path_b)):
+        a.step(ToolPose(pa, (0.0, 0.0, 0.0), DOWN, 1e-3, k == 0))
+        b.step(ToolPose(pb, (0.0, 0.0, 0.0), DOWN, 1e-3, k == 0))
+        if k == 200:
+            saved = b.inner.tissue.state()
+            b.release()  # the field stays; its next step releases it
+        if k == 250:
+            b.reset()  # back to rest: its field changes without a step
+        if k == 300:
+            b.inner.tissue.set_state(saved)  # a restored field
+        for i in (0, 1):
+            sources = [src[0] for src in skin.sources(i) if len(src) > 1]
+            assert sources == _fresh_lowering(skin, i)
+            checked += len(sources)
+    assert checked > 600  # the coupling was live through most of it
+
+
+def test_evolve_copies_a_record_with_its_changes_as_replace_does():
+    from dataclasses import replace
+
+    from skin_sim_node.tools.base import evolve
+
+    pose = ToolPose((1.0, 2.0, 3.0), (0.0, 0.0, 0.0), DOWN, 1e-3, False)
+    moved = evolve(pose, position_m=(1.0, 2.0, 2.5))
+    assert moved == replace(pose, position_m=(1.0, 2.0, 2.5)) and moved is not pose
+    assert pose.position_m == (1.0, 2.0, 3.0)  # the original is untouched
+    with pytest.raises(TypeError, match="no field 'positon_m'"):
+        evolve(pose, positon_m=(0.0, 0.0, 0.0))
+    with pytest.raises(AttributeError):  # still frozen
+        moved.dt_s = 2e-3  # type: ignore[misc]

@@ -103,3 +103,100 @@ def test_close_removes_the_hands_model_sink(lock_free):
     assert 0 in node.local_model_sinks
     link.close()
     assert 0 not in node.local_model_sinks
+
+
+def test_the_links_thread_outlives_a_failing_node_tick_and_failing_diagnostics(capsys):
+    """A tick that raises on the link's thread (the lock held when the pose came) and a raising diagnostics call are
+    each reported once; the thread goes on and answers the hand's next pose (it used to end silently, and the hand's
+    models stopped)."""
+    node = _Node(lock_free=False, fail=True)
+    calls = []
+
+    def diagnostics():
+        calls.append(1)
+        raise ValueError("diagnostics broke")
+
+    link = LocalLink(_Bridge(), node, periodic=(0.01, diagnostics), hand=1)
+    try:
+        for k in range(3):
+            link.send((k, (0.0, 0.0, -1e-3), (0.0, 0.0, 0.0, 1.0)))
+            assert _until(lambda: not link._pending)  # the link's thread took it (and its tick raised)
+        assert _until(lambda: len(calls) >= 3)
+        node.fail = False
+        link.send((9, (0.0, 0.0, -1e-3), (0.0, 0.0, 0.0, 1.0)))
+        assert _until(lambda: node.takes == [("local-link", 1)])  # still answering, on its own thread
+        out = capsys.readouterr().out
+        assert out.count("node tick failed for hand 1: RuntimeError('tick failed') (reported once)") == 1
+        assert out.count("diagnostics failed for hand 1: ValueError('diagnostics broke') (reported once)") == 1
+    finally:
+        link.close()
+
+
+class _ServerBridge:
+    tissue_frame = "tissue"
+    model_source = True
+
+    def get_name(self):
+        return "skin_sim_bridge_test"
+
+    def _on_local_model(self, msg):  # pragma: no cover - a server link hands models to on_model
+        pass
+
+
+def test_the_server_links_thread_outlives_a_model_it_cannot_take_and_failing_diagnostics(ros_domain, capsys):
+    """The bridge's DDS link to a node in another participant: a contact model whose handler raises and a raising
+    diagnostics call are each reported once; the thread goes on taking models and forwarding poses (it used to
+    re-raise and end, and the hand's models stopped)."""
+    rclpy = pytest.importorskip("rclpy")
+    from msgs_schema.qos import publisher, subscription
+    from skin_sim_node.device.links import ServerLink
+
+    taken = []
+
+    def on_model(data):
+        taken.append(data)
+        if len(taken) == 1:
+            raise ValueError("model broke")
+
+    def diagnostics():
+        raise RuntimeError("diagnostics broke")
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node("server_link_test_node", context=ctx)
+    poses = []
+    subscription(node, "tool_pose", poses.append, raw=True)
+    pub = publisher(node, "contact_model")
+    link = ServerLink(_ServerBridge(), [], on_model, periodic=(0.01, diagnostics))
+    try:
+        msg = pub.msg_type()
+        assert _until_spin(node, ctx, lambda: pub.get_subscription_count() > 0)
+        for k in range(2):  # the first raises, the second is taken (best effort: sent until one arrives)
+            msg.sequence = k
+            assert _until_spin(node, ctx, lambda k=k: len(taken) > k, lambda: pub.publish(msg))
+        pose = (11, (0.0, 0.0, -1e-3), (0.0, 0.0, 0.0, 1.0))
+        assert _until_spin(node, ctx, lambda: len(poses) >= 1, lambda: link.send(pose))  # still forwarding after both failures
+        out = capsys.readouterr().out
+        assert out.count("the node's model failed: ValueError('model broke') (reported once)") == 1
+        assert out.count("diagnostics failed: RuntimeError('diagnostics broke') (reported once)") == 1
+    finally:
+        link.close()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
+def _until_spin(node, ctx, cond, each=None) -> bool:
+    """Spin ``node`` until ``cond`` holds (at most :data:`WAIT_S`), calling ``each`` before every spin."""
+    import rclpy
+
+    ex = rclpy.executors.SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    try:
+        t_end = time.monotonic() + WAIT_S
+        while time.monotonic() < t_end and not cond():
+            if each is not None:
+                each()
+            ex.spin_once(timeout_sec=0.01)
+        return cond()
+    finally:
+        ex.remove_node(node)

@@ -381,7 +381,7 @@ class BridgeNode(DeviceNode):
         ws = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self.context.handle)
         next_check = time.monotonic_ns() + self._watchdog_period_ns
         failed: set[str] = set()
-        while not self._servo_stop.is_set() and self.context.ok():
+        while not self._servo_stop.is_set():  # rclpy's shutdown: the wait raises, or the watchdog's check below
             try:
                 ws.clear_entities()
                 ws.add_subscription(pose_handle)
@@ -391,6 +391,10 @@ class BridgeNode(DeviceNode):
                     while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
                         handler(taken[0])
                 if time.monotonic_ns() >= next_check:
+                    # the context once per watchdog period, not per pose: Context.ok() takes a lock the two hands'
+                    # servo threads (and rclpy's own) share, and a holder that waits for the GIL holds the other up
+                    if not self.context.ok():
+                        return
                     next_check = time.monotonic_ns() + self._watchdog_period_ns
                     self._watchdog()
             except Exception as exc:

@@ -63,7 +63,7 @@ class ServerLink:
         forward_twist: bool = False,
     ):
         self._periodic = periodic
-        self._periodic_failed = False
+        self._reported: set[str] = set()  # the failures reported (once each: _report)
         self.ctx = rclpy.Context()
         rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
         self.node = rclpy.create_node(
@@ -108,28 +108,42 @@ class ServerLink:
                 ws.add_subscription(sub_handle)
                 ws.add_guard_condition(wake_handle)
                 ws.wait(timeout)
+                taken_all = []
                 while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
-                    self._on_model(taken[0])
+                    taken_all.append(taken[0])
             except Exception:
                 if self._stop.is_set() or not self.ctx.ok():
                     return
                 raise
+            for data in taken_all:
+                try:
+                    self._on_model(data)
+                except Exception as exc:  # one model the bridge could not take: the next one may be fine
+                    self._report("the node's model", exc)
             with self._lock:
                 latest, self._latest = self._latest, None
             if latest is not None:
                 (stamp, x, q), tw = latest
-                if tw is not None and self._twist_pub is not None:  # twist first, as the device publishes them
-                    publish_while_ok(self.node, self._twist_pub, fill_twist(self._twist, tw[0], FRAMES["tissue"], tw[1]))
-                publish_while_ok(self.node, self._pose_pub, self._pose_cdr.fill(stamp, x, q))
-                self.forwarded += 1
+                try:
+                    if tw is not None and self._twist_pub is not None:  # twist first, as the device publishes them
+                        tw_msg = fill_twist(self._twist, tw[0], FRAMES["tissue"], tw[1])
+                        publish_while_ok(self.node, self._twist_pub, tw_msg)
+                    publish_while_ok(self.node, self._pose_pub, self._pose_cdr.fill(stamp, x, q))
+                    self.forwarded += 1
+                except Exception as exc:
+                    self._report("forwarding a pose", exc)
             if self._periodic is not None and time.monotonic_ns() >= next_ns:
                 next_ns = time.monotonic_ns() + period_ns
                 try:
                     self._periodic[1]()
                 except Exception as exc:  # never let it stop the tool pose going to the node
-                    if not self._periodic_failed:
-                        self._periodic_failed = True
-                        print(f"skin-sim bridge: diagnostics failed: {exc!r} (reported once)", flush=True)
+                    self._report("diagnostics", exc)
+
+    def _report(self, what: str, exc: Exception) -> None:
+        """Print a failure of ``what`` once per kind: the link's thread goes on serving the device's hand."""
+        if what not in self._reported:
+            self._reported.add(what)
+            print(f"skin-sim bridge: {what} failed: {exc!r} (reported once)", flush=True)
 
     def close(self) -> None:
         """Stop the link's thread, then destroy its node and context, never under a thread still inside them.
@@ -198,7 +212,7 @@ class LocalLink:
         it on the link's thread (``answer``: its lock and its tick), on the servo thread (``here``: how long the
         servo thread was away from its device), the periodic call (``periodic``): where a hand's poses stop reaching
         the node while its device streams."""
-        self._failed = False
+        self._reported: set[str] = set()  # the failures reported (once each: _report)
         self._thread = threading.Thread(target=self._run, name="local-link", daemon=True)
         self._thread.start()
 
@@ -217,9 +231,7 @@ class LocalLink:
             done = self.node.take_inputs(self.hand, blocking=False)  # answered on the caller's (the servo) thread
         except Exception as exc:  # the node's tick failed: the device's command is out; say so once, serve on
             done = True  # its inputs were taken with it
-            if not self._failed:
-                self._failed = True
-                print(f"skin-sim bridge: node tick failed for hand {self.hand}: {exc!r} (reported once)", flush=True)
+            self._report("node tick", exc)
         if done:
             self.served_here += 1
             self._longest("here", t0)
@@ -249,13 +261,25 @@ class LocalLink:
             if pending and not self._stop.is_set():
                 self._longest("pickup", sent)
                 t0 = time.monotonic_ns()
-                self.node.take_inputs(self.hand)  # answered here, or already by the node's clock
+                try:
+                    self.node.take_inputs(self.hand)  # answered here, or already by the node's clock
+                except Exception as exc:  # the node's tick failed: say so once and go on answering (as send does)
+                    self._report("node tick", exc)
                 self._longest("answer", t0)
             if self._periodic is not None and time.monotonic_ns() >= next_ns:
                 t0 = next_ns = time.monotonic_ns()
                 next_ns += period_ns
-                self._periodic[1]()
+                try:
+                    self._periodic[1]()
+                except Exception as exc:  # the bridge's diagnostics: never the end of this hand's answers
+                    self._report("diagnostics", exc)
                 self._longest("periodic", t0)
+
+    def _report(self, what: str, exc: Exception) -> None:
+        """Print a failure of ``what`` once per kind (the node's tick, the diagnostics): the thread goes on."""
+        if what not in self._reported:
+            self._reported.add(what)
+            print(f"skin-sim bridge: {what} failed for hand {self.hand}: {exc!r} (reported once)", flush=True)
 
     def close(self) -> None:
         """Stop the link's thread (the node stops after it: it was built first)."""

@@ -127,6 +127,22 @@ class ToolStep:
     stress_pa: float
 
 
+def evolve(record, **changes):
+    """A copy of a frozen dataclass record (:class:`ToolPose`, :class:`ToolStep`,
+    :class:`~skin_sim_node.model.ContactTangent`) with ``changes``: :func:`dataclasses.replace` without its
+    ``__init__`` call, which a coupled tick makes three times (issue 32; about a fifth of the cost). Valid for
+    records whose fields are all init fields and that have no ``__post_init__`` (the three above); a name that is not
+    a field raises, as ``replace`` does."""
+    fields = type(record).__dataclass_fields__
+    if not changes.keys() <= fields.keys():
+        raise TypeError(f"{type(record).__name__} has no field {sorted(changes.keys() - fields.keys())[0]!r}")
+    new = object.__new__(type(record))
+    state = vars(new)
+    state.update(vars(record))
+    state.update(changes)
+    return new
+
+
 def tissue_step(tissue: SkinModel, force_n: np.ndarray, tangent: ContactTangent | None) -> ToolStep:
     """The :class:`ToolStep` of a tool whose contact read-outs are the tissue's last step (depth, layers, stress).
 

@@ -60,7 +60,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 
@@ -68,7 +67,7 @@ from ..model import SkinModel
 from ..model.grid import assemble_heights
 from ..model.heave import TABLE_STEP_M, coupling_table, uses_kernel
 from ..model.interfaces import interface_depths_m
-from .base import Tool, ToolPose, ToolStep
+from .base import Tool, ToolPose, ToolStep, evolve
 from .reciprocal import LoadMap, load_map
 
 MAX_HANDS = 2
@@ -225,7 +224,7 @@ class SharedSkin:
         and the pair's kernel, :meth:`others_displacement_at`) or ``(tissue,)`` for another."""
         out: list[tuple] = []
         me = self.hands[i]
-        own: float | None = None  # this tool's own depth at its centre: read once, for every other tool on the kernel
+        slope: float | None = None  # this tool's Psi' at its own depth: read once, for every other tool on the kernel
         for j, h in enumerate(self.hands):
             if j == i or not h.tissue.active.any():
                 continue
@@ -233,9 +232,10 @@ class SharedSkin:
             if table is not None:
                 if h._xy is not None and me.load_map is not None and h.load_map is not None:
                     xj, yj = h._xy
-                    if own is None:
-                        own = me.tissue.surface_displacement_at(*me._xy) if me._xy is not None else 0.0
-                    delta = me.load_map.lowering(own, h.load_map, h.tissue.surface_displacement_at(xj, yj))
+                    if slope is None:
+                        slope = me.centre_load()[2] if me._xy is not None else me.load_map.slope(0.0)
+                    e_j, psi_j, _ = h.centre_load()
+                    delta = slope * math.copysign(psi_j, e_j)  # LoadMap.lowering, from the tools' cached reads
                     if math.isfinite(delta):  # a field gone non-finite (its session resets it) never reaches another
                         out.append((delta, xj, yj, *table))
             else:
@@ -332,6 +332,7 @@ class CoupledTool(Tool):
         self.load_map: LoadMap | None = None
         """Its :class:`~skin_sim_node.tools.reciprocal.LoadMap` when it couples to another by the kernel (set by the
         :class:`SharedSkin`)."""
+        self._centre: tuple | None = None  # (tissue, its version, place, e, |Psi|, Psi'): centre_load's last read
 
     def step(self, pose: ToolPose) -> ToolStep:
         """The inner tool's step at ``z + w_i``; its record, with positions back in the tissue frame, the coupling's
@@ -359,7 +360,7 @@ class CoupledTool(Tool):
         if w == 0.0 and prev == 0.0:
             self.shift_rate_m_s = 0.0
             return self.inner.step(pose)
-        s = self.inner.step(replace(pose, position_m=(x, y, z + w)))
+        s = self.inner.step(evolve(pose, position_m=(x, y, z + w)))
         # the other fields' change at this tool's last place (its own sideways motion is in K), over the time the others
         # stepped since (their motion, not this tool's tick: a burst of one hand's answers is not a fast other hand);
         # none across a jump of theirs or of this tool's
@@ -374,32 +375,60 @@ class CoupledTool(Tool):
         fz = float(s.force_n[2])
         if t is None and not fz > 0.0:
             return s
-        grad = (
-            (others(x + SLOPE_STEP_M, y) - w) / SLOPE_STEP_M,
-            (others(x, y + SLOPE_STEP_M) - w) / SLOPE_STEP_M,
-        )
-        if not (math.isfinite(grad[0]) and math.isfinite(grad[1])):
+        gx = (others(x + SLOPE_STEP_M, y) - w) / SLOPE_STEP_M
+        gy = (others(x, y + SLOPE_STEP_M) - w) / SLOPE_STEP_M
+        if not (math.isfinite(gx) and math.isfinite(gy)):
             return s
         changes: dict = {}
         if fz > 0.0:  # the lateral force of the coupling's potential: d phi / d x_i = L_i grad(w_i)
             load = self.lateral_load_n(fz, x, y)
             force = np.array(s.force_n, dtype=float)
-            force[0] += load * grad[0]
-            force[1] += load * grad[1]
+            force[0] += load * gx
+            force[1] += load * gy
             changes["force_n"] = force
         if t is None:
-            return replace(s, **changes)
-        k = np.asarray(t.stiffness_n_per_m, dtype=float).copy()
-        k[:, 0] += k[:, 2] * grad[0]  # moving sideways along the others' slope changes this tool's own depth
-        k[:, 1] += k[:, 2] * grad[1]
-        k[0, :] += grad[0] * k[2, :]  # the lateral force follows the load, to first order (L ~ F_z)
-        k[1, :] += grad[1] * k[2, :]
-        tangent: dict = {"stiffness_n_per_m": k, "coupling_rate_n_per_s": k[:, 2] * self.shift_rate_m_s}
+            return evolve(s, **changes)
+        # in plain floats (nine entries: NumPy's per-call cost is most of a tick's coupling), in NumPy's order
+        (k00, k01, k02), (k10, k11, k12), (k20, k21, k22) = np.asarray(t.stiffness_n_per_m, dtype=float).tolist()
+        k00 += k02 * gx  # moving sideways along the others' slope changes this tool's own depth: K[:, 0:2] += K[:, 2] g^T
+        k10 += k12 * gx
+        k20 += k22 * gx
+        k01 += k02 * gy
+        k11 += k12 * gy
+        k21 += k22 * gy
+        k00 += gx * k20  # the lateral force follows the load, to first order (L ~ F_z): K[0:2, :] += g K[2, :]
+        k01 += gx * k21
+        k02 += gx * k22
+        k10 += gy * k20
+        k11 += gy * k21
+        k12 += gy * k22
+        rate = self.shift_rate_m_s
+        tangent: dict = {
+            "stiffness_n_per_m": np.array(((k00, k01, k02), (k10, k11, k12), (k20, k21, k22))),
+            "coupling_rate_n_per_s": np.array((k02 * rate, k12 * rate, k22 * rate)),
+        }
         if t.friction_anchor_m is not None:
-            anchor = np.asarray(t.friction_anchor_m, dtype=float).copy()
+            anchor = np.array(t.friction_anchor_m, dtype=float)
             anchor[2] -= w
             tangent["friction_anchor_m"] = anchor
-        return replace(s, tangent=replace(t, **tangent), **changes)
+        return evolve(s, tangent=evolve(t, **tangent), **changes)
+
+    def centre_load(self) -> tuple[float, float, float]:
+        """This tool's own field's depth ``e`` (m) at its place of the last step, with ``|Psi(e)|`` and ``Psi'(e)`` of
+        its load map (:mod:`~skin_sim_node.tools.reciprocal`); needs a place and a load map.
+
+        Read once per state of its field (:attr:`SkinModel.version` changes with every kernel call, reset or restored
+        state; a release or an idle step leaves the field as it was): a coupled tick needs it three times (its own
+        lateral load, its next step's load map, the other tool's step), and each read is a kernel call and a law
+        lookup. The values are those of :meth:`SkinModel.surface_displacement_at` and ``LoadMap._psi``, unchanged."""
+        t = self.tissue
+        c = self._centre
+        if c is None or c[0] is not t or c[1] != t.version or c[2] != self._xy:
+            assert self._xy is not None and self.load_map is not None
+            e = t.surface_displacement_at(*self._xy)
+            psi, p = self.load_map._psi(e)
+            c = self._centre = (t, t.version, self._xy, e, psi, p)
+        return c[3], c[4], c[5]
 
     def lateral_load_n(self, force_z_n: float, x: float, y: float) -> float:
         """``L_i = Psi_i(e_i) / Psi_i'(e_i)`` (N): what turns the others' slope under this tool into its lateral force,
@@ -409,10 +438,14 @@ class CoupledTool(Tool):
         m = self.load_map
         if m is None:
             return force_z_n
-        e = self.tissue.surface_displacement_at(x, y)
+        if (x, y) == self._xy:  # its place of this step: the read the next ticks' load maps take too
+            e, psi, p = self.centre_load()
+        else:
+            e = self.tissue.surface_displacement_at(x, y)
+            psi, p = m._psi(e)
         if not (math.isfinite(e) and e > 0.0):
             return 0.0
-        return m.ratio(e)
+        return psi / p  # LoadMap.ratio
 
     def release(self) -> None:
         self.inner.release()
