@@ -223,12 +223,28 @@ class RateGovernor:
             if self.level == len(self.rungs) - 1:
                 return None
             due = w.answered + w.missed
+            made_hz = self.rate_hz * w.answered / due  # the answers the machine made, a second
             why = (
-                f"{self.rate_hz:g} Hz not held: {w.answered} of {due} due answers made, {w.late} late "
-                "(the machine's CPU; see diagnostics cpu_pct)"
+                f"{self.rate_hz:g} Hz not held: {w.answered} of {due} due answers made ({made_hz:.0f} a second), "
+                f"{w.late} late (the machine's CPU; see diagnostics cpu_pct)"
             )
-            return self._step(+1, why)
+            return self._step(self._down_to(made_hz) - self.level, why)
         return None
+
+    def _down_to(self, made_hz: float) -> int:
+        """The level a window that missed steps down to: the highest rung the answers it made a second would hold
+        (:data:`HELD_ANSWERED_MIN` of the rung), and at least one rung down (a window that made every answer but late
+        ones). An overloaded rung wastes nothing on the answers it skips, so what it made is what the machine can
+        make at most: the step is never too short, and the governor tries the rung above later as before.
+
+        One rung at a time, a two-hand node that started at 1 kHz on two cores took three rungs and 3 s of overload
+        (its windows made 153 of 499, then 128 of 252, then 100 of 126 due answers) to reach the rate it held, and
+        its devices' commands stopped for over 5 ms in that time (docs/two_hands.md, "Session 15"): what the machine
+        made is the rung it holds, so the governor goes there at once."""
+        level = self.level + 1
+        while level < len(self.rungs) - 1 and HELD_ANSWERED_MIN * self.rungs[level] > made_hz:
+            level += 1
+        return level
 
     def _step(self, direction: int, why: str) -> str:
         old = self.rate_hz
