@@ -85,8 +85,9 @@ NODE_PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         "rate_policy", str, "follow", "-",
-        "follow: input mode answers at rate_hz while the machine holds it, steps down the ladder of halves to min_rate_hz (at once to the rung the answers it made would hold) while it "
-        "does not (missed or late answers; diagnostics and the log say why), and back up once the lower rate has held; "
+        "follow: input mode answers at rate_hz while the machine holds it, steps down the ladder of halves to "
+        "min_rate_hz (at once to the rung the answers it made would hold) while it does not (missed or late answers; "
+        "diagnostics and the log say why), and back up once the lower rate has held; "
         "the bridge forwards poses at the rate announced in each contact model and renders it in between (a node with "
         "input_queue_depth above 1 answers every sample: fixed). fixed: rate_hz always",
         choices=("follow", "fixed"),
