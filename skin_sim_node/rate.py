@@ -185,6 +185,7 @@ class RateGovernor:
         self._good = 0
         self._up_after = UP_AFTER_WINDOWS
         self._probing = False
+        self._made_hz = 0.0  # answers made a second: the better of the bad windows since the last good one
 
     @property
     def rate_hz(self) -> float:
@@ -216,26 +217,30 @@ class RateGovernor:
             return None
         self._good = 0
         self._bad += 1
+        due = w.answered + w.missed
+        made_hz = self.rate_hz * w.answered / due  # the answers the machine made, a second
+        self._made_hz = max(self._made_hz, made_hz) if self._bad > 1 else made_hz  # the better of the bad windows
         if self._probing or (self._bad >= DOWN_AFTER_WINDOWS and self.level < len(self.rungs) - 1):
-            if self._probing:
+            probed = self._probing
+            if probed:
                 self._up_after = min(2 * self._up_after, UP_AFTER_MAX_WINDOWS)
                 self._probing = False
             if self.level == len(self.rungs) - 1:
                 return None
-            due = w.answered + w.missed
-            made_hz = self.rate_hz * w.answered / due  # the answers the machine made, a second
             why = (
-                f"{self.rate_hz:g} Hz not held: {w.answered} of {due} due answers made ({made_hz:.0f} a second), "
-                f"{w.late} late (the machine's CPU; see diagnostics cpu_pct)"
+                f"{self.rate_hz:g} Hz not held: {w.answered} of {due} due answers made, {w.late} late, "
+                f"{self._made_hz:.0f} answers a second at best (the machine's CPU; see diagnostics cpu_pct)"
             )
-            return self._step(self._down_to(made_hz) - self.level, why)
+            # a rung tried from below falls back to the rung that held, judged on one window; else what was made
+            return self._step(1 if probed else self._down_to(self._made_hz) - self.level, why)
         return None
 
     def _down_to(self, made_hz: float) -> int:
-        """The level a window that missed steps down to: the highest rung the answers it made a second would hold
-        (:data:`HELD_ANSWERED_MIN` of the rung), and at least one rung down (a window that made every answer but late
-        ones). An overloaded rung wastes nothing on the answers it skips, so what it made is what the machine can
-        make at most: the step is never too short, and the governor tries the rung above later as before.
+        """The level a rung that missed steps down to: the highest rung that ``made_hz`` (the answers made a second,
+        the better of its bad windows) would hold (:data:`HELD_ANSWERED_MIN` of the rung), and at least one rung down
+        (windows that made every answer but late ones). An overloaded rung spends almost nothing on the answers it
+        skips, so what it made is about what the machine makes; a rung tried from below that fails falls back one
+        rung instead (:meth:`update`), and the governor tries the rung above later, as before.
 
         One rung at a time, a two-hand node that started at 1 kHz on two cores took three rungs and 3 s of overload
         (its windows made 153 of 499, then 128 of 252, then 100 of 126 due answers) to reach the rate it held, and

@@ -24,6 +24,7 @@ class _Node:
         self.fail = fail
         self.posted: list[tuple] = []
         self.takes: list[tuple[str, int]] = []  # (thread name, hand) of each take that answered
+        self.failed = 0  # takes that raised
 
     def post_pose(self, stamp, frame, xyz, quat, hand=0):
         self.posted.append(("pose", stamp, hand))
@@ -35,6 +36,7 @@ class _Node:
         if not blocking and not self.lock_free:
             return False
         if self.fail:
+            self.failed += 1
             raise RuntimeError("tick failed")
         self.takes.append((threading.current_thread().name, hand))
         return True
@@ -120,7 +122,7 @@ def test_the_links_thread_outlives_a_failing_node_tick_and_failing_diagnostics(c
     try:
         for k in range(3):
             link.send((k, (0.0, 0.0, -1e-3), (0.0, 0.0, 0.0, 1.0)))
-            assert _until(lambda: not link._pending)  # the link's thread took it (and its tick raised)
+            assert _until(lambda k=k: node.failed == k + 1)  # the link's thread took it, and its tick raised
         assert _until(lambda: len(calls) >= 3)
         node.fail = False
         link.send((9, (0.0, 0.0, -1e-3), (0.0, 0.0, 0.0, 1.0)))

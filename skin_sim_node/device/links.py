@@ -63,7 +63,7 @@ class ServerLink:
         forward_twist: bool = False,
     ):
         self._periodic = periodic
-        self._reported: set[str] = set()  # the failures reported (once each: _report)
+        self._reported: set[tuple[str, str]] = set()  # (what, exception type) of the failures reported: _report
         self.ctx = rclpy.Context()
         rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
         self.node = rclpy.create_node(
@@ -140,9 +140,9 @@ class ServerLink:
                     self._report("diagnostics", exc)
 
     def _report(self, what: str, exc: Exception) -> None:
-        """Print a failure of ``what`` once per kind: the link's thread goes on serving the device's hand."""
-        if what not in self._reported:
-            self._reported.add(what)
+        """Print a failure of ``what`` once per kind of exception: the link's thread goes on serving the device's hand."""
+        if (what, type(exc).__name__) not in self._reported:
+            self._reported.add((what, type(exc).__name__))
             print(f"skin-sim bridge: {what} failed: {exc!r} (reported once)", flush=True)
 
     def close(self) -> None:
@@ -212,7 +212,7 @@ class LocalLink:
         it on the link's thread (``answer``: its lock and its tick), on the servo thread (``here``: how long the
         servo thread was away from its device), the periodic call (``periodic``): where a hand's poses stop reaching
         the node while its device streams."""
-        self._reported: set[str] = set()  # the failures reported (once each: _report)
+        self._reported: set[tuple[str, str]] = set()  # (what, exception type) of the failures reported: _report
         self._thread = threading.Thread(target=self._run, name="local-link", daemon=True)
         self._thread.start()
 
@@ -276,9 +276,10 @@ class LocalLink:
                 self._longest("periodic", t0)
 
     def _report(self, what: str, exc: Exception) -> None:
-        """Print a failure of ``what`` once per kind (the node's tick, the diagnostics): the thread goes on."""
-        if what not in self._reported:
-            self._reported.add(what)
+        """Print a failure of ``what`` (the node's tick, the diagnostics) once per kind of exception: the thread goes
+        on."""
+        if (what, type(exc).__name__) not in self._reported:
+            self._reported.add((what, type(exc).__name__))
             print(f"skin-sim bridge: {what} failed for hand {self.hand}: {exc!r} (reported once)", flush=True)
 
     def close(self) -> None:
