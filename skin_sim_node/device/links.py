@@ -34,6 +34,14 @@ class BridgeNode(Protocol):
     def _on_local_model(self, msg) -> None: ...
 
 
+def _report_once(reported: set[tuple[str, str]], what: str, exc: Exception, where: str = "") -> None:
+    """Print a link's failure of ``what`` (a node tick, a model, forwarding a pose, the diagnostics) once per kind of
+    exception, ``reported`` holding the kinds already said: the link's thread goes on serving its hand."""
+    if (what, type(exc).__name__) not in reported:
+        reported.add((what, type(exc).__name__))
+        print(f"skin-sim bridge: {what} failed{where}: {exc!r} (reported once)", flush=True)
+
+
 LINK_JOIN_S = 2.0
 """How long the bridge waits at shutdown for each of its node-link threads (they poll every 50 ms)."""
 
@@ -140,10 +148,7 @@ class ServerLink:
                     self._report("diagnostics", exc)
 
     def _report(self, what: str, exc: Exception) -> None:
-        """Print a failure of ``what`` once per kind of exception: the link's thread goes on serving the device's hand."""
-        if (what, type(exc).__name__) not in self._reported:
-            self._reported.add((what, type(exc).__name__))
-            print(f"skin-sim bridge: {what} failed: {exc!r} (reported once)", flush=True)
+        _report_once(self._reported, what, exc)
 
     def close(self) -> None:
         """Stop the link's thread, then destroy its node and context, never under a thread still inside them.
@@ -276,11 +281,7 @@ class LocalLink:
                 self._longest("periodic", t0)
 
     def _report(self, what: str, exc: Exception) -> None:
-        """Print a failure of ``what`` (the node's tick, the diagnostics) once per kind of exception: the thread goes
-        on."""
-        if (what, type(exc).__name__) not in self._reported:
-            self._reported.add((what, type(exc).__name__))
-            print(f"skin-sim bridge: {what} failed for hand {self.hand}: {exc!r} (reported once)", flush=True)
+        _report_once(self._reported, what, exc, f" for hand {self.hand}")
 
     def close(self) -> None:
         """Stop the link's thread (the node stops after it: it was built first)."""

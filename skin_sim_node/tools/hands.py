@@ -420,13 +420,13 @@ class CoupledTool(Tool):
         Read once per state of its field (:attr:`SkinModel.version` changes with every kernel call, reset or restored
         state; a release or an idle step leaves the field as it was): a coupled tick needs it three times (its own
         lateral load, its next step's load map, the other tool's step), and each read is a kernel call and a law
-        lookup. The values are those of :meth:`SkinModel.surface_displacement_at` and ``LoadMap._psi``, unchanged."""
+        lookup. The values are those of :meth:`SkinModel.surface_displacement_at` and :meth:`LoadMap.psi_and_slope`, unchanged."""
         t = self.tissue
         c = self._centre
         if c is None or c[0] is not t or c[1] != t.version or c[2] != self._xy:
             assert self._xy is not None and self.load_map is not None
             e = t.surface_displacement_at(*self._xy)
-            psi, p = self.load_map._psi(e)
+            psi, p = self.load_map.psi_and_slope(e)
             c = self._centre = (t, t.version, self._xy, e, psi, p)
         return c[3], c[4], c[5]
 
@@ -442,7 +442,7 @@ class CoupledTool(Tool):
             e, psi, p = self.centre_load()
         else:
             e = self.tissue.surface_displacement_at(x, y)
-            psi, p = m._psi(e)
+            psi, p = m.psi_and_slope(e)
         if not (math.isfinite(e) and e > 0.0):
             return 0.0
         return psi / p  # LoadMap.ratio

@@ -155,8 +155,10 @@ class LoadMap:
         """The relaxed law's force at ``|depth_m|`` (N): the cubic, or its last tangent past the nodes."""
         return self._locate(depth_m)[1]
 
-    def _psi(self, depth_m: float) -> tuple[float, float]:
-        """``|Psi|`` and ``Psi'`` at the relaxed force of depth ``|depth_m|``, from one lookup."""
+    def psi_and_slope(self, depth_m: float) -> tuple[float, float]:
+        """``|Psi|`` and ``Psi'`` at the relaxed force of depth ``|depth_m|``, from one lookup (what :meth:`slope`,
+        :meth:`value` and :meth:`ratio` read; a coupled tool keeps it per state of its field,
+        ``CoupledTool.centre_load``)."""
         k, force = self._locate(depth_m)
         p, psi, f = self.slopes, self.values, self.forces_n
         u = force - f[k]
@@ -167,15 +169,15 @@ class LoadMap:
 
     def slope(self, depth_m: float) -> float:
         """``Psi'`` at the relaxed force of depth ``depth_m`` (1 / sqrt(N/m), even)."""
-        return self._psi(depth_m)[1]
+        return self.psi_and_slope(depth_m)[1]
 
     def value(self, depth_m: float) -> float:
         """``Psi`` at the relaxed force of depth ``depth_m`` (sqrt(N m), odd)."""
-        return math.copysign(self._psi(depth_m)[0], depth_m)
+        return math.copysign(self.psi_and_slope(depth_m)[0], depth_m)
 
     def ratio(self, depth_m: float) -> float:
         """``Psi / Psi'`` at depth ``depth_m`` (N, for ``depth_m`` >= 0): a tool's load ``L`` in its lateral force."""
-        v, slope = self._psi(depth_m)
+        v, slope = self.psi_and_slope(depth_m)
         return v / slope
 
     def lowering(self, own_depth_m: float, other: LoadMap, other_depth_m: float) -> float:
