@@ -175,6 +175,11 @@ def spin_context(executor, context, stop: threading.Event) -> None:
 _CLOCK_MONOTONIC = 1  # <time.h>; time.perf_counter_ns reads this clock on Linux
 _TIMER_ABSTIME = 1
 _PR_SET_TIMERSLACK = 29  # <linux/prctl.h>
+_PR_SET_NAME = 15  # <linux/prctl.h>: the calling thread's name (comm), at most 15 bytes
+OWN_THREAD_PREFIX = "skin-"
+"""Kernel name prefix of the threads that set their own scheduling (:func:`name_own_thread`): the haptic clock, a
+bridge's servo thread and node link. A process-wide priority change (:func:`set_pid_realtime` with ``skip_own``)
+leaves them at theirs, and ``ps -L`` / ``/proc/<pid>/task/*/comm`` show which thread runs at what."""
 
 
 class _Timespec(ctypes.Structure):
@@ -208,6 +213,27 @@ def set_timer_slack_ns(slack_ns: int) -> bool:
     return _LIBC is not None and _LIBC.prctl(_PR_SET_TIMERSLACK, ctypes.c_ulong(slack_ns), 0, 0, 0) == 0
 
 
+def name_own_thread(name: str) -> bool:
+    """Name the calling thread ``skin-<name>`` in the kernel (15 bytes at most, the rest cut): one that sets its own
+    scheduling, so a process-wide change passes it by (:data:`OWN_THREAD_PREFIX`). False where prctl is missing."""
+    if _LIBC is None:  # pragma: no cover - not glibc/Linux
+        return False
+    return _LIBC.prctl(_PR_SET_NAME, (OWN_THREAD_PREFIX + name).encode()[:15], 0, 0, 0) == 0
+
+
+def thread_names(pid: int) -> dict[int, str]:
+    """``{tid: kernel name}`` of every thread of process ``pid`` (Linux ``/proc``; a thread that ends meanwhile is
+    left out)."""
+    names = {}
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            with open(f"/proc/{pid}/task/{tid}/comm") as f:
+                names[int(tid)] = f.read().strip()
+        except OSError:
+            continue
+    return names
+
+
 def set_realtime(priority: int, tid: int = 0, reset_on_fork: bool = True) -> str | None:
     """SCHED_FIFO at ``priority`` (1-99) for thread ``tid`` (0: the calling thread).
 
@@ -224,15 +250,22 @@ def set_realtime(priority: int, tid: int = 0, reset_on_fork: bool = True) -> str
         return f"SCHED_FIFO {priority} not permitted ({exc}); running at normal priority"
 
 
-def set_process_realtime(priority: int, reset_on_fork: bool = True) -> str | None:
+def set_process_realtime(priority: int, reset_on_fork: bool = True, skip_own: bool = False) -> str | None:
     """:func:`set_realtime` for every thread of this process (DDS threads included); without
-    ``reset_on_fork``, threads started later by one of them inherit it."""
-    return set_pid_realtime(os.getpid(), priority, reset_on_fork)
+    ``reset_on_fork``, threads started later by one of them inherit it; ``skip_own``: as :func:`set_pid_realtime`."""
+    return set_pid_realtime(os.getpid(), priority, reset_on_fork, skip_own)
 
 
-def set_pid_realtime(pid: int, priority: int, reset_on_fork: bool = True) -> str | None:
-    """:func:`set_realtime` for every thread of process ``pid``."""
-    errors = [set_realtime(priority, int(tid), reset_on_fork) for tid in os.listdir(f"/proc/{pid}/task")]
+def set_pid_realtime(pid: int, priority: int, reset_on_fork: bool = True, skip_own: bool = False) -> str | None:
+    """:func:`set_realtime` for every thread of process ``pid``; with ``skip_own``, not for the threads named
+    :data:`OWN_THREAD_PREFIX` (each set its own priority: in one process with the node, a second bridge's change
+    raised the first bridge's node link from 79 and the node's clock from 50 to its own 80)."""
+    names = thread_names(pid)
+    errors = [
+        set_realtime(priority, tid, reset_on_fork)
+        for tid, name in names.items()
+        if not (skip_own and name.startswith(OWN_THREAD_PREFIX))
+    ]
     return next((e for e in errors if e), None)
 
 
@@ -347,6 +380,7 @@ class PeriodicLoop:
 
     def _setup_thread(self) -> None:
         t = self.timing
+        name_own_thread(self._thread.name)
         problems = []
         if t.rt_priority > 0:
             problems.append(set_realtime(t.rt_priority))

@@ -202,3 +202,54 @@ def _until_spin(node, ctx, cond, each=None) -> bool:
         return cond()
     finally:
         ex.remove_node(node)
+
+
+def test_the_server_links_thread_outlives_a_failing_wait(ros_domain, capsys, monkeypatch):
+    """A wait on the node's topics that raises (three times here) is reported once; the link's thread waits
+    ``WAIT_RETRY_S`` and goes on: it still forwards poses and takes models (it used to re-raise and end)."""
+    rclpy = pytest.importorskip("rclpy")
+    from msgs_schema.qos import publisher, subscription
+    from skin_sim_node.device import links
+
+    real = links._rclpy
+    fails = {"left": 3}
+
+    class _FlakyWaitSet:
+        def __init__(self, *args):
+            self._ws = real.WaitSet(*args)
+
+        def __getattr__(self, name):
+            return getattr(self._ws, name)
+
+        def wait(self, timeout):
+            if fails["left"] > 0:
+                fails["left"] -= 1
+                raise RuntimeError("wait broke")
+            return self._ws.wait(timeout)
+
+    class _Impl:
+        WaitSet = _FlakyWaitSet
+
+    monkeypatch.setattr(links, "_rclpy", _Impl)
+    taken = []
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node("server_link_wait_test_node", context=ctx)
+    poses = []
+    subscription(node, "tool_pose", poses.append, raw=True)
+    pub = publisher(node, "contact_model")
+    link = links.ServerLink(_ServerBridge(), [], taken.append)
+    try:
+        msg = pub.msg_type()
+        assert _until_spin(node, ctx, lambda: pub.get_subscription_count() > 0)
+        assert _until_spin(node, ctx, lambda: fails["left"] == 0)
+        assert _until_spin(node, ctx, lambda: len(taken) >= 1, lambda: pub.publish(msg))  # models after the failures
+        pose = (12, (0.0, 0.0, -1e-3), (0.0, 0.0, 0.0, 1.0))
+        assert _until_spin(node, ctx, lambda: len(poses) >= 1, lambda: link.send(pose))  # and poses
+        assert link._thread.is_alive()
+        out = capsys.readouterr().out
+        assert out.count("the link's wait failed: RuntimeError('wait broke') (reported once)") == 1
+    finally:
+        link.close()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)

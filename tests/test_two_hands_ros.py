@@ -202,8 +202,38 @@ def test_one_process_keeps_each_hands_bridge_apart_under_a_namespace_remap(tmp_p
             "-r", "__ns:=/robot",
         )  # fmt: skip
         scene.wait_for_log(both, "(hand left)", timeout_s=180)
+        own = _own_thread_priorities(both.popen.pid, OWN_THREADS)
         log = both.log()
     for h in HANDS:
         assert f"[robot.{h}.skin_sim_bridge]: bridge crtk: /robot/{h}/device/measured_cp" in log, log[-3000:]
         assert f"/robot/{h}/device/servo_cf" in log, log[-3000:]
     assert "already registered" not in log, log[-3000:]  # each bridge's device readers (its servo node) in its own name
+    # each thread that sets its own scheduling kept it when the other hand's bridge started (the second bridge's
+    # process-wide change raised the first hand's node link from 79 to 80)
+    assert set(own) == set(OWN_THREADS), (own, log[-3000:])
+    if "device path at SCHED_FIFO 80" in log:  # granted (root here); refused, every thread runs at priority 0
+        assert own == OWN_THREADS, own
+
+
+OWN_THREADS = {"skin-servo-0": 80, "skin-servo-1": 80, "skin-link-0": 79, "skin-link-1": 79, "skin-node-clock": 80}
+"""The composed two-hand process's own threads and their SCHED_FIFO priorities: each bridge's servo thread at its
+``rt_priority`` (80), its node link one below, the node's clock at the device path's (the bridge sets it)."""
+
+
+def _own_thread_priorities(pid: int, names: dict[str, int], timeout_s: float = 30.0) -> dict[str, int]:
+    """The SCHED_FIFO priority of each of ``names`` among process ``pid``'s threads, once they are ``names``' (a thread
+    names itself, then sets its priority), or after ``timeout_s`` what they are."""
+    from skin_sim_node.ros_util import thread_names
+
+    end = time.monotonic() + timeout_s
+    while True:
+        got = {}
+        for tid, name in thread_names(pid).items():
+            if name in names:
+                try:
+                    got[name] = os.sched_getparam(tid).sched_priority
+                except OSError:
+                    pass
+        if got == names or time.monotonic() > end:
+            return got
+        time.sleep(0.1)

@@ -245,7 +245,7 @@ class ScriptedNode(DeviceNode):
         self.finished = False
         if rt_priority > 1:  # every thread now (DDS, the executor) one below the loop: no priority inversion through
             # the GIL (a normal-priority thread holding it, preempted by a busy process, would hold the loop up)
-            why = set_pid_realtime(os.getpid(), rt_priority - 1)
+            why = set_pid_realtime(os.getpid(), rt_priority - 1, skip_own=True)
             if why:
                 self.get_logger().warning(why)
         self._loop = PeriodicLoop(

@@ -52,7 +52,7 @@ from msgs_schema.qos import PROFILES, publisher, subscription
 from msgs_schema.topics import FRAMES, TOPICS
 
 from ..rate import AnswerThrottle
-from ..ros_util import hold_cpu_latency, localhost_udp_env, ros_now_ns, set_pid_realtime, set_realtime
+from ..ros_util import hold_cpu_latency, localhost_udp_env, name_own_thread, ros_now_ns, set_pid_realtime, set_realtime
 from ..server.journal import HELP as JOURNAL_HELP
 from ..server.journal import AnswerJournal
 from .base import DeviceNode, publish_while_ok
@@ -199,6 +199,7 @@ class BridgeNode(DeviceNode):
     def __init__(self, overrides: dict | None = None, local_node=None, hand: int = 0, **kwargs):
         super().__init__(overrides, **kwargs)
         p = self.p
+        self.hand = hand  # the node's hand this bridge serves (its threads' names: servo-<hand>, link-<hand>)
         self.mapping = DeviceMapping(tuple(p.offset_m), p.scale, p.axes, p.force_scale, p.max_force_n)
         if not self.mapping.proper:
             self.get_logger().warn(f"axes {self.mapping.axes!r} is a reflection: tool orientation is published as identity")
@@ -265,6 +266,10 @@ class BridgeNode(DeviceNode):
         self._servo_stop = threading.Event()
         self._servo_wake = GuardCondition(None, None, context=self.context)
         self.rt_message = self._device_path_realtime(p.rt_priority)
+        if local_node is not None and p.rt_priority > 0 and local_node.clock_thread_id is not None:
+            # the node's clock takes a hand's queued pose when its link's thread is held off: at the device path's
+            # priority (at 79 with the links, the node starved and models expired: docs/two_hands.md, "Session 10")
+            set_realtime(p.rt_priority, local_node.clock_thread_id)
         if p.cpu_latency_us >= 0:  # the device path's wake-ups (bridge_params.CPU_LATENCY_US)
             why = hold_cpu_latency(p.cpu_latency_us)
             self.rt_message += f"; CPU wake-up latency held at {p.cpu_latency_us} us" if why is None else f"; {why}"
@@ -347,12 +352,15 @@ class BridgeNode(DeviceNode):
         """SCHED_FIFO for every thread that exists now: the device-side participant's DDS threads and the main thread
         (its executor only serves the parameter services; it blocks, and at this priority a busy process cannot hold it
         off the GIL). With SCHED_RESET_ON_FORK, threads started after this do not inherit it: the servo thread sets
-        ``priority`` itself, the node link one less. Every one of them blocks on I/O: nothing spins at SCHED_FIFO.
+        ``priority`` itself, the node link one less. Threads named ``skin-*`` (``ros_util.OWN_THREAD_PREFIX``) keep
+        theirs: with the node in this process, the first hand's servo thread and link keep theirs when the second
+        hand's bridge starts (its link was raised to 80), and the node's clock is set to ``priority`` on purpose
+        (:meth:`__init__`). Every one of them blocks on I/O: nothing spins at SCHED_FIFO.
         Returns the message to log."""
         if priority <= 0:
             return "device path at normal priority (rt_priority 0)"
         sys.setswitchinterval(SWITCH_INTERVAL_S)
-        why = set_pid_realtime(os.getpid(), priority)
+        why = set_pid_realtime(os.getpid(), priority, skip_own=True)
         if why is None:
             return (
                 f"device path at SCHED_FIFO {priority} (servo thread blocking in rcl_wait, device-side DDS threads; "
@@ -374,6 +382,7 @@ class BridgeNode(DeviceNode):
         that does, leaves the passivity observer booking the bridge's own command, as without ``measured_cf``.
         """
         prio = self.p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0
+        name_own_thread(f"servo-{self.hand}")
         if prio > 0:
             set_realtime(prio)
         pose_sub = self._servo_subs[-1][0]  # the tick: a device pose (its velocity and applied force are taken with it)

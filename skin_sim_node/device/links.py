@@ -18,7 +18,7 @@ from msgs_schema.convert import PoseCdr, fill_twist
 from msgs_schema.qos import publisher, subscription
 from msgs_schema.topics import FRAMES
 
-from ..ros_util import set_realtime
+from ..ros_util import name_own_thread, set_realtime
 from .base import publish_while_ok
 from .mapping import without_namespace_remap
 
@@ -44,6 +44,11 @@ def _report_once(reported: set[tuple[str, str]], what: str, exc: Exception, wher
 
 LINK_JOIN_S = 2.0
 """How long the bridge waits at shutdown for each of its node-link threads (they poll every 50 ms)."""
+
+WAIT_RETRY_S = 0.01
+"""After a failed wait on the node's topics, the server link's thread waits this long before the next (10 ms, a
+server period at 100 Hz): a wait set that keeps failing costs a wake-up every 10 ms instead of a core at SCHED_FIFO,
+and a pose handed meanwhile still goes out."""
 
 
 class ServerLink:
@@ -71,6 +76,7 @@ class ServerLink:
         forward_twist: bool = False,
     ):
         self._periodic = periodic
+        self._hand = getattr(bridge, "hand", 0)  # its thread's name: link-<hand>
         self._reported: set[tuple[str, str]] = set()  # (what, exception type) of the failures reported: _report
         self.ctx = rclpy.Context()
         rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
@@ -102,6 +108,7 @@ class ServerLink:
 
     def _run(self) -> None:
         """Wait for a model, a pose to forward or the diagnostics' time; handle each; until :meth:`close`."""
+        name_own_thread(f"link-{self._hand}")
         if self.rt_priority > 1:  # one below the servo thread: no priority inversion through the GIL
             set_realtime(self.rt_priority - 1)
         period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
@@ -119,10 +126,14 @@ class ServerLink:
                 taken_all = []
                 while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
                     taken_all.append(taken[0])
-            except Exception:
+            except Exception as exc:
                 if self._stop.is_set() or not self.ctx.ok():
                     return
-                raise
+                # a wait or take that failed: say it once, and try again after WAIT_RETRY_S (not a hot loop at
+                # SCHED_FIFO); the pose and the diagnostics below still go out
+                self._report("the link's wait", exc)
+                taken_all = []
+                self._stop.wait(WAIT_RETRY_S)
             for data in taken_all:
                 try:
                     self._on_model(data)
@@ -253,6 +264,7 @@ class LocalLink:
             self.longest_ms[key] = ms
 
     def _run(self) -> None:
+        name_own_thread(f"link-{self.hand}")
         if self.rt_priority > 1:
             set_realtime(self.rt_priority - 1)
         period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0

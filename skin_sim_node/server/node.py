@@ -189,7 +189,9 @@ class SkinSimNode(Node):
         args = [a for a in (ros_args or []) if "__node:=" not in a]
         self._display = DisplayProcess(cfgs, self._display_settings(), args, self.get_namespace())
         self._next_display_ns = 0  # the haptic tick copies the state for the display at display_rate_hz (no thread of its own)
-        self._loop = PeriodicLoop(self._clock_period_ns(), self._on_clock, timing=self._haptic_timing(), on_warning=self._warn)
+        self._loop = PeriodicLoop(
+            self._clock_period_ns(), self._on_clock, name="node-clock", timing=self._haptic_timing(), on_warning=self._warn
+        )
         self._apply_rt_scope()
         self._loop.start()
         if self.TRANSPORT_NOTE:
@@ -224,6 +226,12 @@ class SkinSimNode(Node):
             path = self.journal.save()
             self.get_logger().info(f"journal: {len(self.journal)} answers written to {path}")
 
+    @property
+    def clock_thread_id(self) -> int | None:
+        """The kernel thread id of the node's clock (its :class:`~skin_sim_node.ros_util.PeriodicLoop`): a bridge in
+        this process runs it at the device path's priority."""
+        return self._loop.native_id
+
     def _warn(self, message: str) -> None:
         self.get_logger().warning(message)
 
@@ -251,7 +259,7 @@ class SkinSimNode(Node):
         lower = max(p.rt_priority - 1, 1)
         # no SCHED_RESET_ON_FORK in process scope: threads started later (the executor's) inherit it;
         # the display worker process already runs, and the node starts no other process
-        problems = [set_process_realtime(lower, reset_on_fork=False)] if p.rt_scope == "process" else []
+        problems = [set_process_realtime(lower, reset_on_fork=False, skip_own=True)] if p.rt_scope == "process" else []
         problems.append(set_realtime(p.rt_priority, reset_on_fork=p.rt_scope != "process"))
         problem = next((m for m in problems if m), None)
         if problem:
