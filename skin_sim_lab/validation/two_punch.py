@@ -107,16 +107,17 @@ stop (0.25 mm) is -0.083, -0.089 and -0.088 at levels -2, -1 and 0 (docs/two_han
 7 % short of the finer two, and level -1 is within 0.0011 of level 0; at 6 mm levels -2 and -1 agree within 0.002."""
 
 
-def fem_base(cfg: TissueConfig) -> FemSetup:
-    """The FEM mesh and tissue of the reference: level :data:`REFERENCE_LEVEL`, moduli and geometry of ``cfg``."""
-    return replace(mesh_levels(REFERENCE_LEVEL, FemSetup()), moduli_pa=layer_moduli_pa(cfg), tissue=_geometry_key(cfg))
+def fem_base(cfg: TissueConfig, level: int = REFERENCE_LEVEL) -> FemSetup:
+    """The FEM mesh and tissue of the reference: mesh ``level`` (:data:`REFERENCE_LEVEL`), moduli and geometry of
+    ``cfg``."""
+    return replace(mesh_levels(level, FemSetup()), moduli_pa=layer_moduli_pa(cfg), tissue=_geometry_key(cfg))
 
 
-def fem_setup(cfg: TissueConfig, distance_m: float | None, partner: bool) -> Setup3D:
+def fem_setup(cfg: TissueConfig, distance_m: float | None, partner: bool, level: int = REFERENCE_LEVEL) -> Setup3D:
     """The neo-Hookean solve of a punch at ``x = distance_m / 2`` (``partner``: with its mirror at ``-distance_m / 2``);
     ``distance_m`` None: one punch centred on the block (the existing scenarios' layout, quarter model)."""
     layout = None if distance_m is None else PunchLayout(distance_m / 2, partner)
-    return Setup3D(fem_base(cfg), MAX_DEPTH_M, N_STEPS, layout)
+    return Setup3D(fem_base(cfg, level), MAX_DEPTH_M, N_STEPS, layout)
 
 
 def fem_solve(s3: Setup3D, fresh: bool = False, progress: bool = True, missing_ok: bool = False) -> Result3D | None:
@@ -257,14 +258,17 @@ class Row:
         return self.force_ok and self.interaction_ok and self.far_ok is not False
 
 
-def rows(cfg: TissueConfig, fresh: bool = False, progress: bool = True, missing_ok: bool = False) -> list[Row] | None:
-    """Every distance and depth: the FEM (cached) and the model. With ``missing_ok`` None when a solve is not cached."""
+def rows(
+    cfg: TissueConfig, fresh: bool = False, progress: bool = True, missing_ok: bool = False, level: int = REFERENCE_LEVEL
+) -> list[Row] | None:
+    """Every distance and depth: the FEM (cached, mesh ``level``) and the model. With ``missing_ok`` None when a solve
+    is not cached."""
     setups = [(d, p) for d in DISTANCES_M for p in (True, False)]
     res = {}
-    bar = tqdm(setups, desc="two-punch FEM (pair, single) per distance", disable=not progress)
+    bar = tqdm(setups, desc=f"two-punch FEM (pair, single) per distance, level {level}", disable=not progress)
     for d, p in bar:
         bar.set_postfix(distance_mm=f"{d * 1e3:g}", punches="pair" if p else "single")
-        r = fem_solve(fem_setup(cfg, d, p), fresh, progress, missing_ok)
+        r = fem_solve(fem_setup(cfg, d, p, level), fresh, progress, missing_ok)
         if r is None:
             return None
         res[d, p] = r
@@ -1072,6 +1076,45 @@ volume the punch displaces, `L^4 d/dr Lap w = -a depth/2` (no net volume). `unif
 model as in the profile check above (2 mm, the FEM's field every 0.5 mm)."""
 
 
+COARSE_LEVEL = REFERENCE_LEVEL - 1
+"""The mesh level one coarser than the reference's, whose solves stay in the tracked cache: the table's FEM at both
+levels shows how far the reference's discretisation moves each verdict (:func:`mesh_convergence_text`)."""
+
+CONVERGENCE_INTRO = """## The reference's mesh
+
+The whole table at the reference's mesh level and one level coarser (fewer elements over the punch's radius and
+through the layers; `fem.mesh_levels`): the FEM's interaction over its single force, and the model's interaction
+error and verdict against each. Where a verdict differs between the levels, it sits inside the reference's own
+discretisation error and says so."""
+
+
+def mesh_convergence_text(rs: list[Row], coarse: list[Row]) -> str:
+    """The table's rows against the reference (``rs``) and against the coarser mesh (``coarse``, :func:`rows` at
+    :data:`COARSE_LEVEL`), with the change of the FEM's interaction between the two levels."""
+    lines = [
+        f"| d (mm) | depth (mm) | FEM int. / single, level {COARSE_LEVEL} | level {REFERENCE_LEVEL} | change "
+        f"| FEM single, level {COARSE_LEVEL} -> {REFERENCE_LEVEL} | interaction err, level {COARSE_LEVEL} "
+        f"| level {REFERENCE_LEVEL} | verdict, level {COARSE_LEVEL} | level {REFERENCE_LEVEL} |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r, k in zip(rs, coarse):
+        lines.append(
+            f"| {r.distance_m * 1e3:g} | {r.depth_m * 1e3:g} | {k.fem_fraction:+.4f} | {r.fem_fraction:+.4f} "
+            f"| {r.fem_fraction - k.fem_fraction:+.4f} | {r.fem_single_n / k.fem_single_n - 1:+.2%} "
+            f"| {k.interaction_error:+.0%}{' (abs.)' if k.small_interaction else ''} "
+            f"| {r.interaction_error:+.0%}{' (abs.)' if r.small_interaction else ''} "
+            f"| {'PASS' if k.ok else 'FAIL'} | {'PASS' if r.ok else 'FAIL'} |"
+        )
+    moved = [f"{r.distance_m * 1e3:g} mm, {r.depth_m * 1e3:g} mm" for r, k in zip(rs, coarse) if r.ok != k.ok]
+    lines += [
+        "",
+        f"Rows passing: {sum(k.ok for k in coarse)} of {len(coarse)} against level {COARSE_LEVEL}, "
+        f"{sum(r.ok for r in rs)} of {len(rs)} against level {REFERENCE_LEVEL}; "
+        + (f"verdicts that change with the mesh: {'; '.join(moved)}." if moved else "no verdict changes with the mesh."),
+    ]
+    return "\n".join(lines)
+
+
 def markdown(
     rs: list[Row],
     c: Checks,
@@ -1079,10 +1122,11 @@ def markdown(
     imps: list[Implied] | None = None,
     prof: Profiles | None = None,
     lin: Linear | None = None,
+    coarse: list[Row] | None = None,
 ) -> str:
-    """The page: the command, the table, the aims and verdicts, the checks, the findings, what the reference implies
-    for the coupling (``imps``, :func:`implied`), where the heave would come from (``prof``,
-    :func:`foundation_profiles`), and the method."""
+    """The page: the command, the table, the aims and verdicts, the reference's mesh (``coarse``: the rows one level
+    coarser), the checks, the findings, what the reference implies for the coupling (``imps``, :func:`implied`), where
+    the heave would come from (``prof``, :func:`foundation_profiles`), and the method."""
     ok = all(r.ok for r in rs)
     spread = max(r.model_pair_spread for r in rs)
     return "\n".join(
@@ -1107,6 +1151,7 @@ def markdown(
             "",
             issue_table(rs),
             "",
+            *([] if coarse is None else [CONVERGENCE_INTRO, "", mesh_convergence_text(rs, coarse), ""]),
             "## Checks",
             "",
             "Lateral boundary: the single punch centred on the block (quarter model, the existing mesh) against the "
@@ -1139,12 +1184,13 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     cfg = load_tissue_config(CONFIG)
     rs = rows(cfg, a.fresh)
+    coarse = rows(cfg, progress=False, missing_ok=True, level=COARSE_LEVEL)  # read, never solved here
     c = checks(cfg, a.fresh)
     imps = implied(cfg, rs, a.fresh)
     prof = foundation_profiles(cfg, a.fresh)
     lin = linear_layers(cfg, prof)
     command = "skin-sim two-punch" + "".join(f" {shlex.quote(x)}" for x in (argv if argv is not None else sys.argv[1:]))
-    text = markdown(rs, c, command, imps, prof, lin)
+    text = markdown(rs, c, command, imps, prof, lin, coarse)
     (out / "two_punch.md").write_text(text)
     print(table(rs))
     print()
@@ -1152,6 +1198,9 @@ def main(argv=None) -> int:
     print()
     print(issue_table(rs))
     print()
+    if coarse is not None:
+        print(mesh_convergence_text(rs, coarse))
+        print()
     print(checks_text(c))
     print()
     print(findings(rs, c, prof))
