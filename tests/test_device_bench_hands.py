@@ -219,3 +219,50 @@ def test_a_run_that_raises_leaves_no_process_behind(tmp_path, monkeypatch):
             if p.poll() is None:
                 p.kill()
                 p.wait()
+
+
+def test_a_process_cpu_is_split_by_its_threads_names():
+    """``ProcCpu`` counts each thread's CPU under its group: a thread that names itself ``skin-*`` under its name, the
+    first thread as ``main``. A named thread that burns CPU between two marks shows it; one asleep shows about none."""
+    import os
+    import threading
+    import time
+
+    from skin_sim_lab.perf.cpu_budget import ProcCpu, thread_group
+    from skin_sim_node.ros_util import name_own_thread
+
+    assert thread_group("skin-servo-0", 11, 10) == "skin-servo-0"
+    assert thread_group("dds.udp.7412", 11, 10) == "dds"
+    assert thread_group("python", 10, 10) == "main" and thread_group("python", 11, 10) == "other"
+    stop, ready = threading.Event(), threading.Barrier(3)
+
+    def burn():
+        name_own_thread("test-burn")
+        ready.wait()
+        while not stop.is_set():
+            sum(range(1000))
+
+    def sleep():
+        name_own_thread("test-idle")
+        ready.wait()
+        stop.wait()
+
+    threads = [threading.Thread(target=f, daemon=True) for f in (burn, sleep)]
+    for t in threads:
+        t.start()
+    ready.wait()
+    cpu = ProcCpu(os.getpid())
+    try:
+        cpu.mark()
+        t_end = time.monotonic() + 0.5
+        while time.monotonic() < t_end:
+            time.sleep(0.01)
+        cpu.mark()
+    finally:
+        stop.set()
+        for t in threads:
+            t.join()
+    pct = cpu.thread_pct(0, 1)
+    assert pct["skin-test-burn"] > 5.0, pct  # busy for the whole interval on a 2-core machine: well above 5 %
+    assert pct["skin-test-idle"] < 1.0, pct
+    assert "main" in pct

@@ -41,6 +41,8 @@ class ProcCpu:
 
         self.proc = psutil.Process(pid)
         self.marks: list[tuple[float, float]] = []
+        self.thread_marks: list[dict[str, float]] = []
+        """CPU seconds per thread group (:func:`thread_group`) at each mark: where the process's CPU goes."""
 
     def cpu_s(self) -> float:
         """CPU seconds so far (user + system), children included; the last value once the process is gone."""
@@ -59,14 +61,57 @@ class ProcCpu:
         except psutil.Error:
             return self.marks[-1][1] if self.marks else float("nan")
 
+    def threads_s(self) -> dict[str, float]:
+        """CPU seconds so far (user + system) of the process's live threads, summed per :func:`thread_group` (its
+        children not included); empty once the process is gone."""
+        import psutil
+
+        from skin_sim_node.ros_util import thread_names
+
+        pid = self.proc.pid
+        try:
+            names = thread_names(pid)
+            out: dict[str, float] = {}
+            for t in self.proc.threads():
+                g = thread_group(names.get(t.id, ""), t.id, pid)
+                out[g] = out.get(g, 0.0) + t.user_time + t.system_time
+            return out
+        except (psutil.Error, OSError):
+            return {}
+
     def mark(self) -> None:
-        """Record (wall time, CPU seconds) now."""
+        """Record (wall time, CPU seconds) now, and the CPU seconds per thread group."""
         self.marks.append((time.monotonic(), self.cpu_s()))
+        self.thread_marks.append(self.threads_s())
+
+    def thread_pct(self, i: int, j: int) -> dict[str, float]:
+        """% of one core per thread group between marks ``i`` and ``j`` (groups alive at both marks)."""
+        (t0, _), (t1, _) = self.marks[i], self.marks[j]
+        a, b = self.thread_marks[i], self.thread_marks[j]
+        if t1 <= t0:
+            return {}
+        return {g: 100.0 * (b[g] - a[g]) / (t1 - t0) for g in sorted(b) if g in a}
 
     def pct(self, i: int, j: int) -> float:
         """% of one core between marks ``i`` and ``j``."""
         (t0, c0), (t1, c1) = self.marks[i], self.marks[j]
         return 100.0 * (c1 - c0) / (t1 - t0) if t1 > t0 else float("nan")
+
+
+def thread_group(name: str, tid: int, pid: int) -> str:
+    """The group a thread's CPU is counted in: ``main`` (the process's first thread: its executor), a thread that
+    names itself (``skin-servo-0``, ``skin-link-1``, ``skin-node-clock``: :func:`skin_sim_node.ros_util.name_own_thread`)
+    under its name, Fast DDS's threads (``dds.*``: receive, events, async writes) as ``dds``, the rest ``other``
+    (rclpy's and Python's unnamed threads, the display's)."""
+    from skin_sim_node.ros_util import OWN_THREAD_PREFIX
+
+    if tid == pid:
+        return "main"
+    if name.startswith(OWN_THREAD_PREFIX):
+        return name
+    if name.startswith("dds."):
+        return "dds"
+    return "other"
 
 
 class DiagListener:

@@ -882,12 +882,15 @@ def _run(phase_s, hog, log_dir, bridge_shm, driver_shm, node_args, node_shm, wit
     (log_dir / "cpu_marks.json").write_text(json.dumps(marks))
     n_marks = len(cpus["node"].marks)
     cpu = {ph: {k: c.pct(2 * i, 2 * i + 1) for k, c in cpus.items()} for i, ph in enumerate(PHASES) if n_marks > 2 * i + 1}
+    # where the node's process spends it, by thread (with --with-node: each hand's servo thread and link, the clock)
+    node_threads = {ph: cpus["node"].thread_pct(2 * i, 2 * i + 1) for i, ph in enumerate(PHASES) if n_marks > 2 * i + 1}
     return {
         "rec": recs[hands[0][0]],
         "recs": recs,
         "kill_ns": kill_ns,
         "phase_s": phase_s,
         "cpu": cpu,
+        "node_threads": node_threads,
         "echo_pct": echo_pct,
         "diag": snaps,
         "with_node": with_node,
@@ -997,6 +1000,9 @@ def main(argv=None) -> int:
     print(f"  machine after: {_machine()}")
     print_table(ph)
     print_budget(ph, res["echo_pct"])
+    for name, groups in res["node_threads"].items():
+        if groups:
+            print(f"{name:<9} node process by thread: " + ", ".join(f"{g} {v:.1f} %" for g, v in groups.items()))
     print(
         "columns: x = commands per device pose; own late = the emulator's late slots (the scheduling baseline; gaps>5 "
         "excludes gaps that contain one); max/F = largest |command| / |F_true| where |F_true| > 0.05 N; x p99 = render "
