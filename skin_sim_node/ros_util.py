@@ -177,9 +177,16 @@ _TIMER_ABSTIME = 1
 _PR_SET_TIMERSLACK = 29  # <linux/prctl.h>
 _PR_SET_NAME = 15  # <linux/prctl.h>: the calling thread's name (comm), at most 15 bytes
 OWN_THREAD_PREFIX = "skin-"
-"""Kernel name prefix of the threads that set their own scheduling (:func:`name_own_thread`): the haptic clock, a
-bridge's servo thread and node link. A process-wide priority change (:func:`set_pid_realtime` with ``skip_own``)
-leaves them at theirs, and ``ps -L`` / ``/proc/<pid>/task/*/comm`` show which thread runs at what."""
+"""Kernel name prefix of skin-sim's own loop threads (:func:`name_own_thread`): every :class:`PeriodicLoop` (the
+node's clock, a simulated device's loop), a bridge's servo thread and node link. Each sets its own scheduling (its
+``rt_priority``, or none), so a process-wide priority change (:func:`set_pid_realtime` with ``skip_own``) leaves them
+at theirs; ``ps -L`` / ``/proc/<pid>/task/*/comm`` show which thread runs at what, and ``bench-device`` splits a
+process's CPU by them."""
+
+THREAD_SETUP_WAIT_S = 1.0
+"""How long the starter of such a thread waits for it to name itself and set its scheduling (:meth:`PeriodicLoop.start`,
+the bridge's servo thread, the node links): once started, a process-wide change made next (a second bridge's) cannot
+reach it unnamed. It takes microseconds; the bound only keeps a starved start from hanging its starter."""
 
 
 class _Timespec(ctypes.Structure):
@@ -361,11 +368,13 @@ class PeriodicLoop:
         self.ticks = 0
         self._reported: set[type] = set()
         self._stop = threading.Event()
+        self._ready = threading.Event()  # set once the thread has named itself and set its scheduling
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> None:
-        """Start the loop thread."""
+        """Start the loop thread, and wait (at most :data:`THREAD_SETUP_WAIT_S`) until it has set its scheduling."""
         self._thread.start()
+        self._ready.wait(THREAD_SETUP_WAIT_S)
 
     @property
     def native_id(self) -> int | None:
@@ -388,6 +397,7 @@ class PeriodicLoop:
             problems.append(set_affinity(t.cpus))
         if t.timer_slack_ns >= 0 and not set_timer_slack_ns(t.timer_slack_ns):
             problems.append(f"timer slack {t.timer_slack_ns} ns not applied")
+        self._ready.set()
         for msg in filter(None, problems):
             self.warnings.append(f"{self._thread.name}: {msg}")
             if self.on_warning:

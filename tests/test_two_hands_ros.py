@@ -202,7 +202,7 @@ def test_one_process_keeps_each_hands_bridge_apart_under_a_namespace_remap(tmp_p
             "-r", "__ns:=/robot",
         )  # fmt: skip
         scene.wait_for_log(both, "(hand left)", timeout_s=180)
-        own = _own_thread_priorities(both.popen.pid, OWN_THREADS)
+        own = _own_thread_priorities(both.popen.pid, OWN_THREADS, lambda: "device path at SCHED_FIFO 80" in both.log())
         log = both.log()
     for h in HANDS:
         assert f"[robot.{h}.skin_sim_bridge]: bridge crtk: /robot/{h}/device/measured_cp" in log, log[-3000:]
@@ -220,9 +220,10 @@ OWN_THREADS = {"skin-servo-0": 80, "skin-servo-1": 80, "skin-link-0": 79, "skin-
 ``rt_priority`` (80), its node link one below, the node's clock at the device path's (the bridge sets it)."""
 
 
-def _own_thread_priorities(pid: int, names: dict[str, int], timeout_s: float = 30.0) -> dict[str, int]:
-    """The SCHED_FIFO priority of each of ``names`` among process ``pid``'s threads, once they are ``names``' (a thread
-    names itself, then sets its priority), or after ``timeout_s`` what they are."""
+def _own_thread_priorities(pid: int, names: dict[str, int], granted, timeout_s: float = 30.0) -> dict[str, int]:
+    """The SCHED_FIFO priority of each of ``names`` among process ``pid``'s threads: once all of them run, and when
+    ``granted()`` (the process's log says SCHED_FIFO was granted) once they are ``names``' priorities; after
+    ``timeout_s``, what they are."""
     from skin_sim_node.ros_util import thread_names
 
     end = time.monotonic() + timeout_s
@@ -234,6 +235,6 @@ def _own_thread_priorities(pid: int, names: dict[str, int], timeout_s: float = 3
                     got[name] = os.sched_getparam(tid).sched_priority
                 except OSError:
                     pass
-        if got == names or time.monotonic() > end:
+        if (set(got) == set(names) and (got == names or not granted())) or time.monotonic() > end:
             return got
         time.sleep(0.1)

@@ -36,13 +36,14 @@ class ProcCpu:
     pid : int
     """
 
-    def __init__(self, pid: int):
+    def __init__(self, pid: int, threads: bool = False):
         import psutil
 
         self.proc = psutil.Process(pid)
         self.marks: list[tuple[float, float]] = []
-        self.thread_marks: list[dict[str, float]] = []
-        """CPU seconds per thread group (:func:`thread_group`) at each mark: where the process's CPU goes."""
+        self.threads = threads
+        self.thread_marks: list[dict[int, tuple[str, float]]] = []
+        """With ``threads``: ``{tid: (group, CPU seconds)}`` of the live threads at each mark (:func:`thread_group`)."""
 
     def cpu_s(self) -> float:
         """CPU seconds so far (user + system), children included; the last value once the process is gone."""
@@ -61,9 +62,9 @@ class ProcCpu:
         except psutil.Error:
             return self.marks[-1][1] if self.marks else float("nan")
 
-    def threads_s(self) -> dict[str, float]:
-        """CPU seconds so far (user + system) of the process's live threads, summed per :func:`thread_group` (its
-        children not included); empty once the process is gone."""
+    def threads_s(self) -> dict[int, tuple[str, float]]:
+        """``{tid: (group, CPU seconds so far)}`` of the process's live threads (:func:`thread_group`; its children
+        not included); empty once the process is gone."""
         import psutil
 
         from skin_sim_node.ros_util import thread_names
@@ -71,31 +72,37 @@ class ProcCpu:
         pid = self.proc.pid
         try:
             names = thread_names(pid)
-            out: dict[str, float] = {}
-            for t in self.proc.threads():
-                g = thread_group(names.get(t.id, ""), t.id, pid)
-                out[g] = out.get(g, 0.0) + t.user_time + t.system_time
-            return out
+            threads = self.proc.threads()
+            return {t.id: (thread_group(names.get(t.id, ""), t.id, pid), t.user_time + t.system_time) for t in threads}
         except (psutil.Error, OSError):
             return {}
 
     def mark(self) -> None:
-        """Record (wall time, CPU seconds) now, and the CPU seconds per thread group."""
+        """Record (wall time, CPU seconds) now, and with ``threads`` each thread's CPU seconds."""
         self.marks.append((time.monotonic(), self.cpu_s()))
-        self.thread_marks.append(self.threads_s())
-
-    def thread_pct(self, i: int, j: int) -> dict[str, float]:
-        """% of one core per thread group between marks ``i`` and ``j`` (groups alive at both marks)."""
-        (t0, _), (t1, _) = self.marks[i], self.marks[j]
-        a, b = self.thread_marks[i], self.thread_marks[j]
-        if t1 <= t0:
-            return {}
-        return {g: 100.0 * (b[g] - a[g]) / (t1 - t0) for g in sorted(b) if g in a}
+        if self.threads:
+            self.thread_marks.append(self.threads_s())
 
     def pct(self, i: int, j: int) -> float:
         """% of one core between marks ``i`` and ``j``."""
         (t0, c0), (t1, c1) = self.marks[i], self.marks[j]
         return 100.0 * (c1 - c0) / (t1 - t0) if t1 > t0 else float("nan")
+
+    def thread_pct(self, i: int, j: int) -> dict[str, float]:
+        """% of one core per thread group between marks ``i`` and ``j``: each thread's CPU between them (all of it for
+        a thread started in between), summed under its group at mark ``j``; a thread that ended in between is not
+        counted, nor are the children (``pct`` less their sum is those)."""
+        if not self.thread_marks:
+            return {}
+        (t0, _), (t1, _) = self.marks[i], self.marks[j]
+        a, b = self.thread_marks[i], self.thread_marks[j]
+        if t1 <= t0:
+            return {}
+        out: dict[str, float] = {}
+        for tid, (group, cpu) in b.items():
+            prev = a.get(tid)  # the same thread at mark i (not a new one that reused its id)
+            out[group] = out.get(group, 0.0) + cpu - (prev[1] if prev is not None and prev[1] <= cpu else 0.0)
+        return {g: 100.0 * v / (t1 - t0) for g, v in sorted(out.items())}
 
 
 def thread_group(name: str, tid: int, pid: int) -> str:

@@ -774,7 +774,7 @@ def _run(phase_s, hog, log_dir, bridge_shm, driver_shm, node_args, node_shm, wit
         echo_pct = echo_baseline(scene)
         print(f"  bare rclpy echo (SingleThreadedExecutor, 1 kHz poses in, wrenches out): {echo_pct:.1f} % of a core", flush=True)
         diag = DiagListener(topics=("/diagnostics", *(f"/{ns}/diagnostics" for ns, _ in hands if ns)))
-        cpus = {"node": ProcCpu(node.popen.pid)}
+        cpus = {"node": ProcCpu(node.popen.pid, threads=True)}
         if not with_node:
             cpus.update({f"bridge{hand_key(ns)}": ProcCpu(b.popen.pid) for ns, b in bridges.items()})
         t0_path = log_dir / "emulator_t0.txt"

@@ -1200,7 +1200,9 @@ def main(argv=None) -> int:
     print()
     if coarse is not None:
         print(mesh_convergence_text(rs, coarse))
-        print()
+    else:
+        print(f"(the table one mesh level coarser is left out: level {COARSE_LEVEL}'s solves are not cached)")
+    print()
     print(checks_text(c))
     print()
     print(findings(rs, c, prof))

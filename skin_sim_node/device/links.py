@@ -18,7 +18,7 @@ from msgs_schema.convert import PoseCdr, fill_twist
 from msgs_schema.qos import publisher, subscription
 from msgs_schema.topics import FRAMES
 
-from ..ros_util import name_own_thread, set_realtime
+from ..ros_util import THREAD_SETUP_WAIT_S, name_own_thread, set_realtime
 from .base import publish_while_ok
 from .mapping import without_namespace_remap
 
@@ -97,8 +97,10 @@ class ServerLink:
         self._wake = GuardCondition(None, None, context=self.ctx)
         self._stop = threading.Event()
         self.forwarded = 0
+        self._ready = threading.Event()
         self._thread = threading.Thread(target=self._run, name="server-link", daemon=True)
         self._thread.start()
+        self._ready.wait(THREAD_SETUP_WAIT_S)  # named and at its priority before a second bridge's change
 
     def send(self, pose: tuple, twist: tuple | None = None) -> None:
         """Hand the newest due pose ``(stamp, xyz, quat)`` (and the device's twist ``(stamp, linear)``) to the thread."""
@@ -111,6 +113,7 @@ class ServerLink:
         name_own_thread(f"link-{self._hand}")
         if self.rt_priority > 1:  # one below the servo thread: no priority inversion through the GIL
             set_realtime(self.rt_priority - 1)
+        self._ready.set()
         period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
         next_ns = time.monotonic_ns() + period_ns  # the first after one period: the bridge finishes its start first
         ws = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self.ctx.handle)
@@ -118,12 +121,12 @@ class ServerLink:
         sub_handle, wake_handle = sub.handle, self._wake.handle  # once: rclpy's properties cost per call
         while not self._stop.is_set() and self.ctx.ok():
             timeout = max(next_ns - time.monotonic_ns(), 0) if period_ns else 50_000_000
+            taken_all = []  # kept when a take fails after some: the models taken before it are handled
             try:
                 ws.clear_entities()
                 ws.add_subscription(sub_handle)
                 ws.add_guard_condition(wake_handle)
                 ws.wait(timeout)
-                taken_all = []
                 while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
                     taken_all.append(taken[0])
             except Exception as exc:
@@ -132,7 +135,6 @@ class ServerLink:
                 # a wait or take that failed: say it once, and try again after WAIT_RETRY_S (not a hot loop at
                 # SCHED_FIFO); the pose and the diagnostics below still go out
                 self._report("the link's wait", exc)
-                taken_all = []
                 self._stop.wait(WAIT_RETRY_S)
             for data in taken_all:
                 try:
@@ -229,8 +231,10 @@ class LocalLink:
         servo thread was away from its device), the periodic call (``periodic``): where a hand's poses stop reaching
         the node while its device streams."""
         self._reported: set[tuple[str, str]] = set()  # (what, exception type) of the failures reported: _report
+        self._ready = threading.Event()
         self._thread = threading.Thread(target=self._run, name="local-link", daemon=True)
         self._thread.start()
+        self._ready.wait(THREAD_SETUP_WAIT_S)  # named and at its priority before a second bridge's change
 
     def send(self, pose: tuple, twist: tuple | None = None) -> None:
         """Queue the due pose ``(stamp, xyz, quat)`` (and twist ``(stamp, linear)``) in the node's hand (no lock: the
@@ -267,6 +271,7 @@ class LocalLink:
         name_own_thread(f"link-{self.hand}")
         if self.rt_priority > 1:
             set_realtime(self.rt_priority - 1)
+        self._ready.set()
         period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
         next_ns = time.monotonic_ns() + period_ns
         while not self._stop.is_set():
