@@ -259,11 +259,16 @@ class Row:
 
 
 def rows(
-    cfg: TissueConfig, fresh: bool = False, progress: bool = True, missing_ok: bool = False, level: int = REFERENCE_LEVEL
+    cfg: TissueConfig,
+    fresh: bool = False,
+    progress: bool = True,
+    missing_ok: bool = False,
+    level: int = REFERENCE_LEVEL,
+    distances_m: tuple[float, ...] = DISTANCES_M,
 ) -> list[Row] | None:
-    """Every distance and depth: the FEM (cached, mesh ``level``) and the model. With ``missing_ok`` None when a solve
-    is not cached."""
-    setups = [(d, p) for d in DISTANCES_M for p in (True, False)]
+    """Every distance (of ``distances_m``) and depth: the FEM (cached, mesh ``level``) and the model. With
+    ``missing_ok`` None when a solve is not cached."""
+    setups = [(d, p) for d in distances_m for p in (True, False)]
     res = {}
     bar = tqdm(setups, desc=f"two-punch FEM (pair, single) per distance, level {level}", disable=not progress)
     for d, p in bar:
@@ -273,7 +278,7 @@ def rows(
             return None
         res[d, p] = r
     out = []
-    for d in tqdm(DISTANCES_M, desc="two-punch model", disable=not progress, leave=False):
+    for d in tqdm(distances_m, desc="two-punch model", disable=not progress, leave=False):
         for depth in DEPTHS_M:
             (left, right), issue = model_pair_n(cfg, d, depth)
             single, issue_single = model_single_n(cfg, d / 2, depth)
@@ -1076,40 +1081,57 @@ volume the punch displaces, `L^4 d/dr Lap w = -a depth/2` (no net volume). `unif
 model as in the profile check above (2 mm, the FEM's field every 0.5 mm)."""
 
 
-COARSE_LEVEL = REFERENCE_LEVEL - 1
-"""The mesh level one coarser than the reference's, whose solves stay in the tracked cache: the table's FEM at both
-levels shows how far the reference's discretisation moves each verdict (:func:`mesh_convergence_text`)."""
+FINE_LEVEL = REFERENCE_LEVEL + 1
+"""One mesh level finer than the reference's (6 elements over the punch's radius): its solves, where cached, show how
+far the reference's discretisation moves each row (:func:`fine_rows`, :func:`mesh_convergence_text`). A pair and its
+single take 12-30 min each here with PARDISO, so the command reads them and never solves them."""
 
-CONVERGENCE_INTRO = """## The reference's mesh
+CONVERGENCE_INTRO = f"""## The reference one mesh level finer
 
-The whole table at the reference's mesh level and one level coarser (fewer elements over the punch's radius and
-through the layers; `fem.mesh_levels`): the FEM's interaction over its single force, and the model's interaction
-error and verdict against each. Where a verdict differs between the levels, it sits inside the reference's own
-discretisation error and says so."""
+The rows whose solves are cached at level {FINE_LEVEL} (finer over the punch's radius and through the layers;
+`fem.mesh_levels`) beside the table's level {REFERENCE_LEVEL}: the FEM's interaction over its single force at both,
+and the model's interaction error and verdict against each. A verdict that differs between the levels sits inside the
+reference's own discretisation error."""
 
 
-def mesh_convergence_text(rs: list[Row], coarse: list[Row]) -> str:
-    """The table's rows against the reference (``rs``) and against the coarser mesh (``coarse``, :func:`rows` at
-    :data:`COARSE_LEVEL`), with the change of the FEM's interaction between the two levels."""
+def fine_rows(cfg: TissueConfig) -> list[Row]:
+    """:func:`rows` at :data:`FINE_LEVEL` for each distance whose pair and single are both cached (none solved)."""
+    out: list[Row] = []
+    for d in DISTANCES_M:
+        got = rows(cfg, progress=False, missing_ok=True, level=FINE_LEVEL, distances_m=(d,))
+        out += got or []
+    return out
+
+
+def mesh_convergence_text(rs: list[Row], fine: list[Row]) -> str:
+    """The table's rows (``rs``, :data:`REFERENCE_LEVEL`) beside the same rows at :data:`FINE_LEVEL` (``fine``,
+    :func:`fine_rows`), with the change of the FEM's interaction and single force between the two levels."""
+    ref = {(r.distance_m, r.depth_m): r for r in rs}
     lines = [
-        f"| d (mm) | depth (mm) | FEM int. / single, level {COARSE_LEVEL} | level {REFERENCE_LEVEL} | change "
-        f"| FEM single, level {COARSE_LEVEL} -> {REFERENCE_LEVEL} | interaction err, level {COARSE_LEVEL} "
-        f"| level {REFERENCE_LEVEL} | verdict, level {COARSE_LEVEL} | level {REFERENCE_LEVEL} |",
+        f"| d (mm) | depth (mm) | FEM int. / single, level {REFERENCE_LEVEL} | level {FINE_LEVEL} | change "
+        f"| FEM single, level {REFERENCE_LEVEL} -> {FINE_LEVEL} | interaction err, level {REFERENCE_LEVEL} "
+        f"| level {FINE_LEVEL} | verdict, level {REFERENCE_LEVEL} | level {FINE_LEVEL} |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for r, k in zip(rs, coarse):
+    moved = []
+    for f in fine:
+        r = ref[f.distance_m, f.depth_m]
         lines.append(
-            f"| {r.distance_m * 1e3:g} | {r.depth_m * 1e3:g} | {k.fem_fraction:+.4f} | {r.fem_fraction:+.4f} "
-            f"| {r.fem_fraction - k.fem_fraction:+.4f} | {r.fem_single_n / k.fem_single_n - 1:+.2%} "
-            f"| {k.interaction_error:+.0%}{' (abs.)' if k.small_interaction else ''} "
-            f"| {r.interaction_error:+.0%}{' (abs.)' if r.small_interaction else ''} "
-            f"| {'PASS' if k.ok else 'FAIL'} | {'PASS' if r.ok else 'FAIL'} |"
+            f"| {f.distance_m * 1e3:g} | {f.depth_m * 1e3:g} | {r.fem_fraction:+.4f} | {f.fem_fraction:+.4f} "
+            f"| {f.fem_fraction - r.fem_fraction:+.4f} | {f.fem_single_n / r.fem_single_n - 1:+.2%} "
+            f"| {r.interaction_error:+.1%}{' (abs.)' if r.small_interaction else ''} "
+            f"| {f.interaction_error:+.1%}{' (abs.)' if f.small_interaction else ''} "
+            f"| {'PASS' if r.ok else 'FAIL'} | {'PASS' if f.ok else 'FAIL'} |"
         )
-    moved = [f"{r.distance_m * 1e3:g} mm, {r.depth_m * 1e3:g} mm" for r, k in zip(rs, coarse) if r.ok != k.ok]
+        if r.ok != f.ok:
+            moved.append(f"{f.distance_m * 1e3:g} mm, {f.depth_m * 1e3:g} mm")
+    solved = sorted({f"{f.distance_m * 1e3:g}" for f in fine}, key=float)
+    missing = [f"{d * 1e3:g}" for d in DISTANCES_M if f"{d * 1e3:g}" not in solved]
     lines += [
         "",
-        f"Rows passing: {sum(k.ok for k in coarse)} of {len(coarse)} against level {COARSE_LEVEL}, "
-        f"{sum(r.ok for r in rs)} of {len(rs)} against level {REFERENCE_LEVEL}; "
+        f"Solved at level {FINE_LEVEL}: {', '.join(solved) or 'none'} mm"
+        + (f" (not: {', '.join(missing)} mm)" if missing else "")
+        + "; "
         + (f"verdicts that change with the mesh: {'; '.join(moved)}." if moved else "no verdict changes with the mesh."),
     ]
     return "\n".join(lines)
@@ -1122,10 +1144,10 @@ def markdown(
     imps: list[Implied] | None = None,
     prof: Profiles | None = None,
     lin: Linear | None = None,
-    coarse: list[Row] | None = None,
+    fine: list[Row] | None = None,
 ) -> str:
-    """The page: the command, the table, the aims and verdicts, the reference's mesh (``coarse``: the rows one level
-    coarser), the checks, the findings, what the reference implies for the coupling (``imps``, :func:`implied`), where
+    """The page: the command, the table, the aims and verdicts, the reference one level finer (``fine``:
+    :func:`fine_rows`), the checks, the findings, what the reference implies for the coupling (``imps``, :func:`implied`), where
     the heave would come from (``prof``, :func:`foundation_profiles`), and the method."""
     ok = all(r.ok for r in rs)
     spread = max(r.model_pair_spread for r in rs)
@@ -1151,7 +1173,7 @@ def markdown(
             "",
             issue_table(rs),
             "",
-            *([] if coarse is None else [CONVERGENCE_INTRO, "", mesh_convergence_text(rs, coarse), ""]),
+            *([CONVERGENCE_INTRO, "", mesh_convergence_text(rs, fine), ""] if fine else []),
             "## Checks",
             "",
             "Lateral boundary: the single punch centred on the block (quarter model, the existing mesh) against the "
@@ -1184,13 +1206,13 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     cfg = load_tissue_config(CONFIG)
     rs = rows(cfg, a.fresh)
-    coarse = rows(cfg, progress=False, missing_ok=True, level=COARSE_LEVEL)  # read, never solved here
+    fine = fine_rows(cfg)  # read, never solved here
     c = checks(cfg, a.fresh)
     imps = implied(cfg, rs, a.fresh)
     prof = foundation_profiles(cfg, a.fresh)
     lin = linear_layers(cfg, prof)
     command = "skin-sim two-punch" + "".join(f" {shlex.quote(x)}" for x in (argv if argv is not None else sys.argv[1:]))
-    text = markdown(rs, c, command, imps, prof, lin, coarse)
+    text = markdown(rs, c, command, imps, prof, lin, fine)
     (out / "two_punch.md").write_text(text)
     print(table(rs))
     print()
@@ -1198,10 +1220,10 @@ def main(argv=None) -> int:
     print()
     print(issue_table(rs))
     print()
-    if coarse is not None:
-        print(mesh_convergence_text(rs, coarse))
+    if fine:
+        print(mesh_convergence_text(rs, fine))
     else:
-        print(f"(the table one mesh level coarser is left out: level {COARSE_LEVEL}'s solves are not cached)")
+        print(f"(no row is cached one mesh level finer, level {FINE_LEVEL}: that section is left out)")
     print()
     print(checks_text(c))
     print()
