@@ -104,7 +104,8 @@ REFERENCE_LEVEL = THREE_D_LEVEL + 1
 references (:data:`~.references.THREE_D_LEVEL`, 4 elements over the punch's radius instead of 3, 2 through the
 epidermis instead of 1). The overlapping pair is what sets it: its interaction over the single force at the first load
 stop (0.25 mm) is -0.083, -0.089 and -0.088 at levels -2, -1 and 0 (docs/two_hands.md, "Session 13"), so level -2 was
-7 % short of the finer two, and level -1 is within 0.0011 of level 0; at 6 mm levels -2 and -1 agree within 0.002."""
+7 % short of the finer two, and level -1 is within 0.0011 of level 0; at 6 mm levels -2 and -1 agree within 0.002, and
+-1 and 0 within 0.0021 (session 16; :data:`FINE_LEVEL`, the page's section one level finer)."""
 
 
 def fem_base(cfg: TissueConfig, level: int = REFERENCE_LEVEL) -> FemSetup:
