@@ -209,15 +209,15 @@ def test_one_process_keeps_each_hands_bridge_apart_under_a_namespace_remap(tmp_p
         assert f"/robot/{h}/device/servo_cf" in log, log[-3000:]
     assert "already registered" not in log, log[-3000:]  # each bridge's device readers (its servo node) in its own name
     # each thread that sets its own scheduling kept it when the other hand's bridge started (the second bridge's
-    # process-wide change raised the first hand's node link from 79 to 80)
+    # process-wide change once raised the first hand's node link from 79 to 80, and left the second's at 79)
     assert set(own) == set(OWN_THREADS), (own, log[-3000:])
     if "device path at SCHED_FIFO 80" in log:  # granted (root here); refused, every thread runs at priority 0
         assert own == OWN_THREADS, own
 
 
-OWN_THREADS = {"skin-servo-0": 80, "skin-servo-1": 80, "skin-link-0": 79, "skin-link-1": 79, "skin-node-clock": 80}
+OWN_THREADS = {"skin-servo-0": 80, "skin-servo-1": 80, "skin-link-0": 80, "skin-link-1": 80, "skin-node-clock": 80}
 """The composed two-hand process's own threads and their SCHED_FIFO priorities: each bridge's servo thread at its
-``rt_priority`` (80), its node link one below, the node's clock at the device path's (the bridge sets it)."""
+``rt_priority`` (80), its node link (which ticks the node) and the node's clock at the same (the bridge sets it)."""
 
 
 def _own_thread_priorities(pid: int, names: dict[str, int], granted, timeout_s: float = 30.0) -> dict[str, int]:

@@ -273,7 +273,7 @@ class BridgeNode(DeviceNode):
         self._model_cdr = ContactModelCdr.from_message_class(ContactModel)
         self._servo_stop = threading.Event()
         self._servo_wake = GuardCondition(None, None, context=self.context)
-        self.rt_message = self._device_path_realtime(p.rt_priority)
+        self.rt_message = self._device_path_realtime(p.rt_priority, in_process=local_node is not None)
         if local_node is not None and p.rt_priority > 0 and local_node.clock_thread_id is not None:
             # the node's clock takes a hand's queued pose when its link's thread is held off: at the device path's
             # priority (at 79 with the links, the node starved and models expired: docs/two_hands.md, "Session 10")
@@ -358,11 +358,12 @@ class BridgeNode(DeviceNode):
         self._servo.start()
         self._servo_ready.wait(THREAD_SETUP_WAIT_S)  # named and at its priority before a second bridge's change
 
-    def _device_path_realtime(self, priority: int) -> str:
+    def _device_path_realtime(self, priority: int, in_process: bool = False) -> str:
         """SCHED_FIFO for every thread that exists now: the device-side participant's DDS threads and the main thread
         (its executor only serves the parameter services; it blocks, and at this priority a busy process cannot hold it
         off the GIL). With SCHED_RESET_ON_FORK, threads started after this do not inherit it: the servo thread sets
-        ``priority`` itself, the node link one less. Threads named ``skin-*`` (``ros_util.OWN_THREAD_PREFIX``) keep
+        ``priority`` itself, the node link one less (``in_process``, the node in this process: the same, as it ticks
+        the node). Threads named ``skin-*`` (``ros_util.OWN_THREAD_PREFIX``) keep
         theirs: with the node in this process, the first hand's servo thread and link keep theirs when the second
         hand's bridge starts (its link was raised to 80), and the node's clock is set to ``priority`` on purpose
         (:meth:`__init__`). Every one of them blocks on I/O: nothing spins at SCHED_FIFO.
@@ -374,7 +375,7 @@ class BridgeNode(DeviceNode):
         if why is None:
             return (
                 f"device path at SCHED_FIFO {priority} (servo thread blocking in rcl_wait, device-side DDS threads; "
-                f"node link {priority - 1})"
+                f"node link {priority if in_process else priority - 1})"
             )
         return (
             f"SCHED_FIFO refused for the device path ({why}): it shares the CPU with the node, the display and joining "

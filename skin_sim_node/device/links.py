@@ -269,8 +269,12 @@ class LocalLink:
 
     def _run(self) -> None:
         name_own_thread(f"link-{self.hand}")
-        if self.rt_priority > 1:
-            set_realtime(self.rt_priority - 1)
+        if self.rt_priority > 0:
+            # the servo thread's priority, not one below: this thread ticks the node, and below the servo threads,
+            # the node's clock and the DDS threads the node starved (docs/two_hands.md, "Session 10"); until session
+            # 16 the second bridge's start raised the first hand's link to it by accident, and with both at 79 the
+            # alternating pairs answered fewer poses ("Session 16")
+            set_realtime(self.rt_priority)
         self._ready.set()
         period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
         next_ns = time.monotonic_ns() + period_ns
