@@ -175,18 +175,12 @@ def spin_context(executor, context, stop: threading.Event) -> None:
 _CLOCK_MONOTONIC = 1  # <time.h>; time.perf_counter_ns reads this clock on Linux
 _TIMER_ABSTIME = 1
 _PR_SET_TIMERSLACK = 29  # <linux/prctl.h>
-_PR_SET_NAME = 15  # <linux/prctl.h>: the calling thread's name (comm), at most 15 bytes
 OWN_THREAD_PREFIX = "skin-"
-"""Kernel name prefix of skin-sim's own loop threads (:func:`name_own_thread`): every :class:`PeriodicLoop` (the
+"""Kernel name prefix of skin-sim's own loop threads (:func:`start_own_thread`): every :class:`PeriodicLoop` (the
 node's clock, a simulated device's loop), a bridge's servo thread and node link. Each sets its own scheduling (its
 ``rt_priority``, or none), so a process-wide priority change (:func:`set_pid_realtime` with ``skip_own``) leaves them
 at theirs; ``ps -L`` / ``/proc/<pid>/task/*/comm`` show which thread runs at what, and ``bench-device`` splits a
 process's CPU by them."""
-
-THREAD_SETUP_WAIT_S = 1.0
-"""How long the starter of such a thread waits for it to name itself and set its scheduling (:meth:`PeriodicLoop.start`,
-the bridge's servo thread, the node links): once started, a process-wide change made next (a second bridge's) cannot
-reach it unnamed. It takes microseconds; the bound only keeps a starved start from hanging its starter."""
 
 
 class _Timespec(ctypes.Structure):
@@ -220,12 +214,18 @@ def set_timer_slack_ns(slack_ns: int) -> bool:
     return _LIBC is not None and _LIBC.prctl(_PR_SET_TIMERSLACK, ctypes.c_ulong(slack_ns), 0, 0, 0) == 0
 
 
-def name_own_thread(name: str) -> bool:
-    """Name the calling thread ``skin-<name>`` in the kernel (15 bytes at most, the rest cut): one that sets its own
-    scheduling, so a process-wide change passes it by (:data:`OWN_THREAD_PREFIX`). False where prctl is missing."""
-    if _LIBC is None:  # pragma: no cover - not glibc/Linux
+def start_own_thread(thread: threading.Thread, name: str) -> bool:
+    """Start ``thread`` and name it ``skin-<name>`` in the kernel (15 bytes at most, the rest cut) before returning:
+    a thread that sets its own scheduling, so a process-wide change made next (a second bridge's) passes it by
+    (:data:`OWN_THREAD_PREFIX`). ``Thread.start`` returns once the thread runs and has its ``native_id``; the name is
+    written to its ``/proc/self/task/<tid>/comm``. False where that is missing (not Linux)."""
+    thread.start()
+    try:
+        with open(f"/proc/self/task/{thread.native_id}/comm", "wb") as f:
+            f.write((OWN_THREAD_PREFIX + name).encode()[:15])
+        return True
+    except OSError:  # pragma: no cover - not Linux, or the thread already ended
         return False
-    return _LIBC.prctl(_PR_SET_NAME, (OWN_THREAD_PREFIX + name).encode()[:15], 0, 0, 0) == 0
 
 
 def thread_names(pid: int) -> dict[int, str]:
@@ -368,13 +368,11 @@ class PeriodicLoop:
         self.ticks = 0
         self._reported: set[type] = set()
         self._stop = threading.Event()
-        self._ready = threading.Event()  # set once the thread has named itself and set its scheduling
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> None:
-        """Start the loop thread, and wait (at most :data:`THREAD_SETUP_WAIT_S`) until it has set its scheduling."""
-        self._thread.start()
-        self._ready.wait(THREAD_SETUP_WAIT_S)
+        """Start the loop thread, named ``skin-<name>`` (:func:`start_own_thread`)."""
+        start_own_thread(self._thread, self._thread.name)
 
     @property
     def native_id(self) -> int | None:
@@ -389,7 +387,6 @@ class PeriodicLoop:
 
     def _setup_thread(self) -> None:
         t = self.timing
-        name_own_thread(self._thread.name)
         problems = []
         if t.rt_priority > 0:
             problems.append(set_realtime(t.rt_priority))
@@ -397,7 +394,6 @@ class PeriodicLoop:
             problems.append(set_affinity(t.cpus))
         if t.timer_slack_ns >= 0 and not set_timer_slack_ns(t.timer_slack_ns):
             problems.append(f"timer slack {t.timer_slack_ns} ns not applied")
-        self._ready.set()
         for msg in filter(None, problems):
             self.warnings.append(f"{self._thread.name}: {msg}")
             if self.on_warning:

@@ -222,7 +222,7 @@ def test_a_run_that_raises_leaves_no_process_behind(tmp_path, monkeypatch):
 
 
 def test_a_process_cpu_is_split_by_its_threads_names():
-    """``ProcCpu`` counts each thread's CPU under its group: a thread that names itself ``skin-*`` under its name, the
+    """``ProcCpu`` counts each thread's CPU under its group: a thread named ``skin-*`` under its name, the
     first thread as ``main``. A named thread that burns CPU shows it (50 ms of it, however long that takes); one
     asleep all that time shows almost none."""
     import os
@@ -230,28 +230,20 @@ def test_a_process_cpu_is_split_by_its_threads_names():
     import time
 
     from skin_sim_lab.perf.cpu_budget import ProcCpu, thread_group
-    from skin_sim_node.ros_util import name_own_thread
+    from skin_sim_node.ros_util import start_own_thread
 
     assert thread_group("skin-servo-0", 11, 10) == "skin-servo-0"
     assert thread_group("dds.udp.7412", 11, 10) == "dds"
     assert thread_group("python", 10, 10) == "main" and thread_group("python", 11, 10) == "other"
-    stop, ready = threading.Event(), threading.Barrier(3)
+    stop = threading.Event()
 
     def burn():
-        name_own_thread("test-burn")
-        ready.wait()
         while not stop.is_set():
             sum(range(1000))
 
-    def sleep():
-        name_own_thread("test-idle")
-        ready.wait()
-        stop.wait()
-
-    threads = [threading.Thread(target=f, daemon=True) for f in (burn, sleep)]
-    for t in threads:
-        t.start()
-    ready.wait()
+    threads = [threading.Thread(target=f, daemon=True) for f in (burn, stop.wait)]
+    for t, name in zip(threads, ("test-burn", "test-idle")):
+        start_own_thread(t, name)  # named when it returns
     cpu = ProcCpu(os.getpid(), threads=True)
     try:
         cpu.mark()

@@ -107,7 +107,7 @@ class ProcCpu:
 
 def thread_group(name: str, tid: int, pid: int) -> str:
     """The group a thread's CPU is counted in: ``main`` (the process's first thread: its executor), a thread that
-    names itself (``skin-servo-0``, ``skin-link-1``, ``skin-node-clock``: :func:`skin_sim_node.ros_util.name_own_thread`)
+    is named ``skin-*`` (``skin-servo-0``, ``skin-link-1``, ``skin-node-clock``: :func:`skin_sim_node.ros_util.start_own_thread`)
     under its name, Fast DDS's threads (``dds.*``: receive, events, async writes) as ``dds``, the rest ``other``
     (rclpy's and Python's unnamed threads, the display's)."""
     from skin_sim_node.ros_util import OWN_THREAD_PREFIX

@@ -629,6 +629,13 @@ def missed_aims(ph: dict, one_process: bool = False) -> list[str]:
     return missed
 
 
+def print_node_threads(res: dict) -> None:
+    """One line per phase: the node's process CPU by thread group (% of one core; ``cpu_budget.thread_group``)."""
+    for name, groups in res.get("node_threads", {}).items():
+        if groups:
+            print(f"{name:<9} node process by thread: " + ", ".join(f"{g} {v:.1f} %" for g, v in groups.items()))
+
+
 def print_table(ph: dict) -> None:
     """Print one row per phase: rates, answered, gaps, force limits and the render/hold force errors."""
     print(
@@ -1000,9 +1007,7 @@ def main(argv=None) -> int:
     print(f"  machine after: {_machine()}")
     print_table(ph)
     print_budget(ph, res["echo_pct"])
-    for name, groups in res["node_threads"].items():
-        if groups:
-            print(f"{name:<9} node process by thread: " + ", ".join(f"{g} {v:.1f} %" for g, v in groups.items()))
+    print_node_threads(res)
     print(
         "columns: x = commands per device pose; own late = the emulator's late slots (the scheduling baseline; gaps>5 "
         "excludes gaps that contain one); max/F = largest |command| / |F_true| where |F_true| > 0.05 N; x p99 = render "

@@ -43,6 +43,7 @@ from .device_bench import (
     parser,
     phase_windows,
     print_gaps,
+    print_node_threads,
     print_table,
     run,
 )
@@ -160,9 +161,7 @@ def print_cpu(res: dict) -> None:
         nb = vals[0] + sum(c.get(n, 0.0) for n in names[1:3])  # --with-node: the bridges are in the node's process
         cells = [f"{v:7.1f} % {v / echo if echo > 0 else float('nan'):5.2f}x" for v in [*vals, nb]]
         print(f"{ph:<9} " + " ".join(f"{c_:>16}" for c_ in cells))
-    for ph, groups in res.get("node_threads", {}).items():
-        if groups:
-            print(f"{ph:<9} node process by thread: " + ", ".join(f"{g} {v:.1f} %" for g, v in groups.items()))
+    print_node_threads(res)
     print(
         f"CPU: % of one core per process over the phase (the node's display worker included), and x = its ratio to the "
         f"bare rclpy echo's {echo:.1f} % measured in this run (1 kHz poses in, wrenches out); node+bridges: the two "

@@ -52,15 +52,7 @@ from msgs_schema.qos import PROFILES, publisher, subscription
 from msgs_schema.topics import FRAMES, TOPICS
 
 from ..rate import AnswerThrottle
-from ..ros_util import (
-    THREAD_SETUP_WAIT_S,
-    hold_cpu_latency,
-    localhost_udp_env,
-    name_own_thread,
-    ros_now_ns,
-    set_pid_realtime,
-    set_realtime,
-)
+from ..ros_util import hold_cpu_latency, localhost_udp_env, ros_now_ns, set_pid_realtime, set_realtime, start_own_thread
 from ..server.journal import HELP as JOURNAL_HELP
 from ..server.journal import AnswerJournal
 from .base import DeviceNode, publish_while_ok
@@ -335,7 +327,6 @@ class BridgeNode(DeviceNode):
         self._rejected_logged: set[str] = set()
         self._watchdog_period_ns = int(1e9 / p.watchdog_rate_hz)
         self._servo = threading.Thread(target=self._servo_loop, name="servo", daemon=True)
-        self._servo_ready = threading.Event()
         src = self.server.node.resolve_topic_name(TOPICS["contact_model" if self.model_source else "tool_wrench"].name)
         src = f"{src} rendered per device tick" if self.model_source else src
         tool_pose = self.server.node.resolve_topic_name(TOPICS["tool_pose"].name)
@@ -355,8 +346,7 @@ class BridgeNode(DeviceNode):
         (self.get_logger().info if self.rt_message.startswith("device path") else self.get_logger().warning)(self.rt_message)
         if self.TRANSPORT_NOTE:
             self.get_logger().info(f"transports: {self.TRANSPORT_NOTE}")
-        self._servo.start()
-        self._servo_ready.wait(THREAD_SETUP_WAIT_S)  # named and at its priority before a second bridge's change
+        start_own_thread(self._servo, f"servo-{self.hand}")  # named before a second bridge's change
 
     def _device_path_realtime(self, priority: int, in_process: bool = False) -> str:
         """SCHED_FIFO for every thread that exists now: the device-side participant's DDS threads and the main thread
@@ -393,10 +383,8 @@ class BridgeNode(DeviceNode):
         that does, leaves the passivity observer booking the bridge's own command, as without ``measured_cf``.
         """
         prio = self.p.rt_priority if not self.rt_message.startswith("SCHED_FIFO refused") else 0
-        name_own_thread(f"servo-{self.hand}")
         if prio > 0:
             set_realtime(prio)
-        self._servo_ready.set()
         pose_sub = self._servo_subs[-1][0]  # the tick: a device pose (its velocity and applied force are taken with it)
         pose_handle, wake_handle = pose_sub.handle, self._servo_wake.handle  # once: rclpy's properties cost per call
         ws = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self.context.handle)

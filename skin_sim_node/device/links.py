@@ -18,7 +18,7 @@ from msgs_schema.convert import PoseCdr, fill_twist
 from msgs_schema.qos import publisher, subscription
 from msgs_schema.topics import FRAMES
 
-from ..ros_util import THREAD_SETUP_WAIT_S, name_own_thread, set_realtime
+from ..ros_util import set_realtime, start_own_thread
 from .base import publish_while_ok
 from .mapping import without_namespace_remap
 
@@ -76,7 +76,6 @@ class ServerLink:
         forward_twist: bool = False,
     ):
         self._periodic = periodic
-        self._hand = getattr(bridge, "hand", 0)  # its thread's name: link-<hand>
         self._reported: set[tuple[str, str]] = set()  # (what, exception type) of the failures reported: _report
         self.ctx = rclpy.Context()
         rclpy.init(args=without_namespace_remap(ros_args) if node_ns else ros_args, context=self.ctx)
@@ -97,10 +96,8 @@ class ServerLink:
         self._wake = GuardCondition(None, None, context=self.ctx)
         self._stop = threading.Event()
         self.forwarded = 0
-        self._ready = threading.Event()
         self._thread = threading.Thread(target=self._run, name="server-link", daemon=True)
-        self._thread.start()
-        self._ready.wait(THREAD_SETUP_WAIT_S)  # named and at its priority before a second bridge's change
+        start_own_thread(self._thread, f"link-{getattr(bridge, 'hand', 0)}")  # named before a second bridge's change
 
     def send(self, pose: tuple, twist: tuple | None = None) -> None:
         """Hand the newest due pose ``(stamp, xyz, quat)`` (and the device's twist ``(stamp, linear)``) to the thread."""
@@ -110,10 +107,8 @@ class ServerLink:
 
     def _run(self) -> None:
         """Wait for a model, a pose to forward or the diagnostics' time; handle each; until :meth:`close`."""
-        name_own_thread(f"link-{self._hand}")
         if self.rt_priority > 1:  # one below the servo thread: no priority inversion through the GIL
             set_realtime(self.rt_priority - 1)
-        self._ready.set()
         period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
         next_ns = time.monotonic_ns() + period_ns  # the first after one period: the bridge finishes its start first
         ws = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self.ctx.handle)
@@ -231,10 +226,8 @@ class LocalLink:
         servo thread was away from its device), the periodic call (``periodic``): where a hand's poses stop reaching
         the node while its device streams."""
         self._reported: set[tuple[str, str]] = set()  # (what, exception type) of the failures reported: _report
-        self._ready = threading.Event()
         self._thread = threading.Thread(target=self._run, name="local-link", daemon=True)
-        self._thread.start()
-        self._ready.wait(THREAD_SETUP_WAIT_S)  # named and at its priority before a second bridge's change
+        start_own_thread(self._thread, f"link-{hand}")  # named before a second bridge's change
 
     def send(self, pose: tuple, twist: tuple | None = None) -> None:
         """Queue the due pose ``(stamp, xyz, quat)`` (and twist ``(stamp, linear)``) in the node's hand (no lock: the
@@ -268,14 +261,12 @@ class LocalLink:
             self.longest_ms[key] = ms
 
     def _run(self) -> None:
-        name_own_thread(f"link-{self.hand}")
         if self.rt_priority > 0:
             # the servo thread's priority, not one below: this thread ticks the node, and below the servo threads,
             # the node's clock and the DDS threads the node starved (docs/two_hands.md, "Session 10"); until session
             # 16 the second bridge's start raised the first hand's link to it by accident, and with both at 79 the
             # alternating pairs answered fewer poses ("Session 16")
             set_realtime(self.rt_priority)
-        self._ready.set()
         period_ns = int(self._periodic[0] * 1e9) if self._periodic is not None else 0
         next_ns = time.monotonic_ns() + period_ns
         while not self._stop.is_set():
